@@ -1,0 +1,1 @@
+//! pneuflex-multibody (being built).

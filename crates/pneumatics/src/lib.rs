@@ -1,0 +1,1 @@
+//! pneuflex-pneumatics (being built).

@@ -1,0 +1,1 @@
+//! pneuflex-rig (being built).

@@ -1,0 +1,1 @@
+//! pneuflex-scene (being built).

@@ -1,0 +1,1 @@
+//! pneuflex-viz (being built).

@@ -1,0 +1,2 @@
+//! The `pneuflex` command line: argument parsing, progress and wiring only.
+fn main() {}
