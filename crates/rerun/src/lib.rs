@@ -1,0 +1,2 @@
+//! Rerun recording of pneuflex runs.
+pub use rerun;
