@@ -1,0 +1,257 @@
+//! Adaptive position correction of eqs. (25)–(36): Δx_f = g + p·e + d·ẋ with the σ-modified
+//! adaptation laws of eq. (35).
+//!
+//! Units convention: the paper's gains (λp = 1, λd = 8, μ1 = 0.01, μ2 = 1e-4, μ3 = 0.01,
+//! σ = 0.1) carry no units. The law here runs on scaled signals ê = e / force_unit_n,
+//! v̂ = ẋ / position_unit_m and produces Δx̂_f in position units, Δx_f = position_unit_m · Δx̂_f.
+//! With force_unit_n = 1 and position_unit_m = 1 the gains are read in SI; with
+//! position_unit_m = 1e-3 they are read with positions in mm (see docs/control.md for the
+//! choice and the measurements behind it).
+//!
+//! Integration: each adaptive state q ∈ {g, p, d} obeys q' = -r q + u with its leakage rate
+//! r (σ, or -σ1 for the as-printed anti-leakage sign) and a forcing u held over the period;
+//! it is advanced exactly, q ← q e^{-r dt} + u (1 - e^{-r dt}) / r, so with e = ẋ = 0 the
+//! states decay exactly as exp(-σ t) at any control period.
+
+use crate::error::{ParamError, finite, non_negative, positive};
+
+/// Sign of the velocity term inside χ (eq. (35)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LambdaDSign {
+    /// χ = -(λp e - λd ẋ): eq. (34)'s χ = -(λp e + λv ė) with ė = -k_e ẋ in contact,
+    /// λd = λv k_e > 0. The velocity term then damps (d < 0) instead of anti-damping.
+    FromEdot,
+    /// χ = -(λp e + λd ẋ) exactly as printed in eq. (35).
+    AsPrinted,
+}
+
+/// Sign of the σ1 term in the g law (eq. (35)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sigma1Sign {
+    /// g' = -μ1 χ - σ1 g: σ-modification (leakage), like the p and d laws.
+    Leakage,
+    /// g' = -μ1 χ + σ1 g exactly as printed: anti-leakage, g grows as exp(+σ1 t).
+    AsPrinted,
+}
+
+/// Gains of the adaptive law (eq. (35)) and the units they are read in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdaptiveParams {
+    /// λp, weight of the force error in χ.
+    pub lambda_p: f64,
+    /// λd, weight of the velocity in χ (sign chosen by `lambda_d_sign`).
+    pub lambda_d: f64,
+    /// μ1, adaptation gain of g.
+    pub mu1: f64,
+    /// μ2, adaptation gain of p.
+    pub mu2: f64,
+    /// μ3, adaptation gain of d.
+    pub mu3: f64,
+    /// σ1, leakage of g, 1/s.
+    pub sigma1: f64,
+    /// σ2, leakage of p, 1/s.
+    pub sigma2: f64,
+    /// σ3, leakage of d, 1/s.
+    pub sigma3: f64,
+    /// Force unit the gains are read in, N (1 = newtons).
+    pub force_unit_n: f64,
+    /// Position unit the gains are read in, m (1 = metres, 1e-3 = millimetres).
+    pub position_unit_m: f64,
+    /// Sign of λd inside χ.
+    pub lambda_d_sign: LambdaDSign,
+    /// Sign of the σ1 term.
+    pub sigma1_sign: Sigma1Sign,
+}
+
+impl AdaptiveParams {
+    /// The paper's numbers (Section III-E) in the units convention and signs chosen by this crate
+    /// (see docs/control.md): this is `Default`.
+    pub fn paper() -> Self {
+        Self {
+            position_unit_m: 1.0,
+            force_unit_n: 1.0,
+            ..Self::paper_si_as_printed()
+        }
+        .with_signs(LambdaDSign::FromEdot, Sigma1Sign::Leakage)
+    }
+
+    /// The paper's numbers read in SI with the signs exactly as printed in eq. (35).
+    pub fn paper_si_as_printed() -> Self {
+        Self {
+            lambda_p: 1.0,
+            lambda_d: 8.0,
+            mu1: 0.01,
+            mu2: 0.0001,
+            mu3: 0.01,
+            sigma1: 0.1,
+            sigma2: 0.1,
+            sigma3: 0.1,
+            force_unit_n: 1.0,
+            position_unit_m: 1.0,
+            lambda_d_sign: LambdaDSign::AsPrinted,
+            sigma1_sign: Sigma1Sign::AsPrinted,
+        }
+    }
+
+    /// The same gains with other signs.
+    pub fn with_signs(self, lambda_d_sign: LambdaDSign, sigma1_sign: Sigma1Sign) -> Self {
+        Self {
+            lambda_d_sign,
+            sigma1_sign,
+            ..self
+        }
+    }
+
+    /// The same gains read in other units (force unit in N, position unit in m).
+    pub fn with_units(self, force_unit_n: f64, position_unit_m: f64) -> Self {
+        Self {
+            force_unit_n,
+            position_unit_m,
+            ..self
+        }
+    }
+
+    /// Checks every gain finite and >= 0, and the unit scales > 0.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        non_negative("lambda_p", self.lambda_p)?;
+        non_negative("lambda_d", self.lambda_d)?;
+        non_negative("mu1", self.mu1)?;
+        non_negative("mu2", self.mu2)?;
+        non_negative("mu3", self.mu3)?;
+        non_negative("sigma1", self.sigma1)?;
+        non_negative("sigma2", self.sigma2)?;
+        non_negative("sigma3", self.sigma3)?;
+        positive("force_unit_n", self.force_unit_n)?;
+        positive("position_unit_m", self.position_unit_m)?;
+        Ok(())
+    }
+}
+
+impl Default for AdaptiveParams {
+    fn default() -> Self {
+        Self::paper()
+    }
+}
+
+/// Exact one-period factors of q' = -r q + u: (e^{-r dt}, (1 - e^{-r dt}) / r).
+fn leak_factors(r: f64, dt: f64) -> (f64, f64) {
+    let decay = libm::exp(-r * dt);
+    let gain = if r == 0.0 {
+        dt
+    } else {
+        -libm::expm1(-r * dt) / r
+    };
+    (decay, gain)
+}
+
+/// State of the adaptive law: g, p, d in the scaled units of [`AdaptiveParams`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdaptiveLaw {
+    params: AdaptiveParams,
+    g: f64,
+    p: f64,
+    d: f64,
+    chi: f64,
+    dt_cached: f64,
+    /// (decay, gain) for g, p, d.
+    factors: [(f64, f64); 3],
+}
+
+impl AdaptiveLaw {
+    /// A law with g = p = d = 0 (g0 = p0 = d0 = 0, as the paper takes them).
+    pub fn new(params: AdaptiveParams) -> Result<Self, ParamError> {
+        params.validate()?;
+        Ok(Self {
+            params,
+            g: 0.0,
+            p: 0.0,
+            d: 0.0,
+            chi: 0.0,
+            dt_cached: f64::NAN,
+            factors: [(1.0, 0.0); 3],
+        })
+    }
+
+    /// A law starting from given g0, p0, d0 (scaled units); used to check the σ decay.
+    pub fn with_initial(
+        params: AdaptiveParams,
+        g0: f64,
+        p0: f64,
+        d0: f64,
+    ) -> Result<Self, ParamError> {
+        finite("g0", g0)?;
+        finite("p0", p0)?;
+        finite("d0", d0)?;
+        let mut law = Self::new(params)?;
+        law.g = g0;
+        law.p = p0;
+        law.d = d0;
+        Ok(law)
+    }
+
+    /// The law's parameters.
+    pub fn params(&self) -> &AdaptiveParams {
+        &self.params
+    }
+
+    /// Advances g, p, d over one period with the force error `e_n` (N) and flange velocity
+    /// `x_dot_m_s` (m/s) held; returns Δx_f in metres (eq. (36)).
+    pub fn update(&mut self, e_n: f64, x_dot_m_s: f64, dt: f64) -> f64 {
+        let a = &self.params;
+        if dt.to_bits() != self.dt_cached.to_bits() {
+            let r1 = match a.sigma1_sign {
+                Sigma1Sign::Leakage => a.sigma1,
+                Sigma1Sign::AsPrinted => -a.sigma1,
+            };
+            self.factors = [
+                leak_factors(r1, dt),
+                leak_factors(a.sigma2, dt),
+                leak_factors(a.sigma3, dt),
+            ];
+            self.dt_cached = dt;
+        }
+        let e = e_n / a.force_unit_n;
+        let v = x_dot_m_s / a.position_unit_m;
+        // eq. (35), χ; the sign of λd is the resolution recorded in LambdaDSign.
+        let chi = match a.lambda_d_sign {
+            LambdaDSign::FromEdot => -(a.lambda_p * e - a.lambda_d * v),
+            LambdaDSign::AsPrinted => -(a.lambda_p * e + a.lambda_d * v),
+        };
+        self.chi = chi;
+        // eq. (35): g' = -μ1 χ ∓ σ1 g, p' = -μ2 χ e - σ2 p, d' = -μ3 χ ẋ - σ3 d.
+        let [(dg, kg), (dp, kp), (dd, kd)] = self.factors;
+        self.g = self.g * dg + kg * (-a.mu1 * chi);
+        self.p = self.p * dp + kp * (-a.mu2 * chi * e);
+        self.d = self.d * dd + kd * (-a.mu3 * chi * v);
+        // eq. (36): Δx_f = g + p e + d ẋ (scaled), back to metres.
+        (self.g + self.p * e + self.d * v) * a.position_unit_m
+    }
+
+    /// Auxiliary term g (position units of the params).
+    pub fn g(&self) -> f64 {
+        self.g
+    }
+
+    /// Proportional factor p (position unit per force unit).
+    pub fn p(&self) -> f64 {
+        self.p
+    }
+
+    /// Differential factor d (position unit per position unit/s, i.e. s).
+    pub fn d(&self) -> f64 {
+        self.d
+    }
+
+    /// χ of the last update.
+    pub fn chi(&self) -> f64 {
+        self.chi
+    }
+
+    /// Back to g = p = d = 0.
+    pub fn reset(&mut self) {
+        self.g = 0.0;
+        self.p = 0.0;
+        self.d = 0.0;
+        self.chi = 0.0;
+    }
+}

@@ -1,0 +1,145 @@
+//! The two controllers of Section III: position-based impedance control and model-reference
+//! adaptive impedance control, each followed by the inner PID position loop.
+
+use crate::adaptive::{AdaptiveLaw, AdaptiveParams};
+use crate::error::ParamError;
+use crate::impedance::{ImpedanceFilter, ImpedanceParams};
+use crate::io::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
+use crate::pid::{Pid, PidParams};
+
+/// Position-based impedance control: x_r = x_d + x_f (eq. (23)), then PID on x_r - x.
+#[derive(Clone, Copy, Debug)]
+pub struct ImpedanceController {
+    filter: ImpedanceFilter,
+    pid: Pid,
+    telemetry: Telemetry,
+}
+
+impl ImpedanceController {
+    /// Builds the controller; both parameter sets are validated.
+    pub fn new(impedance: ImpedanceParams, pid: PidParams) -> Result<Self, ParamError> {
+        Ok(Self {
+            filter: ImpedanceFilter::new(impedance)?,
+            pid: Pid::new(pid)?,
+            telemetry: Telemetry::default(),
+        })
+    }
+
+    /// The impedance filter (x_f state).
+    pub fn filter(&self) -> &ImpedanceFilter {
+        &self.filter
+    }
+
+    /// The inner position loop.
+    pub fn pid(&self) -> &Pid {
+        &self.pid
+    }
+}
+
+impl Controller for ImpedanceController {
+    fn update(&mut self, s: &Sensors, sp: &Setpoint, dt: f64) -> ValveCommand {
+        // eq. (19): e = f_r - f_e.
+        let e = sp.f_ref - s.f_e;
+        // eq. (22), exact ZOH step.
+        let x_f = self.filter.step(e, dt);
+        // eq. (23).
+        let x_r = sp.x_d + x_f;
+        let u = self.pid.update(x_r, s.x, dt);
+        self.telemetry = Telemetry {
+            x_r,
+            x_f,
+            dx_f: 0.0,
+            e,
+            g: 0.0,
+            p: 0.0,
+            d: 0.0,
+        };
+        ValveCommand::clamped(u)
+    }
+
+    fn telemetry(&self) -> Telemetry {
+        self.telemetry
+    }
+
+    fn reset(&mut self) {
+        self.filter.reset();
+        self.pid.reset();
+        self.telemetry = Telemetry::default();
+    }
+}
+
+/// Model-reference adaptive impedance control: x_r = x_d + x_f + Δx_f (eq. (25) with x_d
+/// restored), Δx_f = g + p e + d ẋ (eq. (36)), then PID on x_r - x.
+#[derive(Clone, Copy, Debug)]
+pub struct AdaptiveImpedanceController {
+    filter: ImpedanceFilter,
+    law: AdaptiveLaw,
+    pid: Pid,
+    telemetry: Telemetry,
+}
+
+impl AdaptiveImpedanceController {
+    /// Builds the controller; all parameter sets are validated.
+    pub fn new(
+        impedance: ImpedanceParams,
+        adaptive: AdaptiveParams,
+        pid: PidParams,
+    ) -> Result<Self, ParamError> {
+        Ok(Self {
+            filter: ImpedanceFilter::new(impedance)?,
+            law: AdaptiveLaw::new(adaptive)?,
+            pid: Pid::new(pid)?,
+            telemetry: Telemetry::default(),
+        })
+    }
+
+    /// The impedance filter (x_f state).
+    pub fn filter(&self) -> &ImpedanceFilter {
+        &self.filter
+    }
+
+    /// The adaptive law (g, p, d in the params' units).
+    pub fn law(&self) -> &AdaptiveLaw {
+        &self.law
+    }
+
+    /// The inner position loop.
+    pub fn pid(&self) -> &Pid {
+        &self.pid
+    }
+}
+
+impl Controller for AdaptiveImpedanceController {
+    fn update(&mut self, s: &Sensors, sp: &Setpoint, dt: f64) -> ValveCommand {
+        let e = sp.f_ref - s.f_e;
+        let x_f = self.filter.step(e, dt);
+        // eq. (36) with ẋ measured (eq. (26)'s ė replaced by ẋ, ė = -k_e ẋ in contact).
+        let dx_f = self.law.update(e, s.x_dot, dt);
+        // eq. (25): the paper prints x_r = x_f + Δx_f; x_d is restored so that Δx_f = 0 gives eq. (23).
+        let x_r = sp.x_d + x_f + dx_f;
+        let u = self.pid.update(x_r, s.x, dt);
+        let a = self.law.params();
+        // Telemetry in SI: g in m, p in m/N, d in s.
+        self.telemetry = Telemetry {
+            x_r,
+            x_f,
+            dx_f,
+            e,
+            g: self.law.g() * a.position_unit_m,
+            p: self.law.p() * a.position_unit_m / a.force_unit_n,
+            d: self.law.d(),
+        };
+        ValveCommand::clamped(u)
+    }
+
+    fn telemetry(&self) -> Telemetry {
+        self.telemetry
+    }
+
+    fn reset(&mut self) {
+        self.filter.reset();
+        self.law.reset();
+        self.pid.reset();
+        self.telemetry = Telemetry::default();
+    }
+}

@@ -1,0 +1,171 @@
+//! Inner position loop: PID on x_r - x with derivative on the (filtered) measurement,
+//! output limits and anti-windup. Output is the valve command u.
+
+use crate::error::{ParamError, finite, non_negative, positive};
+
+/// How the integrator is kept from winding up while the output saturates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AntiWindup {
+    /// Conditional integration: the integrator is frozen while the output is saturated and the
+    /// error would drive it further into saturation.
+    Clamping,
+    /// Back-calculation: the integrator is pulled back by (u_sat - u_unsat) / tracking_time_s.
+    BackCalculation {
+        /// Tracking time constant T_t, s (> 0; a common choice is sqrt(T_i T_d) or T_i / 2).
+        tracking_time_s: f64,
+    },
+}
+
+/// PID gains and limits. Error in m, output is the normalised valve command.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PidParams {
+    /// Proportional gain, 1/m (valve command per metre of position error).
+    pub kp_per_m: f64,
+    /// Integral gain, 1/(m·s).
+    pub ki_per_m_s: f64,
+    /// Derivative gain on the measured position, s/m (valve command per m/s).
+    pub kd_s_per_m: f64,
+    /// Time constant of the first-order low-pass on the derivative, s (0 = unfiltered).
+    pub derivative_filter_s: f64,
+    /// Lower output limit (valve command).
+    pub u_min: f64,
+    /// Upper output limit (valve command).
+    pub u_max: f64,
+    /// Anti-windup scheme.
+    pub anti_windup: AntiWindup,
+}
+
+impl Default for PidParams {
+    /// A starting point for a small double-acting cylinder on a proportional valve: full valve
+    /// opening at 5 mm error, mild integral and velocity damping, 2 ms derivative filter,
+    /// limits [-1, 1], clamping. Plants with a known valve retune these in their scene file.
+    fn default() -> Self {
+        Self {
+            kp_per_m: 200.0,
+            ki_per_m_s: 50.0,
+            kd_s_per_m: 2.0,
+            derivative_filter_s: 0.002,
+            u_min: -1.0,
+            u_max: 1.0,
+            anti_windup: AntiWindup::Clamping,
+        }
+    }
+}
+
+impl PidParams {
+    /// Checks gains >= 0, finite limits with u_min < u_max, and a positive tracking time.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        non_negative("kp_per_m", self.kp_per_m)?;
+        non_negative("ki_per_m_s", self.ki_per_m_s)?;
+        non_negative("kd_s_per_m", self.kd_s_per_m)?;
+        non_negative("derivative_filter_s", self.derivative_filter_s)?;
+        finite("u_min", self.u_min)?;
+        finite("u_max", self.u_max)?;
+        if self.u_min >= self.u_max {
+            return Err(ParamError::BadLimits {
+                u_min: self.u_min,
+                u_max: self.u_max,
+            });
+        }
+        if let AntiWindup::BackCalculation { tracking_time_s } = self.anti_windup {
+            positive("tracking_time_s", tracking_time_s)?;
+        }
+        Ok(())
+    }
+}
+
+/// PID state: integrator, filtered measurement derivative, last measurement.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pid {
+    params: PidParams,
+    integral: f64,
+    v_filt: f64,
+    x_prev: f64,
+    primed: bool,
+    saturated: bool,
+}
+
+impl Pid {
+    /// A PID at rest; parameters are validated.
+    pub fn new(params: PidParams) -> Result<Self, ParamError> {
+        params.validate()?;
+        Ok(Self {
+            params,
+            integral: 0.0,
+            v_filt: 0.0,
+            x_prev: 0.0,
+            primed: false,
+            saturated: false,
+        })
+    }
+
+    /// The PID's parameters.
+    pub fn params(&self) -> &PidParams {
+        &self.params
+    }
+
+    /// One control period: reference `r` and measurement `y` (m) to a limited command.
+    /// The derivative acts on -y only, so a step in `r` gives no derivative kick.
+    pub fn update(&mut self, r: f64, y: f64, dt: f64) -> f64 {
+        let p = &self.params;
+        let err = r - y;
+        // Derivative on the measurement: backward difference, then a first-order low-pass
+        // discretised by backward Euler (stable for any dt).
+        let raw = if self.primed && dt > 0.0 {
+            (y - self.x_prev) / dt
+        } else {
+            0.0
+        };
+        self.x_prev = y;
+        self.primed = true;
+        let alpha = if dt > 0.0 {
+            dt / (p.derivative_filter_s + dt)
+        } else {
+            0.0
+        };
+        self.v_filt += alpha * (raw - self.v_filt);
+
+        let unsat = p.kp_per_m * err + self.integral - p.kd_s_per_m * self.v_filt;
+        let u = unsat.clamp(p.u_min, p.u_max);
+        self.saturated = u != unsat;
+        // Integrate after computing the output (the integral state feeds the next period).
+        match p.anti_windup {
+            AntiWindup::Clamping => {
+                let pushes_out = (unsat > p.u_max && err > 0.0) || (unsat < p.u_min && err < 0.0);
+                if !pushes_out {
+                    self.integral += p.ki_per_m_s * err * dt;
+                }
+            }
+            AntiWindup::BackCalculation { tracking_time_s } => {
+                self.integral += (p.ki_per_m_s * err + (u - unsat) / tracking_time_s) * dt;
+            }
+        }
+        // The integral term alone never needs to exceed the output range.
+        self.integral = self.integral.clamp(p.u_min, p.u_max);
+        if u.is_nan() { 0.0 } else { u }
+    }
+
+    /// Integrator state (already multiplied by k_i), valve-command units.
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// Filtered measured velocity used by the derivative term, m/s.
+    pub fn velocity_estimate(&self) -> f64 {
+        self.v_filt
+    }
+
+    /// Whether the last output was clamped at a limit.
+    pub fn saturated(&self) -> bool {
+        self.saturated
+    }
+
+    /// Back to rest (integrator and derivative filter cleared).
+    pub fn reset(&mut self) {
+        self.integral = 0.0;
+        self.v_filt = 0.0;
+        self.x_prev = 0.0;
+        self.primed = false;
+        self.saturated = false;
+    }
+}
