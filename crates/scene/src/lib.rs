@@ -1,1 +1,29 @@
-//! pneuflex-scene (being built).
+//! Scenes for pneuflex: the scene file (TOML, validated), the plants a controller drives, the run loop
+//! `sense → controller.update → actuate → advance(dt)`, metrics, and the trace.csv / summary.json writers.
+//!
+//! ```no_run
+//! use pneuflex_scene::{Scene, run_scene};
+//! let scene = Scene::load(std::path::Path::new("scenes/paper-fig3.toml")).unwrap();
+//! let results = run_scene(&scene, &mut |_| {}).unwrap();
+//! for r in &results { println!("{}: {:?}", r.name, r.window("sine").map(|w| w.rms_force_error_n)); }
+//! ```
+
+pub mod error;
+pub mod metrics;
+pub mod output;
+pub mod plant;
+pub mod pneumatic;
+pub mod runner;
+pub mod schema;
+pub mod trace;
+
+pub use error::SceneError;
+pub use output::{Staging, Summary, summary, write_results};
+pub use plant::{IdealLoop, LinearSpring, Plant};
+pub use pneumatic::OneDofPneumatic;
+pub use runner::{
+    LyapunovSummary, RunResult, WindowMetrics, build_controller, build_plant, build_setpoints,
+    run_scene, simulate,
+};
+pub use schema::{ControllerKind, PlantSpec, Scene, WindowKind};
+pub use trace::Trace;

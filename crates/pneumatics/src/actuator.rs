@@ -1,0 +1,313 @@
+//! The double-acting cylinder with its valve, supply and exhaust: chamber mass and energy balance,
+//! eqs. (2)-(10) of the paper, and the pneumatic force on the rod.
+//!
+//! Conventions: `x` is the piston extension from the cap end (the paper's `y`), m. Chamber A is the cap
+//! side (its pressure extends the rod), chamber B the rod side. All pressures are absolute, Pa.
+//!
+//! Chamber model (per chamber, state p and T): with net mass inflow `M' = sum q_i` and enthalpy inflow
+//! `H = sum q_i T_i` (T_i = upstream temperature: supply/atmosphere for inflow, the chamber for outflow),
+//!
+//! ```text
+//! dp/dt = n / V (R H - p dV/dt)                          eq. (9)/(10) generalised
+//! dT/dt = T / (p V) (V dp/dt + p dV/dt - R T M')         ideal gas, M = p V / (R T), eqs. (2)-(3)
+//! ```
+//!
+//! `n` is the polytropic exponent: n = k = 1.4 is the adiabatic chamber of eqs. (5)-(7) (the default);
+//! n = 1 an isothermal chamber. For a closed chamber the first line gives p V^n = const (eq. 5/6). The
+//! second line is the mass balance of eq. (2) solved for T, so M = p V / (R T) changes exactly by the
+//! port flows. Eq. (10) is the special case T_i = T_s for every flow and no dead volume.
+
+use crate::flow::Orifice;
+use crate::valve::{Openings, ValveModel};
+
+/// Standard gravity, m/s^2.
+pub const STANDARD_GRAVITY: f64 = 9.80665;
+/// Specific gas constant of dry air, J/(kg K).
+pub const R_AIR: f64 = 287.05;
+/// Standard atmosphere, Pa absolute.
+pub const P_ATM: f64 = 101_325.0;
+/// Default gas temperature, K (20 degC).
+pub const T_DEFAULT: f64 = 293.15;
+
+/// Geometry of a double-acting single-rod cylinder.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cylinder {
+    /// Piston (bore) diameter, m.
+    pub bore_m: f64,
+    /// Rod diameter, m.
+    pub rod_m: f64,
+    /// Stroke length L, m.
+    pub stroke_m: f64,
+    /// Dead volume of chamber A at x = 0 (end cap, ports, tubing to the valve), m^3.
+    pub dead_volume_a_m3: f64,
+    /// Dead volume of chamber B at x = L, m^3.
+    pub dead_volume_b_m3: f64,
+}
+
+impl Cylinder {
+    /// Piston area on the cap side S_a, m^2.
+    #[inline]
+    pub fn area_a(&self) -> f64 {
+        0.25 * core::f64::consts::PI * self.bore_m * self.bore_m
+    }
+    /// Annular piston area on the rod side S_b, m^2.
+    #[inline]
+    pub fn area_b(&self) -> f64 {
+        self.area_a() - self.area_rod()
+    }
+    /// Rod cross-section, m^2 (the area on which the atmosphere pushes the rod back in).
+    #[inline]
+    pub fn area_rod(&self) -> f64 {
+        0.25 * core::f64::consts::PI * self.rod_m * self.rod_m
+    }
+    /// Chamber volumes (V_a, V_b) at extension `x` (clamped to the stroke), m^3.
+    #[inline]
+    pub fn volumes(&self, x: f64) -> (f64, f64) {
+        let x = x.clamp(0.0, self.stroke_m);
+        (
+            self.dead_volume_a_m3 + self.area_a() * x,
+            self.dead_volume_b_m3 + self.area_b() * (self.stroke_m - x),
+        )
+    }
+}
+
+/// Thermodynamic properties of the working gas.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gas {
+    /// Specific gas constant R, J/(kg K).
+    pub gas_constant_j_per_kg_k: f64,
+    /// Polytropic exponent n of the chamber process (1.4 = adiabatic air, 1.0 = isothermal).
+    pub polytropic_exponent: f64,
+}
+
+impl Default for Gas {
+    fn default() -> Self {
+        Self {
+            gas_constant_j_per_kg_k: R_AIR,
+            polytropic_exponent: 1.4,
+        }
+    }
+}
+
+/// Supply and exhaust (atmosphere) conditions, absolute.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Supply {
+    /// Supply pressure p_s, Pa absolute.
+    pub supply_pressure_pa: f64,
+    /// Supply temperature T_s, K.
+    pub supply_temperature_k: f64,
+    /// Atmospheric (exhaust) pressure, Pa absolute.
+    pub atmosphere_pressure_pa: f64,
+    /// Atmospheric temperature, K.
+    pub atmosphere_temperature_k: f64,
+}
+
+/// State of the two chambers: absolute pressures and gas temperatures.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChamberState {
+    /// Chamber A (cap side) pressure, Pa absolute.
+    pub p_a: f64,
+    /// Chamber B (rod side) pressure, Pa absolute.
+    pub p_b: f64,
+    /// Chamber A gas temperature, K.
+    pub t_a: f64,
+    /// Chamber B gas temperature, K.
+    pub t_b: f64,
+}
+
+impl ChamberState {
+    /// Chambers at pressures `p_a`, `p_b` (Pa absolute) and the default temperature 293.15 K.
+    pub fn new(p_a: f64, p_b: f64) -> Self {
+        Self::with_temperature(p_a, p_b, T_DEFAULT)
+    }
+    /// Chambers at pressures `p_a`, `p_b` (Pa absolute) and gas temperature `t_k` (K) in both.
+    pub fn with_temperature(p_a: f64, p_b: f64, t_k: f64) -> Self {
+        Self {
+            p_a,
+            p_b,
+            t_a: t_k,
+            t_b: t_k,
+        }
+    }
+    #[inline]
+    fn axpy(&self, h: f64, d: &Self) -> Self {
+        Self {
+            p_a: self.p_a + h * d.p_a,
+            p_b: self.p_b + h * d.p_b,
+            t_a: self.t_a + h * d.t_a,
+            t_b: self.t_b + h * d.t_b,
+        }
+    }
+}
+
+/// Mass flows through the four valve paths, kg/s (positive in the direction of the name).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PortFlows {
+    /// Supply -> A.
+    pub p_a: f64,
+    /// A -> exhaust.
+    pub a_r: f64,
+    /// Supply -> B.
+    pub p_b: f64,
+    /// B -> exhaust.
+    pub b_r: f64,
+}
+
+impl PortFlows {
+    /// Net mass flow into chamber A, kg/s.
+    pub fn into_a(&self) -> f64 {
+        self.p_a - self.a_r
+    }
+    /// Net mass flow into chamber B, kg/s.
+    pub fn into_b(&self) -> f64 {
+        self.p_b - self.b_r
+    }
+}
+
+/// The pneumatic part of the actuator: cylinder, gas, valve, supply and exhaust.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Actuator {
+    /// Cylinder geometry.
+    pub cylinder: Cylinder,
+    /// Gas properties and chamber process exponent.
+    pub gas: Gas,
+    /// The directional valve.
+    pub valve: ValveModel,
+    /// Supply and exhaust conditions.
+    pub supply: Supply,
+}
+
+/// Lowest pressure the chamber equations evaluate, Pa (guards a diverging step, not a physical limit).
+const P_FLOOR: f64 = 1.0;
+/// Lowest temperature the chamber equations evaluate, K.
+const T_FLOOR: f64 = 1.0;
+
+impl Actuator {
+    /// Net pneumatic force on the rod along +x, N: p_a S_a - p_b S_b - p_atm S_rod (eq. 1's F_1 with
+    /// absolute pressures; the atmosphere acts on the rod's cross-section outside the cylinder).
+    #[inline]
+    pub fn piston_force(&self, s: &ChamberState) -> f64 {
+        let c = &self.cylinder;
+        s.p_a * c.area_a() - s.p_b * c.area_b() - self.supply.atmosphere_pressure_pa * c.area_rod()
+    }
+
+    /// Mass flows through the four valve paths for chamber state `s` and spool position `spool`.
+    #[inline]
+    pub fn port_flows(&self, s: &ChamberState, spool: f64) -> PortFlows {
+        let o = self.valve.openings(spool);
+        self.flows_for(s, &o)
+    }
+
+    #[inline]
+    fn flows_for(&self, s: &ChamberState, o: &Openings) -> PortFlows {
+        let (pf, _) = self.flows_enthalpy(s, o);
+        pf
+    }
+
+    /// Flows and enthalpy carriers (q T_upstream) into A and B.
+    #[inline]
+    fn flows_enthalpy(&self, s: &ChamberState, o: &Openings) -> (PortFlows, (f64, f64)) {
+        let or: &Orifice = &self.valve.orifice;
+        let sp = &self.supply;
+        let (ps, ts) = (sp.supply_pressure_pa, sp.supply_temperature_k);
+        let (pr, tr) = (sp.atmosphere_pressure_pa, sp.atmosphere_temperature_k);
+        let pa = s.p_a.max(P_FLOOR);
+        let pb = s.p_b.max(P_FLOOR);
+        let ta = s.t_a.max(T_FLOOR);
+        let tb = s.t_b.max(T_FLOOR);
+        let (q_pa, h_pa) = or.mass_flow(o.p_a, ps, ts, pa, ta);
+        let (q_ar, h_ar) = or.mass_flow(o.a_r, pa, ta, pr, tr);
+        let (q_pb, h_pb) = or.mass_flow(o.p_b, ps, ts, pb, tb);
+        let (q_br, h_br) = or.mass_flow(o.b_r, pb, tb, pr, tr);
+        (
+            PortFlows {
+                p_a: q_pa,
+                a_r: q_ar,
+                p_b: q_pb,
+                b_r: q_br,
+            },
+            (h_pa - h_ar, h_pb - h_br),
+        )
+    }
+
+    /// Time derivatives of the chamber state (Pa/s, K/s) at extension `x`, velocity `x_dot` and spool
+    /// position `spool`.
+    #[inline]
+    pub fn chamber_rates(&self, s: &ChamberState, x: f64, x_dot: f64, spool: f64) -> ChamberState {
+        let o = self.valve.openings(spool);
+        self.rates_with(s, x, x_dot, &o)
+    }
+
+    #[inline]
+    fn rates_with(&self, s: &ChamberState, x: f64, x_dot: f64, o: &Openings) -> ChamberState {
+        let c = &self.cylinder;
+        let (va, vb) = c.volumes(x);
+        // Outside the stroke the piston rests on a stop: the volumes do not change.
+        let inside = (x > 0.0 && x < c.stroke_m)
+            || (x <= 0.0 && x_dot > 0.0)
+            || (x >= c.stroke_m && x_dot < 0.0);
+        let v = if inside { x_dot } else { 0.0 };
+        let dva = c.area_a() * v;
+        let dvb = -c.area_b() * v;
+        let (pf, (ha, hb)) = self.flows_enthalpy(s, o);
+        let n = self.gas.polytropic_exponent;
+        let r = self.gas.gas_constant_j_per_kg_k;
+        let pa = s.p_a.max(P_FLOOR);
+        let pb = s.p_b.max(P_FLOOR);
+        let ta = s.t_a.max(T_FLOOR);
+        let tb = s.t_b.max(T_FLOOR);
+        let (inv_va, inv_vb) = (1.0 / va, 1.0 / vb);
+        let (inv_pa, inv_pb) = (1.0 / pa, 1.0 / pb);
+        // eq. (9)/(10): dp/dt = n R H / V - n p V'/V (H = enthalpy inflow / c_p, upstream temperatures).
+        let dpa = n * inv_va * (r * ha - pa * dva);
+        let dpb = n * inv_vb * (r * hb - pb * dvb);
+        // eqs. (2)-(3): M = pV/(RT), dM/dt = net inflow  =>  dT/dt = T (p'/p + V'/V - R T M'/(p V)).
+        let dta = ta * (dpa * inv_pa + dva * inv_va - r * ta * pf.into_a() * inv_pa * inv_va);
+        let dtb = tb * (dpb * inv_pb + dvb * inv_vb - r * tb * pf.into_b() * inv_pb * inv_vb);
+        ChamberState {
+            p_a: dpa,
+            p_b: dpb,
+            t_a: dta,
+            t_b: dtb,
+        }
+    }
+
+    /// Advances the chambers by `dt` with classic RK4, the piston moving as `x + x_dot * tau` inside the
+    /// step and the spool held. Allocation-free; callers may substep.
+    pub fn step_chambers(&self, s: &mut ChamberState, x: f64, x_dot: f64, spool: f64, dt: f64) {
+        let o = self.valve.openings(spool);
+        let h = 0.5 * dt;
+        let k1 = self.rates_with(s, x, x_dot, &o);
+        let k2 = self.rates_with(&s.axpy(h, &k1), x + x_dot * h, x_dot, &o);
+        let k3 = self.rates_with(&s.axpy(h, &k2), x + x_dot * h, x_dot, &o);
+        let k4 = self.rates_with(&s.axpy(dt, &k3), x + x_dot * dt, x_dot, &o);
+        let w = dt / 6.0;
+        s.p_a += w * (k1.p_a + 2.0 * k2.p_a + 2.0 * k3.p_a + k4.p_a);
+        s.p_b += w * (k1.p_b + 2.0 * k2.p_b + 2.0 * k3.p_b + k4.p_b);
+        s.t_a += w * (k1.t_a + 2.0 * k2.t_a + 2.0 * k3.t_a + k4.t_a);
+        s.t_b += w * (k1.t_b + 2.0 * k2.t_b + 2.0 * k3.t_b + k4.t_b);
+    }
+
+    /// Gas masses (M_a, M_b) in the chambers at extension `x`, kg (ideal gas, M = p V / (R T)).
+    pub fn chamber_masses(&self, s: &ChamberState, x: f64) -> (f64, f64) {
+        let (va, vb) = self.cylinder.volumes(x);
+        let r = self.gas.gas_constant_j_per_kg_k;
+        (s.p_a * va / (r * s.t_a), s.p_b * vb / (r * s.t_b))
+    }
+
+    /// Period-averaged net mass flows (into A, into B), kg/s, for a steady command `u` at chamber state
+    /// `s`: the spool position itself for a proportional valve, the duty-weighted mean of the two
+    /// positions for a PWM-driven on/off valve.
+    pub fn mean_flows(&self, s: &ChamberState, u: f64) -> (f64, f64) {
+        let (w, hi, lo) = self.valve.averaging(u);
+        let f_hi = self.port_flows(s, hi);
+        if w >= 1.0 {
+            return (f_hi.into_a(), f_hi.into_b());
+        }
+        let f_lo = self.port_flows(s, lo);
+        (
+            w * f_hi.into_a() + (1.0 - w) * f_lo.into_a(),
+            w * f_hi.into_b() + (1.0 - w) * f_lo.into_b(),
+        )
+    }
+}

@@ -1,0 +1,766 @@
+//! Component data sheets as TOML (`pneumatics/*.toml`): cylinder, valve, supply, sensors, and the
+//! actuator sheet that names them. Loaded with serde, unknown keys rejected, values validated; every error
+//! names the file and the field.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::actuator::{Actuator, Cylinder, Gas, R_AIR, STANDARD_GRAVITY, Supply};
+use crate::flow::Orifice;
+use crate::mechanics::{Friction, Mechanics, OneDofModel};
+use crate::valve::{ValveKind, ValveModel};
+
+/// Error reading or validating a component file.
+#[derive(Debug, thiserror::Error)]
+pub enum ComponentError {
+    /// The file could not be read.
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        /// File path.
+        path: String,
+        /// Underlying I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML or does not match the schema (unknown key, wrong type, missing key).
+    #[error("{path}: {message}")]
+    Parse {
+        /// File path.
+        path: String,
+        /// Parser message (names the key and the line).
+        message: String,
+    },
+    /// A value is out of range.
+    #[error("{path}: {field}: {message}")]
+    Invalid {
+        /// File path.
+        path: String,
+        /// Dotted field name, e.g. `cylinder.bore_m`.
+        field: String,
+        /// What was expected and what was found.
+        message: String,
+    },
+}
+
+fn read(path: &Path) -> Result<String, ComponentError> {
+    std::fs::read_to_string(path).map_err(|source| ComponentError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+fn parse<T: for<'de> Deserialize<'de>>(path: &Path, text: &str) -> Result<T, ComponentError> {
+    toml::from_str(text).map_err(|e| {
+        let line = e
+            .span()
+            .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+        let msg = e.message().trim().to_string();
+        ComponentError::Parse {
+            path: path.display().to_string(),
+            message: match line {
+                Some(l) => format!("line {l}: {msg}"),
+                None => msg,
+            },
+        }
+    })
+}
+
+/// Field checker bound to one file.
+struct Check<'a> {
+    path: &'a Path,
+}
+
+impl Check<'_> {
+    fn err(&self, field: &str, message: String) -> ComponentError {
+        ComponentError::Invalid {
+            path: self.path.display().to_string(),
+            field: field.to_string(),
+            message,
+        }
+    }
+    fn finite(&self, field: &str, v: f64) -> Result<f64, ComponentError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("must be a finite number, got {v}")))
+        }
+    }
+    fn positive(&self, field: &str, v: f64) -> Result<f64, ComponentError> {
+        self.finite(field, v)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("must be > 0, got {v}")))
+        }
+    }
+    fn non_negative(&self, field: &str, v: f64) -> Result<f64, ComponentError> {
+        self.finite(field, v)?;
+        if v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("must be >= 0, got {v}")))
+        }
+    }
+    fn range(
+        &self,
+        field: &str,
+        v: f64,
+        lo: f64,
+        hi: f64,
+        what: &str,
+    ) -> Result<f64, ComponentError> {
+        self.finite(field, v)?;
+        if v >= lo && v < hi {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("must be in {what}, got {v}")))
+        }
+    }
+}
+
+// ---------------------------------------------------------------- cylinder
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CylinderFile {
+    cylinder: CylinderSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CylinderSection {
+    #[serde(default)]
+    name: String,
+    bore_m: f64,
+    rod_m: f64,
+    stroke_m: f64,
+    dead_volume_a_m3: f64,
+    dead_volume_b_m3: f64,
+}
+
+/// A cylinder data sheet: `[cylinder]` with `bore_m`, `rod_m`, `stroke_m`, `dead_volume_a_m3`,
+/// `dead_volume_b_m3` (all > 0, rod < bore) and an optional `name`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CylinderSheet {
+    /// Model name.
+    pub name: String,
+    /// Geometry.
+    pub cylinder: Cylinder,
+}
+
+impl CylinderSheet {
+    /// Reads and validates a cylinder sheet.
+    pub fn load(path: &Path) -> Result<Self, ComponentError> {
+        Self::from_str(path, &read(path)?)
+    }
+    /// Parses and validates cylinder TOML text; `path` is used in messages.
+    pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
+        let f: CylinderFile = parse(path, text)?;
+        let c = Check { path };
+        let s = f.cylinder;
+        let bore = c.positive("cylinder.bore_m", s.bore_m)?;
+        let rod = c.positive("cylinder.rod_m", s.rod_m)?;
+        if rod >= bore {
+            return Err(c.err(
+                "cylinder.rod_m",
+                format!("must be smaller than cylinder.bore_m = {bore}, got {rod}"),
+            ));
+        }
+        Ok(Self {
+            name: s.name,
+            cylinder: Cylinder {
+                bore_m: bore,
+                rod_m: rod,
+                stroke_m: c.positive("cylinder.stroke_m", s.stroke_m)?,
+                dead_volume_a_m3: c.positive("cylinder.dead_volume_a_m3", s.dead_volume_a_m3)?,
+                dead_volume_b_m3: c.positive("cylinder.dead_volume_b_m3", s.dead_volume_b_m3)?,
+            },
+        })
+    }
+}
+
+// ---------------------------------------------------------------- valve
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ValveFile {
+    valve: ValveSection,
+}
+
+#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum ValveKindName {
+    Proportional,
+    OnOffPwm,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ValveSection {
+    #[serde(default)]
+    name: String,
+    kind: ValveKindName,
+    sonic_conductance_m3_per_s_pa: f64,
+    critical_pressure_ratio: f64,
+    response_time_s: Option<f64>,
+    underlap: Option<f64>,
+    pwm_frequency_hz: Option<f64>,
+    switching_delay_s: Option<f64>,
+}
+
+/// A valve data sheet: `[valve]` with `kind` = "proportional" (`response_time_s`, `underlap`) or
+/// "on_off_pwm" (`pwm_frequency_hz`, `switching_delay_s`), plus `sonic_conductance_m3_per_s_pa` and
+/// `critical_pressure_ratio`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ValveSheet {
+    /// Model name.
+    pub name: String,
+    /// The valve model.
+    pub valve: ValveModel,
+}
+
+impl ValveSheet {
+    /// Reads and validates a valve sheet.
+    pub fn load(path: &Path) -> Result<Self, ComponentError> {
+        Self::from_str(path, &read(path)?)
+    }
+    /// Parses and validates valve TOML text; `path` is used in messages.
+    pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
+        let f: ValveFile = parse(path, text)?;
+        let c = Check { path };
+        let s = f.valve;
+        let orifice = Orifice {
+            sonic_conductance_m3_per_s_pa: c.positive(
+                "valve.sonic_conductance_m3_per_s_pa",
+                s.sonic_conductance_m3_per_s_pa,
+            )?,
+            critical_pressure_ratio: c.range(
+                "valve.critical_pressure_ratio",
+                s.critical_pressure_ratio,
+                0.0,
+                1.0,
+                "[0, 1)",
+            )?,
+        };
+        let not_for = |field: &str, v: Option<f64>, kind: &str| match v {
+            Some(_) => Err(c.err(
+                field,
+                format!("does not apply to kind = \"{kind}\"; remove it"),
+            )),
+            None => Ok(()),
+        };
+        let required = |field: &str, v: Option<f64>, kind: &str| {
+            v.ok_or_else(|| c.err(field, format!("required for kind = \"{kind}\"")))
+        };
+        let (underlap, kind) = match s.kind {
+            ValveKindName::Proportional => {
+                not_for("valve.pwm_frequency_hz", s.pwm_frequency_hz, "proportional")?;
+                not_for(
+                    "valve.switching_delay_s",
+                    s.switching_delay_s,
+                    "proportional",
+                )?;
+                let tau = c.non_negative(
+                    "valve.response_time_s",
+                    required("valve.response_time_s", s.response_time_s, "proportional")?,
+                )?;
+                let e = c.range(
+                    "valve.underlap",
+                    s.underlap.unwrap_or(0.0),
+                    0.0,
+                    1.0,
+                    "[0, 1)",
+                )?;
+                (
+                    e,
+                    ValveKind::Proportional {
+                        response_time_s: tau,
+                    },
+                )
+            }
+            ValveKindName::OnOffPwm => {
+                not_for("valve.response_time_s", s.response_time_s, "on_off_pwm")?;
+                not_for("valve.underlap", s.underlap, "on_off_pwm")?;
+                let f_hz = c.positive(
+                    "valve.pwm_frequency_hz",
+                    required("valve.pwm_frequency_hz", s.pwm_frequency_hz, "on_off_pwm")?,
+                )?;
+                let delay = c.non_negative(
+                    "valve.switching_delay_s",
+                    s.switching_delay_s.unwrap_or(0.0),
+                )?;
+                if delay >= 1.0 / f_hz {
+                    return Err(c.err(
+                        "valve.switching_delay_s",
+                        format!(
+                            "must be shorter than one PWM period (1/valve.pwm_frequency_hz = {} s), got {delay}",
+                            1.0 / f_hz
+                        ),
+                    ));
+                }
+                (
+                    0.0,
+                    ValveKind::OnOffPwm {
+                        pwm_frequency_hz: f_hz,
+                        switching_delay_s: delay,
+                    },
+                )
+            }
+        };
+        Ok(Self {
+            name: s.name,
+            valve: ValveModel {
+                orifice,
+                underlap,
+                kind,
+            },
+        })
+    }
+}
+
+// ---------------------------------------------------------------- supply
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SupplyFile {
+    supply: PressureTemp,
+    #[serde(default)]
+    atmosphere: Option<PressureTemp>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PressureTemp {
+    pressure_abs_pa: f64,
+    temperature_k: f64,
+}
+
+/// A supply sheet: `[supply]` and optional `[atmosphere]`, each with `pressure_abs_pa` (absolute) and
+/// `temperature_k`; atmosphere defaults to 101325 Pa, 293.15 K. Supply must exceed atmosphere.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SupplySheet {
+    /// Supply and exhaust conditions.
+    pub supply: Supply,
+}
+
+impl SupplySheet {
+    /// Reads and validates a supply sheet.
+    pub fn load(path: &Path) -> Result<Self, ComponentError> {
+        Self::from_str(path, &read(path)?)
+    }
+    /// Parses and validates supply TOML text; `path` is used in messages.
+    pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
+        let f: SupplyFile = parse(path, text)?;
+        let c = Check { path };
+        let (p_atm, t_atm) = match f.atmosphere {
+            Some(a) => (
+                c.positive("atmosphere.pressure_abs_pa", a.pressure_abs_pa)?,
+                c.positive("atmosphere.temperature_k", a.temperature_k)?,
+            ),
+            None => (crate::actuator::P_ATM, crate::actuator::T_DEFAULT),
+        };
+        let ps = c.positive("supply.pressure_abs_pa", f.supply.pressure_abs_pa)?;
+        if ps <= p_atm {
+            return Err(c.err(
+                "supply.pressure_abs_pa",
+                format!(
+                    "must be above the atmosphere ({p_atm} Pa absolute; give absolute pressure, gauge + atmosphere), got {ps}"
+                ),
+            ));
+        }
+        Ok(Self {
+            supply: Supply {
+                supply_pressure_pa: ps,
+                supply_temperature_k: c.positive("supply.temperature_k", f.supply.temperature_k)?,
+                atmosphere_pressure_pa: p_atm,
+                atmosphere_temperature_k: t_atm,
+            },
+        })
+    }
+}
+
+// ---------------------------------------------------------------- sensors
+
+/// What a sensor measures.
+#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Quantity {
+    /// Pressure difference p_a - p_b, Pa.
+    DifferentialPressure,
+    /// Flange/piston position x, m.
+    Position,
+}
+
+/// The electrical output of a sensor.
+#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum SignalKind {
+    /// Current loop, mA.
+    CurrentMa,
+    /// Voltage, V.
+    VoltageV,
+    /// ADC counts.
+    Counts,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorFile {
+    sensor: SensorSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorSection {
+    #[serde(default)]
+    name: String,
+    quantity: Quantity,
+    range_min_si: f64,
+    range_max_si: f64,
+    signal: SignalKind,
+    signal_min: f64,
+    signal_max: f64,
+}
+
+/// A linear sensor sheet: `[sensor]` with `quantity`, `range_min_si`/`range_max_si` (Pa or m),
+/// `signal` ("current_ma" | "voltage_v" | "counts") and `signal_min`/`signal_max` at the range ends.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorSheet {
+    /// Model name.
+    pub name: String,
+    /// Measured quantity.
+    pub quantity: Quantity,
+    /// Lower end of the measuring range, SI (Pa or m).
+    pub range_min_si: f64,
+    /// Upper end of the measuring range, SI.
+    pub range_max_si: f64,
+    /// Output signal kind.
+    pub signal: SignalKind,
+    /// Output at `range_min_si` (mA, V or counts).
+    pub signal_min: f64,
+    /// Output at `range_max_si`.
+    pub signal_max: f64,
+}
+
+impl SensorSheet {
+    /// Reads and validates a sensor sheet.
+    pub fn load(path: &Path) -> Result<Self, ComponentError> {
+        Self::from_str(path, &read(path)?)
+    }
+    /// Parses and validates sensor TOML text; `path` is used in messages.
+    pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
+        let f: SensorFile = parse(path, text)?;
+        let c = Check { path };
+        let s = f.sensor;
+        let lo = c.finite("sensor.range_min_si", s.range_min_si)?;
+        let hi = c.finite("sensor.range_max_si", s.range_max_si)?;
+        if hi <= lo {
+            return Err(c.err(
+                "sensor.range_max_si",
+                format!("must be greater than sensor.range_min_si = {lo}, got {hi}"),
+            ));
+        }
+        let smin = c.finite("sensor.signal_min", s.signal_min)?;
+        let smax = c.finite("sensor.signal_max", s.signal_max)?;
+        if smax == smin {
+            return Err(c.err(
+                "sensor.signal_max",
+                format!("must differ from sensor.signal_min = {smin}"),
+            ));
+        }
+        Ok(Self {
+            name: s.name,
+            quantity: s.quantity,
+            range_min_si: lo,
+            range_max_si: hi,
+            signal: s.signal,
+            signal_min: smin,
+            signal_max: smax,
+        })
+    }
+
+    /// Converts a raw output (mA, V or counts) to the measured quantity, SI (linear, not clamped).
+    pub fn to_si(&self, raw: f64) -> f64 {
+        self.range_min_si
+            + (raw - self.signal_min) * (self.range_max_si - self.range_min_si)
+                / (self.signal_max - self.signal_min)
+    }
+
+    /// Converts a quantity (SI) to the raw output the sensor would give, clamped to its output range.
+    pub fn to_signal(&self, si: f64) -> f64 {
+        let v = si.clamp(self.range_min_si, self.range_max_si);
+        self.signal_min
+            + (v - self.range_min_si) * (self.signal_max - self.signal_min)
+                / (self.range_max_si - self.range_min_si)
+    }
+}
+
+// ---------------------------------------------------------------- actuator sheet
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ActuatorFile {
+    #[serde(default)]
+    name: String,
+    components: ComponentPaths,
+    #[serde(default)]
+    gas: Option<GasSection>,
+    mechanics: MechanicsSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ComponentPaths {
+    cylinder: String,
+    valve: String,
+    supply: String,
+    pressure_sensor: Option<String>,
+    position_sensor: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GasSection {
+    gas_constant_j_per_kg_k: Option<f64>,
+    polytropic_exponent: Option<f64>,
+}
+
+#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum FrictionName {
+    Smooth,
+    StickSlip,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MechanicsSection {
+    moving_mass_kg: f64,
+    viscous_n_s_per_m: f64,
+    friction: FrictionName,
+    coulomb_n: f64,
+    smooth_velocity_m_per_s: Option<f64>,
+    static_n: Option<f64>,
+    stribeck_velocity_m_per_s: Option<f64>,
+    stick_velocity_m_per_s: Option<f64>,
+    alpha_deg: f64,
+    gravity_m_per_s2: Option<f64>,
+}
+
+/// An actuator sheet: names the component files (paths relative to the sheet) and adds gas, moving mass,
+/// friction and incline. See docs/pneumatics.md for every key, unit and default.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ActuatorSheet {
+    /// Path the sheet was loaded from.
+    pub path: PathBuf,
+    /// Actuator name.
+    pub name: String,
+    /// The cylinder sheet.
+    pub cylinder: CylinderSheet,
+    /// The valve sheet.
+    pub valve: ValveSheet,
+    /// The supply sheet.
+    pub supply: SupplySheet,
+    /// Differential pressure transmitter, if given.
+    pub pressure_sensor: Option<SensorSheet>,
+    /// Position sensor, if given.
+    pub position_sensor: Option<SensorSheet>,
+    /// Gas properties.
+    pub gas: Gas,
+    /// Mechanics of eq. (1).
+    pub mechanics: Mechanics,
+}
+
+impl ActuatorSheet {
+    /// Reads an actuator sheet and every component file it names, validating all of them.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, ComponentError> {
+        let path = path.as_ref();
+        let text = read(path)?;
+        let f: ActuatorFile = parse(path, &text)?;
+        let c = Check { path };
+        let dir = path.parent().unwrap_or_else(|| Path::new(""));
+        let cylinder = CylinderSheet::load(&dir.join(&f.components.cylinder))?;
+        let valve = ValveSheet::load(&dir.join(&f.components.valve))?;
+        let supply = SupplySheet::load(&dir.join(&f.components.supply))?;
+        let sensor =
+            |p: &Option<String>, field: &str, want: Quantity| -> Result<_, ComponentError> {
+                match p {
+                    None => Ok(None),
+                    Some(p) => {
+                        let s = SensorSheet::load(&dir.join(p))?;
+                        if s.quantity != want {
+                            return Err(c.err(
+                                field,
+                                format!("{p} measures {:?}, expected {:?}", s.quantity, want),
+                            ));
+                        }
+                        Ok(Some(s))
+                    }
+                }
+            };
+        let pressure_sensor = sensor(
+            &f.components.pressure_sensor,
+            "components.pressure_sensor",
+            Quantity::DifferentialPressure,
+        )?;
+        let position_sensor = sensor(
+            &f.components.position_sensor,
+            "components.position_sensor",
+            Quantity::Position,
+        )?;
+        let gas = match f.gas {
+            None => Gas::default(),
+            Some(g) => {
+                let n = g.polytropic_exponent.unwrap_or(1.4);
+                c.finite("gas.polytropic_exponent", n)?;
+                if !(1.0..=1.67).contains(&n) {
+                    return Err(c.err(
+                        "gas.polytropic_exponent",
+                        format!(
+                            "must be in [1, 1.67] (1 = isothermal, 1.4 = adiabatic air), got {n}"
+                        ),
+                    ));
+                }
+                Gas {
+                    gas_constant_j_per_kg_k: c.positive(
+                        "gas.gas_constant_j_per_kg_k",
+                        g.gas_constant_j_per_kg_k.unwrap_or(R_AIR),
+                    )?,
+                    polytropic_exponent: n,
+                }
+            }
+        };
+        let m = f.mechanics;
+        let coulomb = c.non_negative("mechanics.coulomb_n", m.coulomb_n)?;
+        let friction = match m.friction {
+            FrictionName::Smooth => {
+                for (field, v) in [
+                    ("mechanics.static_n", m.static_n),
+                    (
+                        "mechanics.stribeck_velocity_m_per_s",
+                        m.stribeck_velocity_m_per_s,
+                    ),
+                    ("mechanics.stick_velocity_m_per_s", m.stick_velocity_m_per_s),
+                ] {
+                    if v.is_some() {
+                        return Err(
+                            c.err(field, "applies only to friction = \"stick_slip\"".into())
+                        );
+                    }
+                }
+                Friction::Smooth {
+                    coulomb_n: coulomb,
+                    smooth_velocity_m_per_s: c.positive(
+                        "mechanics.smooth_velocity_m_per_s",
+                        m.smooth_velocity_m_per_s.unwrap_or(1e-3),
+                    )?,
+                }
+            }
+            FrictionName::StickSlip => {
+                if m.smooth_velocity_m_per_s.is_some() {
+                    return Err(c.err(
+                        "mechanics.smooth_velocity_m_per_s",
+                        "applies only to friction = \"smooth\"".into(),
+                    ));
+                }
+                let fs = c.non_negative("mechanics.static_n", m.static_n.unwrap_or(coulomb))?;
+                if fs < coulomb {
+                    return Err(c.err(
+                        "mechanics.static_n",
+                        format!("must be >= mechanics.coulomb_n = {coulomb}, got {fs}"),
+                    ));
+                }
+                Friction::StickSlip {
+                    coulomb_n: coulomb,
+                    static_n: fs,
+                    stribeck_velocity_m_per_s: c.positive(
+                        "mechanics.stribeck_velocity_m_per_s",
+                        m.stribeck_velocity_m_per_s.unwrap_or(1e-3),
+                    )?,
+                    stick_velocity_m_per_s: c.positive(
+                        "mechanics.stick_velocity_m_per_s",
+                        m.stick_velocity_m_per_s.unwrap_or(1e-4),
+                    )?,
+                }
+            }
+        };
+        let alpha = c.finite("mechanics.alpha_deg", m.alpha_deg)?;
+        if !(-90.0..=90.0).contains(&alpha) {
+            return Err(c.err(
+                "mechanics.alpha_deg",
+                format!("must be in [-90, 90] degrees below the horizontal, got {alpha}"),
+            ));
+        }
+        let mechanics = Mechanics {
+            moving_mass_kg: c.positive("mechanics.moving_mass_kg", m.moving_mass_kg)?,
+            viscous_n_s_per_m: c
+                .non_negative("mechanics.viscous_n_s_per_m", m.viscous_n_s_per_m)?,
+            friction,
+            alpha_rad: alpha.to_radians(),
+            gravity_m_per_s2: c.non_negative(
+                "mechanics.gravity_m_per_s2",
+                m.gravity_m_per_s2.unwrap_or(STANDARD_GRAVITY),
+            )?,
+        };
+        Ok(Self {
+            path: path.to_path_buf(),
+            name: f.name,
+            cylinder,
+            valve,
+            supply,
+            pressure_sensor,
+            position_sensor,
+            gas,
+            mechanics,
+        })
+    }
+
+    /// The pneumatic part described by the sheet.
+    pub fn actuator(&self) -> Actuator {
+        Actuator {
+            cylinder: self.cylinder.cylinder,
+            gas: self.gas,
+            valve: self.valve.valve,
+            supply: self.supply.supply,
+        }
+    }
+
+    /// The full 1-DOF model described by the sheet.
+    pub fn model(&self) -> OneDofModel {
+        OneDofModel {
+            actuator: self.actuator(),
+            mechanics: self.mechanics,
+        }
+    }
+}
+
+/// The actuator sheet a file refers to: the file itself if it is an actuator sheet (has
+/// `[components]`), or the sheet named by `plant.actuator` (relative to the file) in a scene file.
+pub fn find_actuator_sheet(path: &Path) -> Result<PathBuf, ComponentError> {
+    let text = read(path)?;
+    let table: toml::Table = parse(path, &text)?;
+    if table.contains_key("components") {
+        return Ok(path.to_path_buf());
+    }
+    let named = table
+        .get("plant")
+        .and_then(|p| p.get("actuator"))
+        .and_then(|a| a.as_str());
+    match named {
+        Some(p) => {
+            let p = Path::new(p);
+            Ok(if p.is_absolute() {
+                p.to_path_buf()
+            } else {
+                path.parent().unwrap_or_else(|| Path::new("")).join(p)
+            })
+        }
+        None => Err(ComponentError::Invalid {
+            path: path.display().to_string(),
+            field: "plant.actuator".into(),
+            message:
+                "neither an actuator sheet ([components]) nor a scene naming one (plant.actuator)"
+                    .into(),
+        }),
+    }
+}

@@ -1,0 +1,236 @@
+//! The 1-DOF mechanics of eq. (1) coupled to the actuator: moving mass, viscous and Coulomb friction,
+//! gravity along the incline, end stops, integrated with fixed-step RK4.
+//!
+//! eq. (1): `F_1 - F_2 + G_alpha - f = m x'' + K_v x'`, with F_1 - F_2 the net pneumatic force on the rod
+//! ([`Actuator::piston_force`]) minus the environment's reaction, G_alpha = m g sin(alpha) and f the
+//! Coulomb friction. Convention: alpha is the incline of the actuator axis below the horizontal, the axis
+//! pointing downhill towards the environment, so gravity aids extension exactly as eq. (1) prints it. The
+//! paper's Fig. 1 measures the platform angle from the vertical; that angle is 90 deg - alpha.
+//! The environment's reaction enters as the external force `f_ext = -F_2` along +x.
+
+use crate::actuator::{Actuator, ChamberState};
+use crate::valve::ValveState;
+
+/// Coulomb friction law of the piston and guide.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Friction {
+    /// Smooth Coulomb friction `F_c tanh(v / v_s)` (no sticking, friendly to RK4).
+    Smooth {
+        /// Coulomb (kinetic) friction force F_c, N.
+        coulomb_n: f64,
+        /// Velocity scale v_s of the tanh, m/s.
+        smooth_velocity_m_per_s: f64,
+    },
+    /// Karnopp stick-slip friction with a Stribeck drop from static to Coulomb friction.
+    StickSlip {
+        /// Coulomb (kinetic) friction force F_c, N.
+        coulomb_n: f64,
+        /// Break-away (static) friction F_s >= F_c, N.
+        static_n: f64,
+        /// Stribeck velocity of the static-to-kinetic drop, m/s.
+        stribeck_velocity_m_per_s: f64,
+        /// Half-width of the sticking band: below this speed the piston sticks if |drive| <= F_s, m/s.
+        stick_velocity_m_per_s: f64,
+    },
+}
+
+impl Friction {
+    /// Friction force opposing motion (positive along +x resists positive velocity), N, given the
+    /// velocity and the net driving force of everything except friction and viscosity.
+    #[inline]
+    pub fn force(&self, v: f64, drive: f64) -> f64 {
+        match *self {
+            Friction::Smooth {
+                coulomb_n,
+                smooth_velocity_m_per_s,
+            } => coulomb_n * (v / smooth_velocity_m_per_s).tanh(),
+            Friction::StickSlip {
+                coulomb_n,
+                static_n,
+                stribeck_velocity_m_per_s,
+                stick_velocity_m_per_s,
+            } => {
+                if v.abs() < stick_velocity_m_per_s {
+                    // Karnopp: sticking friction balances the drive up to the break-away force.
+                    drive.clamp(-static_n, static_n)
+                } else {
+                    let z = v / stribeck_velocity_m_per_s;
+                    v.signum() * (coulomb_n + (static_n - coulomb_n) * (-z * z).exp())
+                }
+            }
+        }
+    }
+}
+
+/// Mechanical parameters of eq. (1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mechanics {
+    /// Moving mass m (piston, rod, flange and what rides on it), kg.
+    pub moving_mass_kg: f64,
+    /// Viscous friction coefficient K_v, N s/m.
+    pub viscous_n_s_per_m: f64,
+    /// Coulomb friction law f.
+    pub friction: Friction,
+    /// Incline of the axis below the horizontal, rad (gravity aids extension for alpha > 0).
+    pub alpha_rad: f64,
+    /// Gravitational acceleration g, m/s^2.
+    pub gravity_m_per_s2: f64,
+}
+
+impl Mechanics {
+    /// Gravity component along +x, G_alpha = m g sin(alpha), N (eq. 1).
+    #[inline]
+    pub fn gravity_force(&self) -> f64 {
+        self.moving_mass_kg * self.gravity_m_per_s2 * self.alpha_rad.sin()
+    }
+}
+
+/// The 1-DOF pneumatic actuator: pneumatics plus mechanics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OneDofModel {
+    /// Cylinder, valve, gas and supply.
+    pub actuator: Actuator,
+    /// Mass, friction, incline.
+    pub mechanics: Mechanics,
+}
+
+/// Full state of the 1-DOF model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OneDofState {
+    /// Simulation time, s.
+    pub t: f64,
+    /// Piston extension from the cap end, m.
+    pub x: f64,
+    /// Piston velocity, m/s.
+    pub x_dot: f64,
+    /// Chamber pressures and temperatures.
+    pub chambers: ChamberState,
+    /// Valve spool and PWM state.
+    pub valve: ValveState,
+}
+
+impl OneDofState {
+    /// A state at rest at `x` with the given chambers and the valve spool at `spool`, t = 0.
+    pub fn at_rest(x: f64, chambers: ChamberState, spool: f64) -> Self {
+        Self {
+            t: 0.0,
+            x,
+            x_dot: 0.0,
+            chambers,
+            valve: ValveState::at_spool(spool),
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Deriv {
+    x: f64,
+    v: f64,
+    c: ChamberState,
+}
+
+impl OneDofModel {
+    /// Net force on the moving mass except friction and viscosity, N: pneumatic + gravity + external.
+    #[inline]
+    pub fn drive_force(&self, chambers: &ChamberState, f_ext: f64) -> f64 {
+        self.actuator.piston_force(chambers) + self.mechanics.gravity_force() + f_ext
+    }
+
+    #[inline]
+    fn rates(&self, x: f64, v: f64, c: &ChamberState, spool: f64, f_load: f64) -> Deriv {
+        let m = &self.mechanics;
+        // f_load = G_alpha + f_ext, computed once per step (sin is costly).
+        let drive = self.actuator.piston_force(c) + f_load;
+        // eq. (1): m x'' = F_1 - F_2 + G_alpha - f - K_v x'.
+        let a = (drive - m.friction.force(v, drive) - m.viscous_n_s_per_m * v) / m.moving_mass_kg;
+        Deriv {
+            x: v,
+            v: a,
+            c: self.actuator.chamber_rates(c, x, v, spool),
+        }
+    }
+
+    /// Advances the model by one fixed RK4 step `dt` under valve command `u` in [-1, 1] and external force
+    /// `f_ext` (N, along +x). The valve is advanced first and its spool held over the step; the end stops
+    /// are hard (inelastic) and applied after the step. Allocation-free.
+    pub fn step(&self, state: &mut OneDofState, u: f64, f_ext: f64, dt: f64) {
+        let spool = self.actuator.valve.spool(&mut state.valve, u, state.t, dt);
+        let (x0, v0, c0) = (state.x, state.x_dot, state.chambers);
+        let f_load = self.mechanics.gravity_force() + f_ext;
+        let h = 0.5 * dt;
+        let k1 = self.rates(x0, v0, &c0, spool, f_load);
+        let k2 = self.rates(
+            x0 + h * k1.x,
+            v0 + h * k1.v,
+            &axpy(&c0, h, &k1.c),
+            spool,
+            f_load,
+        );
+        let k3 = self.rates(
+            x0 + h * k2.x,
+            v0 + h * k2.v,
+            &axpy(&c0, h, &k2.c),
+            spool,
+            f_load,
+        );
+        let k4 = self.rates(
+            x0 + dt * k3.x,
+            v0 + dt * k3.v,
+            &axpy(&c0, dt, &k3.c),
+            spool,
+            f_load,
+        );
+        let w = dt / 6.0;
+        let mut x = x0 + w * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
+        let mut v = v0 + w * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
+        let mut c = c0;
+        c.p_a += w * (k1.c.p_a + 2.0 * k2.c.p_a + 2.0 * k3.c.p_a + k4.c.p_a);
+        c.p_b += w * (k1.c.p_b + 2.0 * k2.c.p_b + 2.0 * k3.c.p_b + k4.c.p_b);
+        c.t_a += w * (k1.c.t_a + 2.0 * k2.c.t_a + 2.0 * k3.c.t_a + k4.c.t_a);
+        c.t_b += w * (k1.c.t_b + 2.0 * k2.c.t_b + 2.0 * k3.c.t_b + k4.c.t_b);
+        // End stops: inelastic, the stop absorbs any velocity into it.
+        let stroke = self.actuator.cylinder.stroke_m;
+        if x <= 0.0 {
+            x = 0.0;
+            v = v.max(0.0);
+        } else if x >= stroke {
+            x = stroke;
+            v = v.min(0.0);
+        }
+        // Karnopp sticking: inside the band with the drive below break-away, the piston is at rest.
+        if let crate::mechanics::Friction::StickSlip {
+            static_n,
+            stick_velocity_m_per_s,
+            ..
+        } = self.mechanics.friction
+            && v.abs() < stick_velocity_m_per_s
+            && (self.actuator.piston_force(&c) + f_load).abs() <= static_n
+        {
+            v = 0.0;
+        }
+        state.x = x;
+        state.x_dot = v;
+        state.chambers = c;
+        state.t += dt;
+    }
+
+    /// Static balance (eq. 1 with x' = x'' = 0, no friction): the chamber-A pressure (Pa absolute) that
+    /// holds the flange still against chamber-B pressure `p_b`, gravity and the external force `f_ext`.
+    pub fn static_balance(&self, p_b: f64, f_ext: f64) -> f64 {
+        let c = &self.actuator.cylinder;
+        let p_atm = self.actuator.supply.atmosphere_pressure_pa;
+        // p_a S_a - p_b S_b - p_atm S_rod + G_alpha + f_ext = 0.
+        (p_b * c.area_b() + p_atm * c.area_rod() - self.mechanics.gravity_force() - f_ext)
+            / c.area_a()
+    }
+}
+
+#[inline]
+fn axpy(c: &ChamberState, h: f64, d: &ChamberState) -> ChamberState {
+    ChamberState {
+        p_a: c.p_a + h * d.p_a,
+        p_b: c.p_b + h * d.p_b,
+        t_a: c.t_a + h * d.t_a,
+        t_b: c.t_b + h * d.t_b,
+    }
+}

@@ -1,0 +1,485 @@
+//! The run loop: for every controller the scene lists, `sense → controller.update → actuate → advance(dt)`
+//! on a fresh plant, recording a preallocated trace, then the metrics of every window.
+
+use pneuflex_control as control;
+use pneuflex_control::{Controller, Setpoint};
+use serde::Serialize;
+
+use crate::error::SceneError;
+use crate::metrics::{self, EventResponse};
+use crate::plant::{IdealLoop, LinearSpring, Plant};
+use crate::pneumatic::OneDofPneumatic;
+use crate::schema::{
+    ControllerKind, ForcePiece, LambdaDSign, PidSpec, PlantSpec, RunSpec, Scene, Sigma1Sign,
+    WindowKind,
+};
+use crate::trace::{Row, Trace};
+
+/// The outcome of one controller run: its trace, metrics, Lyapunov check and divergence state.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// Run name from the scene.
+    pub name: String,
+    /// Controller kind.
+    pub controller: ControllerKind,
+    /// Recorded signals (up to the divergence point for a diverged run).
+    pub trace: Trace,
+    /// Metrics per window, in the scene's window order (empty for a diverged run).
+    pub windows: Vec<WindowMetrics>,
+    /// Lyapunov check of the adaptive law's error system (adaptive runs only).
+    pub lyapunov: Option<LyapunovSummary>,
+    /// Why the run was stopped, when it diverged.
+    pub diverged: Option<String>,
+}
+
+impl RunResult {
+    /// Whether the trace holds g, p, d.
+    pub fn is_adaptive(&self) -> bool {
+        self.controller == ControllerKind::Adaptive
+    }
+
+    /// The metrics of the window named `name`.
+    pub fn window(&self, name: &str) -> Option<&WindowMetrics> {
+        self.windows.iter().find(|w| w.name == name)
+    }
+}
+
+/// Metrics of one window.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct WindowMetrics {
+    /// Window name.
+    pub name: String,
+    /// Window kind.
+    pub kind: WindowKind,
+    /// Window start, s.
+    pub t0_s: f64,
+    /// Window end, s.
+    pub t1_s: f64,
+    /// RMS of f_ref - f_e over the window, N.
+    pub rms_force_error_n: f64,
+    /// Sine windows: frequency of the reference, Hz.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frequency_hz: Option<f64>,
+    /// Sine windows: phase lag of f_e behind f_ref, degrees (positive = lags).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub phase_lag_deg: Option<f64>,
+    /// Sine windows: amplitude ratio |f_e| / |f_ref| of the fitted sines.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub amplitude_ratio: Option<f64>,
+    /// Step windows: mean of f_ref - f_e, N.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub steady_state_error_n: Option<f64>,
+    /// Event windows: peak force, overshoot, settling.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub event: Option<EventResponse>,
+}
+
+/// The Lyapunov check of Section III-D for an adaptive run (what summary.json reports).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct LyapunovSummary {
+    /// Reference model damping a_m, 1/s.
+    pub a_m: f64,
+    /// Reference model stiffness b_m, 1/s².
+    pub b_m: f64,
+    /// Initial a_p = b_d / m_d (eq. (28) with d = 0), 1/s.
+    pub a_p0: f64,
+    /// Initial b_p = (k_d + k_e) / m_d (eq. (28) with p = 0), 1/s².
+    pub b_p0: f64,
+    /// Solution P of A_mᵀP + PA_m = -Q, row-major.
+    pub p: [[f64; 2]; 2],
+    /// Largest |entry| of A_mᵀP + PA_m + Q.
+    pub residual: f64,
+    /// V at t = 0.
+    pub v0: f64,
+    /// V at the end.
+    pub v_end: f64,
+    /// Largest one-step rise of V.
+    pub max_delta_v: f64,
+    /// Whether V never rose by more than 1e-9·V(0) in a step.
+    pub non_increasing: bool,
+}
+
+/// Builds the plant a scene describes, at its initial state.
+pub fn build_plant(scene: &Scene) -> Result<Box<dyn Plant>, SceneError> {
+    let env = LinearSpring {
+        stiffness_n_per_m: scene.environment.stiffness_n_per_m,
+        x_e_m: scene.environment.x_e_m,
+    };
+    match &scene.plant {
+        PlantSpec::Ideal {
+            omega_rad_per_s,
+            zeta,
+            x0_m,
+        } => Ok(Box::new(IdealLoop::new(
+            *omega_rad_per_s,
+            *zeta,
+            *x0_m,
+            env,
+        ))),
+        PlantSpec::Pneumatic { .. } => Ok(Box::new(OneDofPneumatic::from_scene(scene, env)?)),
+    }
+}
+
+/// The force/position setpoint schedule of the scene, in the control crate's fixed-capacity form.
+pub fn build_setpoints(scene: &Scene) -> Result<control::SetpointSchedule, SceneError> {
+    let mut sp = control::SetpointSchedule::default();
+    for (i, piece) in scene.reference.force.iter().enumerate() {
+        let r = match *piece {
+            ForcePiece::Step { value_n, .. } => control::Reference::Constant { value: value_n },
+            ForcePiece::Sine {
+                bias_n,
+                amplitude_n,
+                frequency_hz,
+                phase_rad,
+                ..
+            } => control::Reference::Sine {
+                bias: bias_n,
+                amplitude: amplitude_n,
+                frequency_hz,
+                phase_rad,
+            },
+            ForcePiece::Ramp {
+                value0_n,
+                slope_n_per_s,
+                ..
+            } => control::Reference::Ramp {
+                start: value0_n,
+                slope_per_s: slope_n_per_s,
+            },
+        };
+        sp.force_n
+            .push(piece.start_s(), r)
+            .map_err(|e| SceneError::Invalid {
+                file: scene.source.clone(),
+                path: format!("reference.force[{i}]"),
+                message: e.to_string(),
+            })?;
+    }
+    sp.position_m
+        .push(
+            0.0,
+            control::Reference::Constant {
+                value: scene.reference.x_d_m,
+            },
+        )
+        .map_err(|e| SceneError::Invalid {
+            file: scene.source.clone(),
+            path: "reference.x_d_m".into(),
+            message: e.to_string(),
+        })?;
+    Ok(sp)
+}
+
+fn pid_params(p: &PidSpec) -> control::PidParams {
+    control::PidParams {
+        kp_per_m: p.kp_per_m,
+        ki_per_m_s: p.ki_per_m_s,
+        kd_s_per_m: p.kd_s_per_m,
+        derivative_filter_s: p.derivative_filter_s,
+        u_min: p.u_min,
+        u_max: p.u_max,
+        anti_windup: match p.tracking_time_s {
+            None => control::AntiWindup::Clamping,
+            Some(tracking_time_s) => control::AntiWindup::BackCalculation { tracking_time_s },
+        },
+    }
+}
+
+/// The control crate's impedance parameters of a run.
+pub fn impedance_params(run: &RunSpec) -> control::ImpedanceParams {
+    control::ImpedanceParams {
+        m_d_kg: run.impedance.m_d_kg,
+        b_d_ns_per_m: run.impedance.b_d_ns_per_m,
+        k_d_n_per_m: run.impedance.k_d_n_per_m,
+    }
+}
+
+/// The control crate's adaptive parameters of a run (None for impedance runs).
+pub fn adaptive_params(run: &RunSpec) -> Option<control::AdaptiveParams> {
+    let a = run.adaptive.as_ref()?;
+    Some(control::AdaptiveParams {
+        lambda_p: a.lambda_p,
+        lambda_d: a.lambda_d,
+        mu1: a.mu1,
+        mu2: a.mu2,
+        mu3: a.mu3,
+        sigma1: a.sigma1,
+        sigma2: a.sigma2,
+        sigma3: a.sigma3,
+        force_unit_n: a.force_unit_n,
+        position_unit_m: a.position_unit_m,
+        lambda_d_sign: match a.lambda_d_sign {
+            LambdaDSign::FromEdot => control::LambdaDSign::FromEdot,
+            LambdaDSign::AsPrinted => control::LambdaDSign::AsPrinted,
+        },
+        sigma1_sign: match a.sigma1_sign {
+            Sigma1Sign::Leakage => control::Sigma1Sign::Leakage,
+            Sigma1Sign::AsPrinted => control::Sigma1Sign::AsPrinted,
+        },
+    })
+}
+
+/// Builds the controller of run `index` of the scene.
+pub fn build_controller(scene: &Scene, index: usize) -> Result<Box<dyn Controller>, SceneError> {
+    let run = &scene.runs[index];
+    let bad = |e: control::ParamError| SceneError::Invalid {
+        file: scene.source.clone(),
+        path: format!("runs[{index}]"),
+        message: e.to_string(),
+    };
+    let imp = impedance_params(run);
+    let pid = pid_params(&run.inner);
+    Ok(match run.controller {
+        ControllerKind::Impedance => {
+            Box::new(control::ImpedanceController::new(imp, pid).map_err(bad)?)
+        }
+        ControllerKind::Adaptive => {
+            let a = adaptive_params(run).ok_or_else(|| SceneError::Invalid {
+                file: scene.source.clone(),
+                path: format!("runs[{index}].adaptive"),
+                message: "missing: controller = \"adaptive\" needs the adaptive gains".into(),
+            })?;
+            Box::new(control::AdaptiveImpedanceController::new(imp, a, pid).map_err(bad)?)
+        }
+    })
+}
+
+/// Runs every controller the scene lists, each on a fresh plant. `progress` receives the completed
+/// fraction in [0, 1]. A diverged run is returned with `diverged` set; errors are only for bad input.
+pub fn run_scene(
+    scene: &Scene,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Vec<RunResult>, SceneError> {
+    scene.validate()?;
+    let setpoints = build_setpoints(scene)?;
+    let mut plant = build_plant(scene)?;
+    let n_runs = scene.runs.len();
+    let mut out = Vec::with_capacity(n_runs);
+    for i in 0..n_runs {
+        let mut controller = build_controller(scene, i)?;
+        plant.reset();
+        let mut sub = |f: f64| progress((i as f64 + f) / n_runs as f64);
+        let mut r = simulate(
+            scene,
+            i,
+            plant.as_mut(),
+            controller.as_mut(),
+            &setpoints,
+            &mut sub,
+        )?;
+        if r.diverged.is_none() {
+            r.windows = compute_windows(scene, &r.trace);
+        }
+        if r.controller == ControllerKind::Adaptive {
+            r.lyapunov = lyapunov_summary(scene, &scene.runs[i]);
+        }
+        out.push(r);
+    }
+    progress(1.0);
+    Ok(out)
+}
+
+/// Simulates run `index` of the scene with the given plant and controller (both at their initial state).
+pub fn simulate(
+    scene: &Scene,
+    index: usize,
+    plant: &mut dyn Plant,
+    controller: &mut dyn Controller,
+    setpoints: &control::SetpointSchedule,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RunResult, SceneError> {
+    let run = &scene.runs[index];
+    let adaptive = run.controller == ControllerKind::Adaptive;
+    let dt = scene.dt_s;
+    let n = scene.n_steps();
+    let mut events = scene.events.clone();
+    events.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+    let mut next_event = 0;
+    let mut trace = Trace::with_capacity(n + 1, adaptive);
+    let lim = scene.divergence;
+    let report_every = (n / 200).max(1);
+    let mut diverged = None;
+    for k in 0..=n {
+        let t = k as f64 * dt;
+        // Events apply at the first tick at or after their time (half a tick of tolerance for rounding).
+        while next_event < events.len() && events[next_event].t_s() <= t + 0.5 * dt {
+            plant
+                .apply(&events[next_event])
+                .map_err(|m| SceneError::Invalid {
+                    file: scene.source.clone(),
+                    path: format!("events[{next_event}]"),
+                    message: m,
+                })?;
+            next_event += 1;
+        }
+        let mut s = plant.sense();
+        s.t = t;
+        let sp: Setpoint = setpoints.at(t);
+        let cmd = controller.update(&s, &sp, dt);
+        let tel = controller.telemetry();
+        trace.push(
+            &Row {
+                t,
+                f_ref: sp.f_ref,
+                f_e: s.f_e,
+                x: s.x,
+                x_r: tel.x_r,
+                p_a: s.p_a,
+                p_b: s.p_b,
+                u: cmd.u,
+                g: tel.g,
+                p: tel.p,
+                d: tel.d,
+            },
+            adaptive,
+        );
+        if let Some(reason) = divergence(t, s.x, s.f_e, tel.x_r, &lim) {
+            diverged = Some(reason);
+            break;
+        }
+        if k == n {
+            break;
+        }
+        plant.actuate(cmd, &tel);
+        plant.advance(dt);
+        if k % report_every == 0 {
+            progress(k as f64 / n as f64);
+        }
+    }
+    progress(1.0);
+    Ok(RunResult {
+        name: run.name.clone(),
+        controller: run.controller,
+        trace,
+        windows: Vec::new(),
+        lyapunov: None,
+        diverged,
+    })
+}
+
+fn divergence(
+    t: f64,
+    x: f64,
+    f_e: f64,
+    x_r: f64,
+    lim: &crate::schema::DivergenceSpec,
+) -> Option<String> {
+    if !x.is_finite() || !f_e.is_finite() || !x_r.is_finite() {
+        return Some(format!(
+            "non-finite state at t = {t:.4} s (x = {x}, f_e = {f_e}, x_r = {x_r})"
+        ));
+    }
+    if x.abs() > lim.max_abs_position_m {
+        return Some(format!(
+            "|x| = {:.4} m exceeds divergence.max_abs_position_m = {} at t = {t:.4} s",
+            x.abs(),
+            lim.max_abs_position_m
+        ));
+    }
+    if x_r.abs() > lim.max_abs_position_m {
+        return Some(format!(
+            "|x_r| = {:.4} m exceeds divergence.max_abs_position_m = {} at t = {t:.4} s",
+            x_r.abs(),
+            lim.max_abs_position_m
+        ));
+    }
+    if f_e.abs() > lim.max_abs_force_n {
+        return Some(format!(
+            "|f_e| = {:.1} N exceeds divergence.max_abs_force_n = {} at t = {t:.4} s",
+            f_e.abs(),
+            lim.max_abs_force_n
+        ));
+    }
+    None
+}
+
+/// The metrics of every window of the scene on a trace.
+pub fn compute_windows(scene: &Scene, tr: &Trace) -> Vec<WindowMetrics> {
+    scene
+        .metrics
+        .iter()
+        .map(|w| {
+            let (i0, i1) = metrics::window_indices(&tr.t, w.t0_s, w.t1_s);
+            let (t, r, f) = (&tr.t[i0..i1], &tr.f_ref[i0..i1], &tr.f_e[i0..i1]);
+            let mut m = WindowMetrics {
+                name: w.name.clone(),
+                kind: w.kind,
+                t0_s: w.t0_s,
+                t1_s: w.t1_s,
+                rms_force_error_n: metrics::rms_error(r, f),
+                frequency_hz: None,
+                phase_lag_deg: None,
+                amplitude_ratio: None,
+                steady_state_error_n: None,
+                event: None,
+            };
+            match w.kind {
+                WindowKind::Sine => {
+                    if let Some(ForcePiece::Sine { frequency_hz, .. }) =
+                        scene.sine_in(w.t0_s, w.t1_s)
+                    {
+                        let om = std::f64::consts::TAU * frequency_hz;
+                        m.frequency_hz = Some(frequency_hz);
+                        m.phase_lag_deg = metrics::phase_lag_deg(t, r, f, frequency_hz);
+                        if let (Some((ar, _, _)), Some((af, _, _))) =
+                            (metrics::fit_sine(t, r, om), metrics::fit_sine(t, f, om))
+                        {
+                            m.amplitude_ratio = Some(af / ar);
+                        }
+                    }
+                }
+                WindowKind::Step => m.steady_state_error_n = Some(metrics::mean_error(r, f)),
+                WindowKind::Event => {
+                    // The steady tracking error is measured over the last reference period when the window
+                    // ends on a sine, else over its last 10%.
+                    let tail = match scene.sine_in(w.t1_s - 1e-9, w.t1_s) {
+                        Some(ForcePiece::Sine { frequency_hz, .. }) => {
+                            (1.0 / frequency_hz).min(0.5 * (w.t1_s - w.t0_s))
+                        }
+                        _ => 0.1 * (w.t1_s - w.t0_s),
+                    };
+                    m.event = metrics::event_response(t, r, f, tail);
+                }
+            }
+            m
+        })
+        .collect()
+}
+
+/// The Lyapunov check (Section III-D) for an adaptive run: the control crate's reference model and Q,
+/// started from the run's impedance loop at the scene's initial stiffness (eq. (28) with p = d = g = 0)
+/// and the initial force error e(0) = f_r(0).
+pub fn lyapunov_summary(scene: &Scene, run: &RunSpec) -> Option<LyapunovSummary> {
+    let mut params = control::LyapunovCheckParams::default();
+    let imp = &run.impedance;
+    let k_e = scene.environment.stiffness_n_per_m;
+    let a_p0 = imp.b_d_ns_per_m / imp.m_d_kg; // eq. (28), d = 0
+    let b_p0 = (imp.k_d_n_per_m + k_e) / imp.m_d_kg; // eq. (28), p = 0
+    let e0 = build_setpoints(scene).ok()?.at(0.0).f_ref;
+    // eq. (28) with g = 0, x_e measured from x_d (eq. (27)'s x_e - x_d; eq. (28) drops x_d).
+    let x_rel = scene.environment.x_e_m - scene.reference.x_d_m;
+    let w_p0 =
+        imp.k_d_n_per_m * k_e / imp.m_d_kg * (if k_e > 0.0 { e0 / k_e } else { 0.0 } + x_rel);
+    params.initial = control::MracState {
+        e: e0,
+        e_dot: 0.0,
+        e_m: e0,
+        e_m_dot: 0.0,
+        a_p: a_p0,
+        b_p: b_p0,
+        w_p: w_p0,
+    };
+    let r = control::lyapunov_check(&params).ok()?;
+    Some(LyapunovSummary {
+        a_m: params.a_m,
+        b_m: params.b_m,
+        a_p0,
+        b_p0,
+        p: r.p,
+        residual: r.residual,
+        v0: r.v0,
+        v_end: r.v_end,
+        max_delta_v: r.max_delta_v,
+        non_increasing: r.non_increasing(1e-9),
+    })
+}

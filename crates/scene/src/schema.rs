@@ -1,0 +1,737 @@
+//! The scene file: one experiment as data (TOML), deserialised strictly and validated.
+//!
+//! Every key is documented with its unit and default in `docs/scenes.md`. Unknown keys, missing keys and
+//! out-of-range numbers (negative stiffness, NaN, ...) are rejected with the file name and the key path.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::SceneError;
+
+/// A complete experiment: plant, environment, references, events, controllers to compare and metric windows.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Scene name; the default output directory is `out/<name>/`.
+    pub name: String,
+    /// Free text shown in summaries.
+    #[serde(default)]
+    pub description: String,
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Control period (one `sense → update → actuate → advance` tick), s.
+    pub dt_s: f64,
+    /// Integration method of the plant (only fixed-step RK4 exists).
+    #[serde(default)]
+    pub integrator: Integrator,
+    /// The plant the controllers drive.
+    pub plant: PlantSpec,
+    /// The environment the flange pushes against.
+    pub environment: EnvironmentSpec,
+    /// Force and position references.
+    pub reference: ReferenceSpec,
+    /// Timed changes of the environment.
+    #[serde(default)]
+    pub events: Vec<EventSpec>,
+    /// Named controller runs; each one is simulated from the same initial state.
+    pub runs: Vec<RunSpec>,
+    /// Time windows over which metrics are computed.
+    #[serde(default)]
+    pub metrics: Vec<MetricWindow>,
+    /// Limits beyond which a run is declared diverged.
+    #[serde(default)]
+    pub divergence: DivergenceSpec,
+    /// Directory of the scene file, for resolving relative paths (not a TOML key).
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+    /// The file the scene was read from, for error messages (not a TOML key).
+    #[serde(skip)]
+    pub source: PathBuf,
+}
+
+/// Integration method of the plant.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Classical fourth-order Runge–Kutta with a fixed step (the paper's choice, Section III-B).
+    #[default]
+    Rk4,
+}
+
+/// Which plant the controllers drive.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum PlantSpec {
+    /// x follows the reference position x_r through a stiff second-order loop (an ideal inner loop).
+    Ideal {
+        /// Natural frequency of the position loop, rad/s.
+        omega_rad_per_s: f64,
+        /// Damping ratio of the position loop, 1.
+        #[serde(default = "one")]
+        zeta: f64,
+        /// Initial flange position, m.
+        #[serde(default)]
+        x0_m: f64,
+    },
+    /// The 1-DOF pneumatic actuator model (pneuflex-pneumatics) driven by the valve command.
+    Pneumatic {
+        /// Actuator sheet (TOML), relative to the scene file.
+        actuator: PathBuf,
+        /// RK4 substeps per control period (the chamber dynamics are faster than the controller).
+        #[serde(default = "default_substeps")]
+        substeps: u32,
+        /// Incline of the platform below horizontal, degrees; gravity aids extension by m g sin(alpha).
+        /// Absent: the actuator sheet's value.
+        #[serde(default)]
+        alpha_deg: Option<f64>,
+        /// Initial flange position, m. Absent: the actuator sheet's initial state.
+        #[serde(default)]
+        x0_m: Option<f64>,
+    },
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn default_substeps() -> u32 {
+    10
+}
+
+/// A linear-spring environment, eq. (21): f_e = k_e (x - x_e) while x > x_e, 0 otherwise.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentSpec {
+    /// Environment stiffness k_e, N/m.
+    pub stiffness_n_per_m: f64,
+    /// Position of the environment surface x_e along the flange axis, m.
+    #[serde(default)]
+    pub x_e_m: f64,
+}
+
+/// Force reference schedule and desired position.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceSpec {
+    /// Desired (free-space) position x_d, m (constant).
+    #[serde(default)]
+    pub x_d_m: f64,
+    /// Pieces of the force reference f_r; each holds from its start time until the next piece starts.
+    pub force: Vec<ForcePiece>,
+}
+
+/// One piece of the force reference schedule.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum ForcePiece {
+    /// Constant force from `start_s` on.
+    Step {
+        /// Start time, s.
+        start_s: f64,
+        /// Force, N.
+        value_n: f64,
+    },
+    /// bias + amplitude · sin(2π f (t - start) + phase).
+    Sine {
+        /// Start time, s.
+        start_s: f64,
+        /// Bias, N.
+        bias_n: f64,
+        /// Amplitude, N.
+        amplitude_n: f64,
+        /// Frequency, Hz.
+        frequency_hz: f64,
+        /// Phase at the start time, rad.
+        #[serde(default)]
+        phase_rad: f64,
+    },
+    /// value0 + slope · (t - start).
+    Ramp {
+        /// Start time, s.
+        start_s: f64,
+        /// Force at the start time, N.
+        value0_n: f64,
+        /// Slope, N/s.
+        slope_n_per_s: f64,
+    },
+}
+
+impl ForcePiece {
+    /// Start time of the piece, s.
+    pub fn start_s(&self) -> f64 {
+        match *self {
+            ForcePiece::Step { start_s, .. }
+            | ForcePiece::Sine { start_s, .. }
+            | ForcePiece::Ramp { start_s, .. } => start_s,
+        }
+    }
+}
+
+/// A timed change of the scene, applied at the first control tick at or after `t_s`.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum EventSpec {
+    /// The environment stiffness k_e becomes a new value.
+    Stiffness {
+        /// Time of the event, s.
+        t_s: f64,
+        /// New stiffness, N/m.
+        stiffness_n_per_m: f64,
+    },
+}
+
+impl EventSpec {
+    /// Time of the event, s.
+    pub fn t_s(&self) -> f64 {
+        match *self {
+            EventSpec::Stiffness { t_s, .. } => t_s,
+        }
+    }
+}
+
+/// One named controller run.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RunSpec {
+    /// Run name: a directory `<out>/<name>/` and a legend entry.
+    pub name: String,
+    /// Which controller.
+    pub controller: ControllerKind,
+    /// Target impedance m_d, b_d, k_d.
+    pub impedance: ImpedanceSpec,
+    /// Adaptive law gains (required for, and only allowed with, `controller = "adaptive"`).
+    #[serde(default)]
+    pub adaptive: Option<AdaptiveSpec>,
+    /// Inner position loop.
+    pub inner: PidSpec,
+}
+
+/// The controller of a run.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ControllerKind {
+    /// Position-based impedance control, eqs. (19)–(24), with the inner position PID.
+    Impedance,
+    /// Model-reference adaptive impedance control, eqs. (25)–(36), with the inner position PID.
+    Adaptive,
+}
+
+impl ControllerKind {
+    /// `"impedance"` or `"adaptive"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ControllerKind::Impedance => "impedance",
+            ControllerKind::Adaptive => "adaptive",
+        }
+    }
+}
+
+/// Target impedance of eq. (19): m_d x_f'' + b_d x_f' + k_d x_f = e.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ImpedanceSpec {
+    /// Target inertia m_d, kg.
+    pub m_d_kg: f64,
+    /// Target damping b_d, N·s/m.
+    pub b_d_ns_per_m: f64,
+    /// Target stiffness k_d, N/m.
+    pub k_d_n_per_m: f64,
+}
+
+/// Sign of λ_d inside χ of eq. (35) (see docs/control.md).
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum LambdaDSign {
+    /// χ = -(λ_p e - λ_d ẋ): eq. (34)'s ė = -k_e ẋ carried through (the velocity term damps).
+    #[default]
+    FromEdot,
+    /// χ = -(λ_p e + λ_d ẋ) exactly as printed in eq. (35).
+    AsPrinted,
+}
+
+/// Sign of the σ_1 term of the g law in eq. (35).
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Sigma1Sign {
+    /// g' = -μ_1 χ - σ_1 g: σ-modification (leakage), like the p and d laws.
+    #[default]
+    Leakage,
+    /// g' = -μ_1 χ + σ_1 g exactly as printed (anti-leakage).
+    AsPrinted,
+}
+
+/// Gains of the σ-modified adaptive law, eq. (35), and the units they are read in.
+///
+/// The law runs on e / force_unit_n and ẋ / position_unit_m and its Δx_f comes out in position units:
+/// `position_unit_m = 1` reads the paper's numbers in SI, `1e-3` reads them with positions in mm.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptiveSpec {
+    /// Force unit the gains are read in, N.
+    #[serde(default = "one")]
+    pub force_unit_n: f64,
+    /// Position unit the gains are read in, m (1 = metres, 0.001 = millimetres).
+    #[serde(default = "one")]
+    pub position_unit_m: f64,
+    /// Sign of λ_d inside χ.
+    #[serde(default)]
+    pub lambda_d_sign: LambdaDSign,
+    /// Sign of the σ_1 term.
+    #[serde(default)]
+    pub sigma1_sign: Sigma1Sign,
+    /// λ_p: weight of e in χ.
+    pub lambda_p: f64,
+    /// λ_d: weight of ẋ in χ.
+    pub lambda_d: f64,
+    /// μ_1: adaptation gain of g.
+    pub mu1: f64,
+    /// μ_2: adaptation gain of p.
+    pub mu2: f64,
+    /// μ_3: adaptation gain of d.
+    pub mu3: f64,
+    /// σ_1: σ-modification of g, 1/s.
+    pub sigma1: f64,
+    /// σ_2: σ-modification of p, 1/s.
+    pub sigma2: f64,
+    /// σ_3: σ-modification of d, 1/s.
+    pub sigma3: f64,
+}
+
+/// Inner position loop: PID on x_r - x with derivative on the measurement, anti-windup and output limits.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PidSpec {
+    /// Proportional gain, 1/m (valve command per metre of position error).
+    pub kp_per_m: f64,
+    /// Integral gain, 1/(m·s).
+    #[serde(default)]
+    pub ki_per_m_s: f64,
+    /// Derivative gain on the measured position, s/m.
+    #[serde(default)]
+    pub kd_s_per_m: f64,
+    /// Time constant of the low-pass on the derivative, s (0 = unfiltered).
+    #[serde(default = "default_derivative_filter")]
+    pub derivative_filter_s: f64,
+    /// Lower limit of the valve command, in [-1, 1].
+    #[serde(default = "minus_one")]
+    pub u_min: f64,
+    /// Upper limit of the valve command, in [-1, 1].
+    #[serde(default = "one")]
+    pub u_max: f64,
+    /// Back-calculation tracking time, s; absent = conditional integration (clamping).
+    #[serde(default)]
+    pub tracking_time_s: Option<f64>,
+}
+
+fn default_derivative_filter() -> f64 {
+    0.002
+}
+
+fn minus_one() -> f64 {
+    -1.0
+}
+
+/// What a metric window measures.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum WindowKind {
+    /// A sine reference: RMS error and phase lag of f_e behind f_ref.
+    Sine,
+    /// A step (constant) reference: RMS error and steady-state error.
+    Step,
+    /// After an event: peak force, recovery overshoot, 2% settling time.
+    Event,
+}
+
+/// A named time window for metrics.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MetricWindow {
+    /// Window name (a key in summary.json).
+    pub name: String,
+    /// Window start, s (for `event`: the event time).
+    pub t0_s: f64,
+    /// Window end, s.
+    pub t1_s: f64,
+    /// What to measure.
+    pub kind: WindowKind,
+}
+
+/// Thresholds that stop a run as diverged.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DivergenceSpec {
+    /// Largest admissible |x|, m.
+    #[serde(default = "default_max_position")]
+    pub max_abs_position_m: f64,
+    /// Largest admissible |f_e|, N.
+    #[serde(default = "default_max_force")]
+    pub max_abs_force_n: f64,
+}
+
+fn default_max_position() -> f64 {
+    10.0
+}
+
+fn default_max_force() -> f64 {
+    1.0e5
+}
+
+impl Default for DivergenceSpec {
+    fn default() -> Self {
+        Self {
+            max_abs_position_m: default_max_position(),
+            max_abs_force_n: default_max_force(),
+        }
+    }
+}
+
+impl Scene {
+    /// Reads, parses and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
+            file: path.to_path_buf(),
+            source: e,
+        })?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Scene::from_toml_str(&text, path, &base)
+    }
+
+    /// Parses and validates scene text; `file` names it in errors and `base_dir` resolves relative paths.
+    pub fn from_toml_str(text: &str, file: &Path, base_dir: &Path) -> Result<Scene, SceneError> {
+        let de = toml::Deserializer::parse(text).map_err(|e| SceneError::Parse {
+            file: file.to_path_buf(),
+            path: String::new(),
+            message: e.message().to_string(),
+        })?;
+        let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner();
+            SceneError::Parse {
+                file: file.to_path_buf(),
+                path: if path == "." { String::new() } else { path },
+                message: inner.message().trim().to_string(),
+            }
+        })?;
+        scene.base_dir = base_dir.to_path_buf();
+        scene.source = file.to_path_buf();
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Number of control ticks in the run (the trace has one more row: t = 0 .. duration inclusive).
+    pub fn n_steps(&self) -> usize {
+        (self.duration_s / self.dt_s).round() as usize
+    }
+
+    /// Path of the pneumatic actuator sheet, resolved against the scene's directory.
+    pub fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.base_dir.join(p)
+        }
+    }
+
+    /// Checks every number and cross-reference; the error names the file and the key path.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let v = Validator { file: &self.source };
+        if self.name.trim().is_empty() {
+            return Err(v.err("name", "must not be empty".into()));
+        }
+        if self.name.contains(['/', '\\']) || self.name == "." || self.name == ".." {
+            return Err(v.err(
+                "name",
+                format!("must be usable as a directory name, got {:?}", self.name),
+            ));
+        }
+        v.positive("duration_s", self.duration_s)?;
+        v.positive("dt_s", self.dt_s)?;
+        if self.dt_s > self.duration_s {
+            return Err(v.err(
+                "dt_s",
+                format!(
+                    "must not exceed duration_s ({}), got {}",
+                    self.duration_s, self.dt_s
+                ),
+            ));
+        }
+        if self.n_steps() > 100_000_000 {
+            return Err(v.err(
+                "dt_s",
+                format!("gives {} steps; at most 1e8 are allowed", self.n_steps()),
+            ));
+        }
+        match &self.plant {
+            PlantSpec::Ideal {
+                omega_rad_per_s,
+                zeta,
+                x0_m,
+            } => {
+                v.positive("plant.omega_rad_per_s", *omega_rad_per_s)?;
+                v.non_negative("plant.zeta", *zeta)?;
+                v.finite("plant.x0_m", *x0_m)?;
+                // RK4 is stable for |λ dt| below ~2.8; keep well inside.
+                if omega_rad_per_s * self.dt_s > 1.0 {
+                    return Err(v.err(
+                        "plant.omega_rad_per_s",
+                        format!(
+                            "omega * dt_s must be <= 1 for an accurate fixed-step RK4, got {} (dt_s = {})",
+                            omega_rad_per_s * self.dt_s,
+                            self.dt_s
+                        ),
+                    ));
+                }
+            }
+            PlantSpec::Pneumatic {
+                actuator,
+                substeps,
+                alpha_deg,
+                x0_m,
+            } => {
+                if *substeps == 0 {
+                    return Err(v.err("plant.substeps", "must be >= 1, got 0".into()));
+                }
+                if actuator.as_os_str().is_empty() {
+                    return Err(v.err("plant.actuator", "must name an actuator sheet".into()));
+                }
+                if let Some(a) = alpha_deg {
+                    v.finite("plant.alpha_deg", *a)?;
+                    if !(-90.0..=90.0).contains(a) {
+                        return Err(
+                            v.err("plant.alpha_deg", format!("must be in [-90, 90], got {a}"))
+                        );
+                    }
+                }
+                if let Some(x) = x0_m {
+                    v.finite("plant.x0_m", *x)?;
+                }
+            }
+        }
+        v.non_negative(
+            "environment.stiffness_n_per_m",
+            self.environment.stiffness_n_per_m,
+        )?;
+        v.finite("environment.x_e_m", self.environment.x_e_m)?;
+        v.finite("reference.x_d_m", self.reference.x_d_m)?;
+        if self.reference.force.is_empty() {
+            return Err(v.err("reference.force", "needs at least one piece".into()));
+        }
+        if self.reference.force.len() > pneuflex_control::reference::SCHEDULE_CAPACITY {
+            return Err(v.err(
+                "reference.force",
+                format!(
+                    "at most {} pieces, got {}",
+                    pneuflex_control::reference::SCHEDULE_CAPACITY,
+                    self.reference.force.len()
+                ),
+            ));
+        }
+        let mut prev = f64::NEG_INFINITY;
+        for (i, piece) in self.reference.force.iter().enumerate() {
+            let at = |k: &str| format!("reference.force[{i}].{k}");
+            v.non_negative(&at("start_s"), piece.start_s())?;
+            if piece.start_s() <= prev {
+                return Err(v.err(
+                    &at("start_s"),
+                    format!(
+                        "pieces must start in increasing time order, got {} after {prev}",
+                        piece.start_s()
+                    ),
+                ));
+            }
+            prev = piece.start_s();
+            match *piece {
+                ForcePiece::Step { value_n, .. } => v.finite(&at("value_n"), value_n)?,
+                ForcePiece::Sine {
+                    bias_n,
+                    amplitude_n,
+                    frequency_hz,
+                    phase_rad,
+                    ..
+                } => {
+                    v.finite(&at("bias_n"), bias_n)?;
+                    v.non_negative(&at("amplitude_n"), amplitude_n)?;
+                    v.positive(&at("frequency_hz"), frequency_hz)?;
+                    v.finite(&at("phase_rad"), phase_rad)?;
+                }
+                ForcePiece::Ramp {
+                    value0_n,
+                    slope_n_per_s,
+                    ..
+                } => {
+                    v.finite(&at("value0_n"), value0_n)?;
+                    v.finite(&at("slope_n_per_s"), slope_n_per_s)?;
+                }
+            }
+        }
+        for (i, ev) in self.events.iter().enumerate() {
+            v.non_negative(&format!("events[{i}].t_s"), ev.t_s())?;
+            match *ev {
+                EventSpec::Stiffness {
+                    stiffness_n_per_m, ..
+                } => {
+                    v.non_negative(&format!("events[{i}].stiffness_n_per_m"), stiffness_n_per_m)?
+                }
+            }
+        }
+        if self.runs.is_empty() {
+            return Err(v.err("runs", "needs at least one run".into()));
+        }
+        for (i, run) in self.runs.iter().enumerate() {
+            let at = |k: &str| format!("runs[{i}].{k}");
+            if run.name.trim().is_empty()
+                || run.name.contains(['/', '\\'])
+                || run.name == "."
+                || run.name == ".."
+            {
+                return Err(v.err(
+                    &at("name"),
+                    format!("must be a non-empty directory name, got {:?}", run.name),
+                ));
+            }
+            if self.runs[..i].iter().any(|r| r.name == run.name) {
+                return Err(v.err(&at("name"), format!("duplicate run name {:?}", run.name)));
+            }
+            match (run.controller, &run.adaptive) {
+                (ControllerKind::Adaptive, None) => {
+                    return Err(v.err(
+                        &at("adaptive"),
+                        "missing: controller = \"adaptive\" needs the adaptive gains".into(),
+                    ));
+                }
+                (ControllerKind::Impedance, Some(_)) => {
+                    return Err(v.err(
+                        &at("adaptive"),
+                        "only allowed with controller = \"adaptive\"".into(),
+                    ));
+                }
+                (ControllerKind::Adaptive, Some(a)) => {
+                    for (k, val) in [
+                        ("lambda_p", a.lambda_p),
+                        ("lambda_d", a.lambda_d),
+                        ("mu1", a.mu1),
+                        ("mu2", a.mu2),
+                        ("mu3", a.mu3),
+                        ("sigma1", a.sigma1),
+                        ("sigma2", a.sigma2),
+                        ("sigma3", a.sigma3),
+                    ] {
+                        v.non_negative(&at(&format!("adaptive.{k}")), val)?;
+                    }
+                    v.positive(&at("adaptive.force_unit_n"), a.force_unit_n)?;
+                    v.positive(&at("adaptive.position_unit_m"), a.position_unit_m)?;
+                }
+                (ControllerKind::Impedance, None) => {}
+            }
+            let (imp, inner) = (&run.impedance, &run.inner);
+            v.positive(&at("impedance.m_d_kg"), imp.m_d_kg)?;
+            v.non_negative(&at("impedance.b_d_ns_per_m"), imp.b_d_ns_per_m)?;
+            v.non_negative(&at("impedance.k_d_n_per_m"), imp.k_d_n_per_m)?;
+            v.non_negative(&at("inner.kp_per_m"), inner.kp_per_m)?;
+            v.non_negative(&at("inner.ki_per_m_s"), inner.ki_per_m_s)?;
+            v.non_negative(&at("inner.kd_s_per_m"), inner.kd_s_per_m)?;
+            v.non_negative(&at("inner.derivative_filter_s"), inner.derivative_filter_s)?;
+            if let Some(tt) = inner.tracking_time_s {
+                v.positive(&at("inner.tracking_time_s"), tt)?;
+            }
+            v.finite(&at("inner.u_min"), inner.u_min)?;
+            v.finite(&at("inner.u_max"), inner.u_max)?;
+            if !(-1.0..=1.0).contains(&inner.u_min)
+                || !(-1.0..=1.0).contains(&inner.u_max)
+                || inner.u_min >= inner.u_max
+            {
+                return Err(v.err(
+                    &at("inner.u_max"),
+                    format!(
+                        "need -1 <= u_min < u_max <= 1, got u_min = {}, u_max = {}",
+                        inner.u_min, inner.u_max
+                    ),
+                ));
+            }
+        }
+        for (i, w) in self.metrics.iter().enumerate() {
+            let at = |k: &str| format!("metrics[{i}].{k}");
+            if w.name.trim().is_empty() {
+                return Err(v.err(&at("name"), "must not be empty".into()));
+            }
+            if self.metrics[..i].iter().any(|o| o.name == w.name) {
+                return Err(v.err(&at("name"), format!("duplicate window name {:?}", w.name)));
+            }
+            v.non_negative(&at("t0_s"), w.t0_s)?;
+            v.finite(&at("t1_s"), w.t1_s)?;
+            if w.t1_s <= w.t0_s || w.t1_s > self.duration_s + 0.5 * self.dt_s {
+                return Err(v.err(
+                    &at("t1_s"),
+                    format!(
+                        "must satisfy t0_s < t1_s <= duration_s ({}), got t0_s = {}, t1_s = {}",
+                        self.duration_s, w.t0_s, w.t1_s
+                    ),
+                ));
+            }
+            if w.kind == WindowKind::Sine && self.sine_in(w.t0_s, w.t1_s).is_none() {
+                return Err(v.err(
+                    &at("kind"),
+                    format!(
+                        "\"sine\" needs one sine reference piece covering [{}, {}] s",
+                        w.t0_s, w.t1_s
+                    ),
+                ));
+            }
+        }
+        let d = &self.divergence;
+        v.positive("divergence.max_abs_position_m", d.max_abs_position_m)?;
+        v.positive("divergence.max_abs_force_n", d.max_abs_force_n)?;
+        Ok(())
+    }
+
+    /// The sine reference piece that covers the whole interval [t0, t1], if any.
+    pub fn sine_in(&self, t0: f64, t1: f64) -> Option<ForcePiece> {
+        let pieces = &self.reference.force;
+        for (i, p) in pieces.iter().enumerate() {
+            let end = pieces.get(i + 1).map_or(f64::INFINITY, ForcePiece::start_s);
+            if matches!(p, ForcePiece::Sine { .. }) && p.start_s() <= t0 && t1 <= end {
+                return Some(*p);
+            }
+        }
+        None
+    }
+}
+
+struct Validator<'a> {
+    file: &'a Path,
+}
+
+impl Validator<'_> {
+    fn err(&self, path: &str, message: String) -> SceneError {
+        SceneError::Invalid {
+            file: self.file.to_path_buf(),
+            path: path.to_string(),
+            message,
+        }
+    }
+    fn finite(&self, path: &str, x: f64) -> Result<(), SceneError> {
+        if x.is_finite() {
+            Ok(())
+        } else {
+            Err(self.err(path, format!("must be a finite number, got {x}")))
+        }
+    }
+    fn non_negative(&self, path: &str, x: f64) -> Result<(), SceneError> {
+        self.finite(path, x)?;
+        if x >= 0.0 {
+            Ok(())
+        } else {
+            Err(self.err(path, format!("must be >= 0, got {x}")))
+        }
+    }
+    fn positive(&self, path: &str, x: f64) -> Result<(), SceneError> {
+        self.finite(path, x)?;
+        if x > 0.0 {
+            Ok(())
+        } else {
+            Err(self.err(path, format!("must be > 0, got {x}")))
+        }
+    }
+}

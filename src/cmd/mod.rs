@@ -1,0 +1,3 @@
+//! One module per subcommand; each returns `anyhow::Result` and leaves printing of errors to `main`.
+pub mod tf;
+pub mod run;
