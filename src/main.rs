@@ -36,6 +36,48 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
+    Rig {
+        #[command(subcommand)]
+        action: RigCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum RigCommand {
+    /// Emulate the rig's I/O board: the 1-DOF pneumatic plant in real time behind a pseudo-terminal (or a port).
+    Emulate {
+        /// Rig file (rigs/*.toml): protocol, calibration, plant and fault injection.
+        #[arg(long, default_value = "rigs/emulated.toml")]
+        rig: PathBuf,
+        /// Serve this serial port instead of a new pseudo-terminal.
+        #[arg(long)]
+        port: Option<String>,
+        /// Stop after this many seconds (default: until Ctrl-C).
+        #[arg(long)]
+        duration: Option<f64>,
+    },
+    /// Run one of a scene's controllers on a rig, real or emulated, with the safety supervisor.
+    Run {
+        /// Serial port of the I/O board (default: the rig file's link.port).
+        #[arg(long)]
+        port: Option<String>,
+        /// Scene whose controller and reference schedule to run.
+        #[arg(long)]
+        scene: PathBuf,
+        /// Rig file (rigs/*.toml): port, calibration, limits, safe state, watchdog.
+        #[arg(long, default_value = "rigs/emulated.toml")]
+        rig: PathBuf,
+        /// Name of the scene's run to use (default: the first).
+        #[arg(long)]
+        run: Option<String>,
+        /// Run length in seconds (default: the scene's duration).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Output directory for trace.csv (default: out/rig/<scene>/<run>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -43,6 +85,12 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Tf { file, json } => cmd::tf::tf(&file, json).map(|text| println!("{text}")),
         Command::Run { scene, out, quiet } => cmd::run::run(&scene, out.as_deref(), quiet),
+        Command::Rig { action: RigCommand::Emulate { rig, port, duration } } => {
+            cmd::rig::emulate(&rig, port.as_deref(), duration)
+        }
+        Command::Rig { action: RigCommand::Run { port, scene, rig, run, duration, out } } => {
+            cmd::rig::run_scene(&rig, port.as_deref(), &scene, run.as_deref(), duration, out.as_deref())
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -85,3 +85,33 @@ pub fn run(
     }
     Ok(report)
 }
+
+/// `pneuflex rig run --scene <scene.toml>`: the controller and reference of one of the scene's runs (by name,
+/// or the first) on the rig, for the scene's duration unless `duration_s` is given. Output in
+/// `out/rig/<scene>/<run>/` unless `out` is given.
+pub fn run_scene(
+    rig_file: &Path,
+    port: Option<&str>,
+    scene_path: &Path,
+    run_name: Option<&str>,
+    duration_s: Option<f64>,
+    out: Option<&Path>,
+) -> anyhow::Result<()> {
+    let scene = pneuflex_scene::Scene::load(scene_path)?;
+    let index = match run_name {
+        None => 0,
+        Some(name) => scene.runs.iter().position(|r| r.name == name).with_context(|| {
+            let names: Vec<&str> = scene.runs.iter().map(|r| r.name.as_str()).collect();
+            format!("{}: no run named `{name}` (runs: {})", scene_path.display(), names.join(", "))
+        })?,
+    };
+    let mut controller = pneuflex_scene::runner::build_controller(&scene, index)?;
+    let setpoints = pneuflex_scene::runner::build_setpoints(&scene)?;
+    let mut reference = |t: f64| setpoints.at(t);
+    let out_dir = match out {
+        Some(dir) => dir.to_path_buf(),
+        None => Path::new("out").join("rig").join(&scene.name).join(&scene.runs[index].name),
+    };
+    let duration = duration_s.unwrap_or(scene.duration_s);
+    run(rig_file, port, controller.as_mut(), &mut reference, duration, &out_dir).map(|_| ())
+}

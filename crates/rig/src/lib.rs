@@ -1,1 +1,28 @@
-//! pneuflex-rig (being built).
+//! Real-rig mode: the same `control` crate that runs in simulation drives the real valve.
+//!
+//! Layers, from the wire up:
+//! - [`protocol`]: framed binary protocol to the I/O board (docs/protocol.md), streaming no-panic decoder;
+//! - [`serial`]: the host driver over a serial port, a [`Rig`] of raw samples;
+//! - [`rig`]: the `Rig` trait and its decorators: [`rig::Calibrated`] (counts to SI), [`rig::Limited`],
+//!   [`rig::Watchdog`];
+//! - [`supervisor`]: fault latch and valve safe state;
+//! - [`rtloop`]: the fixed-rate `sense → Controller::update → actuate` loop with timing statistics;
+//! - [`trace`]: the crash-safe `trace.csv` writer;
+//! - [`emulator`]: the pneumatic plant behind a pseudo-terminal speaking the board's protocol, with fault injection.
+
+pub mod calib;
+pub mod crc;
+pub mod error;
+pub mod protocol;
+pub mod rigfile;
+
+pub use error::{ErrorKind, RigError};
+pub use rigfile::{RigFile, RigFileError};
+pub mod emulator;
+pub mod plant;
+pub mod rig;
+pub mod rtloop;
+pub mod serial;
+pub mod session;
+pub mod supervisor;
+pub mod trace;

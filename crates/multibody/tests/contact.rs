@@ -1,0 +1,236 @@
+//! Contact stiffness: under a constant push the load cell and the deflection obey f = k (x - x_e), eq. (21).
+
+use pneuflex_multibody::{ConstantForce, MultibodyConfig, RigWorld, STANDARD_GRAVITY};
+
+fn rig_path() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../urdf/rig.urdf")
+}
+
+/// Flange mass in urdf/rig.urdf, kg.
+const FLANGE_MASS_KG: f64 = 0.30;
+
+/// Run a constant push against `material` at incline `alpha_deg` to steady state; return
+/// (measured f_e, k (x - x_e), force balance F + m g sin(alpha)).
+fn steady_push(
+    material: &str,
+    alpha_deg: f64,
+    push_n: f64,
+    dt: f64,
+    iters: usize,
+) -> (f64, f64, f64) {
+    let mut cfg = MultibodyConfig::paper_rig();
+    cfg.initial_material = material.into();
+    cfg.alpha_rad = alpha_deg.to_radians();
+    cfg.dt_s = dt;
+    cfg.solver_iterations = iters;
+    let mut w = RigWorld::from_urdf(rig_path(), &cfg).expect("rig builds");
+    let mut act = ConstantForce { force_n: push_n };
+    let steps = (3.0 / dt).round() as usize;
+    for _ in 0..steps {
+        w.step(&mut act);
+    }
+    let m = w.measurements();
+    let k = w.material_params(material).unwrap().stiffness_n_per_m;
+    let x_e = w.material_x_e(material).unwrap();
+    let balance = push_n + FLANGE_MASS_KG * STANDARD_GRAVITY * cfg.alpha_rad.sin();
+    (m.f_e, k * (m.x - x_e), balance)
+}
+
+#[test]
+fn contact_force_obeys_spring_law_for_each_material_and_incline() {
+    for material in ["wood", "iron"] {
+        for alpha in [0.0, 30.0, 60.0] {
+            let (f_e, spring, balance) = steady_push(material, alpha, 10.0, 1e-3, 4);
+            eprintln!(
+                "{material} alpha={alpha}: f_e={f_e:.6} k(x-x_e)={spring:.6} balance={balance:.6}"
+            );
+            assert!(
+                (f_e - spring).abs() <= 0.02 * spring,
+                "{material} {alpha}: f_e {f_e} vs k(x-x_e) {spring}"
+            );
+            assert!(
+                (f_e - balance).abs() <= 0.02 * balance,
+                "{material} {alpha}: f_e {f_e} vs balance {balance}"
+            );
+        }
+    }
+}
+
+/// Free flight (before contact) under a constant push F on the incline: eq. (1) with f_e = 0,
+/// m x'' + K_v x' = F + m g sin(alpha), from rest at x = 0, has the closed form
+/// x(t) = (F_tot / K_v) (t - tau (1 - exp(-t / tau))), tau = m / K_v.
+#[test]
+fn free_flight_matches_eq1_closed_form() {
+    const K_V: f64 = 10.0; // urdf/rig.urdf flange_slide damping, N s/m
+    for alpha_deg in [0.0_f64, 30.0] {
+        let mut cfg = MultibodyConfig::paper_rig();
+        cfg.dt_s = 1e-4;
+        cfg.alpha_rad = alpha_deg.to_radians();
+        let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+        let push = 1.0;
+        let f_tot = push + FLANGE_MASS_KG * STANDARD_GRAVITY * cfg.alpha_rad.sin();
+        let tau = FLANGE_MASS_KG / K_V;
+        let mut act = ConstantForce { force_n: push };
+        for _ in 0..500 {
+            w.step(&mut act);
+        }
+        let m = w.measurements();
+        assert!(!m.contact, "still in free flight");
+        let t = m.t_s;
+        let x_exact = f_tot / K_V * (t - tau * (1.0 - (-t / tau).exp()));
+        let v_exact = f_tot / K_V * (1.0 - (-t / tau).exp());
+        assert!(
+            (m.x - x_exact).abs() <= 0.01 * x_exact,
+            "alpha {alpha_deg}: x {} vs {x_exact}",
+            m.x
+        );
+        assert!(
+            (m.x_dot - v_exact).abs() <= 0.01 * v_exact,
+            "alpha {alpha_deg}: v {} vs {v_exact}",
+            m.x_dot
+        );
+    }
+}
+
+/// The wood-to-iron swap: contact is lost while the carriage moves, regained on iron, and the new steady
+/// state obeys the iron spring.
+#[test]
+fn swap_wood_to_iron_loses_and_regains_contact() {
+    let cfg = MultibodyConfig::paper_rig();
+    let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+    let push = 10.0;
+    let mut act = ConstantForce { force_n: push };
+    for _ in 0..1000 {
+        w.step(&mut act);
+    }
+    assert!(w.measurements().contact);
+    assert_eq!(w.active_material(), Some("wood"));
+    let x_wood = w.measurements().x;
+    w.swap_environment("iron", 0.9).unwrap();
+    let mut lost = false;
+    for _ in 0..900 {
+        let m = w.step(&mut act);
+        lost |= !m.contact && m.f_e == 0.0;
+    }
+    assert!(lost, "the flange must lose contact during the swap");
+    assert_eq!(w.active_material(), Some("iron"));
+    for _ in 0..2000 {
+        w.step(&mut act);
+    }
+    let m = w.measurements();
+    assert!(m.contact);
+    let k_iron = w.material_params("iron").unwrap().stiffness_n_per_m;
+    let x_e = w.material_x_e("iron").unwrap();
+    assert!((m.f_e - push).abs() <= 0.01 * push, "f_e {}", m.f_e);
+    assert!(
+        (k_iron * (m.x - x_e) - push).abs() <= 0.01 * push,
+        "x {}",
+        m.x
+    );
+    // Iron is twice as stiff: the flange stands half as deep in it.
+    let x_e_wood = w.material_x_e("wood").unwrap();
+    let ratio = (x_wood - x_e_wood) / (m.x - x_e);
+    assert!((ratio - 2.0).abs() < 0.02, "depth ratio {ratio}");
+}
+
+/// A run-time stiffness change moves the steady state to the new spring.
+#[test]
+fn stiffness_change_at_run_time() {
+    let cfg = MultibodyConfig::paper_rig();
+    let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+    let mut act = ConstantForce { force_n: 10.0 };
+    for _ in 0..1000 {
+        w.step(&mut act);
+    }
+    let mut p = w.material_params("wood").unwrap();
+    p.stiffness_n_per_m = 1400.0;
+    w.set_material("wood", p).unwrap();
+    for _ in 0..2000 {
+        w.step(&mut act);
+    }
+    let m = w.measurements();
+    let depth = m.x - w.material_x_e("wood").unwrap();
+    assert!(
+        (1400.0 * depth - 10.0).abs() <= 0.01 * 10.0,
+        "depth {depth}"
+    );
+    assert!(w.set_material("steel", p).is_err());
+}
+
+/// Changing alpha at run time adds m g sin(alpha) to the steady contact force (eq. (1)'s G_alpha).
+#[test]
+fn incline_change_at_run_time() {
+    let cfg = MultibodyConfig::paper_rig();
+    let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+    let mut act = ConstantForce { force_n: 10.0 };
+    for _ in 0..1000 {
+        w.step(&mut act);
+    }
+    let alpha = 45f64.to_radians();
+    w.set_alpha(alpha).unwrap();
+    for _ in 0..2000 {
+        w.step(&mut act);
+    }
+    let expect = 10.0 + FLANGE_MASS_KG * STANDARD_GRAVITY * alpha.sin();
+    let m = w.measurements();
+    assert!(
+        (m.f_e - expect).abs() <= 0.01 * expect,
+        "f_e {} vs {expect}",
+        m.f_e
+    );
+    // The world tilt for viewers turns the rig's axis downhill by alpha.
+    let axis_world = w.world_from_rig().rotation * pneuflex_multibody::Vector::X;
+    assert!((axis_world.z + alpha.sin()).abs() < 1e-12);
+    assert!(w.set_alpha(f64::NAN).is_err());
+}
+
+/// The coarsest step found (see docs/multibody.md): dt = 20 ms with 2 solver iterations still holds the
+/// steady contact force within 1 % of the force balance and of k (x - x_e).
+#[test]
+fn coarse_step_keeps_steady_force_within_one_percent() {
+    for material in ["wood", "iron"] {
+        let (f_e, spring, balance) = steady_push(material, 30.0, 10.0, 0.02, 2);
+        assert!(
+            (f_e - balance).abs() <= 0.01 * balance,
+            "{material}: f_e {f_e} vs {balance}"
+        );
+        assert!(
+            (spring - balance).abs() <= 0.01 * balance,
+            "{material}: k(x-x_e) {spring} vs {balance}"
+        );
+    }
+}
+
+/// The realistic variant (wood 2e5 N/m, iron 2e7 N/m) at the finer steps docs/multibody.md prescribes.
+#[test]
+fn realistic_materials_obey_spring_law_at_fine_steps() {
+    use pneuflex_multibody::MaterialParams;
+    for (material, dt) in [("wood", 1e-3), ("iron", 1e-4)] {
+        let mut cfg = MultibodyConfig::paper_rig();
+        cfg.materials[0].params = MaterialParams::REALISTIC_WOOD;
+        cfg.materials[1].params = MaterialParams::REALISTIC_IRON;
+        cfg.initial_material = material.into();
+        cfg.dt_s = dt;
+        cfg.alpha_rad = 30f64.to_radians();
+        // Start just short of the face so the short run reaches steady state.
+        cfg.initial_x_m = 0.0195;
+        let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+        let mut act = ConstantForce { force_n: 10.0 };
+        for _ in 0..(0.5 / dt) as usize {
+            w.step(&mut act);
+        }
+        let m = w.measurements();
+        let k = w.material_params(material).unwrap().stiffness_n_per_m;
+        let balance = 10.0 + FLANGE_MASS_KG * STANDARD_GRAVITY * cfg.alpha_rad.sin();
+        let spring = k * (m.x - w.material_x_e(material).unwrap());
+        assert!(
+            (m.f_e - balance).abs() <= 0.02 * balance,
+            "{material}: f_e {} vs {balance}",
+            m.f_e
+        );
+        assert!(
+            (spring - balance).abs() <= 0.02 * balance,
+            "{material}: k(x-x_e) {spring} vs {balance}"
+        );
+    }
+}

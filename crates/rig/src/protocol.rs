@@ -1,0 +1,654 @@
+//! The framed binary protocol between the host and the rig's I/O board (see docs/protocol.md).
+//!
+//! Frame: `A5 5A | LEN | SEQ | TYPE | PAYLOAD[LEN] | CRC16 (LE)`, the CRC (CRC-16/CCITT-FALSE) covering
+//! LEN..PAYLOAD. All multi-byte fields are little-endian. The decoder is a streaming, no-panic state machine
+//! that resynchronises on the next start marker after garbage or a bad CRC.
+
+use crate::crc::crc16;
+
+/// First start-of-frame byte.
+pub const SOF0: u8 = 0xA5;
+/// Second start-of-frame byte.
+pub const SOF1: u8 = 0x5A;
+/// Bytes before the payload: SOF0, SOF1, LEN, SEQ, TYPE.
+pub const HEADER_LEN: usize = 5;
+/// Bytes after the payload: the CRC.
+pub const TRAILER_LEN: usize = 2;
+/// Largest payload a frame may carry.
+pub const MAX_PAYLOAD: usize = 48;
+/// Largest frame on the wire.
+pub const MAX_FRAME: usize = HEADER_LEN + MAX_PAYLOAD + TRAILER_LEN;
+/// Magic value a Reset message must carry, so that a corrupted frame cannot clear a fault by accident.
+pub const RESET_MAGIC: u16 = 0x5AFE;
+
+/// Message type codes (the TYPE byte).
+pub mod msg_type {
+    /// Board -> host: one sensor sample.
+    pub const SAMPLE: u8 = 0x01;
+    /// Host -> board: valve command.
+    pub const VALVE: u8 = 0x02;
+    /// Either direction: liveness; the board echoes the host's heartbeat.
+    pub const HEARTBEAT: u8 = 0x03;
+    /// Board -> host: the board latched a fault.
+    pub const FAULT: u8 = 0x04;
+    /// Host -> board: clear the board's latched fault.
+    pub const RESET: u8 = 0x05;
+    /// Host -> board: sample period, board watchdog and safe state.
+    pub const CONFIG: u8 = 0x06;
+}
+
+/// Sample status bits.
+pub mod status {
+    /// The valve is in its safe state.
+    pub const SAFE: u8 = 0x01;
+    /// The safe state is "hold" (both chambers closed) rather than "vent".
+    pub const SAFE_HOLD: u8 = 0x02;
+    /// The board has a latched fault.
+    pub const BOARD_FAULT: u8 = 0x04;
+    /// The board's own command watchdog tripped.
+    pub const WATCHDOG: u8 = 0x08;
+}
+
+/// Board fault codes carried by a Fault message.
+pub mod fault_code {
+    /// No valve command or heartbeat within the configured board watchdog time.
+    pub const HOST_SILENT: u8 = 0x01;
+    /// An ADC conversion failed or timed out.
+    pub const ADC: u8 = 0x02;
+    /// Coil driver over-current.
+    pub const COIL: u8 = 0x03;
+    /// Received frames failed CRC past the board's threshold.
+    pub const CRC: u8 = 0x04;
+}
+
+/// How the valve is driven.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ValveMode {
+    /// Normal operation: apply the signed duty.
+    Run,
+    /// Safe state: both chambers to exhaust.
+    SafeVent,
+    /// Safe state: both chambers closed (hold the piston).
+    SafeHold,
+}
+
+impl ValveMode {
+    /// The wire code.
+    pub fn code(self) -> u8 {
+        match self {
+            ValveMode::Run => 0,
+            ValveMode::SafeVent => 1,
+            ValveMode::SafeHold => 2,
+        }
+    }
+
+    /// The mode for a wire code, if valid.
+    pub fn from_code(c: u8) -> Option<Self> {
+        match c {
+            0 => Some(ValveMode::Run),
+            1 => Some(ValveMode::SafeVent),
+            2 => Some(ValveMode::SafeHold),
+            _ => None,
+        }
+    }
+
+    /// Whether this is one of the safe states.
+    pub fn is_safe(self) -> bool {
+        !matches!(self, ValveMode::Run)
+    }
+}
+
+/// One raw sample as the board sends it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SamplePayload {
+    /// Board clock at the conversion, µs (wraps after ~71 min).
+    pub board_time_us: u32,
+    /// Tick number of the last valve command the board applied.
+    pub last_cmd_tick: u32,
+    /// Position sensor, ADC counts.
+    pub position: u16,
+    /// Chamber A pressure transmitter, ADC counts.
+    pub p_a: u16,
+    /// Chamber B pressure transmitter, ADC counts.
+    pub p_b: u16,
+    /// Supply pressure transmitter, ADC counts.
+    pub p_supply: u16,
+    /// Load cell bridge, signed counts (24-bit ADC, sign-extended).
+    pub load: i32,
+    /// Signed duty the board applies, Q15 (32767 = +1).
+    pub duty_q15: i16,
+    /// Status bits (see [`status`]).
+    pub status: u8,
+}
+
+/// A valve command from the host.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ValvePayload {
+    /// The host's control tick number.
+    pub tick: u32,
+    /// Signed duty, Q15 (32767 = +1, -32767 = -1).
+    pub duty_q15: i16,
+    /// Run or a safe state.
+    pub mode: ValveMode,
+}
+
+/// Board configuration sent by the host before a run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConfigPayload {
+    /// Sample period, µs.
+    pub sample_period_us: u32,
+    /// The board goes to its safe state if no valve command or heartbeat arrives within this, ms (0 = off).
+    pub watchdog_ms: u16,
+    /// The safe state the board itself uses on its watchdog.
+    pub safe_mode: ValveMode,
+}
+
+/// A decoded protocol message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Message {
+    /// Board -> host sensor sample.
+    Sample(SamplePayload),
+    /// Host -> board valve command.
+    Valve(ValvePayload),
+    /// Liveness counter (host sends, board echoes).
+    Heartbeat(u32),
+    /// Board fault: code and detail.
+    Fault {
+        /// Fault code (see [`fault_code`]).
+        code: u8,
+        /// Code-specific detail.
+        detail: u16,
+    },
+    /// Clear the board's latched fault; carries [`RESET_MAGIC`].
+    Reset(u16),
+    /// Board configuration.
+    Config(ConfigPayload),
+}
+
+/// Payload length of each message type.
+pub fn payload_len(msg_type: u8) -> Option<usize> {
+    match msg_type {
+        msg_type::SAMPLE => Some(23),
+        msg_type::VALVE => Some(7),
+        msg_type::HEARTBEAT => Some(4),
+        msg_type::FAULT => Some(3),
+        msg_type::RESET => Some(2),
+        msg_type::CONFIG => Some(7),
+        _ => None,
+    }
+}
+
+/// A frame: sequence number and message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frame {
+    /// Sender's sequence number (wraps at 256).
+    pub seq: u8,
+    /// The message.
+    pub msg: Message,
+}
+
+/// A bounded little-endian writer: never panics, records overflow.
+struct Writer<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+}
+
+impl Writer<'_> {
+    fn put(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            if let Some(slot) = self.buf.get_mut(self.pos) {
+                *slot = b;
+            }
+            self.pos += 1;
+        }
+    }
+}
+
+/// A bounded little-endian reader over a payload.
+struct Reader<'a> {
+    buf: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let s = self.buf.get(self.pos..self.pos + N)?;
+        self.pos += N;
+        let mut out = [0u8; N];
+        out.copy_from_slice(s);
+        Some(out)
+    }
+    fn u8(&mut self) -> Option<u8> {
+        self.take::<1>().map(|b| b[0])
+    }
+    fn u16(&mut self) -> Option<u16> {
+        self.take().map(u16::from_le_bytes)
+    }
+    fn i16(&mut self) -> Option<i16> {
+        self.take().map(i16::from_le_bytes)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.take().map(u32::from_le_bytes)
+    }
+    fn i32(&mut self) -> Option<i32> {
+        self.take().map(i32::from_le_bytes)
+    }
+}
+
+impl Message {
+    /// The TYPE byte.
+    pub fn type_code(&self) -> u8 {
+        match self {
+            Message::Sample(_) => msg_type::SAMPLE,
+            Message::Valve(_) => msg_type::VALVE,
+            Message::Heartbeat(_) => msg_type::HEARTBEAT,
+            Message::Fault { .. } => msg_type::FAULT,
+            Message::Reset(_) => msg_type::RESET,
+            Message::Config(_) => msg_type::CONFIG,
+        }
+    }
+
+    fn write_payload(&self, w: &mut Writer<'_>) {
+        match self {
+            Message::Sample(s) => {
+                w.put(&s.board_time_us.to_le_bytes());
+                w.put(&s.last_cmd_tick.to_le_bytes());
+                w.put(&s.position.to_le_bytes());
+                w.put(&s.p_a.to_le_bytes());
+                w.put(&s.p_b.to_le_bytes());
+                w.put(&s.p_supply.to_le_bytes());
+                w.put(&s.load.to_le_bytes());
+                w.put(&s.duty_q15.to_le_bytes());
+                w.put(&[s.status]);
+            }
+            Message::Valve(v) => {
+                w.put(&v.tick.to_le_bytes());
+                w.put(&v.duty_q15.to_le_bytes());
+                w.put(&[v.mode.code()]);
+            }
+            Message::Heartbeat(c) => w.put(&c.to_le_bytes()),
+            Message::Fault { code, detail } => {
+                w.put(&[*code]);
+                w.put(&detail.to_le_bytes());
+            }
+            Message::Reset(m) => w.put(&m.to_le_bytes()),
+            Message::Config(c) => {
+                w.put(&c.sample_period_us.to_le_bytes());
+                w.put(&c.watchdog_ms.to_le_bytes());
+                w.put(&[c.safe_mode.code()]);
+            }
+        }
+    }
+
+    /// Parses a payload of a given type; `None` if the length or a field is invalid.
+    pub fn parse(msg_type: u8, payload: &[u8]) -> Option<Message> {
+        if payload_len(msg_type)? != payload.len() {
+            return None;
+        }
+        let mut r = Reader {
+            buf: payload,
+            pos: 0,
+        };
+        let msg = match msg_type {
+            msg_type::SAMPLE => Message::Sample(SamplePayload {
+                board_time_us: r.u32()?,
+                last_cmd_tick: r.u32()?,
+                position: r.u16()?,
+                p_a: r.u16()?,
+                p_b: r.u16()?,
+                p_supply: r.u16()?,
+                load: r.i32()?,
+                duty_q15: r.i16()?,
+                status: r.u8()?,
+            }),
+            msg_type::VALVE => Message::Valve(ValvePayload {
+                tick: r.u32()?,
+                duty_q15: r.i16()?,
+                mode: ValveMode::from_code(r.u8()?)?,
+            }),
+            msg_type::HEARTBEAT => Message::Heartbeat(r.u32()?),
+            msg_type::FAULT => Message::Fault {
+                code: r.u8()?,
+                detail: r.u16()?,
+            },
+            msg_type::RESET => Message::Reset(r.u16()?),
+            msg_type::CONFIG => Message::Config(ConfigPayload {
+                sample_period_us: r.u32()?,
+                watchdog_ms: r.u16()?,
+                safe_mode: ValveMode::from_code(r.u8()?)?,
+            }),
+            _ => return None,
+        };
+        Some(msg)
+    }
+}
+
+/// Encodes a frame into `out`, returning the number of bytes written.
+pub fn encode(seq: u8, msg: &Message, out: &mut [u8; MAX_FRAME]) -> usize {
+    let len = payload_len(msg.type_code()).unwrap_or(0);
+    let mut w = Writer {
+        buf: &mut out[..],
+        pos: 0,
+    };
+    w.put(&[SOF0, SOF1, len as u8, seq, msg.type_code()]);
+    msg.write_payload(&mut w);
+    let end = w.pos.min(MAX_FRAME - TRAILER_LEN);
+    let crc = crc16(&out[2..end]);
+    out[end..end + 2].copy_from_slice(&crc.to_le_bytes());
+    end + 2
+}
+
+/// Converts a command in [-1, 1] to Q15 (NaN -> 0).
+pub fn to_q15(u: f64) -> i16 {
+    let u = if u.is_nan() { 0.0 } else { u.clamp(-1.0, 1.0) };
+    (u * 32767.0).round() as i16
+}
+
+/// Converts Q15 to [-1, 1] (-32768 saturates to -1).
+pub fn from_q15(q: i16) -> f64 {
+    (f64::from(q) / 32767.0).max(-1.0)
+}
+
+/// What the decoder saw in the byte stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DecodeEvent {
+    /// A valid frame.
+    Frame(Frame),
+    /// A complete frame whose CRC did not match.
+    CrcError,
+    /// A frame with a valid CRC but an unknown type or a wrong payload length/field.
+    Malformed {
+        /// The TYPE byte.
+        msg_type: u8,
+    },
+}
+
+/// Counters kept by the decoder.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DecoderStats {
+    /// Valid frames.
+    pub frames: u64,
+    /// Frames dropped for a bad CRC.
+    pub crc_errors: u64,
+    /// Frames with a valid CRC but bad content.
+    pub malformed: u64,
+    /// Bytes skipped while hunting for a start marker.
+    pub skipped_bytes: u64,
+}
+
+const BUF_LEN: usize = 4 * MAX_FRAME;
+
+/// A streaming frame decoder: feed it bytes in any chunking; it never panics and resynchronises.
+#[derive(Clone, Debug)]
+pub struct Decoder {
+    buf: [u8; BUF_LEN],
+    len: usize,
+    stats: DecoderStats,
+}
+
+impl Default for Decoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Decoder {
+    /// An empty decoder.
+    pub fn new() -> Self {
+        Self {
+            buf: [0; BUF_LEN],
+            len: 0,
+            stats: DecoderStats::default(),
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> DecoderStats {
+        self.stats
+    }
+
+    /// Feeds bytes; `sink` receives every event in stream order.
+    pub fn feed(&mut self, mut data: &[u8], mut sink: impl FnMut(DecodeEvent)) {
+        while !data.is_empty() {
+            let room = BUF_LEN - self.len;
+            let n = room.min(data.len());
+            let (head, tail) = data.split_at(n);
+            if let Some(dst) = self.buf.get_mut(self.len..self.len + n) {
+                dst.copy_from_slice(head);
+            }
+            self.len += n;
+            data = tail;
+            self.parse(&mut sink);
+        }
+    }
+
+    /// Drops the first `n` buffered bytes.
+    fn consume(&mut self, n: usize) {
+        let n = n.min(self.len);
+        self.buf.copy_within(n..self.len, 0);
+        self.len -= n;
+    }
+
+    fn parse(&mut self, sink: &mut impl FnMut(DecodeEvent)) {
+        loop {
+            // Hunt for SOF0 SOF1.
+            let start = self.buf[..self.len]
+                .windows(2)
+                .position(|w| w[0] == SOF0 && w[1] == SOF1);
+            match start {
+                Some(s) => {
+                    self.stats.skipped_bytes += s as u64;
+                    self.consume(s);
+                }
+                None => {
+                    // Keep a trailing SOF0: it may be the first half of a marker.
+                    let keep = usize::from(self.len > 0 && self.buf[self.len - 1] == SOF0);
+                    self.stats.skipped_bytes += (self.len - keep) as u64;
+                    self.consume(self.len - keep);
+                    return;
+                }
+            }
+            if self.len < HEADER_LEN {
+                return;
+            }
+            let plen = usize::from(self.buf[2]);
+            if plen > MAX_PAYLOAD {
+                // Not a real header: skip this marker and hunt again.
+                self.stats.skipped_bytes += 1;
+                self.consume(1);
+                continue;
+            }
+            let total = HEADER_LEN + plen + TRAILER_LEN;
+            if self.len < total {
+                return;
+            }
+            let body_end = HEADER_LEN + plen;
+            let want = u16::from_le_bytes([self.buf[body_end], self.buf[body_end + 1]]);
+            if crc16(&self.buf[2..body_end]) != want {
+                // Resync: the marker may have been data; rescan from the next byte.
+                self.stats.crc_errors += 1;
+                sink(DecodeEvent::CrcError);
+                self.consume(1);
+                continue;
+            }
+            let seq = self.buf[3];
+            let ty = self.buf[4];
+            match Message::parse(ty, &self.buf[HEADER_LEN..body_end]) {
+                Some(msg) => {
+                    self.stats.frames += 1;
+                    sink(DecodeEvent::Frame(Frame { seq, msg }));
+                }
+                None => {
+                    self.stats.malformed += 1;
+                    sink(DecodeEvent::Malformed { msg_type: ty });
+                }
+            }
+            self.consume(total);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn arb_mode() -> impl Strategy<Value = ValveMode> {
+        prop_oneof![
+            Just(ValveMode::Run),
+            Just(ValveMode::SafeVent),
+            Just(ValveMode::SafeHold)
+        ]
+    }
+
+    fn arb_message() -> impl Strategy<Value = Message> {
+        prop_oneof![
+            (
+                any::<u32>(),
+                any::<u32>(),
+                any::<[u16; 4]>(),
+                any::<i32>(),
+                any::<i16>(),
+                any::<u8>()
+            )
+                .prop_map(|(t, k, a, load, duty, status)| Message::Sample(
+                    SamplePayload {
+                        board_time_us: t,
+                        last_cmd_tick: k,
+                        position: a[0],
+                        p_a: a[1],
+                        p_b: a[2],
+                        p_supply: a[3],
+                        load,
+                        duty_q15: duty,
+                        status
+                    }
+                )),
+            (any::<u32>(), any::<i16>(), arb_mode()).prop_map(|(tick, duty_q15, mode)| {
+                Message::Valve(ValvePayload {
+                    tick,
+                    duty_q15,
+                    mode,
+                })
+            }),
+            any::<u32>().prop_map(Message::Heartbeat),
+            (any::<u8>(), any::<u16>()).prop_map(|(code, detail)| Message::Fault { code, detail }),
+            any::<u16>().prop_map(Message::Reset),
+            (any::<u32>(), any::<u16>(), arb_mode()).prop_map(|(p, w, m)| {
+                Message::Config(ConfigPayload {
+                    sample_period_us: p,
+                    watchdog_ms: w,
+                    safe_mode: m,
+                })
+            }),
+        ]
+    }
+
+    fn frames_of(bytes: &[u8], chunk: usize) -> (Vec<Frame>, Decoder) {
+        let mut d = Decoder::new();
+        let mut out = Vec::new();
+        for c in bytes.chunks(chunk.max(1)) {
+            d.feed(c, |e| {
+                if let DecodeEvent::Frame(f) = e {
+                    out.push(f)
+                }
+            });
+        }
+        (out, d)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+        #[test]
+        fn never_panics_on_arbitrary_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..2048),
+                                            chunk in 1usize..300) {
+            let (_frames, d) = frames_of(&bytes, chunk);
+            let s = d.stats();
+            // Every input byte is accounted for: skipped, inside a frame, or still buffered.
+            prop_assert!(s.skipped_bytes as usize <= bytes.len());
+        }
+
+        #[test]
+        fn round_trips_every_message(msgs in proptest::collection::vec((any::<u8>(), arb_message()), 1..20),
+                                     chunk in 1usize..80) {
+            let mut wire = Vec::new();
+            let mut buf = [0u8; MAX_FRAME];
+            for (seq, m) in &msgs {
+                let n = encode(*seq, m, &mut buf);
+                prop_assert_eq!(n, HEADER_LEN + payload_len(m.type_code()).unwrap() + TRAILER_LEN);
+                wire.extend_from_slice(&buf[..n]);
+            }
+            let (frames, d) = frames_of(&wire, chunk);
+            let want: Vec<Frame> = msgs.iter().map(|(seq, msg)| Frame { seq: *seq, msg: *msg }).collect();
+            prop_assert_eq!(frames, want);
+            prop_assert_eq!(d.stats().crc_errors, 0);
+            prop_assert_eq!(d.stats().skipped_bytes, 0);
+        }
+
+        #[test]
+        fn resyncs_after_garbage(garbage in proptest::collection::vec(any::<u8>(), 0..200),
+                                 seq in any::<u8>(), m in arb_message()) {
+            let mut buf = [0u8; MAX_FRAME];
+            let n = encode(seq, &m, &mut buf);
+            // Garbage, then copies of the frame for at least two maximal frames: a false header inside the
+            // garbage can hold back at most MAX_FRAME bytes before its CRC fails and the decoder rescans.
+            let mut wire = garbage.clone();
+            while wire.len() < garbage.len() + 2 * MAX_FRAME {
+                wire.extend_from_slice(&buf[..n]);
+            }
+            let (frames, _) = frames_of(&wire, 7);
+            let want = Frame { seq, msg: m };
+            prop_assert!(frames.contains(&want));
+        }
+
+        #[test]
+        fn single_bit_flip_is_detected(seq in any::<u8>(), m in arb_message(), bit in 0usize..1000) {
+            let mut buf = [0u8; MAX_FRAME];
+            let n = encode(seq, &m, &mut buf);
+            // Flip one bit in LEN..CRC (a flipped marker is simply not a frame).
+            let bit = 16 + bit % ((n - 2) * 8);
+            buf[bit / 8] ^= 1 << (bit % 8);
+            let (frames, _) = frames_of(&buf[..n], n);
+            prop_assert!(frames.is_empty());
+        }
+    }
+
+    #[test]
+    fn worked_examples_from_docs() {
+        // docs/protocol.md, CRCs computed independently (bitwise, outside this crate).
+        let mut buf = [0u8; MAX_FRAME];
+        let n = encode(7, &Message::Heartbeat(1), &mut buf);
+        assert_eq!(
+            &buf[..n],
+            &[
+                0xA5, 0x5A, 0x04, 0x07, 0x03, 0x01, 0x00, 0x00, 0x00, 0x2F, 0x60
+            ]
+        );
+        let v = Message::Valve(ValvePayload {
+            tick: 1000,
+            duty_q15: 0x4000,
+            mode: ValveMode::Run,
+        });
+        let n = encode(0x2A, &v, &mut buf);
+        assert_eq!(
+            &buf[..n],
+            &[
+                0xA5, 0x5A, 0x07, 0x2A, 0x02, 0xE8, 0x03, 0x00, 0x00, 0x00, 0x40, 0x00, 0x63, 0x72
+            ]
+        );
+    }
+
+    #[test]
+    fn q15_round_trip_and_limits() {
+        assert_eq!(to_q15(1.0), 32767);
+        assert_eq!(to_q15(-1.0), -32767);
+        assert_eq!(to_q15(f64::NAN), 0);
+        assert_eq!(to_q15(5.0), 32767);
+        assert_eq!(from_q15(-32768), -1.0);
+        for i in -100..=100 {
+            let u = f64::from(i) / 100.0;
+            assert!((from_q15(to_q15(u)) - u).abs() <= 0.5 / 32767.0 + 1e-12);
+        }
+    }
+}

@@ -1,0 +1,347 @@
+//! The host driver: a [`Rig`] of raw samples over a serial port speaking docs/protocol.md.
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use pneuflex_control::ValveCommand;
+
+use crate::error::{ErrorKind, RigError};
+use crate::protocol::{
+    ConfigPayload, DecodeEvent, Decoder, DecoderStats, MAX_FRAME, Message, RESET_MAGIC, ValveMode,
+    ValvePayload, encode, fault_code, status, to_q15,
+};
+use crate::rig::{RawSample, Rig};
+use crate::rigfile::{RigFile, SafeState};
+
+/// A byte link to the board: non-blocking reads, whole-frame writes.
+pub trait Link: Send {
+    /// Reads what is available now (0 if nothing); a closed link is `ErrorKind::LinkLost`.
+    fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError>;
+    /// Writes all bytes.
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> Result<(), RigError>;
+}
+
+impl Link for Box<dyn serialport::SerialPort> {
+    fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError> {
+        use std::io::ErrorKind as K;
+        match self.read(buf) {
+            Ok(0) => Err(RigError::new(
+                ErrorKind::LinkLost,
+                "serial port closed (end of file)",
+            )),
+            Ok(n) => Ok(n),
+            Err(e) if e.kind() == K::TimedOut || e.kind() == K::WouldBlock => Ok(0),
+            Err(e) if e.kind() == K::Interrupted => Ok(0),
+            Err(e) => Err(RigError::new(
+                ErrorKind::LinkLost,
+                format!("serial read: {e}"),
+            )),
+        }
+    }
+
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> Result<(), RigError> {
+        use std::io::ErrorKind as K;
+        self.write_all(bytes).map_err(|e| match e.kind() {
+            K::TimedOut | K::WouldBlock => RigError::new(
+                ErrorKind::Timeout,
+                "serial write would block: the board is not reading",
+            ),
+            _ => RigError::new(ErrorKind::LinkLost, format!("serial write: {e}")),
+        })
+    }
+}
+
+/// Connecting to a rig failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ConnectError {
+    /// The port named in the rig file (or on the command line) cannot be opened.
+    #[error("{file}: field `{field}`: cannot open serial port `{port}` at {baud} baud: {message}")]
+    Port {
+        /// Rig file.
+        file: PathBuf,
+        /// `link.port`, or `--port` when given on the command line.
+        field: String,
+        /// The port.
+        port: String,
+        /// Baud rate.
+        baud: u32,
+        /// The OS's reason.
+        message: String,
+    },
+    /// The port opened but no board answered the heartbeat.
+    #[error("{file}: port `{port}` opened but no board answered within {timeout_ms} ms: {message}")]
+    Handshake {
+        /// Rig file.
+        file: PathBuf,
+        /// The port.
+        port: String,
+        /// `link.handshake_timeout_ms`.
+        timeout_ms: u64,
+        /// What happened.
+        message: String,
+    },
+}
+
+/// Link-quality counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkStats {
+    /// Decoder counters.
+    pub decoder: DecoderStats,
+    /// Samples received.
+    pub samples: u64,
+    /// Samples received but superseded by a newer one before the loop read them.
+    pub superseded: u64,
+    /// Samples missing according to the sequence numbers.
+    pub seq_gaps: u64,
+    /// Frames sent.
+    pub sent: u64,
+}
+
+/// The serial host driver: decodes samples, sends valve commands, counts CRC errors against a threshold.
+pub struct SerialRig<L: Link> {
+    link: L,
+    decoder: Decoder,
+    tx_seq: u8,
+    rx_seq: Option<u8>,
+    latest: Option<RawSample>,
+    board_last_us: Option<u32>,
+    board_time_s: f64,
+    crc_times: VecDeque<f64>,
+    crc_max: u32,
+    crc_window_s: f64,
+    board_fault: Option<(u8, u16)>,
+    heartbeat_echo: Option<u32>,
+    stats: LinkStats,
+}
+
+impl<L: Link> SerialRig<L> {
+    /// A driver over an open link with a CRC-error threshold (`crc_max` errors within `crc_window_s`).
+    pub fn new(link: L, crc_max: u32, crc_window_s: f64) -> Self {
+        Self {
+            link,
+            decoder: Decoder::new(),
+            tx_seq: 0,
+            rx_seq: None,
+            latest: None,
+            board_last_us: None,
+            board_time_s: 0.0,
+            crc_times: VecDeque::with_capacity(crc_max as usize + 2),
+            crc_max,
+            crc_window_s,
+            board_fault: None,
+            heartbeat_echo: None,
+            stats: LinkStats::default(),
+        }
+    }
+
+    /// Link counters.
+    pub fn stats(&self) -> LinkStats {
+        LinkStats {
+            decoder: self.decoder.stats(),
+            ..self.stats
+        }
+    }
+
+    /// Sends one message.
+    pub fn send(&mut self, msg: &Message) -> Result<(), RigError> {
+        let mut buf = [0u8; MAX_FRAME];
+        let n = encode(self.tx_seq, msg, &mut buf);
+        self.tx_seq = self.tx_seq.wrapping_add(1);
+        self.stats.sent += 1;
+        self.link.write_all_bytes(&buf[..n])
+    }
+
+    /// Reads and decodes everything available; returns the first error seen.
+    fn pump(&mut self, now_s: f64) -> Result<(), RigError> {
+        let mut buf = [0u8; 512];
+        let mut first_err: Option<RigError> = None;
+        loop {
+            let n = self.link.read_now(&mut buf)?;
+            if n == 0 {
+                break;
+            }
+            let Self {
+                decoder,
+                latest,
+                board_last_us,
+                board_time_s,
+                crc_times,
+                crc_max,
+                crc_window_s,
+                board_fault,
+                heartbeat_echo,
+                stats,
+                rx_seq,
+                ..
+            } = self;
+            decoder.feed(&buf[..n], |ev| match ev {
+                DecodeEvent::Frame(f) => {
+                    if let Some(prev) = *rx_seq {
+                        stats.seq_gaps += u64::from(f.seq.wrapping_sub(prev).wrapping_sub(1));
+                    }
+                    *rx_seq = Some(f.seq);
+                    match f.msg {
+                        Message::Sample(s) => {
+                            if let Some(last) = *board_last_us {
+                                *board_time_s +=
+                                    f64::from(s.board_time_us.wrapping_sub(last)) * 1e-6;
+                            }
+                            *board_last_us = Some(s.board_time_us);
+                            stats.samples += 1;
+                            if latest.is_some() {
+                                stats.superseded += 1;
+                            }
+                            *latest = Some(RawSample {
+                                host_time_s: now_s,
+                                board_time_s: *board_time_s,
+                                raw: s,
+                            });
+                            if s.status & status::BOARD_FAULT != 0 && board_fault.is_none() {
+                                *board_fault = Some((0, 0));
+                            }
+                        }
+                        Message::Heartbeat(c) => *heartbeat_echo = Some(c),
+                        Message::Fault { code, detail } => *board_fault = Some((code, detail)),
+                        // Host-bound streams never carry these; ignore rather than fail.
+                        Message::Valve(_) | Message::Reset(_) | Message::Config(_) => {}
+                    }
+                }
+                DecodeEvent::CrcError | DecodeEvent::Malformed { .. } => {
+                    crc_times.push_back(now_s);
+                    while crc_times
+                        .front()
+                        .is_some_and(|&t| now_s - t > *crc_window_s)
+                        || crc_times.len() > *crc_max as usize + 1
+                    {
+                        crc_times.pop_front();
+                    }
+                    if crc_times.len() > *crc_max as usize && first_err.is_none() {
+                        first_err = Some(RigError::new(
+                            ErrorKind::Crc,
+                            format!(
+                                "{} bad frames within {:.0} ms (threshold {})",
+                                crc_times.len(),
+                                *crc_window_s * 1e3,
+                                crc_max
+                            ),
+                        ));
+                    }
+                }
+            });
+        }
+        if let Some(e) = first_err {
+            return Err(e);
+        }
+        if let Some((code, detail)) = self.board_fault {
+            let what = match code {
+                fault_code::HOST_SILENT => "host silent past the board watchdog",
+                fault_code::ADC => "ADC failure",
+                fault_code::COIL => "coil driver over-current",
+                fault_code::CRC => "board saw too many bad frames",
+                _ => "board status reports a fault",
+            };
+            return Err(RigError::new(
+                ErrorKind::BoardFault,
+                format!("board fault code {code} detail {detail}: {what}"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Sends the board configuration and waits for a heartbeat echo (the board is there and speaks the protocol).
+    pub fn handshake(&mut self, cfg: ConfigPayload, timeout: Duration) -> Result<(), RigError> {
+        self.send(&Message::Config(cfg))?;
+        let token = 0xC0DE_0001;
+        self.send(&Message::Heartbeat(token))?;
+        let start = Instant::now();
+        while start.elapsed() < timeout {
+            // Board faults from before the handshake do not matter yet: the Reset below clears them.
+            match self.pump(0.0) {
+                Ok(()) => {}
+                Err(e) if e.kind() == ErrorKind::BoardFault => {}
+                Err(e) => return Err(e),
+            }
+            if self.heartbeat_echo == Some(token) {
+                self.reset()?;
+                return Ok(());
+            }
+            std::thread::sleep(Duration::from_micros(500));
+        }
+        Err(RigError::new(
+            ErrorKind::Timeout,
+            "no heartbeat echo (wrong port, wrong baud rate, or board not running the protocol)",
+        ))
+    }
+}
+
+impl<L: Link> Rig for SerialRig<L> {
+    type Sample = RawSample;
+
+    fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
+        self.pump(now_s)?;
+        Ok(self.latest.take())
+    }
+
+    fn write(&mut self, tick: u32, cmd: ValveCommand) -> Result<(), RigError> {
+        self.send(&Message::Valve(ValvePayload {
+            tick,
+            duty_q15: to_q15(cmd.u),
+            mode: ValveMode::Run,
+        }))
+    }
+
+    fn safe(&mut self, tick: u32, state: SafeState) -> Result<(), RigError> {
+        self.send(&Message::Valve(ValvePayload {
+            tick,
+            duty_q15: 0,
+            mode: state.mode(),
+        }))
+    }
+
+    fn reset(&mut self) -> Result<(), RigError> {
+        self.crc_times.clear();
+        self.board_fault = None;
+        self.send(&Message::Reset(RESET_MAGIC))
+    }
+}
+
+/// Opens the rig's serial port (`port` overrides `link.port`), configures the board and checks it answers.
+pub fn connect(
+    rig: &RigFile,
+    file: &Path,
+    port: Option<&str>,
+) -> Result<SerialRig<Box<dyn serialport::SerialPort>>, ConnectError> {
+    let (name, field) = match port {
+        Some(p) => (p.to_string(), "--port".to_string()),
+        None => (rig.link.port.clone(), "link.port".to_string()),
+    };
+    let p = serialport::new(&name, rig.link.baud)
+        .timeout(Duration::ZERO)
+        .open()
+        .map_err(|e| ConnectError::Port {
+            file: file.to_path_buf(),
+            field,
+            port: name.clone(),
+            baud: rig.link.baud,
+            message: e.to_string(),
+        })?;
+    let mut s = SerialRig::new(
+        p,
+        rig.watchdog.crc_errors_max,
+        rig.watchdog.crc_window_ms * 1e-3,
+    );
+    let cfg = ConfigPayload {
+        sample_period_us: (1e6 / rig.rt.rate_hz).round() as u32,
+        watchdog_ms: rig.watchdog.board_watchdog_ms,
+        safe_mode: rig.valve.safe_state.mode(),
+    };
+    s.handshake(cfg, Duration::from_millis(rig.link.handshake_timeout_ms))
+        .map_err(|e| ConnectError::Handshake {
+            file: file.to_path_buf(),
+            port: name,
+            timeout_ms: rig.link.handshake_timeout_ms,
+            message: e.to_string(),
+        })?;
+    Ok(s)
+}

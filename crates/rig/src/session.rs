@@ -1,0 +1,124 @@
+//! Putting the layers together: the supervised rig stack from a rig file, and the emulator from a rig file.
+
+use std::path::Path;
+
+use pneuflex_pneumatics::ActuatorSheet;
+
+use crate::emulator::{Emulator, EmulatorHandle, PtyLink};
+use crate::error::{ErrorKind, RigError};
+use crate::plant::PneumaticPlant;
+use crate::rig::{Calibrated, Limited, Watchdog};
+use crate::rigfile::{RigFile, RigFileError};
+use crate::rtloop::RunOptions;
+use crate::serial::{Link, SerialRig};
+use crate::supervisor::Supervisor;
+
+/// The full host-side stack: serial driver, watchdog, calibration, limits.
+pub type RigStack<L> = Limited<Calibrated<Watchdog<SerialRig<L>>>>;
+
+/// Wraps a connected serial driver in the watchdog, calibration and limit layers and a supervisor.
+pub fn supervised<L: Link>(serial: SerialRig<L>, rig: &RigFile) -> Supervisor<RigStack<L>> {
+    let stack = Limited::new(
+        Calibrated::new(
+            Watchdog::new(serial, &rig.watchdog),
+            rig.cal(),
+            rig.rt.velocity_cutoff_hz,
+        ),
+        rig.limits.clone(),
+    );
+    Supervisor::new(stack, rig.valve.safe_state)
+}
+
+/// Loop options from the rig file for a run of `duration_s`.
+pub fn run_options(rig: &RigFile, duration_s: f64) -> RunOptions {
+    RunOptions {
+        rate_hz: rig.rt.rate_hz,
+        spin_us: rig.rt.spin_us,
+        duration_s,
+        post_fault_s: rig.rt.post_fault_s,
+        first_sample_timeout_s: (rig.link.handshake_timeout_ms as f64 * 1e-3).max(0.1),
+    }
+}
+
+/// The emulator's plant from the rig file's `[emulator]` table (actuator sheet path relative to the rig file).
+pub fn emulated_plant(rig: &RigFile, file: &Path) -> Result<PneumaticPlant, RigFileError> {
+    let Some(e) = &rig.emulator else {
+        return Err(RigFileError::Invalid {
+            file: file.to_path_buf(),
+            field: "emulator".into(),
+            message: "missing: `pneuflex rig emulate` needs an [emulator] table".into(),
+        });
+    };
+    let Some(sheet) = &e.actuator else {
+        return Err(RigFileError::Invalid {
+            file: file.to_path_buf(),
+            field: "emulator.actuator".into(),
+            message: "missing: expected the path of an actuator sheet (e.g. ../pneumatics/paper-actuator.toml)".into(),
+        });
+    };
+    let path = rig.resolve_path(sheet);
+    let sheet = ActuatorSheet::load(&path).map_err(|err| RigFileError::Invalid {
+        file: file.to_path_buf(),
+        field: "emulator.actuator".into(),
+        message: err.to_string(),
+    })?;
+    let model = sheet.model();
+    let stroke = model.actuator.cylinder.stroke_m;
+    if !(0.0..=stroke).contains(&e.x0_m) {
+        return Err(RigFileError::Invalid {
+            file: file.to_path_buf(),
+            field: "emulator.x0_m".into(),
+            message: format!("{} m is outside the stroke [0, {stroke}] m", e.x0_m),
+        });
+    }
+    Ok(PneumaticPlant::new(model, e.x0_m, e.supply_pa))
+}
+
+/// Starts the emulator of `rig` behind a new pseudo-terminal; the handle carries the path to open.
+pub fn spawn_pty_emulator(rig: &RigFile, file: &Path) -> Result<EmulatorHandle, RigError> {
+    let plant =
+        emulated_plant(rig, file).map_err(|e| RigError::new(ErrorKind::Io, e.to_string()))?;
+    let cfg = rig
+        .emulator
+        .clone()
+        .ok_or_else(|| RigError::new(ErrorKind::Io, "no [emulator] table"))?;
+    let link = PtyLink::open()?;
+    let path = link.path.clone();
+    Ok(Emulator::new(plant, link, rig.cal(), cfg).spawn(Some(path)))
+}
+
+/// Installs a Ctrl-C handler that sets the returned flag; the loop polls it
+/// every tick and latches an `Interrupted` fault, which puts the valve in its safe state and flushes the trace.
+/// A process can install one handler only: a second call returns an error.
+pub fn install_ctrl_c() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, RigError> {
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let f = flag.clone();
+    ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::Relaxed)).map_err(
+        |e| {
+            RigError::new(
+                ErrorKind::Io,
+                format!("cannot install the Ctrl-C handler: {e}"),
+            )
+        },
+    )?;
+    Ok(flag)
+}
+
+/// Starts the emulator of `rig` serving an existing serial port (e.g. one end of a null-modem pair).
+pub fn spawn_port_emulator(
+    rig: &RigFile,
+    file: &Path,
+    port: &str,
+) -> Result<EmulatorHandle, RigError> {
+    let plant =
+        emulated_plant(rig, file).map_err(|e| RigError::new(ErrorKind::Io, e.to_string()))?;
+    let cfg = rig
+        .emulator
+        .clone()
+        .ok_or_else(|| RigError::new(ErrorKind::Io, "no [emulator] table"))?;
+    let link = serialport::new(port, rig.link.baud)
+        .timeout(std::time::Duration::ZERO)
+        .open()
+        .map_err(|e| RigError::new(ErrorKind::LinkLost, format!("cannot open `{port}`: {e}")))?;
+    Ok(Emulator::new(plant, link, rig.cal(), cfg).spawn(None))
+}
