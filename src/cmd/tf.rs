@@ -35,7 +35,11 @@ pub fn tf(path: &Path, json: bool) -> anyhow::Result<String> {
         return Ok(serde_json::to_string_pretty(&v)?);
     }
     let mut s = String::new();
-    writeln!(s, "transfer function Y(s)/P_L(s), eqs. (16)-(17): {}", sheet_path.display())?;
+    writeln!(
+        s,
+        "transfer function Y(s)/P_L(s), eqs. (16)-(17): {}",
+        sheet_path.display()
+    )?;
     writeln!(
         s,
         "operating point: x = {:.4} m (mid-stroke), u0 = {:+.4}, p_a = {:.0} Pa abs, p_b = {:.0} Pa abs, T = {:.2} K",

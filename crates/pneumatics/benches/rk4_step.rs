@@ -20,7 +20,11 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             // A command that keeps the valve switching and the piston moving mid-stroke.
             k += 1;
-            let u = if (k / 400).is_multiple_of(2) { 0.3 } else { -0.3 };
+            let u = if (k / 400).is_multiple_of(2) {
+                0.3
+            } else {
+                -0.3
+            };
             model.step(black_box(&mut st), black_box(u), black_box(-2.0), dt);
             if st.x <= 0.001 || st.x >= 0.049 {
                 st = OneDofState::at_rest(0.025, ChamberState::new(3.0e5, 2.8e5), 0.0);
