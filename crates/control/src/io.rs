@@ -26,8 +26,9 @@ pub struct Setpoint {
     pub x_d: f64,
 }
 
-/// Valve command: spool position in [-1, 1]. +1 connects supply to chamber A and exhausts B (extend),
-/// -1 the reverse, 0 closes (proportional 5/3 valve) or is the PWM duty sign for an on/off valve.
+/// Valve command in [-1, 1]. +1 connects supply to chamber A and exhausts B (extend), -1 the reverse.
+/// A proportional 5/3 valve takes it as the spool position (0 = closed centre); the rig's 5/2 on/off valve
+/// under PWM takes it as duty (1 + u)/2 of the energised position (0 = 50 % duty, the mean holds the load).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ValveCommand {
     /// Normalised spool position / signed duty, in [-1, 1].
