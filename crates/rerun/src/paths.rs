@@ -1,0 +1,56 @@
+//! Entity paths and timeline names shared by simulation and rig recordings.
+
+/// Duration timeline of simulated runs (seconds since start).
+pub const SIM_TIME: &str = "sim_time";
+/// Timestamp timeline of real-rig runs (wall clock).
+pub const WALL_TIME: &str = "wall_time";
+
+/// Force set-point f_ref (N).
+pub const F_REF: &str = "signals/force/f_ref";
+/// Measured environment force f_e (N).
+pub const F_E: &str = "signals/force/f_e";
+/// Piston position x (m).
+pub const X: &str = "signals/position/x";
+/// Position reference x_r (m).
+pub const X_R: &str = "signals/position/x_r";
+/// Absolute pressure in chamber A (Pa).
+pub const P_A: &str = "signals/pressure/p_a";
+/// Absolute pressure in chamber B (Pa).
+pub const P_B: &str = "signals/pressure/p_b";
+/// Continuous valve command u.
+pub const VALVE_U: &str = "signals/valve/u";
+/// PWM state of the on/off valves.
+pub const VALVE_PWM: &str = "signals/valve/pwm";
+/// Adaptive impedance gain g.
+pub const ADAPTIVE_G: &str = "signals/adaptive/g";
+/// Adaptive impedance stiffness-like term p.
+pub const ADAPTIVE_P: &str = "signals/adaptive/p";
+/// Adaptive impedance damping-like term d.
+pub const ADAPTIVE_D: &str = "signals/adaptive/d";
+
+/// The signals registered (entity path and series name) when a recorder opens.
+pub const SIGNALS: [&str; 11] = [
+    F_REF, F_E, X, X_R, P_A, P_B, VALVE_U, VALVE_PWM, ADAPTIVE_G, ADAPTIVE_P, ADAPTIVE_D,
+];
+
+/// Root of the 3D scene.
+pub const WORLD: &str = "world";
+/// Prefix of link entities (`world/links/<name>`).
+pub const LINKS: &str = "world/links";
+/// Contact point (Points3D).
+pub const CONTACT_POINT: &str = "world/contact/point";
+/// Contact force arrow (Arrows3D) starting at the contact point.
+pub const CONTACT_FORCE: &str = "world/contact/force";
+/// Frame of the cylinder chambers: its z axis is the cylinder axis.
+pub const CHAMBERS: &str = "world/chambers";
+/// Chamber A cylinder, coloured by p_a.
+pub const CHAMBER_A: &str = "world/chambers/a";
+/// Chamber B cylinder, coloured by p_b.
+pub const CHAMBER_B: &str = "world/chambers/b";
+/// Scene events (TextLog).
+pub const EVENTS: &str = "events";
+
+/// Entity path of a URDF link: `world/links/<name>`.
+pub fn link(name: &str) -> String {
+    format!("{LINKS}/{name}")
+}

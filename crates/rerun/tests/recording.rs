@@ -1,0 +1,318 @@
+//! Recordings read back with Rerun's own decoder, and the sink errors.
+
+use std::collections::HashMap;
+use std::io::BufReader;
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use pneuflex_rerun::{
+    ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RerunError, RunRecorder,
+    Shape, Sink, paths,
+};
+use re_log_encoding::DecoderApp;
+use rerun::log::{Chunk, LogMsg};
+
+/// Fresh empty directory under the system temp dir, unique per test.
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pneuflex-rerun-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// What a decoded recording holds: rows per entity on a timeline, static entities, and whether
+/// the file ended with Rerun's footer (written only when the file sink is closed).
+struct Readback {
+    rows_on: HashMap<(String, String), usize>,
+    static_entities: Vec<String>,
+    has_footer: bool,
+    bytes: u64,
+}
+
+fn read_back(path: &Path) -> Readback {
+    let file = std::fs::File::open(path).unwrap();
+    let bytes = file.metadata().unwrap().len();
+    let mut it = DecoderApp::decode_eager(BufReader::new(file)).expect("a valid .rrd stream");
+    let mut rows_on = HashMap::new();
+    let mut static_entities = Vec::new();
+    for msg in &mut it {
+        let msg = msg.expect("every message decodes");
+        let LogMsg::ArrowMsg(store, arrow) = msg else {
+            continue;
+        };
+        if !store.is_recording() {
+            continue; // blueprint store
+        }
+        let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
+        let entity = chunk.entity_path().to_string();
+        if chunk.is_static() {
+            static_entities.push(entity.clone());
+        }
+        for name in chunk.timelines().keys() {
+            *rows_on
+                .entry((entity.clone(), name.to_string()))
+                .or_insert(0) += chunk.num_rows();
+        }
+    }
+    let has_footer = !it.rrd_manifests().unwrap().is_empty();
+    Readback {
+        rows_on,
+        static_entities,
+        has_footer,
+        bytes,
+    }
+}
+
+/// Records `steps` steps of a small scene the way the run loop does.
+fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
+    rec.log_link_shape(&LinkShape {
+        entity: paths::link("flange"),
+        shape: Shape::Cylinder {
+            radius_m: 0.03,
+            half_length_m: 0.005,
+        },
+        colour: [200, 200, 200, 255],
+    })
+    .unwrap();
+    rec.log_link_shape(&LinkShape {
+        entity: paths::link("block"),
+        shape: Shape::Box {
+            half_extents_m: [0.05, 0.05, 0.05],
+        },
+        colour: [90, 90, 90, 255],
+    })
+    .unwrap();
+    rec.set_chamber_bore(0.032).unwrap();
+    rec.log_event(0.0, EventLevel::Info, "start").unwrap();
+    for k in 0..steps {
+        let t = k as f64 * dt;
+        let x = 0.01 * (t * 3.0).sin();
+        rec.log_scalars(
+            t,
+            &[
+                (paths::F_REF, 20.0),
+                (paths::F_E, 20.0 * (1.0 - (-t).exp())),
+                (paths::X, x),
+                (paths::X_R, 0.0),
+                (paths::P_A, 3e5),
+                (paths::P_B, 2e5),
+            ],
+        )
+        .unwrap();
+        rec.set_link_pose(
+            t,
+            &paths::link("flange"),
+            [0.0, 0.0, x],
+            [0.0, 0.0, 0.0, 1.0],
+        )
+        .unwrap();
+        let contact = (k % 2 == 0).then_some(Contact {
+            point_m: [0.0, 0.0, x],
+            force_n: [0.0, 0.0, -20.0],
+        });
+        rec.log_contact(t, contact.as_ref()).unwrap();
+        rec.log_chambers(
+            t,
+            &ChamberSample {
+                length_a_m: 0.05 + x,
+                pressure_a_pa: 3e5,
+                length_b_m: 0.05 - x,
+                pressure_b_pa: 2e5,
+            },
+        )
+        .unwrap();
+    }
+    rec.log_event(steps as f64 * dt, EventLevel::Warn, "end")
+        .unwrap();
+}
+
+#[test]
+fn saved_recording_reads_back_with_one_row_per_step_and_a_footer() {
+    let dir = temp_dir("save");
+    let file = dir.join("run.rrd");
+    let steps = 1000;
+    // A batch size that does not divide the step count exercises full and partial batches.
+    let opts = RecorderOptions {
+        batch_rows: 300,
+        ..RecorderOptions::default()
+    };
+    let mut rec =
+        RunRecorder::with_options("pneuflex-test", "save", &Sink::Save(file.clone()), opts)
+            .unwrap();
+    record(&mut rec, steps, 1e-3);
+    rec.finish().unwrap();
+
+    // Read immediately after finish(): the file must already be complete (footer present).
+    let back = read_back(&file);
+    assert!(back.bytes > 0);
+    assert!(
+        back.has_footer,
+        "finish() returned before the footer was written"
+    );
+    let rows = |e: &str, tl: &str| {
+        back.rows_on
+            .get(&(e.to_owned(), tl.to_owned()))
+            .copied()
+            .unwrap_or(0)
+    };
+    for p in [
+        paths::F_REF,
+        paths::F_E,
+        paths::X,
+        paths::X_R,
+        paths::P_A,
+        paths::P_B,
+    ] {
+        assert_eq!(rows(&format!("/{p}"), "sim_time"), steps, "{p}");
+    }
+    // Registered but never logged: present as a static style, no samples.
+    assert_eq!(rows(&format!("/{}", paths::VALVE_U), "sim_time"), 0);
+    assert!(
+        back.static_entities
+            .contains(&format!("/{}", paths::VALVE_U))
+    );
+    let flange = format!("/{}", paths::link("flange"));
+    assert_eq!(rows(&flange, "sim_time"), steps);
+    assert!(back.static_entities.contains(&flange));
+    assert_eq!(
+        rows(&format!("/{}", paths::CONTACT_FORCE), "sim_time"),
+        steps
+    );
+    assert_eq!(rows(&format!("/{}", paths::CHAMBER_A), "sim_time"), steps);
+    assert_eq!(rows(&format!("/{}", paths::CHAMBER_B), "sim_time"), steps);
+    assert_eq!(rows(&format!("/{}", paths::EVENTS), "sim_time"), 2);
+    // Nothing of ours on the rig timeline in a simulation recording.
+    assert_eq!(rows(&format!("/{}", paths::F_E), "wall_time"), 0);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn wall_clock_recording_uses_the_same_paths_on_wall_time() {
+    let dir = temp_dir("wall");
+    let file = dir.join("rig.rrd");
+    let opts = RecorderOptions {
+        clock: Clock::Wall,
+        ..RecorderOptions::default()
+    };
+    let mut rec =
+        RunRecorder::with_options("pneuflex-test", "rig", &Sink::Save(file.clone()), opts).unwrap();
+    let t0 = pneuflex_rerun::wall_clock_s();
+    for k in 0..50 {
+        rec.log_scalars(t0 + k as f64 * 1e-3, &[(paths::F_E, k as f64)])
+            .unwrap();
+    }
+    rec.finish().unwrap();
+    let back = read_back(&file);
+    let f_e = format!("/{}", paths::F_E);
+    assert_eq!(
+        back.rows_on.get(&(f_e.clone(), "wall_time".into())),
+        Some(&50)
+    );
+    assert_eq!(back.rows_on.get(&(f_e, "sim_time".into())), None);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn save_into_missing_directory_names_the_path_and_creates_nothing() {
+    let dir = temp_dir("missing");
+    let missing = dir.join("no/such/dir");
+    let file = missing.join("run.rrd");
+    let err = RunRecorder::new("pneuflex-test", "missing", &Sink::Save(file.clone()))
+        .err()
+        .expect("must fail");
+    assert!(
+        matches!(&err, RerunError::SaveDirMissing { dir, .. } if *dir == missing),
+        "{err}"
+    );
+    assert!(
+        err.to_string().contains(&missing.display().to_string()),
+        "{err}"
+    );
+    assert!(!dir.join("no").exists(), "nothing may be created");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn save_onto_a_directory_is_rejected() {
+    let dir = temp_dir("isdir");
+    let err = RunRecorder::new("pneuflex-test", "isdir", &Sink::Save(dir.clone()))
+        .err()
+        .expect("must fail");
+    assert!(matches!(err, RerunError::SaveCreate { .. }), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn connect_where_nothing_listens_fails_fast_with_the_address() {
+    // Take a free port from the OS, then close it so that nothing listens there.
+    let port = {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    };
+    let url = format!("rerun+http://127.0.0.1:{port}/proxy");
+    let started = Instant::now();
+    let err = RunRecorder::new("pneuflex-test", "refused", &Sink::Connect(url.clone()))
+        .err()
+        .expect("must fail");
+    // Bounded by the probe timeout inside the recorder, not by this test.
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "took {:?}",
+        started.elapsed()
+    );
+    assert!(matches!(err, RerunError::ConnectFailed { .. }), "{err}");
+    assert!(
+        err.to_string().contains(&format!("127.0.0.1:{port}")),
+        "{err}"
+    );
+}
+
+#[test]
+fn connect_with_a_malformed_address_is_a_bad_url() {
+    let err = RunRecorder::new("pneuflex-test", "bad", &Sink::Connect("ftp://x:1".into()))
+        .err()
+        .expect("must fail");
+    assert!(matches!(err, RerunError::BadUrl { .. }), "{err}");
+}
+
+#[test]
+fn invalid_shapes_and_options_are_rejected() {
+    let dir = temp_dir("shape");
+    let mut rec =
+        RunRecorder::new("pneuflex-test", "shape", &Sink::Save(dir.join("s.rrd"))).unwrap();
+    for shape in [
+        Shape::Sphere { radius_m: 0.0 },
+        Shape::Sphere { radius_m: f64::NAN },
+        Shape::Box {
+            half_extents_m: [0.1, -0.1, 0.1],
+        },
+        Shape::Cylinder {
+            radius_m: 0.1,
+            half_length_m: f64::INFINITY,
+        },
+    ] {
+        let err = rec
+            .log_link_shape(&LinkShape {
+                entity: "world/links/x".into(),
+                shape,
+                colour: [0, 0, 0, 255],
+            })
+            .unwrap_err();
+        assert!(
+            matches!(err, RerunError::BadShape { .. }),
+            "{shape:?}: {err}"
+        );
+    }
+    assert!(rec.set_chamber_bore(-1.0).is_err());
+    rec.finish().unwrap();
+    let opts = RecorderOptions {
+        batch_rows: 0,
+        ..RecorderOptions::default()
+    };
+    let err = RunRecorder::with_options("t", "t", &Sink::Save(dir.join("o.rrd")), opts)
+        .err()
+        .unwrap();
+    assert!(matches!(err, RerunError::BadOption { .. }), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
