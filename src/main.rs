@@ -85,12 +85,32 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Tf { file, json } => cmd::tf::tf(&file, json).map(|text| println!("{text}")),
         Command::Run { scene, out, quiet } => cmd::run::run(&scene, out.as_deref(), quiet),
-        Command::Rig { action: RigCommand::Emulate { rig, port, duration } } => {
-            cmd::rig::emulate(&rig, port.as_deref(), duration)
-        }
-        Command::Rig { action: RigCommand::Run { port, scene, rig, run, duration, out } } => {
-            cmd::rig::run_scene(&rig, port.as_deref(), &scene, run.as_deref(), duration, out.as_deref())
-        }
+        Command::Rig {
+            action:
+                RigCommand::Emulate {
+                    rig,
+                    port,
+                    duration,
+                },
+        } => cmd::rig::emulate(&rig, port.as_deref(), duration),
+        Command::Rig {
+            action:
+                RigCommand::Run {
+                    port,
+                    scene,
+                    rig,
+                    run,
+                    duration,
+                    out,
+                },
+        } => cmd::rig::run_scene(
+            &rig,
+            port.as_deref(),
+            &scene,
+            run.as_deref(),
+            duration,
+            out.as_deref(),
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

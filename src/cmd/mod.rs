@@ -1,4 +1,4 @@
 //! One module per subcommand; each returns `anyhow::Result` and leaves printing of errors to `main`.
-pub mod tf;
-pub mod run;
 pub mod rig;
+pub mod run;
+pub mod tf;

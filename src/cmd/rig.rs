@@ -27,7 +27,11 @@ pub fn emulate(rig_file: &Path, port: Option<&str>, duration_s: Option<f64>) -> 
             p.display(),
             p.display()
         ),
-        None => println!("emulating rig `{}` on {}  (Ctrl-C stops)", rig.name, port.unwrap_or("")),
+        None => println!(
+            "emulating rig `{}` on {}  (Ctrl-C stops)",
+            rig.name,
+            port.unwrap_or("")
+        ),
     }
     let start = Instant::now();
     while !stop.load(Ordering::Relaxed)
@@ -60,7 +64,8 @@ pub fn run(
     out_dir: &Path,
 ) -> anyhow::Result<LoopReport> {
     let rig = RigFile::load(rig_file)?;
-    std::fs::create_dir_all(out_dir).with_context(|| format!("cannot create {}", out_dir.display()))?;
+    std::fs::create_dir_all(out_dir)
+        .with_context(|| format!("cannot create {}", out_dir.display()))?;
     let trace_path = out_dir.join("trace.csv");
     let file = std::fs::File::create(&trace_path)
         .with_context(|| format!("cannot create {}", trace_path.display()))?;
@@ -80,7 +85,12 @@ pub fn run(
     println!("{report}");
     if let Some(f) = &report.fault {
         if f.kind != pneuflex_rig::ErrorKind::Interrupted {
-            bail!("run ended on a fault: {}: {} (tick {})", f.kind, f.message, f.tick);
+            bail!(
+                "run ended on a fault: {}: {} (tick {})",
+                f.kind,
+                f.message,
+                f.tick
+            );
         }
     }
     Ok(report)
@@ -100,18 +110,37 @@ pub fn run_scene(
     let scene = pneuflex_scene::Scene::load(scene_path)?;
     let index = match run_name {
         None => 0,
-        Some(name) => scene.runs.iter().position(|r| r.name == name).with_context(|| {
-            let names: Vec<&str> = scene.runs.iter().map(|r| r.name.as_str()).collect();
-            format!("{}: no run named `{name}` (runs: {})", scene_path.display(), names.join(", "))
-        })?,
+        Some(name) => scene
+            .runs
+            .iter()
+            .position(|r| r.name == name)
+            .with_context(|| {
+                let names: Vec<&str> = scene.runs.iter().map(|r| r.name.as_str()).collect();
+                format!(
+                    "{}: no run named `{name}` (runs: {})",
+                    scene_path.display(),
+                    names.join(", ")
+                )
+            })?,
     };
     let mut controller = pneuflex_scene::runner::build_controller(&scene, index)?;
     let setpoints = pneuflex_scene::runner::build_setpoints(&scene)?;
     let mut reference = |t: f64| setpoints.at(t);
     let out_dir = match out {
         Some(dir) => dir.to_path_buf(),
-        None => Path::new("out").join("rig").join(&scene.name).join(&scene.runs[index].name),
+        None => Path::new("out")
+            .join("rig")
+            .join(&scene.name)
+            .join(&scene.runs[index].name),
     };
     let duration = duration_s.unwrap_or(scene.duration_s);
-    run(rig_file, port, controller.as_mut(), &mut reference, duration, &out_dir).map(|_| ())
+    run(
+        rig_file,
+        port,
+        controller.as_mut(),
+        &mut reference,
+        duration,
+        &out_dir,
+    )
+    .map(|_| ())
 }

@@ -61,6 +61,12 @@ pub struct AdaptiveParams {
     pub lambda_d_sign: LambdaDSign,
     /// Sign of the σ1 term.
     pub sigma1_sign: Sigma1Sign,
+    /// Adapt g, p, d only while the flange is in contact (f_e > `contact_threshold_n`); out of contact they are
+    /// held and Δx_f = g. Not in the paper, whose law is derived for contact only (eq. 21 and ė = -k_e ẋ): in free
+    /// flight e = f_r winds g up, and the wound-up g overshoots when contact returns (the wood-to-iron swap).
+    pub adapt_in_contact_only: bool,
+    /// Contact force above which the flange counts as in contact, N.
+    pub contact_threshold_n: f64,
 }
 
 impl AdaptiveParams {
@@ -90,6 +96,8 @@ impl AdaptiveParams {
             position_unit_m: 1.0,
             lambda_d_sign: LambdaDSign::AsPrinted,
             sigma1_sign: Sigma1Sign::AsPrinted,
+            adapt_in_contact_only: false,
+            contact_threshold_n: 0.5,
         }
     }
 
@@ -123,6 +131,7 @@ impl AdaptiveParams {
         non_negative("sigma3", self.sigma3)?;
         positive("force_unit_n", self.force_unit_n)?;
         positive("position_unit_m", self.position_unit_m)?;
+        non_negative("contact_threshold_n", self.contact_threshold_n)?;
         Ok(())
     }
 }
@@ -225,6 +234,12 @@ impl AdaptiveLaw {
         self.d = self.d * dd + kd * (-a.mu3 * chi * v);
         // eq. (36): Δx_f = g + p e + d ẋ (scaled), back to metres.
         (self.g + self.p * e + self.d * v) * a.position_unit_m
+    }
+
+    /// Holds g, p, d (no adaptation this tick) and returns Δx_f = g in metres: the correction out of contact.
+    pub fn hold(&mut self) -> f64 {
+        self.chi = 0.0;
+        self.g * self.params.position_unit_m
     }
 
     /// Auxiliary term g (position units of the params).

@@ -114,7 +114,13 @@ impl Controller for AdaptiveImpedanceController {
         let e = sp.f_ref - s.f_e;
         let x_f = self.filter.step(e, dt);
         // eq. (36) with ẋ measured (eq. (26)'s ė replaced by ẋ, ė = -k_e ẋ in contact).
-        let dx_f = self.law.update(e, s.x_dot, dt);
+        let a = self.law.params();
+        let dx_f = if a.adapt_in_contact_only && s.f_e.is_finite() && s.f_e <= a.contact_threshold_n
+        {
+            self.law.hold()
+        } else {
+            self.law.update(e, s.x_dot, dt)
+        };
         // eq. (25): the paper prints x_r = x_f + Δx_f; x_d is restored so that Δx_f = 0 gives eq. (23).
         let x_r = sp.x_d + x_f + dx_f;
         let u = self.pid.update(x_r, s.x, dt);

@@ -10,6 +10,7 @@
 
 pub mod error;
 pub mod metrics;
+pub mod multibody;
 pub mod output;
 pub mod plant;
 pub mod pneumatic;
@@ -18,6 +19,7 @@ pub mod schema;
 pub mod trace;
 
 pub use error::SceneError;
+pub use multibody::{FlangeDrive, MultibodyPlant};
 pub use output::{Staging, Summary, summary, write_results};
 pub use plant::{IdealLoop, LinearSpring, Plant};
 pub use pneumatic::OneDofPneumatic;
@@ -25,5 +27,7 @@ pub use runner::{
     LyapunovSummary, RunResult, WindowMetrics, build_controller, build_plant, build_setpoints,
     run_scene, simulate,
 };
-pub use schema::{ControllerKind, PlantSpec, Scene, WindowKind};
+pub use schema::{
+    ControllerKind, EventSpec, MaterialSpec, MultibodySpec, PlantSpec, Scene, WindowKind,
+};
 pub use trace::Trace;

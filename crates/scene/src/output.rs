@@ -132,6 +132,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
         plant: match scene.plant {
             crate::schema::PlantSpec::Ideal { .. } => "ideal".into(),
             crate::schema::PlantSpec::Pneumatic { .. } => "pneumatic".into(),
+            crate::schema::PlantSpec::Multibody(_) => "multibody".into(),
         },
         runs: results
             .iter()

@@ -124,6 +124,12 @@ impl Plant for IdealLoop {
                 self.env.stiffness_n_per_m = stiffness_n_per_m;
                 Ok(())
             }
+            EventSpec::SwapEnvironment { .. } => Err(
+                "swap_environment needs the multibody plant: the ideal loop has one linear-spring environment".into(),
+            ),
+            EventSpec::Alpha { .. } => {
+                Err("alpha has no effect on the ideal loop (it has no gravity)".into())
+            }
         }
     }
 

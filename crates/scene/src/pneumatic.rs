@@ -13,6 +13,7 @@ use crate::schema::{EventSpec, PlantSpec, Scene};
 #[derive(Clone, Debug, PartialEq)]
 pub struct OneDofPneumatic {
     model: OneDofModel,
+    alpha0_rad: f64,
     initial: OneDofState,
     state: OneDofState,
     env0: LinearSpring,
@@ -32,6 +33,7 @@ impl OneDofPneumatic {
         let p_a = model.static_balance(p_b, -env.force(x0_m));
         let initial = OneDofState::at_rest(x0_m, ChamberState::new(p_a, p_b), 0.0);
         Self {
+            alpha0_rad: model.mechanics.alpha_rad,
             model,
             initial,
             state: initial,
@@ -85,6 +87,11 @@ impl OneDofPneumatic {
         Ok(Self::new(model, x0, env, *substeps))
     }
 
+    /// The actuator model (pneumatics and eq. (1) mechanics).
+    pub fn model(&self) -> &OneDofModel {
+        &self.model
+    }
+
     /// The full model state.
     pub fn state(&self) -> &OneDofState {
         &self.state
@@ -131,11 +138,20 @@ impl Plant for OneDofPneumatic {
                 self.env.stiffness_n_per_m = stiffness_n_per_m;
                 Ok(())
             }
+            EventSpec::SwapEnvironment { .. } => Err(
+                "swap_environment needs the multibody plant: the 1-DOF pneumatic plant has one linear-spring environment and no carriage".into(),
+            ),
+            EventSpec::Alpha { alpha_deg, .. } => {
+                // eq. (1): G_alpha = m g sin(alpha) from the next step on.
+                self.model.mechanics.alpha_rad = alpha_deg.to_radians();
+                Ok(())
+            }
         }
     }
 
     fn reset(&mut self) {
         self.state = self.initial;
+        self.model.mechanics.alpha_rad = self.alpha0_rad;
         self.env = self.env0;
         self.u = 0.0;
     }

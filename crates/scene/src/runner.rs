@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use crate::error::SceneError;
 use crate::metrics::{self, EventResponse};
+use crate::multibody::MultibodyPlant;
 use crate::plant::{IdealLoop, LinearSpring, Plant};
 use crate::pneumatic::OneDofPneumatic;
 use crate::schema::{
@@ -117,6 +118,7 @@ pub fn build_plant(scene: &Scene) -> Result<Box<dyn Plant>, SceneError> {
             env,
         ))),
         PlantSpec::Pneumatic { .. } => Ok(Box::new(OneDofPneumatic::from_scene(scene, env)?)),
+        PlantSpec::Multibody(_) => Ok(Box::new(MultibodyPlant::from_scene(scene)?)),
     }
 }
 
@@ -206,6 +208,8 @@ pub fn adaptive_params(run: &RunSpec) -> Option<control::AdaptiveParams> {
         sigma1: a.sigma1,
         sigma2: a.sigma2,
         sigma3: a.sigma3,
+        adapt_in_contact_only: a.adapt_in_contact_only,
+        contact_threshold_n: a.contact_threshold_n,
         force_unit_n: a.force_unit_n,
         position_unit_m: a.position_unit_m,
         lambda_d_sign: match a.lambda_d_sign {
@@ -292,8 +296,10 @@ pub fn simulate(
     let adaptive = run.controller == ControllerKind::Adaptive;
     let dt = scene.dt_s;
     let n = scene.n_steps();
-    let mut events = scene.events.clone();
-    events.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+    // Event order by time, keeping each event's index in the file for messages.
+    let mut events: Vec<(usize, &crate::schema::EventSpec)> =
+        scene.events.iter().enumerate().collect();
+    events.sort_by(|a, b| a.1.t_s().total_cmp(&b.1.t_s()));
     let mut next_event = 0;
     let mut trace = Trace::with_capacity(n + 1, adaptive);
     let lim = scene.divergence;
@@ -302,14 +308,13 @@ pub fn simulate(
     for k in 0..=n {
         let t = k as f64 * dt;
         // Events apply at the first tick at or after their time (half a tick of tolerance for rounding).
-        while next_event < events.len() && events[next_event].t_s() <= t + 0.5 * dt {
-            plant
-                .apply(&events[next_event])
-                .map_err(|m| SceneError::Invalid {
-                    file: scene.source.clone(),
-                    path: format!("events[{next_event}]"),
-                    message: m,
-                })?;
+        while next_event < events.len() && events[next_event].1.t_s() <= t + 0.5 * dt {
+            let (index, ev) = events[next_event];
+            plant.apply(ev).map_err(|m| SceneError::Invalid {
+                file: scene.source.clone(),
+                path: format!("events[{index}]"),
+                message: m,
+            })?;
             next_event += 1;
         }
         let mut s = plant.sense();

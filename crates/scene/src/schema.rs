@@ -89,6 +89,83 @@ pub enum PlantSpec {
         #[serde(default)]
         x0_m: Option<f64>,
     },
+    /// The rig as a Rapier multibody world built from URDF (pneuflex-multibody): the pneumatic force
+    /// element between cylinder and flange, compliant material faces on a kinematic carriage.
+    Multibody(MultibodySpec),
+}
+
+/// The multibody plant: URDF rig, actuator sheet, physics step and the environment materials.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MultibodySpec {
+    /// URDF of the rig, relative to the scene file.
+    pub urdf: PathBuf,
+    /// Actuator sheet (TOML) of the pneumatic force element, relative to the scene file.
+    pub actuator: PathBuf,
+    /// Rapier physics step, s; the control period `dt_s` must be a whole number of physics steps.
+    pub physics_dt_s: f64,
+    /// Rapier solver iterations per physics step.
+    #[serde(default = "default_solver_iterations")]
+    pub solver_iterations: usize,
+    /// Chamber (valve + thermodynamics) substeps per physics step.
+    #[serde(default = "default_chamber_substeps")]
+    pub chamber_substeps: u32,
+    /// Incline of the actuator axis below horizontal, degrees. Absent: the actuator sheet's value.
+    #[serde(default)]
+    pub alpha_deg: Option<f64>,
+    /// Initial flange extension, m. Absent: `environment.x_e_m` (touching the initial material).
+    #[serde(default)]
+    pub x0_m: Option<f64>,
+    /// Material facing the flange at t = 0. Absent: the first material.
+    #[serde(default)]
+    pub initial_material: Option<String>,
+    /// Coulomb friction coefficient of the flange-face contacts, 1.
+    #[serde(default = "default_contact_friction")]
+    pub contact_friction: f64,
+    /// Environment materials on the carriage (at least one).
+    pub materials: Vec<MaterialSpec>,
+}
+
+impl MultibodySpec {
+    /// The material facing the flange at t = 0.
+    pub fn initial_material(&self) -> Option<&MaterialSpec> {
+        match &self.initial_material {
+            Some(n) => self.materials.iter().find(|m| &m.name == n),
+            None => self.materials.first(),
+        }
+    }
+
+    /// Physics steps per control period `dt_s` (rounded; validation requires a whole number).
+    pub fn steps_per_tick(&self, dt_s: f64) -> u32 {
+        (dt_s / self.physics_dt_s).round().max(1.0) as u32
+    }
+}
+
+/// One environment material of the multibody rig: its compliant mount joint in the URDF, k and c.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Material name used by events ("wood", "iron").
+    pub name: String,
+    /// Prismatic URDF joint that carries the material's contact face on the carriage.
+    pub mount_joint: String,
+    /// Mount stiffness k_e of eq. (21), N/m.
+    pub stiffness_n_per_m: f64,
+    /// Mount damping, N·s/m.
+    #[serde(default)]
+    pub damping_n_s_per_m: f64,
+}
+
+fn default_solver_iterations() -> usize {
+    4
+}
+
+fn default_chamber_substeps() -> u32 {
+    10
+}
+
+fn default_contact_friction() -> f64 {
+    0.3
 }
 
 fn one() -> f64 {
@@ -169,15 +246,38 @@ impl ForcePiece {
 }
 
 /// A timed change of the scene, applied at the first control tick at or after `t_s`.
-#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum EventSpec {
-    /// The environment stiffness k_e becomes a new value.
+    /// The environment stiffness k_e becomes a new value (on the multibody plant: one material's mount).
     Stiffness {
         /// Time of the event, s.
         t_s: f64,
         /// New stiffness, N/m.
         stiffness_n_per_m: f64,
+        /// Multibody plant only: the material to change; absent = the one facing the flange.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        material: Option<String>,
+        /// Multibody plant only: new mount damping, N·s/m; absent = unchanged.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        damping_n_s_per_m: Option<f64>,
+    },
+    /// Multibody plant only: the carriage brings another material in front of the flange (Fig. 7):
+    /// it retreats beyond the flange's reach, slides across and comes back, over `duration_s`.
+    SwapEnvironment {
+        /// Time the carriage starts moving, s.
+        t_s: f64,
+        /// Material that faces the flange afterwards.
+        to: String,
+        /// Duration of the whole carriage move, s.
+        duration_s: f64,
+    },
+    /// The incline alpha of the actuator axis changes (gravity aids extension by m g sin(alpha)).
+    Alpha {
+        /// Time of the event, s.
+        t_s: f64,
+        /// New incline below horizontal, degrees, in [-90, 90].
+        alpha_deg: f64,
     },
 }
 
@@ -185,7 +285,18 @@ impl EventSpec {
     /// Time of the event, s.
     pub fn t_s(&self) -> f64 {
         match *self {
-            EventSpec::Stiffness { t_s, .. } => t_s,
+            EventSpec::Stiffness { t_s, .. }
+            | EventSpec::SwapEnvironment { t_s, .. }
+            | EventSpec::Alpha { t_s, .. } => t_s,
+        }
+    }
+
+    /// The event's `kind` as written in the scene file.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            EventSpec::Stiffness { .. } => "stiffness",
+            EventSpec::SwapEnvironment { .. } => "swap_environment",
+            EventSpec::Alpha { .. } => "alpha",
         }
     }
 }
@@ -296,6 +407,18 @@ pub struct AdaptiveSpec {
     pub sigma2: f64,
     /// σ_3: σ-modification of d, 1/s.
     pub sigma3: f64,
+    /// Adapt only while in contact (f_e > contact_threshold_n); out of contact g, p, d are held and Δx_f = g.
+    /// Default false (the law as printed); scenes where contact is lost on purpose (an environment swap) set it,
+    /// since the paper derives the law for contact only (docs/control.md).
+    #[serde(default)]
+    pub adapt_in_contact_only: bool,
+    /// Contact force above which the flange counts as in contact, N (default 0.5).
+    #[serde(default = "half_newton")]
+    pub contact_threshold_n: f64,
+}
+
+fn half_newton() -> f64 {
+    0.5
 }
 
 /// Inner position loop: PID on x_r - x with derivative on the measurement, anti-windup and output limits.
@@ -508,6 +631,7 @@ impl Scene {
                     v.finite("plant.x0_m", *x)?;
                 }
             }
+            PlantSpec::Multibody(mb) => self.validate_multibody(&v, mb)?,
         }
         v.non_negative(
             "environment.stiffness_n_per_m",
@@ -567,12 +691,75 @@ impl Scene {
             }
         }
         for (i, ev) in self.events.iter().enumerate() {
-            v.non_negative(&format!("events[{i}].t_s"), ev.t_s())?;
-            match *ev {
+            let at = |k: &str| format!("events[{i}].{k}");
+            v.non_negative(&at("t_s"), ev.t_s())?;
+            let mb = match &self.plant {
+                PlantSpec::Multibody(mb) => Some(mb),
+                _ => None,
+            };
+            match ev {
                 EventSpec::Stiffness {
-                    stiffness_n_per_m, ..
+                    stiffness_n_per_m,
+                    material,
+                    damping_n_s_per_m,
+                    ..
                 } => {
-                    v.non_negative(&format!("events[{i}].stiffness_n_per_m"), stiffness_n_per_m)?
+                    v.non_negative(&at("stiffness_n_per_m"), *stiffness_n_per_m)?;
+                    if let Some(c) = damping_n_s_per_m {
+                        v.non_negative(&at("damping_n_s_per_m"), *c)?;
+                    }
+                    match mb {
+                        Some(mb) => {
+                            // The mount is a spring: zero stiffness has no rest position.
+                            v.positive(&at("stiffness_n_per_m"), *stiffness_n_per_m)?;
+                            if let Some(name) = material {
+                                v.known_material(&at("material"), mb, name)?;
+                            }
+                        }
+                        None => {
+                            if material.is_some() || damping_n_s_per_m.is_some() {
+                                return Err(v.err(
+                                    &at("material"),
+                                    "`material` and `damping_n_s_per_m` need plant.kind = \"multibody\"".into(),
+                                ));
+                            }
+                        }
+                    }
+                }
+                EventSpec::SwapEnvironment { to, duration_s, .. } => {
+                    let Some(mb) = mb else {
+                        return Err(v.err(
+                            &at("kind"),
+                            "\"swap_environment\" needs plant.kind = \"multibody\": the 1-DOF plants have one linear-spring environment and no carriage".into(),
+                        ));
+                    };
+                    v.known_material(&at("to"), mb, to)?;
+                    v.positive(&at("duration_s"), *duration_s)?;
+                    if ev.t_s() + duration_s > self.duration_s + 0.5 * self.dt_s {
+                        return Err(v.err(
+                            &at("duration_s"),
+                            format!(
+                                "the swap must end within the scene: t_s + duration_s = {} > duration_s = {}",
+                                ev.t_s() + duration_s,
+                                self.duration_s
+                            ),
+                        ));
+                    }
+                }
+                EventSpec::Alpha { alpha_deg, .. } => {
+                    v.finite(&at("alpha_deg"), *alpha_deg)?;
+                    if !(-90.0..=90.0).contains(alpha_deg) {
+                        return Err(v.err(
+                            &at("alpha_deg"),
+                            format!("must be in [-90, 90], got {alpha_deg}"),
+                        ));
+                    }
+                    if matches!(self.plant, PlantSpec::Ideal { .. }) {
+                        return Err(v.err(
+                            &at("kind"),
+                            "\"alpha\" has no effect on plant.kind = \"ideal\" (no gravity in the ideal loop)".into(),
+                        ));
+                    }
                 }
             }
         }
@@ -617,6 +804,7 @@ impl Scene {
                         ("sigma1", a.sigma1),
                         ("sigma2", a.sigma2),
                         ("sigma3", a.sigma3),
+                        ("contact_threshold_n", a.contact_threshold_n),
                     ] {
                         v.non_negative(&at(&format!("adaptive.{k}")), val)?;
                     }
@@ -686,6 +874,89 @@ impl Scene {
         Ok(())
     }
 
+    fn validate_multibody(&self, v: &Validator<'_>, mb: &MultibodySpec) -> Result<(), SceneError> {
+        if mb.urdf.as_os_str().is_empty() {
+            return Err(v.err("plant.urdf", "must name a URDF file".into()));
+        }
+        if mb.actuator.as_os_str().is_empty() {
+            return Err(v.err("plant.actuator", "must name an actuator sheet".into()));
+        }
+        v.positive("plant.physics_dt_s", mb.physics_dt_s)?;
+        let ratio = self.dt_s / mb.physics_dt_s;
+        if ratio < 1.0 - 1e-9 || (ratio - ratio.round()).abs() > 1e-6 * ratio.max(1.0) {
+            return Err(v.err(
+                "plant.physics_dt_s",
+                format!(
+                    "dt_s ({}) must be a whole number (>= 1) of physics steps, got dt_s / physics_dt_s = {ratio}",
+                    self.dt_s
+                ),
+            ));
+        }
+        if mb.solver_iterations == 0 || mb.solver_iterations > 1000 {
+            return Err(v.err(
+                "plant.solver_iterations",
+                format!("must be in 1 ..= 1000, got {}", mb.solver_iterations),
+            ));
+        }
+        if mb.chamber_substeps == 0 || mb.chamber_substeps > 10_000 {
+            return Err(v.err(
+                "plant.chamber_substeps",
+                format!("must be in 1 ..= 10000, got {}", mb.chamber_substeps),
+            ));
+        }
+        if let Some(a) = mb.alpha_deg {
+            v.finite("plant.alpha_deg", a)?;
+            if !(-90.0..=90.0).contains(&a) {
+                return Err(v.err("plant.alpha_deg", format!("must be in [-90, 90], got {a}")));
+            }
+        }
+        if let Some(x) = mb.x0_m {
+            v.finite("plant.x0_m", x)?;
+        }
+        v.non_negative("plant.contact_friction", mb.contact_friction)?;
+        if mb.materials.is_empty() {
+            return Err(v.err("plant.materials", "needs at least one material".into()));
+        }
+        for (i, m) in mb.materials.iter().enumerate() {
+            let at = |k: &str| format!("plant.materials[{i}].{k}");
+            if m.name.trim().is_empty() {
+                return Err(v.err(&at("name"), "must not be empty".into()));
+            }
+            if mb.materials[..i].iter().any(|o| o.name == m.name) {
+                return Err(v.err(&at("name"), format!("duplicate material {:?}", m.name)));
+            }
+            if m.mount_joint.trim().is_empty() {
+                return Err(v.err(&at("mount_joint"), "must name a URDF joint".into()));
+            }
+            v.positive(&at("stiffness_n_per_m"), m.stiffness_n_per_m)?;
+            v.non_negative(&at("damping_n_s_per_m"), m.damping_n_s_per_m)?;
+        }
+        let Some(init) = mb.initial_material() else {
+            return Err(v.err(
+                "plant.initial_material",
+                format!(
+                    "{:?} is not one of the materials ({})",
+                    mb.initial_material.as_deref().unwrap_or(""),
+                    material_names(mb)
+                ),
+            ));
+        };
+        // [environment] states the initial contact (used by the Lyapunov summary and checked against the
+        // URDF's geometry when the plant is built): its stiffness must be the initial material's.
+        if (self.environment.stiffness_n_per_m - init.stiffness_n_per_m).abs()
+            > 1e-9 * init.stiffness_n_per_m
+        {
+            return Err(v.err(
+                "environment.stiffness_n_per_m",
+                format!(
+                    "must equal the initial material {:?}'s stiffness_n_per_m ({}) on a multibody plant, got {}",
+                    init.name, init.stiffness_n_per_m, self.environment.stiffness_n_per_m
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// The sine reference piece that covers the whole interval [t0, t1], if any.
     pub fn sine_in(&self, t0: f64, t1: f64) -> Option<ForcePiece> {
         let pieces = &self.reference.force;
@@ -711,6 +982,19 @@ impl Validator<'_> {
             message,
         }
     }
+    fn known_material(&self, path: &str, mb: &MultibodySpec, name: &str) -> Result<(), SceneError> {
+        if mb.materials.iter().any(|m| m.name == name) {
+            Ok(())
+        } else {
+            Err(self.err(
+                path,
+                format!(
+                    "unknown material {name:?}, expected one of {}",
+                    material_names(mb)
+                ),
+            ))
+        }
+    }
     fn finite(&self, path: &str, x: f64) -> Result<(), SceneError> {
         if x.is_finite() {
             Ok(())
@@ -734,4 +1018,12 @@ impl Validator<'_> {
             Err(self.err(path, format!("must be > 0, got {x}")))
         }
     }
+}
+
+fn material_names(mb: &MultibodySpec) -> String {
+    mb.materials
+        .iter()
+        .map(|m| format!("{:?}", m.name))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

@@ -8,6 +8,7 @@ use std::sync::OnceLock;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
+use pneuflex_scene::schema::EventSpec;
 use pneuflex_scene::{RunResult, Scene};
 
 /// DejaVu Sans (fonts-dejavu-core; free license in assets/DejaVuSans-LICENSE.txt).
@@ -87,6 +88,8 @@ struct Plot<'a> {
     t_range: (f64, f64),
     lines: Vec<Line<'a>>,
     events: Vec<f64>,
+    /// A shaded time interval with a label (the environment swap of Fig. 7).
+    band: Option<(f64, f64, String)>,
 }
 
 fn draw_plot<DB: DrawingBackend>(
@@ -130,6 +133,24 @@ where
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(|e| e.to_string())?;
+    if let Some((b0, b1, label)) = &plot.band {
+        let (b0, b1) = (b0.max(t0), b1.min(t1));
+        if b1 > b0 {
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(b0, lo), (b1, hi)],
+                    RGBColor(255, 235, 200).filled(),
+                )))
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    label.clone(),
+                    (b0, hi - 0.04 * (hi - lo)),
+                    (FAMILY, 16).into_font().color(&RGBColor(140, 80, 0)),
+                )))
+                .map_err(|e| e.to_string())?;
+        }
+    }
     for &te in &plot.events {
         if te >= t0 && te <= t1 {
             chart
@@ -252,6 +273,7 @@ pub fn write_figures(
         t_range: (0.0, t_end),
         lines: force_lines(&ok),
         events: events.clone(),
+        band: None,
     };
     let p = dir.join(format!("force.{}", format.ext()));
     render(&p, format, &force)?;
@@ -284,6 +306,7 @@ pub fn write_figures(
         t_range: (0.0, t_end),
         lines,
         events: events.clone(),
+        band: None,
     };
     let p = dir.join(format!("position.{}", format.ext()));
     render(&p, format, &position)?;
@@ -302,6 +325,7 @@ pub fn write_figures(
             t_range: ((te - 0.5).max(0.0), (te + 2.5).min(t_end)),
             lines: force_lines(&ok),
             events: vec![te],
+            band: None,
         };
         if zoom.t_range.1 > zoom.t_range.0 {
             let p = dir.join(format!("event-{i}.{}", format.ext()));
@@ -309,13 +333,49 @@ pub fn write_figures(
             written.push(p);
         }
     }
+    // Paper Fig. 7: the force response of every controller around each environment swap, the carriage
+    // move shaded.
+    for (i, ev) in scene.events.iter().enumerate() {
+        if let EventSpec::SwapEnvironment {
+            t_s,
+            to,
+            duration_s,
+        } = ev
+        {
+            let fig7 = Plot {
+                title: format!(
+                    "{}: force response to the environment change (swap to {to} at {t_s} s)",
+                    scene.name
+                ),
+                y_label: "contact force f_e [N]".into(),
+                t_range: ((t_s - 1.0).max(0.0), (t_s + duration_s + 4.0).min(t_end)),
+                lines: force_lines(&ok),
+                events: vec![*t_s, t_s + duration_s],
+                band: Some((*t_s, t_s + duration_s, format!(" carriage swaps to {to}"))),
+            };
+            if fig7.t_range.1 > fig7.t_range.0 {
+                let p = dir.join(format!("fig7-swap-{i}.{}", format.ext()));
+                render(&p, format, &fig7)?;
+                written.push(p);
+            }
+        }
+    }
     Ok(written)
 }
 
-fn event_label(ev: &pneuflex_scene::schema::EventSpec) -> String {
-    match *ev {
-        pneuflex_scene::schema::EventSpec::Stiffness {
-            stiffness_n_per_m, ..
-        } => format!("k_e -> {stiffness_n_per_m} N/m"),
+fn event_label(ev: &EventSpec) -> String {
+    match ev {
+        EventSpec::Stiffness {
+            stiffness_n_per_m,
+            material,
+            ..
+        } => match material {
+            Some(m) => format!("k_e({m}) -> {stiffness_n_per_m} N/m"),
+            None => format!("k_e -> {stiffness_n_per_m} N/m"),
+        },
+        EventSpec::SwapEnvironment { to, duration_s, .. } => {
+            format!("swap to {to} over {duration_s} s")
+        }
+        EventSpec::Alpha { alpha_deg, .. } => format!("alpha -> {alpha_deg} deg"),
     }
 }

@@ -1,0 +1,334 @@
+//! The multibody plant: the rig of `pneuflex-multibody` (URDF -> Rapier world, compliant wood and iron
+//! faces on a kinematic carriage) driven by the pneumatic force element of the actuator sheet.
+//!
+//! One control tick of `dt_s` is a whole number of Rapier steps of `physics_dt_s`; the valve command is
+//! held over the tick (zero-order hold) and the chambers are integrated `chamber_substeps` times per
+//! physics step. Mechanics (mass, K_v, stroke) come from the URDF; the pneumatics and the Coulomb
+//! friction law from the actuator sheet (the URDF has only viscous joint damping).
+
+use std::path::PathBuf;
+
+use pneuflex_control::{Sensors, Telemetry, ValveCommand};
+use pneuflex_multibody::{
+    AxialActuator, MaterialConfig, MaterialParams, Measurements, MultibodyConfig, MultibodyError,
+    PneumaticForceElement, RigWorld,
+};
+use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
+
+use crate::error::SceneError;
+use crate::plant::{LinearSpring, Plant};
+use crate::schema::{EventSpec, MultibodySpec, PlantSpec, Scene};
+
+/// The pneumatic force element plus the sheet's Coulomb friction, acting between cylinder and flange.
+#[derive(Debug, Clone)]
+pub struct FlangeDrive {
+    /// Chambers and valve (eqs. (2)-(10)).
+    pub element: PneumaticForceElement,
+    /// Coulomb friction law of eq. (1) (`f`), from the actuator sheet.
+    pub friction: Friction,
+    /// Gravity along +x on the flange, N (only used as the drive of a stick-slip law).
+    pub gravity_force_n: f64,
+}
+
+impl AxialActuator for FlangeDrive {
+    fn force(&mut self, x: f64, x_dot: f64, dt: f64) -> f64 {
+        let f_p = self.element.force(x, x_dot, dt);
+        // eq. (1): F_1 - F_2 - f; K_v x' is the URDF joint damping, G_alpha is Rapier's gravity.
+        f_p - self.friction.force(x_dot, f_p + self.gravity_force_n)
+    }
+}
+
+/// The rig of `pneuflex-multibody` as a scene plant.
+pub struct MultibodyPlant {
+    scene_file: PathBuf,
+    urdf_file: PathBuf,
+    robot: urdf_rs::Robot,
+    config: MultibodyConfig,
+    world: RigWorld,
+    drive0: FlangeDrive,
+    drive: FlangeDrive,
+    steps_per_tick: u32,
+    flange_mass_kg: f64,
+    last: Measurements,
+}
+
+impl std::fmt::Debug for MultibodyPlant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MultibodyPlant")
+            .field("urdf", &self.urdf_file)
+            .field("config", &self.config)
+            .field("steps_per_tick", &self.steps_per_tick)
+            .field("last", &self.last)
+            .finish_non_exhaustive()
+    }
+}
+
+fn plant_err(scene: &Scene, message: String) -> SceneError {
+    SceneError::Plant {
+        file: scene.source.clone(),
+        message,
+    }
+}
+
+impl MultibodyPlant {
+    /// The plant a multibody scene describes (URDF and actuator sheet resolved against the scene's
+    /// directory). Checks `environment.x_e_m` against the URDF's first-touch position of the initial
+    /// material.
+    pub fn from_scene(scene: &Scene) -> Result<Self, SceneError> {
+        let PlantSpec::Multibody(mb) = &scene.plant else {
+            return Err(plant_err(scene, "not a multibody plant".into()));
+        };
+        let sheet_path = scene.resolve(&mb.actuator);
+        let sheet = ActuatorSheet::load(&sheet_path)
+            .map_err(|e| plant_err(scene, format!("plant.actuator: {e}")))?;
+        let urdf_file = scene.resolve(&mb.urdf);
+        let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf_file)
+            .map_err(|e| plant_err(scene, format!("plant.urdf: {e}")))?;
+        let mut config = config_of(mb, &sheet);
+        let mb_err = |field: &str, e: MultibodyError| plant_err(scene, format!("{field}: {e}"));
+        // Build once at x = 0 to learn the initial material's contact position.
+        let probe = RigWorld::from_robot(&urdf_file, &robot, &config)
+            .map_err(|e| mb_err(&multibody_field(&e), e))?;
+        let init = config.initial_material.clone();
+        let x_e = probe
+            .material_x_e(&init)
+            .map_err(|e| mb_err("plant.initial_material", e))?;
+        if (x_e - scene.environment.x_e_m).abs() > 1e-6 {
+            return Err(SceneError::Invalid {
+                file: scene.source.clone(),
+                path: "environment.x_e_m".into(),
+                message: format!(
+                    "must be the flange extension where {} first touches material {init:?}: {x_e:.6} m, got {}",
+                    urdf_file.display(),
+                    scene.environment.x_e_m
+                ),
+            });
+        }
+        let stroke = probe.stroke();
+        let x0 = mb.x0_m.unwrap_or(x_e);
+        if !(0.0..=stroke).contains(&x0) {
+            return Err(SceneError::Invalid {
+                file: scene.source.clone(),
+                path: if mb.x0_m.is_some() {
+                    "plant.x0_m".into()
+                } else {
+                    "environment.x_e_m".into()
+                },
+                message: format!(
+                    "initial position {x0} m is outside the stroke [0, {stroke}] m of {}",
+                    urdf_file.display()
+                ),
+            });
+        }
+        config.initial_x_m = x0;
+        let world = RigWorld::from_robot(&urdf_file, &robot, &config)
+            .map_err(|e| mb_err(&multibody_field(&e), e))?;
+        let flange_mass_kg = robot
+            .links
+            .iter()
+            .find(|l| l.name == config.flange_link)
+            .map_or(0.0, |l| l.inertial.mass.value);
+        let gravity_force_n = flange_mass_kg * config.gravity_m_s2 * config.alpha_rad.sin();
+        // Initial chambers as on the 1-DOF plant: B at the mean of supply and atmosphere, A at the static
+        // balance of eq. (1) with the contact force at x0 (the face is unloaded at x0 = x_e).
+        let actuator = sheet.actuator();
+        let s = &actuator.supply;
+        let p_b = 0.5 * (s.supply_pressure_pa + s.atmosphere_pressure_pa);
+        let mut mech_model = sheet.model();
+        mech_model.mechanics.moving_mass_kg = flange_mass_kg;
+        mech_model.mechanics.alpha_rad = config.alpha_rad;
+        let k0 = mb.initial_material().map_or(0.0, |m| m.stiffness_n_per_m);
+        let f0 = LinearSpring {
+            stiffness_n_per_m: k0,
+            x_e_m: x_e,
+        }
+        .force(x0);
+        let p_a = mech_model.static_balance(p_b, -f0);
+        let element =
+            PneumaticForceElement::new(actuator, ChamberState::new(p_a, p_b), mb.chamber_substeps);
+        let drive = FlangeDrive {
+            element,
+            friction: sheet.mechanics.friction,
+            gravity_force_n,
+        };
+        let last = world.measurements();
+        Ok(Self {
+            scene_file: scene.source.clone(),
+            urdf_file,
+            robot,
+            config,
+            world,
+            drive0: drive.clone(),
+            drive,
+            steps_per_tick: mb.steps_per_tick(scene.dt_s),
+            flange_mass_kg,
+            last,
+        })
+    }
+
+    /// The Rapier rig world.
+    pub fn world(&self) -> &RigWorld {
+        &self.world
+    }
+
+    /// The force element (chambers, valve, friction).
+    pub fn drive(&self) -> &FlangeDrive {
+        &self.drive
+    }
+
+    /// The world configuration the plant was built with.
+    pub fn config(&self) -> &MultibodyConfig {
+        &self.config
+    }
+
+    /// Physics steps per control tick.
+    pub fn steps_per_tick(&self) -> u32 {
+        self.steps_per_tick
+    }
+
+    /// Flange mass from the URDF, kg.
+    pub fn flange_mass_kg(&self) -> f64 {
+        self.flange_mass_kg
+    }
+
+    /// Viscous damping K_v of the flange joint from the URDF (`<dynamics damping>`), N·s/m.
+    pub fn flange_damping_n_s_per_m(&self) -> f64 {
+        self.robot
+            .joints
+            .iter()
+            .find(|j| j.name == self.config.flange_joint)
+            .map_or(0.0, |j| j.dynamics.as_ref().map_or(0.0, |d| d.damping))
+    }
+
+    /// The last load-cell and flange reading.
+    pub fn measurements(&self) -> Measurements {
+        self.last
+    }
+
+    fn event_error(&self, e: MultibodyError) -> String {
+        format!("{} (URDF {})", e, self.urdf_file.display())
+    }
+}
+
+/// The world configuration of a multibody scene: the paper rig's link and joint roles with the scene's
+/// materials, step, iterations and incline.
+fn config_of(mb: &MultibodySpec, sheet: &ActuatorSheet) -> MultibodyConfig {
+    let mut c = MultibodyConfig::paper_rig();
+    c.materials = mb
+        .materials
+        .iter()
+        .map(|m| MaterialConfig {
+            name: m.name.clone(),
+            mount_joint: m.mount_joint.clone(),
+            params: MaterialParams {
+                stiffness_n_per_m: m.stiffness_n_per_m,
+                damping_n_s_per_m: m.damping_n_s_per_m,
+            },
+        })
+        .collect();
+    c.initial_material = mb
+        .initial_material()
+        .map(|m| m.name.clone())
+        .unwrap_or_default();
+    c.alpha_rad = mb
+        .alpha_deg
+        .map_or(sheet.mechanics.alpha_rad, f64::to_radians);
+    c.dt_s = mb.physics_dt_s;
+    c.solver_iterations = mb.solver_iterations;
+    c.friction = mb.contact_friction;
+    c.gravity_m_s2 = sheet.mechanics.gravity_m_per_s2;
+    c
+}
+
+/// The scene key a multibody build error belongs to.
+fn multibody_field(e: &MultibodyError) -> String {
+    match e {
+        MultibodyError::MissingJoint { field, .. } if field.starts_with("materials") => {
+            "plant.materials.mount_joint".into()
+        }
+        MultibodyError::BadConfig { field, .. } => format!("plant ({field})"),
+        _ => "plant.urdf".into(),
+    }
+}
+
+impl Plant for MultibodyPlant {
+    fn sense(&self) -> Sensors {
+        let (p_a, p_b) = self.drive.element.pressures();
+        Sensors {
+            t: 0.0,
+            x: self.last.x,
+            x_dot: self.last.x_dot,
+            f_e: self.last.f_e,
+            p_a,
+            p_b,
+        }
+    }
+
+    fn actuate(&mut self, command: ValveCommand, _telemetry: &Telemetry) {
+        self.drive.element.set_command(command.u);
+    }
+
+    fn advance(&mut self, _dt: f64) {
+        // dt_s = steps_per_tick · physics_dt_s (validated at load).
+        for _ in 0..self.steps_per_tick {
+            self.last = self.world.step(&mut self.drive);
+        }
+    }
+
+    fn apply(&mut self, event: &EventSpec) -> Result<(), String> {
+        match event {
+            EventSpec::Stiffness {
+                stiffness_n_per_m,
+                material,
+                damping_n_s_per_m,
+                ..
+            } => {
+                let name = match material {
+                    Some(n) => n.clone(),
+                    None => self
+                        .world
+                        .active_material()
+                        .ok_or("no material faces the flange (the carriage is moving): name one with `material`")?
+                        .to_owned(),
+                };
+                let old = self
+                    .world
+                    .material_params(&name)
+                    .map_err(|e| self.event_error(e))?;
+                let params = MaterialParams {
+                    stiffness_n_per_m: *stiffness_n_per_m,
+                    damping_n_s_per_m: damping_n_s_per_m.unwrap_or(old.damping_n_s_per_m),
+                };
+                self.world
+                    .set_material(&name, params)
+                    .map_err(|e| self.event_error(e))
+            }
+            EventSpec::SwapEnvironment { to, duration_s, .. } => self
+                .world
+                .swap_environment(to, *duration_s)
+                .map_err(|e| self.event_error(e)),
+            EventSpec::Alpha { alpha_deg, .. } => {
+                let a = alpha_deg.to_radians();
+                self.world.set_alpha(a).map_err(|e| self.event_error(e))?;
+                self.drive.gravity_force_n =
+                    self.flange_mass_kg * self.config.gravity_m_s2 * a.sin();
+                Ok(())
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        // RigWorld has no reset: rebuild it from the parsed URDF (it was built from the same inputs).
+        match RigWorld::from_robot(&self.urdf_file, &self.robot, &self.config) {
+            Ok(w) => {
+                self.last = w.measurements();
+                self.world = w;
+            }
+            Err(e) => unreachable!(
+                "{}: the multibody plant rebuilt from unchanged inputs failed: {e}",
+                self.scene_file.display()
+            ),
+        }
+        self.drive = self.drive0.clone();
+    }
+}
