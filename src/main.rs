@@ -35,6 +35,10 @@ enum Command {
         /// No progress bar and no metrics table.
         #[arg(long, short)]
         quiet: bool,
+        /// Record every run to Rerun: `save <file.rrd>` (one file per run when the scene has several),
+        /// `spawn` (start a viewer) or `connect <url>` (a running viewer). Needs the `rerun` feature.
+        #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
+        rerun: Option<Vec<String>>,
     },
     /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
     Rig {
@@ -84,7 +88,12 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Tf { file, json } => cmd::tf::tf(&file, json).map(|text| println!("{text}")),
-        Command::Run { scene, out, quiet } => cmd::run::run(&scene, out.as_deref(), quiet),
+        Command::Run {
+            scene,
+            out,
+            quiet,
+            rerun,
+        } => cmd::run::run(&scene, out.as_deref(), quiet, rerun.as_deref()),
         Command::Rig {
             action:
                 RigCommand::Emulate {

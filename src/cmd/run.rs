@@ -11,8 +11,23 @@ use pneuflex_scene::{RunResult, Scene, Staging, WindowKind, run_scene, write_res
 
 /// Runs a scene file and writes its outputs; Err on bad input, on a write failure or when a run diverged
 /// (the outputs are still written, with the run marked diverged in summary.json).
-pub fn run(scene_path: &Path, out: Option<&Path>, quiet: bool) -> anyhow::Result<()> {
+pub fn run(
+    scene_path: &Path,
+    out: Option<&Path>,
+    quiet: bool,
+    rerun: Option<&[String]>,
+) -> anyhow::Result<()> {
     let scene = Scene::load(scene_path)?;
+    #[cfg(feature = "rerun")]
+    let rerun_sink = rerun.map(super::rerun_log::parse_sink).transpose()?;
+    #[cfg(not(feature = "rerun"))]
+    if let Some(words) = rerun {
+        bail!(
+            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
+             `cargo run --release --features rerun -- run ...` (docs/rerun.md)",
+            words.join(" ")
+        );
+    }
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(&scene.name));
@@ -38,6 +53,28 @@ pub fn run(scene_path: &Path, out: Option<&Path>, quiet: bool) -> anyhow::Result
     })?;
     bar.finish_and_clear();
     let sim_time = start.elapsed();
+
+    // Rerun logging reads the finished traces: it cannot change the results. Its cost is reported apart.
+    #[cfg(feature = "rerun")]
+    if let Some(sink) = &rerun_sink {
+        let t0 = Instant::now();
+        let mut steps = 0usize;
+        for r in &results {
+            let run_sink = super::rerun_log::sink_for_run(sink, &r.name, results.len());
+            super::rerun_log::log_run(&run_sink, &scene, scene_path, r)
+                .with_context(|| format!("Rerun recording of run `{}`", r.name))?;
+            steps += r.trace.len();
+        }
+        if !quiet {
+            let log_s = t0.elapsed().as_secs_f64().max(1e-9);
+            let sim_s = sim_time.as_secs_f64().max(1e-9);
+            println!(
+                "rerun: {steps} steps logged in {log_s:.2} s; steps/s without logging {:.0}, with logging {:.0}",
+                steps as f64 / sim_s,
+                steps as f64 / (sim_s + log_s)
+            );
+        }
+    }
 
     let stage = Staging::new(&dest)?;
     write_results(stage.path(), &scene, &results)?;

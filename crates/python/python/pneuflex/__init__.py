@@ -1,0 +1,22 @@
+"""pneuflex: force and position control of pneumatic compliant actuators (Python bindings).
+
+The classes and functions come from the Rust crates through the native module ``pneuflex._native``:
+
+- ``Actuator(path, alpha_deg=None)``: an actuator sheet (cylinder, valve, supply, gas, mechanics);
+  ``params()``, ``piston_force(p_a, p_b)``, ``transfer_function(x_m=None, f_ext_n=0)`` (eqs. (16)-(17)).
+- ``OneDof(actuator, x0_m, p_a=None, p_b=None, f_ext_n=0)``: the 1-DOF model of eq. (1); ``step(u, f_ext_n, dt_s)``.
+- ``ForceElement(actuator, p_a=None, p_b=None, substeps=1, ...)``: the multibody crate's pneumatic force
+  element (chambers + valve); ``step(x, x_dot, u, dt_s) -> force`` on the flange, for an external
+  rigid-body engine (MuJoCo in crossval/).
+- ``Controller(kind, impedance, inner, adaptive=None)`` / ``Controller.from_scene(path, run)``;
+  ``update(t, x, x_dot, f_e, p_a, p_b, f_ref, x_d, dt) -> u``, ``telemetry()``.
+- ``Setpoints(scene_path).at(t) -> (f_ref, x_d)``; ``load_scene(path) -> dict``; ``initial_state(path)``.
+- ``run(scene_path) -> {run: {column: ndarray}}``; ``run_with_summary``; ``summarize(scene_path, traces)``
+  (summary.json of any traces); ``write_figures(scene_path, out_dir, runs)``; ``bench_rapier(urdf_path, ...)``.
+
+SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError`` for unreadable files,
+``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key.
+"""
+
+from ._native import *  # noqa: F401,F403
+from ._native import PneuflexError, __version__  # noqa: F401

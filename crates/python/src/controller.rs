@@ -1,0 +1,242 @@
+//! The controllers of `pneuflex-control` in Python, built from parameter dicts (the scene file's keys) or
+//! from a scene file's run entry, and the scene's setpoint schedule.
+
+use std::path::PathBuf;
+
+use pneuflex_control::{
+    AdaptiveImpedanceController, AntiWindup, Controller, ImpedanceController, PidParams, Sensors,
+    Setpoint, SetpointSchedule, Telemetry,
+};
+use pneuflex_scene::runner::{adaptive_params, impedance_params};
+use pneuflex_scene::schema::{ControllerKind, PidSpec, RunSpec};
+use pneuflex_scene::{Scene, build_setpoints};
+use pyo3::prelude::*;
+use pyo3::types::{PyAny, PyDict};
+
+use crate::errors;
+
+enum Ctl {
+    Impedance(ImpedanceController),
+    Adaptive(AdaptiveImpedanceController),
+}
+
+impl Ctl {
+    fn as_dyn(&mut self) -> &mut dyn Controller {
+        match self {
+            Ctl::Impedance(c) => c,
+            Ctl::Adaptive(c) => c,
+        }
+    }
+    fn telemetry(&self) -> Telemetry {
+        match self {
+            Ctl::Impedance(c) => c.telemetry(),
+            Ctl::Adaptive(c) => c.telemetry(),
+        }
+    }
+}
+
+fn pid_params(p: &PidSpec) -> PidParams {
+    PidParams {
+        kp_per_m: p.kp_per_m,
+        ki_per_m_s: p.ki_per_m_s,
+        kd_s_per_m: p.kd_s_per_m,
+        derivative_filter_s: p.derivative_filter_s,
+        u_min: p.u_min,
+        u_max: p.u_max,
+        anti_windup: match p.tracking_time_s {
+            None => AntiWindup::Clamping,
+            Some(tracking_time_s) => AntiWindup::BackCalculation { tracking_time_s },
+        },
+    }
+}
+
+fn build(run: &RunSpec, what: &str) -> PyResult<Ctl> {
+    let bad = |e: pneuflex_control::ParamError| errors::other(format!("{what}: {e}"));
+    let imp = impedance_params(run);
+    let pid = pid_params(&run.inner);
+    Ok(match run.controller {
+        ControllerKind::Impedance => {
+            if run.adaptive.is_some() {
+                return Err(errors::other(format!(
+                    "{what}: `adaptive` is only allowed with kind \"adaptive\""
+                )));
+            }
+            Ctl::Impedance(ImpedanceController::new(imp, pid).map_err(bad)?)
+        }
+        ControllerKind::Adaptive => {
+            let a = adaptive_params(run).ok_or_else(|| {
+                errors::other(format!(
+                    "{what}: kind \"adaptive\" needs the `adaptive` gains"
+                ))
+            })?;
+            Ctl::Adaptive(AdaptiveImpedanceController::new(imp, a, pid).map_err(bad)?)
+        }
+    })
+}
+
+/// Index of a run given by name (str) or index (int).
+pub fn run_index(scene: &Scene, run: &Bound<'_, PyAny>) -> PyResult<usize> {
+    if let Ok(i) = run.extract::<usize>() {
+        if i < scene.runs.len() {
+            return Ok(i);
+        }
+        return Err(errors::other(format!(
+            "{}: runs: index {i} out of range, the scene has {} runs",
+            scene.source.display(),
+            scene.runs.len()
+        )));
+    }
+    let name: String = run.extract()?;
+    scene
+        .runs
+        .iter()
+        .position(|r| r.name == name)
+        .ok_or_else(|| {
+            let known: Vec<&str> = scene.runs.iter().map(|r| r.name.as_str()).collect();
+            errors::other(format!(
+                "{}: runs: no run named {name:?}, expected one of {known:?}",
+                scene.source.display()
+            ))
+        })
+}
+
+/// An impedance or adaptive impedance controller with its inner position PID (Section III).
+#[pyclass(name = "Controller", module = "pneuflex")]
+pub struct PyController {
+    ctl: Ctl,
+    kind: ControllerKind,
+}
+
+#[pymethods]
+impl PyController {
+    /// A controller from parameter dicts with the scene file's keys: `kind` = "impedance" | "adaptive";
+    /// `impedance` = {m_d_kg, b_d_ns_per_m, k_d_n_per_m}; `inner` = {kp_per_m, ki_per_m_s, kd_s_per_m,
+    /// derivative_filter_s, u_min, u_max, tracking_time_s}; `adaptive` = {lambda_p, lambda_d, mu1..3,
+    /// sigma1..3, force_unit_n, position_unit_m, lambda_d_sign, sigma1_sign} (docs/scenes.md).
+    #[new]
+    #[pyo3(signature = (kind, impedance, inner, adaptive = None))]
+    fn new(
+        py: Python<'_>,
+        kind: &str,
+        impedance: &Bound<'_, PyDict>,
+        inner: &Bound<'_, PyDict>,
+        adaptive: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        // The dicts go through the scene schema (serde, unknown keys rejected, defaults applied).
+        let d = PyDict::new(py);
+        d.set_item("name", "python")?;
+        d.set_item("controller", kind)?;
+        d.set_item("impedance", impedance)?;
+        d.set_item("inner", inner)?;
+        if let Some(a) = adaptive {
+            d.set_item("adaptive", a)?;
+        }
+        let json: String = py.import("json")?.call_method1("dumps", (d,))?.extract()?;
+        let run: RunSpec = serde_json::from_str(&json)
+            .map_err(|e| errors::other(format!("controller parameters: {e}")))?;
+        Ok(Self {
+            ctl: build(&run, "controller parameters")?,
+            kind: run.controller,
+        })
+    }
+
+    /// The controller of run `run` (name or index) of the scene file at `scene_path`.
+    #[staticmethod]
+    fn from_scene(scene_path: PathBuf, run: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let scene = Scene::load(&scene_path).map_err(errors::scene)?;
+        let i = run_index(&scene, run)?;
+        let what = format!("{}: runs[{i}]", scene_path.display());
+        Ok(Self {
+            ctl: build(&scene.runs[i], &what)?,
+            kind: scene.runs[i].controller,
+        })
+    }
+
+    /// One control tick: sensors (t s, x m, x_dot m/s, f_e N, p_a and p_b Pa absolute), setpoint (f_ref N,
+    /// x_d m), period dt (s); returns the valve command u in [-1, 1].
+    #[allow(clippy::too_many_arguments)]
+    fn update(
+        &mut self,
+        t: f64,
+        x: f64,
+        x_dot: f64,
+        f_e: f64,
+        p_a: f64,
+        p_b: f64,
+        f_ref: f64,
+        x_d: f64,
+        dt: f64,
+    ) -> f64 {
+        let s = Sensors {
+            t,
+            x,
+            x_dot,
+            f_e,
+            p_a,
+            p_b,
+        };
+        let sp = Setpoint { f_ref, x_d };
+        self.ctl.as_dyn().update(&s, &sp, dt).u
+    }
+
+    /// Internal signals of the last update: x_r, x_f, dx_f (m), e (N), and g (m), p (m/N), d (s).
+    fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let t = self.ctl.telemetry();
+        let d = PyDict::new(py);
+        d.set_item("x_r", t.x_r)?;
+        d.set_item("x_f", t.x_f)?;
+        d.set_item("dx_f", t.dx_f)?;
+        d.set_item("e", t.e)?;
+        d.set_item("g", t.g)?;
+        d.set_item("p", t.p)?;
+        d.set_item("d", t.d)?;
+        Ok(d)
+    }
+
+    /// Reference position x_r of the last update, m (the hot-loop shortcut for telemetry()["x_r"]).
+    #[getter]
+    fn x_r(&self) -> f64 {
+        self.ctl.telemetry().x_r
+    }
+
+    /// Adaptive (g, p, d) of the last update in SI (zeros for the impedance controller).
+    fn gpd(&self) -> (f64, f64, f64) {
+        let t = self.ctl.telemetry();
+        (t.g, t.p, t.d)
+    }
+
+    /// "impedance" or "adaptive".
+    #[getter]
+    fn kind(&self) -> &'static str {
+        self.kind.name()
+    }
+
+    /// Back to the initial state (filters, integrators, adaptive parameters).
+    fn reset(&mut self) {
+        self.ctl.as_dyn().reset();
+    }
+}
+
+/// The force and position reference schedule of a scene.
+#[pyclass(name = "Setpoints", module = "pneuflex", frozen)]
+pub struct PySetpoints {
+    schedule: SetpointSchedule,
+}
+
+#[pymethods]
+impl PySetpoints {
+    /// The schedule of the scene file at `scene_path`.
+    #[new]
+    fn new(scene_path: PathBuf) -> PyResult<Self> {
+        let scene = Scene::load(&scene_path).map_err(errors::scene)?;
+        Ok(Self {
+            schedule: build_setpoints(&scene).map_err(errors::scene)?,
+        })
+    }
+
+    /// (f_ref N, x_d m) at time `t` (s).
+    fn at(&self, t: f64) -> (f64, f64) {
+        let s = self.schedule.at(t);
+        (s.f_ref, s.x_d)
+    }
+}

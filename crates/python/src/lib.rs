@@ -1,0 +1,43 @@
+//! Python bindings of pneuflex (the native module `pneuflex._native`, re-exported by the `pneuflex` package).
+//!
+//! What Python gets: the pneumatic actuator model of `pneuflex-pneumatics` (an actuator sheet, the 1-DOF
+//! model, the axial force element that an external physics engine couples to, the transfer function of
+//! eqs. (16)-(17)), the controllers of `pneuflex-control`, scene files, `run(scene)` through the scene
+//! crate's runner with the traces as numpy arrays, the metrics and summary.json of arbitrary traces, the
+//! figures of `pneuflex-viz`, and a Rapier step-rate probe. SI units throughout, pressures absolute.
+
+mod controller;
+mod errors;
+mod model;
+mod scene;
+
+use pyo3::prelude::*;
+
+/// Native part of the `pneuflex` Python package.
+#[pymodule]
+mod _native {
+    use pyo3::prelude::*;
+
+    #[pymodule_export]
+    use crate::model::{PyActuator, PyForceElement, PyOneDof};
+
+    #[pymodule_export]
+    use crate::controller::{PyController, PySetpoints};
+
+    #[pymodule_export]
+    use crate::scene::{bench_rapier, initial_state, load_scene, run, run_with_summary, summarize};
+
+    #[cfg(feature = "figures")]
+    #[pymodule_export]
+    use crate::scene::write_figures;
+
+    #[pymodule_init]
+    fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
+        m.add(
+            "PneuflexError",
+            m.py().get_type::<crate::errors::PneuflexError>(),
+        )?;
+        m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+        Ok(())
+    }
+}

@@ -1,0 +1,309 @@
+//! Scenes in Python: load a scene file, run it through the scene crate's runner (traces as numpy arrays),
+//! compute summary.json metrics of any traces (e.g. from MuJoCo), draw figures, and probe Rapier's step rate.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use numpy::{IntoPyArray, PyReadonlyArray1};
+use pneuflex_multibody::{MultibodyConfig, RigWorld};
+use pneuflex_scene::runner::{compute_windows, lyapunov_summary};
+use pneuflex_scene::schema::ControllerKind;
+use pneuflex_scene::{RunResult, Scene, Trace, build_plant, run_scene, summary};
+use pyo3::exceptions::{PyKeyError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyAny, PyDict};
+
+use crate::errors;
+
+fn load(path: &Path) -> PyResult<Scene> {
+    Scene::load(path).map_err(errors::scene)
+}
+
+/// A JSON-serialisable Rust value as Python objects (via the json module).
+fn to_py<'py, T: serde::Serialize>(py: Python<'py>, v: &T) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(v).map_err(errors::other)?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// The scene file at `path`, parsed and validated, as a dict of its keys (defaults filled in), plus
+/// `source` (the file), `base_dir` (where relative paths resolve) and `n_steps` (control ticks).
+#[pyfunction]
+pub fn load_scene<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+    let scene = load(&path)?;
+    let d = to_py(py, &scene)?;
+    d.set_item("source", scene.source.display().to_string())?;
+    d.set_item("base_dir", scene.base_dir.display().to_string())?;
+    d.set_item("n_steps", scene.n_steps())?;
+    Ok(d)
+}
+
+const COLUMNS: [&str; 8] = ["t", "f_ref", "f_e", "x", "x_r", "p_a", "p_b", "u"];
+
+fn trace_to_dict<'py>(py: Python<'py>, tr: Trace) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let Trace {
+        t,
+        f_ref,
+        f_e,
+        x,
+        x_r,
+        p_a,
+        p_b,
+        u,
+        g,
+        p,
+        d: dd,
+    } = tr;
+    for (k, v) in COLUMNS.iter().zip([t, f_ref, f_e, x, x_r, p_a, p_b, u]) {
+        d.set_item(*k, v.into_pyarray(py))?;
+    }
+    if !g.is_empty() {
+        d.set_item("g", g.into_pyarray(py))?;
+        d.set_item("p", p.into_pyarray(py))?;
+        d.set_item("d", dd.into_pyarray(py))?;
+    }
+    Ok(d)
+}
+
+fn column(d: &Bound<'_, PyDict>, key: &str, what: &str) -> PyResult<Option<Vec<f64>>> {
+    let Some(v) = d.get_item(key)? else {
+        return Ok(None);
+    };
+    if let Ok(a) = v.extract::<PyReadonlyArray1<'_, f64>>() {
+        return Ok(Some(a.as_array().to_vec()));
+    }
+    v.extract::<Vec<f64>>().map(Some).map_err(|_| {
+        PyValueError::new_err(format!("{what}: column `{key}` must be a 1-D float array"))
+    })
+}
+
+/// A trace from a dict of arrays (t, f_ref, f_e, x, x_r, p_a, p_b, u required; g, p, d optional).
+fn trace_from_dict(d: &Bound<'_, PyDict>, what: &str) -> PyResult<Trace> {
+    let mut cols = Vec::with_capacity(COLUMNS.len());
+    for k in COLUMNS {
+        cols.push(
+            column(d, k, what)?
+                .ok_or_else(|| PyKeyError::new_err(format!("{what}: missing column `{k}`")))?,
+        );
+    }
+    let n = cols[0].len();
+    let mut opt = Vec::new();
+    for k in ["g", "p", "d"] {
+        opt.push(column(d, k, what)?.unwrap_or_default());
+    }
+    for (k, c) in COLUMNS
+        .iter()
+        .zip(&cols)
+        .chain(["g", "p", "d"].iter().zip(&opt))
+    {
+        if c.len() != n && !(c.is_empty() && ["g", "p", "d"].contains(k)) {
+            return Err(PyValueError::new_err(format!(
+                "{what}: column `{k}` has {} samples, `t` has {n}",
+                c.len()
+            )));
+        }
+    }
+    let mut it = cols.into_iter();
+    let mut next = || it.next().expect("eight columns");
+    let mut o = opt.into_iter();
+    Ok(Trace {
+        t: next(),
+        f_ref: next(),
+        f_e: next(),
+        x: next(),
+        x_r: next(),
+        p_a: next(),
+        p_b: next(),
+        u: next(),
+        g: o.next().unwrap_or_default(),
+        p: o.next().unwrap_or_default(),
+        d: o.next().unwrap_or_default(),
+    })
+}
+
+fn run_all(py: Python<'_>, scene: &Scene) -> PyResult<(Vec<RunResult>, f64)> {
+    // The GIL is released while the Rust runner works.
+    let (r, secs) = py.detach(|| {
+        let t0 = Instant::now();
+        let r = run_scene(scene, &mut |_| {});
+        (r, t0.elapsed().as_secs_f64())
+    });
+    Ok((r.map_err(errors::scene)?, secs))
+}
+
+/// Runs every controller of the scene file with the scene crate's runner and returns
+/// {run name: {column: numpy array}} with the trace.csv columns (t, f_ref, f_e, x, x_r, p_a, p_b, u and,
+/// for adaptive runs, g, p, d). A diverged run's arrays stop where it diverged.
+#[pyfunction]
+pub fn run<'py>(py: Python<'py>, scene_path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let scene = load(&scene_path)?;
+    let (results, _) = run_all(py, &scene)?;
+    let out = PyDict::new(py);
+    for r in results {
+        out.set_item(r.name.clone(), trace_to_dict(py, r.trace)?)?;
+    }
+    Ok(out)
+}
+
+/// Like `run`, and also returns the summary.json content and the wall time of the runner (s):
+/// `(traces, summary, wall_s)`.
+#[pyfunction]
+pub fn run_with_summary<'py>(
+    py: Python<'py>,
+    scene_path: PathBuf,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>, f64)> {
+    let scene = load(&scene_path)?;
+    let (results, wall) = run_all(py, &scene)?;
+    let s = to_py(py, &summary(&scene, &results))?;
+    let out = PyDict::new(py);
+    for r in results {
+        out.set_item(r.name.clone(), trace_to_dict(py, r.trace)?)?;
+    }
+    Ok((out, s, wall))
+}
+
+/// summary.json content for traces produced elsewhere (e.g. MuJoCo): `traces` maps run names of the scene
+/// to dicts of arrays; `diverged` optionally maps run names to the reason they stopped. The metrics are the
+/// scene crate's own (same windows, same formulas as `pneuflex run`).
+#[pyfunction]
+#[pyo3(signature = (scene_path, traces, diverged = None))]
+pub fn summarize<'py>(
+    py: Python<'py>,
+    scene_path: PathBuf,
+    traces: &Bound<'py, PyDict>,
+    diverged: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let scene = load(&scene_path)?;
+    let mut results = Vec::new();
+    for (k, v) in traces.iter() {
+        let name: String = k.extract()?;
+        let i = crate::controller::run_index(&scene, &k)?;
+        let d = v.cast::<PyDict>().map_err(|_| {
+            PyValueError::new_err(format!("traces[{name:?}] must be a dict of arrays"))
+        })?;
+        let trace = trace_from_dict(d, &format!("traces[{name:?}]"))?;
+        let reason: Option<String> = match diverged {
+            Some(dv) => dv.get_item(&name)?.map(|r| r.extract()).transpose()?,
+            None => None,
+        };
+        let run = &scene.runs[i];
+        let windows = if reason.is_none() {
+            compute_windows(&scene, &trace)
+        } else {
+            Vec::new()
+        };
+        let lyapunov = (run.controller == ControllerKind::Adaptive)
+            .then(|| lyapunov_summary(&scene, run))
+            .flatten();
+        results.push(RunResult {
+            name,
+            controller: run.controller,
+            trace,
+            windows,
+            lyapunov,
+            diverged: reason,
+        });
+    }
+    to_py(py, &summary(&scene, &results))
+}
+
+#[cfg(feature = "figures")]
+/// Draws force.<fmt>, position.<fmt> and event-<i>.<fmt> of the scene into `out_dir` with one line per
+/// entry of `runs` ({legend label: dict of arrays}); returns the files written. `fmt` is "png" or "svg".
+#[pyfunction]
+#[pyo3(signature = (scene_path, out_dir, runs, fmt = "png"))]
+pub fn write_figures<'py>(
+    py: Python<'py>,
+    scene_path: PathBuf,
+    out_dir: PathBuf,
+    runs: &Bound<'py, PyDict>,
+    fmt: &str,
+) -> PyResult<Bound<'py, pyo3::types::PyList>> {
+    let scene = load(&scene_path)?;
+    let format = match fmt {
+        "png" => pneuflex_viz::Format::Png,
+        "svg" => pneuflex_viz::Format::Svg,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "fmt must be \"png\" or \"svg\", got {other:?}"
+            )));
+        }
+    };
+    let mut results = Vec::new();
+    for (k, v) in runs.iter() {
+        let name: String = k.extract()?;
+        let d = v.cast::<PyDict>().map_err(|_| {
+            PyValueError::new_err(format!("runs[{name:?}] must be a dict of arrays"))
+        })?;
+        let trace = trace_from_dict(d, &format!("runs[{name:?}]"))?;
+        let controller = if trace.g.is_empty() {
+            ControllerKind::Impedance
+        } else {
+            ControllerKind::Adaptive
+        };
+        results.push(RunResult {
+            name,
+            controller,
+            trace,
+            windows: Vec::new(),
+            lyapunov: None,
+            diverged: None,
+        });
+    }
+    std::fs::create_dir_all(&out_dir).map_err(|e| {
+        pyo3::exceptions::PyOSError::new_err(format!("{}: cannot create: {e}", out_dir.display()))
+    })?;
+    let files =
+        pneuflex_viz::write_figures(&out_dir, &scene, &results, format).map_err(errors::other)?;
+    pyo3::types::PyList::new(py, files.iter().map(|p| p.display().to_string()))
+}
+
+/// The plant's initial sensor reading for the scene (x m, x_dot m/s, f_e N, p_a and p_b Pa absolute), the
+/// state every run starts from.
+#[pyfunction]
+pub fn initial_state<'py>(py: Python<'py>, scene_path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let scene = load(&scene_path)?;
+    let plant = build_plant(&scene).map_err(errors::scene)?;
+    let s = plant.sense();
+    let d = PyDict::new(py);
+    d.set_item("x", s.x)?;
+    d.set_item("x_dot", s.x_dot)?;
+    d.set_item("f_e", s.f_e)?;
+    d.set_item("p_a", s.p_a)?;
+    d.set_item("p_b", s.p_b)?;
+    Ok(d)
+}
+
+/// Steps per second of the Rapier rig world (`urdf_path`, the paper rig's roles and materials) at physics
+/// step `dt_s` with a constant push `force_n` on the flange, `n_steps` steps, incline `alpha_deg`:
+/// {steps_per_s, x, f_e} (x and f_e at the end, for a sanity check of the steady contact).
+#[pyfunction]
+#[pyo3(signature = (urdf_path, dt_s = 1e-3, n_steps = 10000, force_n = 10.0, alpha_deg = 0.0, solver_iterations = 4))]
+pub fn bench_rapier<'py>(
+    py: Python<'py>,
+    urdf_path: PathBuf,
+    dt_s: f64,
+    n_steps: usize,
+    force_n: f64,
+    alpha_deg: f64,
+    solver_iterations: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let config = MultibodyConfig {
+        dt_s,
+        alpha_rad: alpha_deg.to_radians(),
+        solver_iterations,
+        ..MultibodyConfig::paper_rig()
+    };
+    let mut world = RigWorld::from_urdf(&urdf_path, &config).map_err(errors::other)?;
+    let t0 = Instant::now();
+    let mut m = world.measurements();
+    for _ in 0..n_steps {
+        m = world.step_with_force(force_n);
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    let d = PyDict::new(py);
+    d.set_item("steps_per_s", n_steps as f64 / secs)?;
+    d.set_item("x", m.x)?;
+    d.set_item("f_e", m.f_e)?;
+    Ok(d)
+}

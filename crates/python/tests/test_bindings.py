@@ -1,0 +1,271 @@
+"""Tests of the pneuflex Python bindings and of the MuJoCo equivalent model (plain asserts; non-zero exit on
+failure). Run: scripts/test_python.sh (installs the bindings into .venv first)."""
+
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+import pneuflex
+
+ROOT = Path(__file__).resolve().parents[3]
+sys.path.insert(0, str(ROOT))
+SCENE = str(ROOT / "scenes" / "paper-fig3.toml")
+SHEET = str(ROOT / "pneumatics" / "paper-actuator.toml")
+
+TESTS = []
+
+
+def test(f):
+    TESTS.append(f)
+    return f
+
+
+@test
+def force_element_equals_one_dof_at_the_stop():
+    """Pinned at the retracted stop (u = -1 pushes the piston into it, x = x_dot = 0), the 1-DOF RK4 step and
+    the force element integrate the same chamber equations along the same (still) piston: same pressures."""
+    a = pneuflex.Actuator(SHEET, alpha_deg=0.0)
+    od = pneuflex.OneDof(a, 0.0, p_a=2.0e5, p_b=3.0e5)
+    fe = pneuflex.ForceElement(a, p_a=2.0e5, p_b=3.0e5, substeps=1)
+    for _ in range(2000):
+        od.step(-1.0, 0.0, 1e-4)
+        fe.step(0.0, 0.0, -1.0, 1e-4)
+        assert od.x == 0.0 and od.x_dot == 0.0, (od.x, od.x_dot)
+    assert abs(od.p_a - fe.p_a) <= 1e-9 * od.p_a, (od.p_a, fe.p_a)
+    assert abs(od.p_b - fe.p_b) <= 1e-9 * od.p_b, (od.p_b, fe.p_b)
+    assert abs(od.piston_force() - fe.force()) < 1e-9
+    # The valve drove B towards supply and A towards atmosphere: the chambers really moved.
+    assert fe.p_b > 5.5e5 and fe.p_a < 1.2e5, (fe.p_a, fe.p_b)
+
+
+@test
+def force_element_with_euler_mechanics_tracks_one_dof():
+    """Free motion (no contact) under a steady command: the force element coupled to a semi-implicit Euler
+    integration of eq. (1) in Python follows the 1-DOF RK4 model (a different integrator of the same ODE)."""
+    a = pneuflex.Actuator(SHEET)
+    p = a.params()
+    m, kv, g = p["moving_mass_kg"], p["viscous_n_s_per_m"], a.gravity_force()
+    od = pneuflex.OneDof(a, 0.01)
+    fe = pneuflex.ForceElement(a, p_a=od.p_a, p_b=od.p_b, substeps=1)
+    x, v, h = 0.01, 0.0, 1e-5
+    worst = 0.0
+    for k in range(30000):  # 0.3 s
+        u = 0.2 if k < 15000 else -0.2
+        od.step(u, 0.0, h)
+        f = fe.step(x, v, u, h)
+        acc = (f + g - fe.friction_force(v, f + g) - kv * v) / m
+        v += h * acc
+        x += h * v
+        if x <= 0.0 or x >= p["stroke_m"]:  # inelastic end stops, as OneDof
+            x, v = min(max(x, 0.0), p["stroke_m"]), 0.0
+        worst = max(worst, abs(x - od.x))
+    assert od.x > 0.011 or od.x < 0.009, "the flange must have moved"
+    assert worst < 5e-5, f"largest |x_euler - x_rk4| = {worst} m"
+    assert abs(fe.p_a - od.p_a) < 2e-3 * od.p_a, (fe.p_a, od.p_a)
+
+
+@test
+def piston_and_gravity_forces_closed_form():
+    a = pneuflex.Actuator(SHEET, alpha_deg=30.0)
+    p = a.params()
+    sa = math.pi / 4 * p["bore_m"] ** 2
+    sr = math.pi / 4 * p["rod_m"] ** 2
+    want = 4e5 * sa - 3e5 * (sa - sr) - p["atmosphere_pressure_pa"] * sr
+    assert abs(a.piston_force(4e5, 3e5) - want) < 1e-9 * abs(want) + 1e-12
+    assert abs(a.gravity_force() - p["moving_mass_kg"] * p["gravity_m_per_s2"] * 0.5) < 1e-12
+    tf = a.transfer_function()
+    a3, a2, a1, _ = tf["den"]
+    assert abs(tf["omega_n"] - math.sqrt(a1 / a3)) < 1e-9 * tf["omega_n"]
+    assert abs(tf["k_n"] - tf["num"] / a1) < 1e-12 * abs(tf["k_n"])
+    assert 0.0 < tf["operating_point"]["x_m"] < p["stroke_m"]
+
+
+@test
+def impedance_filter_matches_closed_form():
+    """With k_d = 0 and a constant force error e, eq. (19) gives x_f(t) = e/b (t - m/b (1 - exp(-b t / m)))."""
+    m, b, e, dt = 2.0, 52.4, 3.0, 1e-3
+    c = pneuflex.Controller("impedance", {"m_d_kg": m, "b_d_ns_per_m": b, "k_d_n_per_m": 0.0}, {"kp_per_m": 100.0})
+    for k in range(500):
+        u = c.update(k * dt, 0.0, 0.0, 10.0 - e, 3e5, 3e5, 10.0, 0.0, dt)
+    t = 500 * dt
+    want = e / b * (t - m / b * (1.0 - math.exp(-b * t / m)))
+    tel = c.telemetry()
+    assert abs(tel["x_f"] - want) < 1e-9, (tel["x_f"], want)
+    assert abs(tel["x_r"] - want) < 1e-9 and tel["e"] == e
+    assert abs(u - min(1.0, 100.0 * want)) < 1e-9
+
+
+@test
+def controller_from_dicts_equals_from_scene():
+    scene = pneuflex.load_scene(SCENE)
+    run = next(r for r in scene["runs"] if r["controller"] == "adaptive")
+    c1 = pneuflex.Controller("adaptive", run["impedance"], run["inner"], run["adaptive"])
+    c2 = pneuflex.Controller.from_scene(SCENE, run["name"])
+    rng = np.random.default_rng(1)
+    for k in range(300):
+        s = (k * 1e-3, 0.02 + 1e-3 * rng.standard_normal(), 0.01 * rng.standard_normal(), 10 + rng.standard_normal(), 3e5, 3e5, 10.0, 0.02, 1e-3)
+        assert c1.update(*s) == c2.update(*s)
+    assert c1.telemetry() == c2.telemetry() and c1.kind == "adaptive"
+
+
+@test
+def run_returns_traces_and_summarize_reproduces_the_runner_metrics():
+    traces, summary, wall = pneuflex.run_with_summary(SCENE)
+    scene = pneuflex.load_scene(SCENE)
+    assert set(traces) == {r["name"] for r in scene["runs"]}
+    for name, tr in traces.items():
+        assert len(tr["t"]) == scene["n_steps"] + 1 and tr["f_e"].dtype == np.float64
+        assert abs(tr["t"][-1] - scene["duration_s"]) < 1e-9
+    again = pneuflex.summarize(SCENE, {k: dict(v) for k, v in traces.items()})
+    assert [r["windows"] for r in again["runs"]] == [r["windows"] for r in summary["runs"]]
+    # run() and run_with_summary() are the same deterministic runner.
+    plain = pneuflex.run(SCENE)
+    for name in traces:
+        assert np.array_equal(plain[name]["f_e"], traces[name]["f_e"])
+
+
+@test
+def bad_inputs_raise_python_exceptions_naming_the_file():
+    missing = str(ROOT / "scenes" / "no-such-scene.toml")
+    for f in (pneuflex.load_scene, pneuflex.run, pneuflex.Setpoints):
+        try:
+            f(missing)
+        except FileNotFoundError as e:
+            assert "no-such-scene.toml" in str(e), str(e)
+        else:
+            raise AssertionError(f"{f} accepted a missing file")
+    with tempfile.TemporaryDirectory() as d:
+        bad = Path(d) / "bad.toml"
+        bad.write_text(Path(SCENE).read_text().replace("stiffness_n_per_m = 700.0", "stifness_n_per_m = 700.0"))
+        try:
+            pneuflex.run(str(bad))
+        except pneuflex.PneuflexError as e:
+            assert "bad.toml" in str(e) and "stifness_n_per_m" in str(e), str(e)
+            assert isinstance(e, ValueError)
+        else:
+            raise AssertionError("unknown key accepted")
+    try:
+        pneuflex.Controller("impedance", {"m_d_kg": 2.0, "b_d_ns_per_m": 1.0, "k_d_n_per_m": 0.0, "typo": 1}, {"kp_per_m": 1.0})
+    except pneuflex.PneuflexError as e:
+        assert "typo" in str(e), str(e)
+    else:
+        raise AssertionError("unknown controller key accepted")
+    try:
+        pneuflex.Controller("impedance", {"m_d_kg": -2.0, "b_d_ns_per_m": 1.0, "k_d_n_per_m": 0.0}, {"kp_per_m": 1.0})
+    except pneuflex.PneuflexError as e:
+        assert "m_d_kg" in str(e), str(e)
+    else:
+        raise AssertionError("negative mass accepted")
+    try:
+        pneuflex.Controller.from_scene(SCENE, "nope")
+    except pneuflex.PneuflexError as e:
+        assert "nope" in str(e) and "paper-fig3.toml" in str(e), str(e)
+    else:
+        raise AssertionError("unknown run accepted")
+    try:
+        pneuflex.ForceElement(pneuflex.Actuator(SHEET)).step(0.01, 0.0, 0.0, 0.0)
+    except ValueError as e:
+        assert "dt_s" in str(e)
+    else:
+        raise AssertionError("dt = 0 accepted")
+
+
+@test
+def mujoco_face_mount_obeys_eq21_at_three_inclines():
+    """The generated MJCF (crossval/mjcf.py): under a constant push the steady contact force equals the push
+    plus the flange's weight along the axis, and f_e = k_e (x - x_e) within 0.05 N, at three inclines."""
+    import mujoco
+
+    from crossval import mjcf
+
+    for alpha in (0.0, 30.0, 60.0):
+        for k in (700.0, 1400.0):
+            face = mjcf.Face("env", k, 5.0, 0.009, 0.005, 0.02)
+            spec = mjcf.RigSpec("t", 1e-3, 0.05, 0.6, 20.0, 0.01, math.radians(alpha), 9.80665, 0.02, [face])
+            model = mujoco.MjModel.from_xml_string(mjcf.build_mjcf(spec))
+            data = mujoco.MjData(model)
+            data.qpos[0] = 0.02
+            data.qfrc_applied[0] = 8.0
+            for _ in range(5000):
+                mujoco.mj_step(model, data)
+            force = np.zeros(6)
+            f_e = 0.0
+            for i in range(data.ncon):
+                mujoco.mj_contactForce(model, data, i, force)
+                f_e += force[0]
+            push = 8.0 + 0.6 * 9.80665 * math.sin(math.radians(alpha))
+            assert abs(f_e - push) < 0.05, (alpha, k, f_e, push)
+            assert abs(f_e - k * (data.qpos[0] - 0.02)) < 0.05, (alpha, k, f_e, data.qpos[0])
+            assert sum(data.warning[i].number for i in range(len(data.warning))) == 0
+
+
+@test
+def mujoco_rig_swaps_wood_for_iron():
+    """The URDF rig in MuJoCo (mjcf.spec_from_urdf, mocap carriage): x_e = 0.02 m for both faces as in the
+    URDF; under a constant push the flange loses contact during the swap, runs to its stroke end, and the
+    iron face takes the push: f_e = push + m g sin(alpha) = k_iron (x - x_e) after the swap."""
+    from crossval import couple, mjcf
+
+    mats = {"wood": ("wood_mount", 700.0, 2.0), "iron": ("iron_mount", 1400.0, 2.0)}
+    spec = mjcf.spec_from_urdf(str(ROOT / "urdf" / "rig.urdf"), mats, 0.3, 1e-4, x0_m=0.02)
+    assert [round(f.x_e_m, 12) for f in spec.faces] == [0.02, 0.02]
+    sim = couple.Sim(couple.Coupled("rig", {}, spec, mjcf.build_mjcf(spec), 1))
+    sim.data.qfrc_applied[sim.flange_dof] = 5.0
+    push = 5.0 + spec.flange_mass_kg * 9.80665 * math.sin(0.3)
+    f, x = [], []
+    for k in range(25000):
+        if k == 5000:
+            sim.apply({"kind": "swap", "to": "iron", "duration_s": 0.6})
+        sim.step(1e-4)
+        f.append(sim.contact_force())
+        x.append(sim.x()[0])
+    sim.check(2.5)
+    assert abs(f[4999] - push) < 0.01 and abs(f[4999] - 700.0 * (x[4999] - 0.02)) < 0.05, (f[4999], x[4999])
+    assert min(f[5000:11000]) == 0.0 and max(x[5000:11000]) > 0.0499, "contact must be lost during the swap"
+    assert max(x) < 0.0505, f"the stroke end must hold: {max(x)}"
+    assert sim.active == "iron"
+    assert abs(f[-1] - push) < 0.01 and abs(f[-1] - 1400.0 * (x[-1] - 0.02)) < 0.05, (f[-1], x[-1])
+
+
+@test
+def mujoco_divergence_is_detected():
+    """A run MuJoCo cannot integrate is reported as diverged, never compared."""
+    import mujoco
+
+    from crossval import couple
+
+    c = couple.prepare(SCENE, substeps=1)
+    sim = couple.Sim(c)
+    sim.data.qfrc_applied[sim.flange_dof] = 1e300
+    for _ in range(5):
+        mujoco.mj_step(sim.model, sim.data)
+    try:
+        sim.check(0.005)
+    except couple.DivergedError as e:
+        assert "MuJoCo" in str(e)
+    else:
+        raise AssertionError("MuJoCo's reset went unnoticed")
+
+
+def main() -> int:
+    failed = 0
+    for t in TESTS:
+        try:
+            t()
+            print(f"ok   {t.__name__}")
+        except Exception:
+            failed += 1
+            print(f"FAIL {t.__name__}")
+            traceback.print_exc()
+    print(f"{len(TESTS) - failed} passed, {failed} failed")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
