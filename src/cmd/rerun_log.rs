@@ -1,16 +1,22 @@
 //! `pneuflex run --rerun save FILE | spawn | connect URL`: each run of a scene as a Rerun recording.
 //!
-//! Logging reads the finished run's in-memory trace (one sample per control tick), so it cannot change the
-//! simulation's results. The 3D view is the actuator schematic along its inclined axis: cylinder body, flange,
-//! the environment face, the contact point with a force arrow, and both chambers coloured by pressure.
+//! A [`StepObserver`] logs every control tick while the scene runs; it only reads the plant, so the results
+//! are those of a run without logging. Plants with geometry (the multibody rig) are drawn link by link at
+//! their simulated poses; the 1-DOF and ideal plants as a schematic of the actuator along its inclined axis.
+//! Either way the contact point carries a force arrow and the chambers are coloured by pressure.
 
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use pneuflex_rerun::{
     ChamberSample, Contact, EventLevel, LinkShape, RunRecorder, Shape, Sink, paths,
 };
-use pneuflex_scene::{RunResult, Scene};
+use pneuflex_scene::schema::RunSpec;
+use pneuflex_scene::trace::Row;
+use pneuflex_scene::{
+    ControllerKind, Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape,
+};
 
 /// Parses the words after `--rerun`: `save FILE`, `spawn` or `connect URL`.
 pub fn parse_sink(words: &[String]) -> anyhow::Result<Sink> {
@@ -37,7 +43,7 @@ pub fn sink_for_run(sink: &Sink, run: &str, n_runs: usize) -> Sink {
     }
 }
 
-/// Geometry of the schematic, from the scene's actuator sheet (SI).
+/// Actuator geometry from the scene's actuator sheet (SI), for the schematic and the chambers.
 struct Schematic {
     stroke_m: f64,
     bore_m: f64,
@@ -57,147 +63,350 @@ impl Schematic {
         })
     }
 
-    /// Unit vector of the actuator axis: +x tilted down by alpha (z up).
-    fn axis(&self) -> [f64; 3] {
-        [self.alpha_rad.cos(), 0.0, -self.alpha_rad.sin()]
-    }
-
-    /// Point at distance `s` along the axis from the rod end of the cylinder.
-    fn at(&self, s: f64) -> [f64; 3] {
-        let n = self.axis();
-        [n[0] * s, n[1] * s, n[2] * s]
-    }
-
-    /// Rotation taking the link x axis onto the actuator axis (about y by alpha).
+    /// Rotation taking x onto the actuator axis, tilted down by alpha about y (z up).
     fn along_axis(&self) -> [f64; 4] {
         let h = 0.5 * self.alpha_rad;
         [0.0, h.sin(), 0.0, h.cos()]
     }
 
-    /// Rotation taking z (the chambers' cylinder axis) onto the actuator axis (about y by 90 deg + alpha).
-    fn z_along_axis(&self) -> [f64; 4] {
-        let h = 0.5 * (std::f64::consts::FRAC_PI_2 + self.alpha_rad);
-        [0.0, h.sin(), 0.0, h.cos()]
+    /// Point at distance `s` along the axis from the rod end of the cylinder.
+    fn at(&self, s: f64) -> [f64; 3] {
+        let n = rotate(self.along_axis(), [1.0, 0.0, 0.0]);
+        n.map(|c| c * s)
     }
 }
 
+/// Hamilton product a ⊗ b of quaternions [x, y, z, w].
+fn qmul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+    let [ax, ay, az, aw] = a;
+    let [bx, by, bz, bw] = b;
+    [
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ]
+}
+
+/// Rotates v by the unit quaternion q.
+fn rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
+    let r = qmul(
+        qmul(q, [v[0], v[1], v[2], 0.0]),
+        [-q[0], -q[1], -q[2], q[3]],
+    );
+    [r[0], r[1], r[2]]
+}
+
+/// Quarter turn about y: takes z (the chambers' cylinder axis) onto x.
+const Z_TO_X: [f64; 4] = [
+    0.0,
+    std::f64::consts::FRAC_1_SQRT_2,
+    0.0,
+    std::f64::consts::FRAC_1_SQRT_2,
+];
 const FLANGE_HALF_THICKNESS_M: f64 = 0.005;
 const FACE_HALF_THICKNESS_M: f64 = 0.0025;
 
-/// Records one finished run to `sink`; returns when the recording is complete (file written or stream flushed).
-pub fn log_run(
-    sink: &Sink,
-    scene: &Scene,
-    scene_path: &Path,
-    result: &RunResult,
-) -> anyhow::Result<()> {
-    let geo = Schematic::of(scene, scene_path)
-        .with_context(|| format!("{}: geometry for the Rerun view", scene_path.display()))?;
-    let mut rec = RunRecorder::new("pneuflex", &format!("{}/{}", scene.name, result.name), sink)?;
-    let body = paths::link("cylinder");
-    let flange = paths::link("flange");
-    let face = paths::link("environment");
-    let r = 0.5 * geo.bore_m + 0.004;
-    for (entity, shape, colour) in [
-        (
-            &body,
-            Shape::Box {
-                half_extents_m: [0.5 * geo.stroke_m, r, r],
-            },
-            [150, 150, 160, 120],
-        ),
-        (
-            &flange,
-            Shape::Box {
-                half_extents_m: [FLANGE_HALF_THICKNESS_M, 0.02, 0.02],
-            },
-            [90, 90, 100, 255],
-        ),
-        (
-            &face,
-            Shape::Box {
-                half_extents_m: [FACE_HALF_THICKNESS_M, 0.03, 0.03],
-            },
-            [160, 110, 60, 255],
-        ),
-    ] {
-        rec.log_link_shape(&LinkShape {
-            entity: entity.clone(),
-            shape,
-            colour,
-        })?;
-    }
-    rec.set_chamber_bore(geo.bore_m)?;
-    let q = geo.along_axis();
-    // The cylinder body spans s in [-stroke, 0]; the piston sits at s = x - stroke, the flange at s = x.
-    rec.set_link_pose(0.0, &body, geo.at(-0.5 * geo.stroke_m), q)?;
-    rec.set_link_pose(
-        0.0,
-        paths::CHAMBERS,
-        geo.at(-geo.stroke_m),
-        geo.z_along_axis(),
-    )?;
-    for ev in &scene.events {
-        rec.log_event(
-            ev.t_s(),
-            EventLevel::Info,
-            &format!("{}: {ev:?}", ev.kind()),
-        )?;
-    }
-    if let Some(why) = &result.diverged {
-        let t_end = result.trace.t.last().copied().unwrap_or(0.0);
-        rec.log_event(t_end, EventLevel::Error, &format!("diverged: {why}"))?;
+/// The run being recorded.
+struct Recording {
+    rec: RunRecorder,
+    /// Entity paths of the plant's visuals (empty: the schematic is drawn).
+    links: Vec<String>,
+    /// Index of the flange among the visuals, and its half thickness along its x.
+    flange: Option<(usize, f64)>,
+    /// Index of the cylinder body among the visuals.
+    cylinder: Option<usize>,
+    poses: Vec<VisualPose>,
+    signals: Vec<(&'static str, f64)>,
+    /// Whether the run's controller has adaptive terms to log.
+    adaptive: bool,
+}
+
+/// Logs every run of a scene to Rerun; the first error stops logging and is returned by [`finish`].
+pub struct RerunObserver {
+    sink: Sink,
+    n_runs: usize,
+    scene_name: String,
+    events: Vec<(f64, String)>,
+    geo: Schematic,
+    current: Option<Recording>,
+    error: Option<anyhow::Error>,
+    /// Time spent logging, and ticks logged.
+    pub cost: Duration,
+    /// Ticks logged over all runs.
+    pub steps: usize,
+}
+
+impl RerunObserver {
+    /// An observer for `scene` sending to `sink`; fails when the scene's actuator sheet cannot be read.
+    pub fn new(sink: Sink, scene: &Scene, scene_path: &Path) -> anyhow::Result<Self> {
+        let geo = Schematic::of(scene, scene_path)
+            .with_context(|| format!("{}: geometry for the Rerun view", scene_path.display()))?;
+        Ok(Self {
+            sink,
+            n_runs: scene.runs.len(),
+            scene_name: scene.name.clone(),
+            events: scene
+                .events
+                .iter()
+                .map(|ev| (ev.t_s(), format!("{}: {ev:?}", ev.kind())))
+                .collect(),
+            geo,
+            current: None,
+            error: None,
+            cost: Duration::ZERO,
+            steps: 0,
+        })
     }
 
-    let tr = &result.trace;
-    let adaptive = !tr.g.is_empty();
-    let n = geo.axis();
-    let mut signals: Vec<(&str, f64)> = Vec::with_capacity(paths::SIGNALS.len());
-    for k in 0..tr.len() {
-        let t = tr.t[k];
-        let x = tr.x[k];
-        signals.clear();
-        signals.extend([
-            (paths::F_REF, tr.f_ref[k]),
-            (paths::F_E, tr.f_e[k]),
-            (paths::X, x),
-            (paths::X_R, tr.x_r[k]),
-            (paths::VALVE_U, tr.u[k]),
-        ]);
-        if tr.p_a[k].is_finite() {
-            signals.extend([(paths::P_A, tr.p_a[k]), (paths::P_B, tr.p_b[k])]);
+    /// Returns the first logging error, if any (recordings of finished runs are complete).
+    pub fn finish(self) -> anyhow::Result<()> {
+        self.error.map_or(Ok(()), Err)
+    }
+
+    fn begin(&mut self, run: &RunSpec, plant: &dyn Plant) -> anyhow::Result<Recording> {
+        let sink = sink_for_run(&self.sink, &run.name, self.n_runs);
+        let mut rec = RunRecorder::new(
+            "pneuflex",
+            &format!("{}/{}", self.scene_name, run.name),
+            &sink,
+        )
+        .with_context(|| format!("Rerun recording of run `{}`", run.name))?;
+        let visuals = plant.visuals();
+        let mut links = Vec::with_capacity(visuals.len());
+        let (mut flange, mut cylinder) = (None, None);
+        for (i, v) in visuals.iter().enumerate() {
+            let entity = paths::link(&v.name);
+            let shape = match v.shape {
+                VisualShape::Box { half_extents_m } => Shape::Box { half_extents_m },
+                VisualShape::Cylinder {
+                    radius_m,
+                    half_length_m,
+                } => Shape::Cylinder {
+                    radius_m,
+                    half_length_m,
+                },
+                VisualShape::Sphere { radius_m } => Shape::Sphere { radius_m },
+            };
+            let colour = match v.name.as_str() {
+                "flange" => [90, 90, 100, 255],
+                n if n.starts_with("wood") => [170, 120, 60, 255],
+                n if n.starts_with("iron") => [120, 130, 140, 255],
+                _ => [170, 170, 180, 110],
+            };
+            rec.log_link_shape(&LinkShape {
+                entity: entity.clone(),
+                shape,
+                colour,
+            })?;
+            if v.name == "flange" {
+                let half = match v.shape {
+                    VisualShape::Box { half_extents_m } => half_extents_m[0],
+                    _ => 0.0,
+                };
+                flange = Some((i, half));
+            }
+            if v.name == "cylinder" {
+                cylinder = Some(i);
+            }
+            links.push(entity);
         }
-        if adaptive {
-            signals.extend([
-                (paths::ADAPTIVE_G, tr.g[k]),
-                (paths::ADAPTIVE_P, tr.p[k]),
-                (paths::ADAPTIVE_D, tr.d[k]),
+        let geo = &self.geo;
+        if links.is_empty() {
+            // Schematic: the cylinder body spans s in [-stroke, 0]; the flange sits at s = x.
+            let r = 0.5 * geo.bore_m + 0.004;
+            for (name, half_extents_m, colour) in [
+                ("cylinder", [0.5 * geo.stroke_m, r, r], [150, 150, 160, 120]),
+                (
+                    "flange",
+                    [FLANGE_HALF_THICKNESS_M, 0.02, 0.02],
+                    [90, 90, 100, 255],
+                ),
+                (
+                    "environment",
+                    [FACE_HALF_THICKNESS_M, 0.03, 0.03],
+                    [160, 110, 60, 255],
+                ),
+            ] {
+                rec.log_link_shape(&LinkShape {
+                    entity: paths::link(name),
+                    shape: Shape::Box { half_extents_m },
+                    colour,
+                })?;
+            }
+            rec.set_link_pose(
+                0.0,
+                &paths::link("cylinder"),
+                geo.at(-0.5 * geo.stroke_m),
+                geo.along_axis(),
+            )?;
+            rec.set_link_pose(
+                0.0,
+                paths::CHAMBERS,
+                geo.at(-geo.stroke_m),
+                qmul(geo.along_axis(), Z_TO_X),
+            )?;
+        }
+        rec.set_chamber_bore(geo.bore_m)?;
+        for (t, text) in &self.events {
+            rec.log_event(*t, EventLevel::Info, text)?;
+        }
+        Ok(Recording {
+            rec,
+            poses: vec![
+                VisualPose {
+                    translation_m: [0.0; 3],
+                    rotation_xyzw: [0.0, 0.0, 0.0, 1.0]
+                };
+                links.len()
+            ],
+            links,
+            flange,
+            cylinder,
+            signals: Vec::with_capacity(paths::SIGNALS.len()),
+            adaptive: run.controller == ControllerKind::Adaptive,
+        })
+    }
+
+    fn step(
+        geo: &Schematic,
+        r: &mut Recording,
+        row: &Row,
+        plant: &dyn Plant,
+    ) -> anyhow::Result<()> {
+        let t = row.t;
+        r.signals.clear();
+        r.signals.extend([
+            (paths::F_REF, row.f_ref),
+            (paths::F_E, row.f_e),
+            (paths::X, row.x),
+            (paths::X_R, row.x_r),
+            (paths::VALVE_U, row.u),
+        ]);
+        if row.p_a.is_finite() {
+            r.signals
+                .extend([(paths::P_A, row.p_a), (paths::P_B, row.p_b)]);
+        }
+        if r.adaptive {
+            r.signals.extend([
+                (paths::ADAPTIVE_G, row.g),
+                (paths::ADAPTIVE_P, row.p),
+                (paths::ADAPTIVE_D, row.d),
             ]);
         }
-        rec.log_scalars(t, &signals)?;
+        r.rec.log_scalars(t, &r.signals)?;
 
-        let flange_front = x + 2.0 * FLANGE_HALF_THICKNESS_M;
-        rec.set_link_pose(t, &flange, geo.at(x + FLANGE_HALF_THICKNESS_M), q)?;
-        // The face rests at x_e until the flange pushes it.
-        let face_s = flange_front.max(geo.x_e_m + 2.0 * FLANGE_HALF_THICKNESS_M);
-        rec.set_link_pose(t, &face, geo.at(face_s + FACE_HALF_THICKNESS_M), q)?;
-        let contact = (tr.f_e[k] > 0.0).then(|| Contact {
-            point_m: geo.at(flange_front),
-            force_n: [n[0] * tr.f_e[k], n[1] * tr.f_e[k], n[2] * tr.f_e[k]],
+        // Where the flange's front face is and which way the axis points.
+        let (front, axis) = if r.links.is_empty() {
+            let q = geo.along_axis();
+            r.rec.set_link_pose(
+                t,
+                &paths::link("flange"),
+                geo.at(row.x + FLANGE_HALF_THICKNESS_M),
+                q,
+            )?;
+            let front_s = row.x + 2.0 * FLANGE_HALF_THICKNESS_M;
+            let face_s = front_s.max(geo.x_e_m + 2.0 * FLANGE_HALF_THICKNESS_M);
+            r.rec.set_link_pose(
+                t,
+                &paths::link("environment"),
+                geo.at(face_s + FACE_HALF_THICKNESS_M),
+                q,
+            )?;
+            (geo.at(front_s), rotate(q, [1.0, 0.0, 0.0]))
+        } else {
+            let poses = &mut r.poses;
+            plant.visual_poses(&mut |i, p| {
+                if let Some(slot) = poses.get_mut(i) {
+                    *slot = p;
+                }
+            });
+            for (entity, p) in r.links.iter().zip(r.poses.iter()) {
+                r.rec
+                    .set_link_pose(t, entity, p.translation_m, p.rotation_xyzw)?;
+            }
+            if let Some(c) = r.cylinder {
+                let p = r.poses[c];
+                let axis = rotate(p.rotation_xyzw, [1.0, 0.0, 0.0]);
+                let base = std::array::from_fn(|k| p.translation_m[k] - axis[k] * geo.stroke_m);
+                r.rec
+                    .set_link_pose(t, paths::CHAMBERS, base, qmul(p.rotation_xyzw, Z_TO_X))?;
+            }
+            match r.flange {
+                Some((i, half)) => {
+                    let p = r.poses[i];
+                    let axis = rotate(p.rotation_xyzw, [1.0, 0.0, 0.0]);
+                    (
+                        std::array::from_fn(|k| p.translation_m[k] + axis[k] * half),
+                        axis,
+                    )
+                }
+                None => (geo.at(row.x), rotate(geo.along_axis(), [1.0, 0.0, 0.0])),
+            }
+        };
+        let contact = (row.f_e > 0.0).then(|| Contact {
+            point_m: front,
+            force_n: axis.map(|c| c * row.f_e),
         });
-        rec.log_contact(t, contact.as_ref())?;
-        if tr.p_a[k].is_finite() {
-            rec.log_chambers(
+        r.rec.log_contact(t, contact.as_ref())?;
+        if row.p_a.is_finite() {
+            r.rec.log_chambers(
                 t,
                 &ChamberSample {
-                    length_a_m: x.max(0.0),
-                    pressure_a_pa: tr.p_a[k],
-                    length_b_m: (geo.stroke_m - x).max(0.0),
-                    pressure_b_pa: tr.p_b[k],
+                    length_a_m: row.x.max(0.0),
+                    pressure_a_pa: row.p_a,
+                    length_b_m: (geo.stroke_m - row.x).max(0.0),
+                    pressure_b_pa: row.p_b,
                 },
             )?;
         }
+        Ok(())
     }
-    rec.finish()?;
-    Ok(())
+}
+
+impl StepObserver for RerunObserver {
+    fn begin_run(&mut self, run: &RunSpec, plant: &dyn Plant) {
+        if self.error.is_some() {
+            return;
+        }
+        let t0 = Instant::now();
+        match self.begin(run, plant) {
+            Ok(r) => self.current = Some(r),
+            Err(e) => self.error = Some(e),
+        }
+        self.cost += t0.elapsed();
+    }
+
+    fn on_step(&mut self, row: &Row, plant: &dyn Plant) {
+        let Some(r) = self.current.as_mut() else {
+            return;
+        };
+        let t0 = Instant::now();
+        if let Err(e) = Self::step(&self.geo, r, row, plant) {
+            self.error = Some(e);
+            self.current = None;
+        }
+        self.steps += 1;
+        self.cost += t0.elapsed();
+    }
+
+    fn end_run(&mut self, result: &RunResult) {
+        let Some(mut r) = self.current.take() else {
+            return;
+        };
+        let t0 = Instant::now();
+        let done = (|| -> anyhow::Result<()> {
+            if let Some(why) = &result.diverged {
+                let t_end = result.trace.t.last().copied().unwrap_or(0.0);
+                r.rec
+                    .log_event(t_end, EventLevel::Error, &format!("diverged: {why}"))?;
+            }
+            r.rec.finish()?;
+            Ok(())
+        })();
+        if let Err(e) = done {
+            self.error = Some(e.context(format!("Rerun recording of run `{}`", result.name)));
+        }
+        self.cost += t0.elapsed();
+    }
 }

@@ -34,6 +34,17 @@ pub enum Sigma1Sign {
     AsPrinted,
 }
 
+/// Velocity signal the adaptive law uses for ẋ in χ, the d law and d·ẋ (eqs. (35), (36)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VelocitySource {
+    /// The measured flange velocity ẋ (eq. (36) as printed).
+    Measured,
+    /// The impedance filter's velocity x_f' (eq. (22)): the velocity the target impedance commands, which
+    /// the flange follows inside the force-loop bandwidth (x = x_r, eq. (23)). Free of the inner loop's
+    /// valve ripple (unmodelled dynamics of the error model eq. (29)), which the measured ẋ carries.
+    ImpedanceFilter,
+}
+
 /// Gains of the adaptive law (eq. (35)) and the units they are read in.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AdaptiveParams {
@@ -67,6 +78,14 @@ pub struct AdaptiveParams {
     pub adapt_in_contact_only: bool,
     /// Contact force above which the flange counts as in contact, N.
     pub contact_threshold_n: f64,
+    /// Velocity used for ẋ in eqs. (35)/(36). Default `Measured` (the paper).
+    pub velocity_source: VelocitySource,
+    /// Projection bound |g| <= g_max_m, m (parameter projection onto a known set; +inf = off, the default).
+    pub g_max_m: f64,
+    /// Projection bound 0 <= p <= p_max_m_per_n when finite, m/N (+inf = off, the default: p unbounded).
+    pub p_max_m_per_n: f64,
+    /// Projection bound -d_max_s <= d <= 0 when finite, s (+inf = off, the default: d unbounded).
+    pub d_max_s: f64,
 }
 
 impl AdaptiveParams {
@@ -98,6 +117,10 @@ impl AdaptiveParams {
             sigma1_sign: Sigma1Sign::AsPrinted,
             adapt_in_contact_only: false,
             contact_threshold_n: 0.5,
+            velocity_source: VelocitySource::Measured,
+            g_max_m: f64::INFINITY,
+            p_max_m_per_n: f64::INFINITY,
+            d_max_s: f64::INFINITY,
         }
     }
 
@@ -132,6 +155,15 @@ impl AdaptiveParams {
         positive("force_unit_n", self.force_unit_n)?;
         positive("position_unit_m", self.position_unit_m)?;
         non_negative("contact_threshold_n", self.contact_threshold_n)?;
+        for (name, v) in [
+            ("g_max_m", self.g_max_m),
+            ("p_max_m_per_n", self.p_max_m_per_n),
+            ("d_max_s", self.d_max_s),
+        ] {
+            if v.is_nan() || v < 0.0 {
+                return Err(ParamError::Negative { name, value: v });
+            }
+        }
         Ok(())
     }
 }
@@ -232,6 +264,20 @@ impl AdaptiveLaw {
         self.g = self.g * dg + kg * (-a.mu1 * chi);
         self.p = self.p * dp + kp * (-a.mu2 * chi * e);
         self.d = self.d * dd + kd * (-a.mu3 * chi * v);
+        // Parameter projection onto a known set (not in the paper; off by default), applied after the exact
+        // leakage step, which for a box is the projection. σ-modification alone bounds d only at
+        // μ3 λd <ẋ²>/σ3, and p keeps feeding on the force ripple (ṗ ∝ μ2 λp e²): on a PWM-driven valve both
+        // drift until p·e and d·ẋ inject the ripple into x_r (docs/control.md, "Projection").
+        let gm = a.g_max_m / a.position_unit_m;
+        self.g = self.g.clamp(-gm, gm);
+        if a.p_max_m_per_n.is_finite() {
+            self.p = self
+                .p
+                .clamp(0.0, a.p_max_m_per_n * a.force_unit_n / a.position_unit_m);
+        }
+        if a.d_max_s.is_finite() {
+            self.d = self.d.clamp(-a.d_max_s, 0.0);
+        }
         // eq. (36): Δx_f = g + p e + d ẋ (scaled), back to metres.
         (self.g + self.p * e + self.d * v) * a.position_unit_m
     }

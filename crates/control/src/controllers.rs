@@ -1,7 +1,7 @@
 //! The two controllers of Section III: position-based impedance control and model-reference
 //! adaptive impedance control, each followed by the inner PID position loop.
 
-use crate::adaptive::{AdaptiveLaw, AdaptiveParams};
+use crate::adaptive::{AdaptiveLaw, AdaptiveParams, VelocitySource};
 use crate::error::ParamError;
 use crate::impedance::{ImpedanceFilter, ImpedanceParams};
 use crate::io::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
@@ -119,7 +119,11 @@ impl Controller for AdaptiveImpedanceController {
         {
             self.law.hold()
         } else {
-            self.law.update(e, s.x_dot, dt)
+            let v = match a.velocity_source {
+                VelocitySource::Measured => s.x_dot,
+                VelocitySource::ImpedanceFilter => self.filter.v_f(),
+            };
+            self.law.update(e, v, dt)
         };
         // eq. (25): the paper prints x_r = x_f + Δx_f; x_d is restored so that Δx_f = 0 gives eq. (23).
         let x_r = sp.x_d + x_f + dx_f;

@@ -16,7 +16,7 @@ pub mod lyapunov;
 pub mod pid;
 pub mod reference;
 
-pub use adaptive::{AdaptiveLaw, AdaptiveParams, LambdaDSign, Sigma1Sign};
+pub use adaptive::{AdaptiveLaw, AdaptiveParams, LambdaDSign, Sigma1Sign, VelocitySource};
 pub use controllers::{AdaptiveImpedanceController, ImpedanceController};
 pub use error::ParamError;
 pub use impedance::{ImpedanceFilter, ImpedanceParams, ZohStep};

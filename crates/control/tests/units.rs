@@ -506,3 +506,59 @@ fn nan_sensor_gives_closed_valve_and_reset_clears() {
     let u = c.update(&Sensors::default(), &sp, 1e-3);
     assert!(u.u > 0.0, "positive force error extends");
 }
+
+/// Parameter projection: under a pure velocity ripple ẋ = A sin(ωt) with e = 0 the unbounded d drifts to the
+/// closed-form mean -μ3 λd A²/(2 σ3) (eq. 35 with χ = λd ẋ); with d_max it stays in [-d_max, 0]. Under a
+/// force ripple p grows (ṗ = μ2 λp e² when ẋ = 0) and the bound holds it in [0, p_max].
+#[test]
+fn projection_bounds_p_and_d_where_sigma_modification_alone_drifts() {
+    let (amp, w, dt): (f64, f64, f64) = (0.3, 2.0 * core::f64::consts::PI * 40.0, 1e-3 / 8.0);
+    let free = AdaptiveParams::default();
+    let bounded = AdaptiveParams {
+        p_max_m_per_n: 3.57e-4,
+        d_max_s: 0.005,
+        ..AdaptiveParams::default()
+    };
+    let mut a = AdaptiveLaw::new(free).unwrap();
+    let mut b = AdaptiveLaw::new(bounded).unwrap();
+    let n = (60.0 / dt) as usize; // 6 time constants of σ3 = 0.1 /s
+    let period = (1.0 / 40.0 / dt).round() as usize;
+    let mut d_mean = 0.0;
+    for k in 0..n {
+        let v = amp * (w * k as f64 * dt).sin();
+        a.update(0.0, v, dt);
+        b.update(0.0, v, dt);
+        assert!(
+            (-0.005..=0.0).contains(&b.d()),
+            "d = {} left [-5 ms, 0]",
+            b.d()
+        );
+        if k >= n - period {
+            d_mean += a.d() / period as f64;
+        }
+    }
+    let expect = -free.mu3 * free.lambda_d * amp * amp / (2.0 * free.sigma3);
+    assert!(
+        (d_mean - expect).abs() <= 0.02 * expect.abs(),
+        "unbounded d drifts to {d_mean}, closed form {expect}"
+    );
+    assert!(b.d() <= -0.0049, "the bound is reached: d = {}", b.d());
+
+    let mut b = AdaptiveLaw::new(bounded).unwrap();
+    let mut a = AdaptiveLaw::new(free).unwrap();
+    for k in 0..(20.0 / dt) as usize {
+        let e = 1.0 + (w * k as f64 * dt).sin();
+        a.update(e, 0.0, dt);
+        b.update(e, 0.0, dt);
+        assert!(
+            (0.0..=3.57e-4).contains(&b.p()),
+            "p = {} left [0, p_max]",
+            b.p()
+        );
+    }
+    assert!(
+        a.p() > 3.57e-4,
+        "without the bound p grows past it: {}",
+        a.p()
+    );
+}

@@ -21,11 +21,11 @@ pub mod trace;
 pub use error::SceneError;
 pub use multibody::{FlangeDrive, MultibodyPlant};
 pub use output::{Staging, Summary, summary, write_results};
-pub use plant::{IdealLoop, LinearSpring, Plant};
+pub use plant::{IdealLoop, LinearSpring, Plant, Visual, VisualPose, VisualShape};
 pub use pneumatic::OneDofPneumatic;
 pub use runner::{
-    LyapunovSummary, RunResult, WindowMetrics, build_controller, build_plant, build_setpoints,
-    run_scene, simulate,
+    LyapunovSummary, RunResult, StepObserver, WindowMetrics, build_controller, build_plant,
+    build_setpoints, run_scene, run_scene_observed, simulate, simulate_observed,
 };
 pub use schema::{
     ControllerKind, EventSpec, MaterialSpec, MultibodySpec, PlantSpec, Scene, WindowKind,

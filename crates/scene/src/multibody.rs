@@ -10,13 +10,13 @@ use std::path::PathBuf;
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 use pneuflex_multibody::{
-    AxialActuator, MaterialConfig, MaterialParams, Measurements, MultibodyConfig, MultibodyError,
-    PneumaticForceElement, RigWorld,
+    AxialActuator, LinkShape, MaterialConfig, MaterialParams, Measurements, MultibodyConfig,
+    MultibodyError, PneumaticForceElement, RigWorld,
 };
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
 
 use crate::error::SceneError;
-use crate::plant::{LinearSpring, Plant};
+use crate::plant::{LinearSpring, Plant, Visual, VisualPose, VisualShape};
 use crate::schema::{EventSpec, MultibodySpec, PlantSpec, Scene};
 
 /// The pneumatic force element plus the sheet's Coulomb friction, acting between cylinder and flange.
@@ -313,6 +313,55 @@ impl Plant for MultibodyPlant {
                 self.drive.gravity_force_n =
                     self.flange_mass_kg * self.config.gravity_m_s2 * a.sin();
                 Ok(())
+            }
+        }
+    }
+
+    fn visuals(&self) -> Vec<Visual> {
+        let mut out = Vec::new();
+        for (name, _, geoms) in self.world.link_poses() {
+            for (j, g) in geoms.iter().enumerate() {
+                let shape = match g.shape {
+                    LinkShape::Box { size_m } => VisualShape::Box {
+                        half_extents_m: size_m.map(|v| 0.5 * v),
+                    },
+                    LinkShape::Cylinder { radius_m, length_m } => VisualShape::Cylinder {
+                        radius_m,
+                        half_length_m: 0.5 * length_m,
+                    },
+                    // Drawn as its cylinder part plus the caps' length.
+                    LinkShape::Capsule { radius_m, length_m } => VisualShape::Cylinder {
+                        radius_m,
+                        half_length_m: 0.5 * length_m + radius_m,
+                    },
+                    LinkShape::Sphere { radius_m } => VisualShape::Sphere { radius_m },
+                };
+                let name = if geoms.len() == 1 {
+                    name.to_string()
+                } else {
+                    format!("{name}/{j}")
+                };
+                out.push(Visual { name, shape });
+            }
+        }
+        out
+    }
+
+    fn visual_poses(&self, pose: &mut dyn FnMut(usize, VisualPose)) {
+        let world_from_rig = self.world.world_from_rig();
+        let mut i = 0;
+        for (_, link, geoms) in self.world.link_poses() {
+            for g in geoms {
+                let p = world_from_rig * link * g.origin;
+                let (t, q) = (p.translation, p.rotation);
+                pose(
+                    i,
+                    VisualPose {
+                        translation_m: [t.x, t.y, t.z],
+                        rotation_xyzw: [q.x, q.y, q.z, q.w],
+                    },
+                );
+                i += 1;
             }
         }
     }

@@ -18,6 +18,52 @@ pub trait Plant {
     fn apply(&mut self, event: &EventSpec) -> Result<(), String>;
     /// Back to the initial state and initial environment.
     fn reset(&mut self);
+    /// The plant's bodies as drawn in 3D (name and shape), for viewers; empty for plants without geometry.
+    fn visuals(&self) -> Vec<Visual> {
+        Vec::new()
+    }
+    /// World pose of each entry of [`Plant::visuals`], in that order, at the current state.
+    fn visual_poses(&self, _pose: &mut dyn FnMut(usize, VisualPose)) {}
+}
+
+/// One drawable collision shape of a plant's link.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Visual {
+    /// Link name (with `/<i>` for a link's i-th shape when it has several).
+    pub name: String,
+    /// The shape, centred on its pose.
+    pub shape: VisualShape,
+}
+
+/// A primitive shape for viewers (SI).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum VisualShape {
+    /// Box with half edge lengths along its x, y, z, m.
+    Box {
+        /// Half edge lengths, m.
+        half_extents_m: [f64; 3],
+    },
+    /// Cylinder along its z axis, m.
+    Cylinder {
+        /// Radius, m.
+        radius_m: f64,
+        /// Half length, m.
+        half_length_m: f64,
+    },
+    /// Sphere, m.
+    Sphere {
+        /// Radius, m.
+        radius_m: f64,
+    },
+}
+
+/// Pose of a shape in the world: translation (m) and unit quaternion [x, y, z, w].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VisualPose {
+    /// Translation, m.
+    pub translation_m: [f64; 3],
+    /// Rotation as a unit quaternion [x, y, z, w].
+    pub rotation_xyzw: [f64; 4],
 }
 
 /// Linear-spring environment of eq. (21): f_e = k_e (x - x_e) while x > x_e; no contact (0) otherwise.

@@ -12,7 +12,7 @@ use crate::plant::{IdealLoop, LinearSpring, Plant};
 use crate::pneumatic::OneDofPneumatic;
 use crate::schema::{
     ControllerKind, ForcePiece, LambdaDSign, PidSpec, PlantSpec, RunSpec, Scene, Sigma1Sign,
-    WindowKind,
+    VelocitySource, WindowKind,
 };
 use crate::trace::{Row, Trace};
 
@@ -220,6 +220,13 @@ pub fn adaptive_params(run: &RunSpec) -> Option<control::AdaptiveParams> {
             Sigma1Sign::Leakage => control::Sigma1Sign::Leakage,
             Sigma1Sign::AsPrinted => control::Sigma1Sign::AsPrinted,
         },
+        velocity_source: match a.velocity_source {
+            VelocitySource::Measured => control::VelocitySource::Measured,
+            VelocitySource::ImpedanceFilter => control::VelocitySource::ImpedanceFilter,
+        },
+        g_max_m: a.g_max_m.unwrap_or(f64::INFINITY),
+        p_max_m_per_n: a.p_max_m_per_n.unwrap_or(f64::INFINITY),
+        d_max_s: a.d_max_s.unwrap_or(f64::INFINITY),
     })
 }
 
@@ -254,6 +261,31 @@ pub fn run_scene(
     scene: &Scene,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Vec<RunResult>, SceneError> {
+    run_scene_observed(scene, progress, &mut NoObserver)
+}
+
+/// Watches runs tick by tick without changing them (a viewer, a live plot). Called after each tick's
+/// sample is recorded, with the plant in the state that sample was read from.
+pub trait StepObserver {
+    /// A run starts; the plant is at its initial state.
+    fn begin_run(&mut self, _run: &crate::schema::RunSpec, _plant: &dyn Plant) {}
+    /// One control tick was recorded.
+    fn on_step(&mut self, _row: &Row, _plant: &dyn Plant) {}
+    /// A run ended (its metrics are not computed yet).
+    fn end_run(&mut self, _result: &RunResult) {}
+}
+
+/// The observer that watches nothing.
+struct NoObserver;
+
+impl StepObserver for NoObserver {}
+
+/// [`run_scene`] with an observer called at every tick of every run.
+pub fn run_scene_observed(
+    scene: &Scene,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn StepObserver,
+) -> Result<Vec<RunResult>, SceneError> {
     scene.validate()?;
     let setpoints = build_setpoints(scene)?;
     let mut plant = build_plant(scene)?;
@@ -263,14 +295,17 @@ pub fn run_scene(
         let mut controller = build_controller(scene, i)?;
         plant.reset();
         let mut sub = |f: f64| progress((i as f64 + f) / n_runs as f64);
-        let mut r = simulate(
+        observer.begin_run(&scene.runs[i], plant.as_ref());
+        let mut r = simulate_observed(
             scene,
             i,
             plant.as_mut(),
             controller.as_mut(),
             &setpoints,
             &mut sub,
+            observer,
         )?;
+        observer.end_run(&r);
         if r.diverged.is_none() {
             r.windows = compute_windows(scene, &r.trace);
         }
@@ -291,6 +326,27 @@ pub fn simulate(
     controller: &mut dyn Controller,
     setpoints: &control::SetpointSchedule,
     progress: &mut dyn FnMut(f64),
+) -> Result<RunResult, SceneError> {
+    simulate_observed(
+        scene,
+        index,
+        plant,
+        controller,
+        setpoints,
+        progress,
+        &mut NoObserver,
+    )
+}
+
+/// [`simulate`] with an observer called at every recorded tick.
+pub fn simulate_observed(
+    scene: &Scene,
+    index: usize,
+    plant: &mut dyn Plant,
+    controller: &mut dyn Controller,
+    setpoints: &control::SetpointSchedule,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn StepObserver,
 ) -> Result<RunResult, SceneError> {
     let run = &scene.runs[index];
     let adaptive = run.controller == ControllerKind::Adaptive;
@@ -322,22 +378,21 @@ pub fn simulate(
         let sp: Setpoint = setpoints.at(t);
         let cmd = controller.update(&s, &sp, dt);
         let tel = controller.telemetry();
-        trace.push(
-            &Row {
-                t,
-                f_ref: sp.f_ref,
-                f_e: s.f_e,
-                x: s.x,
-                x_r: tel.x_r,
-                p_a: s.p_a,
-                p_b: s.p_b,
-                u: cmd.u,
-                g: tel.g,
-                p: tel.p,
-                d: tel.d,
-            },
-            adaptive,
-        );
+        let row = Row {
+            t,
+            f_ref: sp.f_ref,
+            f_e: s.f_e,
+            x: s.x,
+            x_r: tel.x_r,
+            p_a: s.p_a,
+            p_b: s.p_b,
+            u: cmd.u,
+            g: tel.g,
+            p: tel.p,
+            d: tel.d,
+        };
+        trace.push(&row, adaptive);
+        observer.on_step(&row, &*plant);
         if let Some(reason) = divergence(t, s.x, s.f_e, tel.x_r, &lim) {
             diverged = Some(reason);
             break;

@@ -415,6 +415,29 @@ pub struct AdaptiveSpec {
     /// Contact force above which the flange counts as in contact, N (default 0.5).
     #[serde(default = "half_newton")]
     pub contact_threshold_n: f64,
+    /// Velocity used for ẋ in eqs. (35)/(36): "measured" (default, the paper) or "impedance_filter" (x_f').
+    #[serde(default)]
+    pub velocity_source: VelocitySource,
+    /// Projection bound |g| <= g_max_m, m (absent = unbounded).
+    #[serde(default)]
+    pub g_max_m: Option<f64>,
+    /// Projection bound 0 <= p <= p_max_m_per_n, m/N (absent = unbounded).
+    #[serde(default)]
+    pub p_max_m_per_n: Option<f64>,
+    /// Projection bound -d_max_s <= d <= 0, s (absent = unbounded).
+    #[serde(default)]
+    pub d_max_s: Option<f64>,
+}
+
+/// Velocity the adaptive law uses for ẋ (see docs/control.md).
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocitySource {
+    /// The measured flange velocity (eq. (36) as printed).
+    #[default]
+    Measured,
+    /// The impedance filter's velocity x_f' (eq. (22)).
+    ImpedanceFilter,
 }
 
 fn half_newton() -> f64 {
@@ -810,6 +833,15 @@ impl Scene {
                     }
                     v.positive(&at("adaptive.force_unit_n"), a.force_unit_n)?;
                     v.positive(&at("adaptive.position_unit_m"), a.position_unit_m)?;
+                    for (k, val) in [
+                        ("g_max_m", a.g_max_m),
+                        ("p_max_m_per_n", a.p_max_m_per_n),
+                        ("d_max_s", a.d_max_s),
+                    ] {
+                        if let Some(val) = val {
+                            v.positive(&at(&format!("adaptive.{k}")), val)?;
+                        }
+                    }
                 }
                 (ControllerKind::Impedance, None) => {}
             }
