@@ -17,7 +17,7 @@
 //! second line is the mass balance of eq. (2) solved for T, so M = p V / (R T) changes exactly by the
 //! port flows. Eq. (10) is the special case T_i = T_s for every flow and no dead volume.
 
-use crate::flow::Orifice;
+use crate::flow::{ISO_T0_K, OrificeStep};
 use crate::valve::{Openings, ValveModel};
 
 /// Standard gravity, m/s^2.
@@ -194,93 +194,55 @@ impl Actuator {
     /// Mass flows through the four valve paths for chamber state `s` and spool position `spool`.
     #[inline]
     pub fn port_flows(&self, s: &ChamberState, spool: f64) -> PortFlows {
-        let o = self.valve.openings(spool);
-        self.flows_for(s, &o)
-    }
-
-    #[inline]
-    fn flows_for(&self, s: &ChamberState, o: &Openings) -> PortFlows {
-        let (pf, _) = self.flows_enthalpy(s, o);
-        pf
-    }
-
-    /// Flows and enthalpy carriers (q T_upstream) into A and B.
-    #[inline]
-    fn flows_enthalpy(&self, s: &ChamberState, o: &Openings) -> (PortFlows, (f64, f64)) {
-        let or: &Orifice = &self.valve.orifice;
-        let sp = &self.supply;
-        let (ps, ts) = (sp.supply_pressure_pa, sp.supply_temperature_k);
-        let (pr, tr) = (sp.atmosphere_pressure_pa, sp.atmosphere_temperature_k);
-        let pa = s.p_a.max(P_FLOOR);
-        let pb = s.p_b.max(P_FLOOR);
-        let ta = s.t_a.max(T_FLOOR);
-        let tb = s.t_b.max(T_FLOOR);
-        let (q_pa, h_pa) = or.mass_flow(o.p_a, ps, ts, pa, ta);
-        let (q_ar, h_ar) = or.mass_flow(o.a_r, pa, ta, pr, tr);
-        let (q_pb, h_pb) = or.mass_flow(o.p_b, ps, ts, pb, tb);
-        let (q_br, h_br) = or.mass_flow(o.b_r, pb, tb, pr, tr);
-        (
-            PortFlows {
-                p_a: q_pa,
-                a_r: q_ar,
-                p_b: q_pb,
-                b_r: q_br,
-            },
-            (h_pa - h_ar, h_pb - h_br),
-        )
+        self.step_consts(spool).flows_enthalpy(s).0
     }
 
     /// Time derivatives of the chamber state (Pa/s, K/s) at extension `x`, velocity `x_dot` and spool
     /// position `spool`.
     #[inline]
     pub fn chamber_rates(&self, s: &ChamberState, x: f64, x_dot: f64, spool: f64) -> ChamberState {
-        let o = self.valve.openings(spool);
-        self.rates_with(s, x, x_dot, &o)
+        self.step_consts(spool).rates(s, x, x_dot)
     }
 
+    /// The constants of the chamber equations for spool position `spool`, held over one step.
     #[inline]
-    fn rates_with(&self, s: &ChamberState, x: f64, x_dot: f64, o: &Openings) -> ChamberState {
+    pub(crate) fn step_consts(&self, spool: f64) -> ChamberStep {
         let c = &self.cylinder;
-        let (va, vb) = c.volumes(x);
-        // Outside the stroke the piston rests on a stop: the volumes do not change.
-        let inside = (x > 0.0 && x < c.stroke_m)
-            || (x <= 0.0 && x_dot > 0.0)
-            || (x >= c.stroke_m && x_dot < 0.0);
-        let v = if inside { x_dot } else { 0.0 };
-        let dva = c.area_a() * v;
-        let dvb = -c.area_b() * v;
-        let (pf, (ha, hb)) = self.flows_enthalpy(s, o);
-        let n = self.gas.polytropic_exponent;
-        let r = self.gas.gas_constant_j_per_kg_k;
-        let pa = s.p_a.max(P_FLOOR);
-        let pb = s.p_b.max(P_FLOOR);
-        let ta = s.t_a.max(T_FLOOR);
-        let tb = s.t_b.max(T_FLOOR);
-        let (inv_va, inv_vb) = (1.0 / va, 1.0 / vb);
-        let (inv_pa, inv_pb) = (1.0 / pa, 1.0 / pb);
-        // eq. (9)/(10): dp/dt = n R H / V - n p V'/V (H = enthalpy inflow / c_p, upstream temperatures).
-        let dpa = n * inv_va * (r * ha - pa * dva);
-        let dpb = n * inv_vb * (r * hb - pb * dvb);
-        // eqs. (2)-(3): M = pV/(RT), dM/dt = net inflow  =>  dT/dt = T (p'/p + V'/V - R T M'/(p V)).
-        let dta = ta * (dpa * inv_pa + dva * inv_va - r * ta * pf.into_a() * inv_pa * inv_va);
-        let dtb = tb * (dpb * inv_pb + dvb * inv_vb - r * tb * pf.into_b() * inv_pb * inv_vb);
-        ChamberState {
-            p_a: dpa,
-            p_b: dpb,
-            t_a: dta,
-            t_b: dtb,
+        let sp = &self.supply;
+        let o: Openings = self.valve.openings(spool);
+        let or = OrificeStep::new(&self.valve.orifice);
+        ChamberStep {
+            area_a: c.area_a(),
+            area_b: c.area_b(),
+            atm_rod_force: sp.atmosphere_pressure_pa * c.area_rod(),
+            stroke: c.stroke_m,
+            dead_a: c.dead_volume_a_m3,
+            dead_b: c.dead_volume_b_m3,
+            n: self.gas.polytropic_exponent,
+            r: self.gas.gas_constant_j_per_kg_k,
+            k_pa: or.gain(o.p_a),
+            k_ar: or.gain(o.a_r),
+            k_pb: or.gain(o.p_b),
+            k_br: or.gain(o.b_r),
+            or,
+            ps: sp.supply_pressure_pa,
+            ts: sp.supply_temperature_k,
+            t0_over_ts: ISO_T0_K / sp.supply_temperature_k,
+            pr: sp.atmosphere_pressure_pa,
+            tr: sp.atmosphere_temperature_k,
+            t0_over_tr: ISO_T0_K / sp.atmosphere_temperature_k,
         }
     }
 
     /// Advances the chambers by `dt` with classic RK4, the piston moving as `x + x_dot * tau` inside the
     /// step and the spool held. Allocation-free; callers may substep.
     pub fn step_chambers(&self, s: &mut ChamberState, x: f64, x_dot: f64, spool: f64, dt: f64) {
-        let o = self.valve.openings(spool);
+        let cs = self.step_consts(spool);
         let h = 0.5 * dt;
-        let k1 = self.rates_with(s, x, x_dot, &o);
-        let k2 = self.rates_with(&s.axpy(h, &k1), x + x_dot * h, x_dot, &o);
-        let k3 = self.rates_with(&s.axpy(h, &k2), x + x_dot * h, x_dot, &o);
-        let k4 = self.rates_with(&s.axpy(dt, &k3), x + x_dot * dt, x_dot, &o);
+        let k1 = cs.rates(s, x, x_dot);
+        let k2 = cs.rates(&s.axpy(h, &k1), x + x_dot * h, x_dot);
+        let k3 = cs.rates(&s.axpy(h, &k2), x + x_dot * h, x_dot);
+        let k4 = cs.rates(&s.axpy(dt, &k3), x + x_dot * dt, x_dot);
         let w = dt / 6.0;
         s.p_a += w * (k1.p_a + 2.0 * k2.p_a + 2.0 * k3.p_a + k4.p_a);
         s.p_b += w * (k1.p_b + 2.0 * k2.p_b + 2.0 * k3.p_b + k4.p_b);
@@ -309,5 +271,259 @@ impl Actuator {
             w * f_hi.into_a() + (1.0 - w) * f_lo.into_a(),
             w * f_hi.into_b() + (1.0 - w) * f_lo.into_b(),
         )
+    }
+}
+
+/// The chamber equations with everything that is constant over one step (geometry, gas, the valve
+/// openings of the held spool, supply and exhaust, the orifice constants) evaluated once, so that each
+/// RK4 stage only does the state-dependent work.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ChamberStep {
+    /// S_a, m^2.
+    area_a: f64,
+    /// S_b, m^2.
+    area_b: f64,
+    /// p_atm S_rod, N.
+    atm_rod_force: f64,
+    /// Stroke L, m.
+    stroke: f64,
+    /// Dead volume of A, m^3.
+    dead_a: f64,
+    /// Dead volume of B, m^3.
+    dead_b: f64,
+    /// Polytropic exponent n.
+    n: f64,
+    /// Gas constant R, J/(kg K).
+    r: f64,
+    /// ISO 6358 constants of one path.
+    or: OrificeStep,
+    /// Gains (opening C rho0) of the paths P->A, A->R, P->B, B->R, kg/(s Pa).
+    k_pa: f64,
+    k_ar: f64,
+    k_pb: f64,
+    k_br: f64,
+    /// Supply pressure (Pa), temperature (K) and T0 / T_s.
+    ps: f64,
+    ts: f64,
+    t0_over_ts: f64,
+    /// Exhaust pressure (Pa), temperature (K) and T0 / T_atm.
+    pr: f64,
+    tr: f64,
+    t0_over_tr: f64,
+}
+
+impl ChamberStep {
+    /// Net pneumatic force on the rod along +x, N (same as [`Actuator::piston_force`]).
+    #[inline(always)]
+    pub(crate) fn piston_force(&self, s: &ChamberState) -> f64 {
+        s.p_a * self.area_a - s.p_b * self.area_b - self.atm_rod_force
+    }
+
+    /// Signed flow supply -> chamber (kg/s) through a path of gain `k` and its enthalpy carrier
+    /// q T_upstream (kg K/s), eq. (11); the chamber is at `p`, `t` (floored).
+    #[inline(always)]
+    fn supply_path(&self, k: f64, p: f64, t: f64) -> (f64, f64) {
+        if k <= 0.0 {
+            (0.0, 0.0)
+        } else if self.ps >= p {
+            let q = self.or.flow(k, self.t0_over_ts, self.ps, p);
+            (q, q * self.ts)
+        } else {
+            let q = self.or.flow(k, ISO_T0_K / t, p, self.ps);
+            (-q, -q * t)
+        }
+    }
+
+    /// Signed flow chamber -> exhaust (kg/s) and its enthalpy carrier (kg K/s), eq. (11).
+    #[inline(always)]
+    fn exhaust_path(&self, k: f64, p: f64, t: f64) -> (f64, f64) {
+        if k <= 0.0 {
+            (0.0, 0.0)
+        } else if p >= self.pr {
+            let q = self.or.flow(k, ISO_T0_K / t, p, self.pr);
+            (q, q * t)
+        } else {
+            let q = self.or.flow(k, self.t0_over_tr, self.pr, p);
+            (-q, -q * self.tr)
+        }
+    }
+
+    /// Flows and enthalpy carriers (q T_upstream) into A and B.
+    #[inline(always)]
+    fn flows_enthalpy(&self, s: &ChamberState) -> (PortFlows, (f64, f64)) {
+        let pa = s.p_a.max(P_FLOOR);
+        let pb = s.p_b.max(P_FLOOR);
+        let ta = s.t_a.max(T_FLOOR);
+        let tb = s.t_b.max(T_FLOOR);
+        let (q_pa, h_pa) = self.supply_path(self.k_pa, pa, ta);
+        let (q_ar, h_ar) = self.exhaust_path(self.k_ar, pa, ta);
+        let (q_pb, h_pb) = self.supply_path(self.k_pb, pb, tb);
+        let (q_br, h_br) = self.exhaust_path(self.k_br, pb, tb);
+        (
+            PortFlows {
+                p_a: q_pa,
+                a_r: q_ar,
+                p_b: q_pb,
+                b_r: q_br,
+            },
+            (h_pa - h_ar, h_pb - h_br),
+        )
+    }
+
+    /// Time derivatives of the chamber state (Pa/s, K/s) at extension `x` and velocity `x_dot`.
+    #[inline(always)]
+    pub(crate) fn rates(&self, s: &ChamberState, x: f64, x_dot: f64) -> ChamberState {
+        let xc = x.clamp(0.0, self.stroke);
+        let va = self.dead_a + self.area_a * xc;
+        let vb = self.dead_b + self.area_b * (self.stroke - xc);
+        // Outside the stroke the piston rests on a stop: the volumes do not change.
+        let inside = (x > 0.0 && x < self.stroke)
+            || (x <= 0.0 && x_dot > 0.0)
+            || (x >= self.stroke && x_dot < 0.0);
+        let v = if inside { x_dot } else { 0.0 };
+        let dva = self.area_a * v;
+        let dvb = -self.area_b * v;
+        let (pf, (ha, hb)) = self.flows_enthalpy(s);
+        let (n, r) = (self.n, self.r);
+        let pa = s.p_a.max(P_FLOOR);
+        let pb = s.p_b.max(P_FLOOR);
+        let ta = s.t_a.max(T_FLOOR);
+        let tb = s.t_b.max(T_FLOOR);
+        let (inv_va, inv_vb) = (1.0 / va, 1.0 / vb);
+        // eq. (9)/(10): dp/dt = n R H / V - n p V'/V (H = enthalpy inflow / c_p, upstream temperatures).
+        let dpa = n * inv_va * (r * ha - pa * dva);
+        let dpb = n * inv_vb * (r * hb - pb * dvb);
+        // eqs. (2)-(3): M = pV/(RT), dM/dt = net inflow  =>  dT/dt = T (p'/p + V'/V - R T M'/(p V)),
+        // written with one division by p: dT/dt = (T/p) (p' + (p V' - R T M') / V).
+        let dta = ta / pa * (dpa + inv_va * (pa * dva - r * ta * pf.into_a()));
+        let dtb = tb / pb * (dpb + inv_vb * (pb * dvb - r * tb * pf.into_b()));
+        ChamberState {
+            p_a: dpa,
+            p_b: dpb,
+            t_a: dta,
+            t_b: dtb,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flow::Orifice;
+    use crate::valve::ValveKind;
+
+    fn act(underlap: f64, b: f64) -> Actuator {
+        Actuator {
+            cylinder: Cylinder {
+                bore_m: 0.016,
+                rod_m: 0.005,
+                stroke_m: 0.05,
+                dead_volume_a_m3: 3.5e-6,
+                dead_volume_b_m3: 3.5e-6,
+            },
+            gas: Gas::default(),
+            valve: ValveModel {
+                orifice: Orifice {
+                    sonic_conductance_m3_per_s_pa: 5.0e-9,
+                    critical_pressure_ratio: b,
+                },
+                underlap,
+                kind: ValveKind::Proportional {
+                    response_time_s: 0.0,
+                },
+            },
+            supply: Supply {
+                supply_pressure_pa: 6.0e5,
+                supply_temperature_k: 300.0,
+                atmosphere_pressure_pa: P_ATM,
+                atmosphere_temperature_k: 290.0,
+            },
+        }
+    }
+
+    /// The per-step evaluation (one square root per path, no pressure-ratio division) gives the same
+    /// flows and chamber rates as the textbook form: `Orifice::mass_flow` per path (ISO 6358 with
+    /// phi(p_d / p_u), eq. 11) and dT/dt = T (p'/p + V'/V - R T M'/(p V)) (eqs. 2-3, 9-10), to rounding,
+    /// in every flow regime (choked, subsonic, laminar, reverse) and for both flow directions.
+    #[test]
+    fn step_constants_match_reference_equations() {
+        let pressures = [
+            5.0e4, 1.0e5, P_ATM, 1.0135e5, 1.5e5, 3.0e5, 5.99e5, 5.9999e5, 6.0e5, 6.5e5,
+        ];
+        let mut checked = 0;
+        for b in [0.0, 0.3, 0.528] {
+            for underlap in [0.0, 0.05] {
+                let a = act(underlap, b);
+                let or = a.valve.orifice;
+                let (ps, ts) = (a.supply.supply_pressure_pa, a.supply.supply_temperature_k);
+                let (pr, tr) = (
+                    a.supply.atmosphere_pressure_pa,
+                    a.supply.atmosphere_temperature_k,
+                );
+                for spool in [-1.0, -0.3, 0.0, 0.02, 0.7, 1.0] {
+                    let o = a.valve.openings(spool);
+                    for &pa in &pressures {
+                        for &pb in &pressures {
+                            let s = ChamberState {
+                                p_a: pa,
+                                p_b: pb,
+                                t_a: 250.0,
+                                t_b: 340.0,
+                            };
+                            let (ta, tb) = (s.t_a, s.t_b);
+                            let (q_pa, h_pa) = or.mass_flow(o.p_a, ps, ts, pa, ta);
+                            let (q_ar, h_ar) = or.mass_flow(o.a_r, pa, ta, pr, tr);
+                            let (q_pb, h_pb) = or.mass_flow(o.p_b, ps, ts, pb, tb);
+                            let (q_br, h_br) = or.mass_flow(o.b_r, pb, tb, pr, tr);
+                            let f = a.port_flows(&s, spool);
+                            let scale = 1e-12 * (5.0e-9 * 1.185 * 6.5e5);
+                            for (got, want) in
+                                [(f.p_a, q_pa), (f.a_r, q_ar), (f.p_b, q_pb), (f.b_r, q_br)]
+                            {
+                                assert!(
+                                    (got - want).abs() <= scale,
+                                    "b {b}, spool {spool}, p_a {pa}, p_b {pb}: {got} vs {want}"
+                                );
+                            }
+                            // Chamber rates from the reference flows, moving piston.
+                            let (x, xd) = (0.02, 0.3);
+                            let (va, vb) = a.cylinder.volumes(x);
+                            let dva = a.cylinder.area_a() * xd;
+                            let dvb = -a.cylinder.area_b() * xd;
+                            let (n, r) = (a.gas.polytropic_exponent, a.gas.gas_constant_j_per_kg_k);
+                            let dpa = n / va * (r * (h_pa - h_ar) - pa * dva);
+                            let dpb = n / vb * (r * (h_pb - h_br) - pb * dvb);
+                            let dta =
+                                ta * (dpa / pa + dva / va - r * ta * (q_pa - q_ar) / (pa * va));
+                            let dtb =
+                                tb * (dpb / pb + dvb / vb - r * tb * (q_pb - q_br) / (pb * vb));
+                            let k = a.chamber_rates(&s, x, xd, spool);
+                            for (got, want, unit) in [
+                                (k.p_a, dpa, 1e-3),
+                                (k.p_b, dpb, 1e-3),
+                                (k.t_a, dta, 1e-6),
+                                (k.t_b, dtb, 1e-6),
+                            ] {
+                                assert!(
+                                    (got - want).abs() <= 1e-11 * want.abs() + unit,
+                                    "b {b}, spool {spool}, p_a {pa}, p_b {pb}: {got} vs {want}"
+                                );
+                            }
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 3 * 2 * 6 * 10 * 10);
+    }
+
+    /// The rod force of the per-step constants is the public `piston_force`.
+    #[test]
+    fn step_force_matches_piston_force() {
+        let a = act(0.0, 0.3);
+        let s = ChamberState::new(4.2e5, 1.7e5);
+        let f = a.step_consts(0.0).piston_force(&s);
+        assert!((f - a.piston_force(&s)).abs() <= 1e-12 * f.abs());
     }
 }

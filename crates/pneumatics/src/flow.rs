@@ -69,3 +69,66 @@ impl Orifice {
         }
     }
 }
+
+/// The state-independent part of eq. (11) for one orifice, computed once per integration step so the
+/// RK4 stages of the chamber equations do no divisions by `1 - b` and take one square root per open path.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct OrificeStep {
+    /// C rho0, kg/(s Pa) at full opening.
+    c_rho0: f64,
+    /// Critical pressure ratio b.
+    b: f64,
+    /// 1 / (1 - b).
+    inv_one_minus_b: f64,
+}
+
+impl OrificeStep {
+    /// Step constants of orifice `o`.
+    #[inline(always)]
+    pub(crate) fn new(o: &Orifice) -> Self {
+        let b = o.critical_pressure_ratio;
+        Self {
+            c_rho0: o.sonic_conductance_m3_per_s_pa * ISO_RHO0_KG_M3,
+            b,
+            inv_one_minus_b: 1.0 / (1.0 - b),
+        }
+    }
+
+    /// Flow gain `opening C rho0` of a path at relative opening `opening` (0 when shut), kg/(s Pa).
+    #[inline(always)]
+    pub(crate) fn gain(&self, opening: f64) -> f64 {
+        if opening > 0.0 {
+            opening * self.c_rho0
+        } else {
+            0.0
+        }
+    }
+
+    /// `(p_u phi(p_d / p_u))^2`, Pa^2, for `p_u >= p_d > 0`, without dividing by `p_u`: the subsonic
+    /// branch of eq. (11) multiplied out, `p_u^2 (1 - z^2) = (p_u - w)(p_u + w)` with
+    /// `w = (p_d - b p_u) / (1 - b) = p_u z`.
+    #[inline(always)]
+    pub(crate) fn p_phi_sq(&self, p_u: f64, p_d: f64) -> f64 {
+        if p_d <= self.b * p_u {
+            // Choked: phi = 1.
+            p_u * p_u
+        } else if p_d <= LAMINAR_RATIO * p_u {
+            let w = (p_d - self.b * p_u) * self.inv_one_minus_b;
+            ((p_u - w) * (p_u + w)).max(0.0)
+        } else {
+            // Laminar tail: p_u phi = phi(r_l) (p_u - p_d) / (1 - r_l). Only near equal pressures, so
+            // phi(r_l)^2 is formed here rather than every step.
+            let z = (LAMINAR_RATIO - self.b) * self.inv_one_minus_b;
+            let dp = (p_u - p_d).max(0.0) / (1.0 - LAMINAR_RATIO);
+            (1.0 - z * z).max(0.0) * dp * dp
+        }
+    }
+
+    /// Mass flow `q` (kg/s) from an upstream node at `p_u` to a downstream node at `p_d <= p_u` through a
+    /// path of gain `k` (from [`Self::gain`]), with `t0_over_tu = T0 / T_u` (eq. 11):
+    /// `q = k sqrt(T0 / T_u) p_u phi(p_d / p_u)`, folded into one square root.
+    #[inline(always)]
+    pub(crate) fn flow(&self, k: f64, t0_over_tu: f64, p_u: f64, p_d: f64) -> f64 {
+        k * (t0_over_tu * self.p_phi_sq(p_u, p_d)).sqrt()
+    }
+}

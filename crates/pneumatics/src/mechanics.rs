@@ -8,7 +8,7 @@
 //! paper's Fig. 1 measures the platform angle from the vertical; that angle is 90 deg - alpha.
 //! The environment's reaction enters as the external force `f_ext = -F_2` along +x.
 
-use crate::actuator::{Actuator, ChamberState};
+use crate::actuator::{Actuator, ChamberState, ChamberStep};
 use crate::valve::ValveState;
 
 /// Coulomb friction law of the piston and guide.
@@ -43,7 +43,16 @@ impl Friction {
             Friction::Smooth {
                 coulomb_n,
                 smooth_velocity_m_per_s,
-            } => coulomb_n * (v / smooth_velocity_m_per_s).tanh(),
+            } => {
+                let y = v / smooth_velocity_m_per_s;
+                // tanh rounds to exactly +-1 for |y| >= 20 (1 - tanh < 1e-17): skip the libm call.
+                let t = if y.abs() >= 20.0 {
+                    y.signum()
+                } else {
+                    y.tanh()
+                };
+                coulomb_n * t
+            }
             Friction::StickSlip {
                 coulomb_n,
                 static_n,
@@ -122,6 +131,16 @@ impl OneDofState {
     }
 }
 
+/// What stays constant over one step of [`OneDofModel::step`].
+struct StepConsts {
+    /// Chamber-equation constants for the held spool.
+    chambers: ChamberStep,
+    /// G_alpha + f_ext, N.
+    f_load: f64,
+    /// 1 / m, 1/kg.
+    inv_mass: f64,
+}
+
 #[derive(Clone, Copy)]
 struct Deriv {
     x: f64,
@@ -136,17 +155,17 @@ impl OneDofModel {
         self.actuator.piston_force(chambers) + self.mechanics.gravity_force() + f_ext
     }
 
-    #[inline]
-    fn rates(&self, x: f64, v: f64, c: &ChamberState, spool: f64, f_load: f64) -> Deriv {
+    #[inline(always)]
+    fn rates(&self, k: &StepConsts, x: f64, v: f64, c: &ChamberState) -> Deriv {
         let m = &self.mechanics;
-        // f_load = G_alpha + f_ext, computed once per step (sin is costly).
-        let drive = self.actuator.piston_force(c) + f_load;
+        let cs = &k.chambers;
+        let drive = cs.piston_force(c) + k.f_load;
         // eq. (1): m x'' = F_1 - F_2 + G_alpha - f - K_v x'.
-        let a = (drive - m.friction.force(v, drive) - m.viscous_n_s_per_m * v) / m.moving_mass_kg;
+        let a = (drive - m.friction.force(v, drive) - m.viscous_n_s_per_m * v) * k.inv_mass;
         Deriv {
             x: v,
             v: a,
-            c: self.actuator.chamber_rates(c, x, v, spool),
+            c: cs.rates(c, x, v),
         }
     }
 
@@ -155,31 +174,20 @@ impl OneDofModel {
     /// are hard (inelastic) and applied after the step. Allocation-free.
     pub fn step(&self, state: &mut OneDofState, u: f64, f_ext: f64, dt: f64) {
         let spool = self.actuator.valve.spool(&mut state.valve, u, state.t, dt);
-        let (x0, v0, c0) = (state.x, state.x_dot, state.chambers);
+        // The spool is held over the step: openings, areas and flow constants are evaluated once, and
+        // f_load = G_alpha + f_ext (sin is costly).
         let f_load = self.mechanics.gravity_force() + f_ext;
+        let k = StepConsts {
+            chambers: self.actuator.step_consts(spool),
+            f_load,
+            inv_mass: 1.0 / self.mechanics.moving_mass_kg,
+        };
+        let (x0, v0, c0) = (state.x, state.x_dot, state.chambers);
         let h = 0.5 * dt;
-        let k1 = self.rates(x0, v0, &c0, spool, f_load);
-        let k2 = self.rates(
-            x0 + h * k1.x,
-            v0 + h * k1.v,
-            &axpy(&c0, h, &k1.c),
-            spool,
-            f_load,
-        );
-        let k3 = self.rates(
-            x0 + h * k2.x,
-            v0 + h * k2.v,
-            &axpy(&c0, h, &k2.c),
-            spool,
-            f_load,
-        );
-        let k4 = self.rates(
-            x0 + dt * k3.x,
-            v0 + dt * k3.v,
-            &axpy(&c0, dt, &k3.c),
-            spool,
-            f_load,
-        );
+        let k1 = self.rates(&k, x0, v0, &c0);
+        let k2 = self.rates(&k, x0 + h * k1.x, v0 + h * k1.v, &axpy(&c0, h, &k1.c));
+        let k3 = self.rates(&k, x0 + h * k2.x, v0 + h * k2.v, &axpy(&c0, h, &k2.c));
+        let k4 = self.rates(&k, x0 + dt * k3.x, v0 + dt * k3.v, &axpy(&c0, dt, &k3.c));
         let w = dt / 6.0;
         let mut x = x0 + w * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
         let mut v = v0 + w * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
@@ -204,7 +212,7 @@ impl OneDofModel {
             ..
         } = self.mechanics.friction
             && v.abs() < stick_velocity_m_per_s
-            && (self.actuator.piston_force(&c) + f_load).abs() <= static_n
+            && (k.chambers.piston_force(&c) + f_load).abs() <= static_n
         {
             v = 0.0;
         }

@@ -131,7 +131,9 @@ impl ValveModel {
                     // Before the first period the coil was off: spring position.
                     state.prev_duty = 0.0;
                 }
-                let k = ((t - state.t0) / period).floor();
+                // Period index floor((t - t0) / T) for t >= t0, 0 before; the cast truncates, which
+                // is the floor for positive values (and avoids a libm call on baseline x86-64).
+                let k = (t - state.t0) / period;
                 let k = if k > 0.0 { k as u64 } else { 0 };
                 if k > state.period {
                     state.prev_duty = if k == state.period + 1 {
