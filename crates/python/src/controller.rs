@@ -4,11 +4,11 @@
 use std::path::PathBuf;
 
 use pneuflex_control::{
-    AdaptiveImpedanceController, AntiWindup, Controller, ImpedanceController, PidParams, Sensors,
-    Setpoint, SetpointSchedule, Telemetry,
+    AdaptiveImpedanceController, Controller, ImpedanceController, Sensors, Setpoint,
+    SetpointSchedule, Telemetry,
 };
-use pneuflex_scene::runner::{adaptive_params, impedance_params};
-use pneuflex_scene::schema::{ControllerKind, PidSpec, RunSpec};
+use pneuflex_scene::runner::{adaptive_params, impedance_params, pid_params};
+use pneuflex_scene::schema::{ControllerKind, RunSpec};
 use pneuflex_scene::{Scene, build_setpoints};
 use pyo3::prelude::*;
 use pyo3::types::{PyAny, PyDict};
@@ -32,21 +32,6 @@ impl Ctl {
             Ctl::Impedance(c) => c.telemetry(),
             Ctl::Adaptive(c) => c.telemetry(),
         }
-    }
-}
-
-fn pid_params(p: &PidSpec) -> PidParams {
-    PidParams {
-        kp_per_m: p.kp_per_m,
-        ki_per_m_s: p.ki_per_m_s,
-        kd_s_per_m: p.kd_s_per_m,
-        derivative_filter_s: p.derivative_filter_s,
-        u_min: p.u_min,
-        u_max: p.u_max,
-        anti_windup: match p.tracking_time_s {
-            None => AntiWindup::Clamping,
-            Some(tracking_time_s) => AntiWindup::BackCalculation { tracking_time_s },
-        },
     }
 }
 

@@ -172,7 +172,8 @@ pub fn build_setpoints(scene: &Scene) -> Result<control::SetpointSchedule, Scene
     Ok(sp)
 }
 
-fn pid_params(p: &PidSpec) -> control::PidParams {
+/// The control crate's inner-loop PID parameters of a run's `inner` table.
+pub fn pid_params(p: &PidSpec) -> control::PidParams {
     control::PidParams {
         kp_per_m: p.kp_per_m,
         ki_per_m_s: p.ki_per_m_s,
