@@ -187,8 +187,13 @@ where
                     )
                 });
         } else {
+            // Segment by segment: plotters joins a thick polyline with miters, and a sharp reversal (the PWM
+            // ripple, a contact impact) then draws a spike far outside the data.
             chart
-                .draw_series(LineSeries::new(pts, style))
+                .draw_series(
+                    pts.windows(2)
+                        .map(|w| PathElement::new(vec![w[0], w[1]], style)),
+                )
                 .map_err(|e| e.to_string())?
                 .label(l.label.as_str())
                 .legend(move |(x, y)| {
