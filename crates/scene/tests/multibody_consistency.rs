@@ -1,20 +1,32 @@
 //! The multibody rig reproduces the 1-DOF pneumatic plant on the Fig. 3 schedule when both describe the
-//! same system: same actuator sheet, incline, environment stiffness and surface, controller, and the 1-DOF
-//! mechanics set to the URDF's flange (mass, K_v). The mounts get no damping (the 1-DOF spring has none).
+//! same system: the same actuator sheet, incline, environment stiffness and surface, controller and
+//! chamber step, with the 1-DOF mechanics set to the URDF's flange (mass, K_v). The rig is the shipped
+//! `urdf/rig.urdf` with the shipped `scenes/paper-fig3-multibody.toml` (wood mount 700 N/m, 2 N·s/m).
+//!
+//! Two valves, two claims (docs/scenes.md, "Consistency with the 1-DOF plant"):
+//! - with a proportional valve the closed loop is smooth and deterministic, and the bound holds on
+//!   raw samples: RMS f_e difference <= 2 % of the 10 N level;
+//! - with the rig's 40 Hz PWM on/off valve the closed loop wanders (a few-Hz drift of ~0.1 N in the
+//!   PWM-averaged force) with a phase that any perturbation moves: the 1-DOF plant differs from *itself* by
+//!   ~0.22 N when its step is halved or x0 moves by 1 µm. There the claim is that the rig differs from the
+//!   1-DOF plant no more than that numerical floor.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use pneuflex_scene::schema::PlantSpec;
 use pneuflex_scene::{
-    LinearSpring, MultibodyPlant, OneDofPneumatic, Scene, build_controller, build_setpoints,
-    simulate,
+    LinearSpring, MultibodyPlant, OneDofPneumatic, RunResult, Scene, build_controller,
+    build_setpoints, simulate,
 };
 
-fn load(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scenes")
-        .join(name);
-    Scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(rel)
+}
+
+fn load(rel: &str) -> Scene {
+    Scene::load(&repo(rel)).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
@@ -33,141 +45,119 @@ fn pwm_average(v: &[f64], n: usize) -> Vec<f64> {
         .collect()
 }
 
-struct Comparison {
-    /// RMS of f_e(multibody) - f_e(1-DOF), raw samples, N.
-    raw: f64,
-    /// The same after a one-PWM-period moving average of both, N.
-    pwm_averaged: f64,
-    /// RMS of k_e (x - x_e) of the multibody flange against f_e of the 1-DOF plant, N.
-    spring_vs_one: f64,
-    /// Largest |mean f_e difference| over the scene's metric windows, N.
-    window_mean: f64,
-}
-
-fn compare(run: &str) -> Comparison {
-    let mut mb_scene = load("paper-fig3-multibody.toml");
-    let PlantSpec::Multibody(mb) = &mut mb_scene.plant else {
+/// The fig3-multibody scene (actuator sheet replaced by `sheet` if given), its plant, and the 1-DOF plant
+/// of the same system with as many RK4 substeps per tick as the rig has chamber substeps.
+fn plants(sheet: Option<&str>) -> (Scene, MultibodyPlant, OneDofPneumatic) {
+    let mut scene = load("scenes/paper-fig3-multibody.toml");
+    let PlantSpec::Multibody(mb) = &mut scene.plant else {
         panic!("paper-fig3-multibody is not a multibody scene")
     };
-    // The 1-DOF spring has no damping: neither do the mounts here.
-    for m in &mut mb.materials {
-        m.damping_n_s_per_m = 0.0;
+    if let Some(s) = sheet {
+        mb.actuator = repo(s);
     }
-    // Stiff, massless contact like the 1-DOF spring of eq. (21): the rig with 1 g faces (the shipped 9 g wood
-    // face resonates at 44 Hz on its mount, next to the 40 Hz PWM, and adds m_face·q'' to the load cell).
-    mb.urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/rig-light-faces.urdf");
-    let substeps_per_tick = mb.chamber_substeps * mb.steps_per_tick(mb_scene.dt_s);
-    let mut mb_plant = MultibodyPlant::from_scene(&mb_scene).unwrap_or_else(|e| panic!("{e}"));
-
-    let one_scene = load("paper-fig3.toml");
-    let env = LinearSpring {
-        stiffness_n_per_m: mb_scene.environment.stiffness_n_per_m,
-        x_e_m: mb_scene.environment.x_e_m,
-    };
-    let sheet_plant =
-        OneDofPneumatic::from_scene(&one_scene, env).unwrap_or_else(|e| panic!("{e}"));
-    // Same system: the URDF's flange mass and K_v, the multibody scene's incline, the same chamber step.
-    let mut model = *sheet_plant.model();
-    model.mechanics.moving_mass_kg = mb_plant.flange_mass_kg();
-    model.mechanics.viscous_n_s_per_m = mb_plant.flange_damping_n_s_per_m();
-    model.mechanics.alpha_rad = mb_plant.config().alpha_rad;
-    let mut one = OneDofPneumatic::new(model, env.x_e_m, env, substeps_per_tick);
-
-    let i = mb_scene
-        .runs
-        .iter()
-        .position(|r| r.name == run)
-        .expect("run");
-    assert_eq!(
-        mb_scene.runs[i], one_scene.runs[i],
-        "same controller in both scenes"
+    let (actuator, substeps_per_tick) = (
+        mb.actuator.clone(),
+        mb.chamber_substeps * mb.steps_per_tick(scene.dt_s),
     );
-    assert_eq!(mb_scene.events.len(), 1);
-    let sp = build_setpoints(&mb_scene).unwrap();
-    let mut c1 = build_controller(&mb_scene, i).unwrap();
-    let r_mb = simulate(&mb_scene, i, &mut mb_plant, c1.as_mut(), &sp, &mut |_| {}).unwrap();
-    let mut c2 = build_controller(&one_scene, i).unwrap();
-    let r_one = simulate(&one_scene, i, &mut one, c2.as_mut(), &sp, &mut |_| {}).unwrap();
-    assert!(r_mb.diverged.is_none(), "{:?}", r_mb.diverged);
-    assert!(r_one.diverged.is_none(), "{:?}", r_one.diverged);
+    let sheet_path = scene.resolve(&actuator);
+    let rig = MultibodyPlant::from_scene(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let env = LinearSpring {
+        stiffness_n_per_m: scene.environment.stiffness_n_per_m,
+        x_e_m: scene.environment.x_e_m,
+    };
+    let mut model = pneuflex_pneumatics::ActuatorSheet::load(&sheet_path)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .model();
+    model.mechanics.moving_mass_kg = rig.flange_mass_kg();
+    model.mechanics.viscous_n_s_per_m = rig.flange_damping_n_s_per_m();
+    model.mechanics.alpha_rad = rig.config().alpha_rad;
+    let one = OneDofPneumatic::new(model, env.x_e_m, env, substeps_per_tick);
+    (scene, rig, one)
+}
 
-    // 40 Hz PWM of the actuator sheet's valve at a 1 ms control period: 25 samples.
-    let n_pwm = (1.0 / (40.0 * mb_scene.dt_s)).round() as usize;
-    let t_change = mb_scene.events[0].t_s();
-    let spring: Vec<f64> = r_mb
-        .trace
-        .t
-        .iter()
-        .zip(&r_mb.trace.x)
-        .map(|(&t, &x)| {
-            let k = if t < t_change - 0.5 * mb_scene.dt_s {
-                700.0
-            } else {
-                1400.0
-            };
-            k * (x - env.x_e_m).max(0.0)
-        })
-        .collect();
-    let mean = |v: &[f64], a: usize, b: usize| v[a..b].iter().sum::<f64>() / (b - a) as f64;
-    let window_mean = mb_scene
+fn run(scene: &Scene, name: &str, plant: &mut dyn pneuflex_scene::Plant) -> RunResult {
+    let i = scene.runs.iter().position(|r| r.name == name).expect("run");
+    let sp = build_setpoints(scene).unwrap();
+    let mut c = build_controller(scene, i).unwrap();
+    let r = simulate(scene, i, plant, c.as_mut(), &sp, &mut |_| {}).unwrap();
+    assert!(r.diverged.is_none(), "{:?}", r.diverged);
+    r
+}
+
+/// Largest |mean f_e difference| over the scene's metric windows, N.
+fn window_mean_diff(scene: &Scene, a: &RunResult, b: &RunResult) -> f64 {
+    let mean = |v: &[f64], i: usize, j: usize| v[i..j].iter().sum::<f64>() / (j - i) as f64;
+    scene
         .metrics
         .iter()
         .map(|w| {
-            let a = (w.t0_s / mb_scene.dt_s).round() as usize;
-            let b = ((w.t1_s / mb_scene.dt_s).round() as usize).min(r_mb.trace.t.len());
-            (mean(&r_mb.trace.f_e, a, b) - mean(&r_one.trace.f_e, a, b)).abs()
+            let i = (w.t0_s / scene.dt_s).round() as usize;
+            let j = ((w.t1_s / scene.dt_s).round() as usize).min(a.trace.t.len());
+            (mean(&a.trace.f_e, i, j) - mean(&b.trace.f_e, i, j)).abs()
         })
-        .fold(0.0, f64::max);
-    let c = Comparison {
-        raw: rms_diff(&r_mb.trace.f_e, &r_one.trace.f_e),
-        pwm_averaged: rms_diff(
-            &pwm_average(&r_mb.trace.f_e, n_pwm),
-            &pwm_average(&r_one.trace.f_e, n_pwm),
-        ),
-        spring_vs_one: rms_diff(&spring, &r_one.trace.f_e),
-        window_mean,
-    };
-    println!(
-        "{run}: RMS f_e difference raw {:.3} N, PWM-averaged {:.3} N; k_e (x_mb - x_e) vs f_e(1-DOF) {:.3} N; window means within {:.3} N",
-        c.raw, c.pwm_averaged, c.spring_vs_one, c.window_mean
-    );
-    c
+        .fold(0.0, f64::max)
 }
 
-/// Fig. 3 schedule, impedance control: the load cell of the Rapier rig agrees with the 1-DOF plant's f_e
-/// to 2 % of the 10 N level (0.2 N RMS) once the 40 Hz PWM ripple is averaged over one PWM period, and
-/// the mean force over every metric window agrees to 0.05 N. Raw samples differ by ~1.8 N RMS: the
-/// 9 g wood face on its 700 N/m mount resonates at 44 Hz, next to the 40 Hz PWM, so the load cell reads
-/// k q + m_face q'' (the face inertia cancels most of the ripple) where the 1-DOF spring reads k q.
-///
-/// Measured: raw 1.833 N, PWM-averaged 0.253 N (above the 0.2 N target), k_e (x_mb - x_e) against the
-/// 1-DOF f_e 0.322 N, window means within 0.020 N. The 0.2 N claim is therefore the ignored test below.
+/// The consistency claim: with the proportional valve sheet, impedance control on the Fig. 3
+/// schedule, the Rapier rig's load cell and the 1-DOF plant's f_e differ by at most 2 % of the 10 N level
+/// (0.2 N RMS) on raw samples. Measured 0.108 N; half of it is the stiffness change at 6 s, where the 1-DOF
+/// spring reads the doubled stiffness at once and the load cell (impulse over the last physics step) one
+/// step later. The adaptive run is not compared: with this valve the paper's gains limit-cycle at ~14 Hz
+/// on both plants (docs/control.md).
 #[test]
-fn multibody_matches_the_one_dof_plant_on_fig3_window_means() {
-    let c = compare("impedance");
-    assert!(
-        c.window_mean <= 0.05,
-        "window mean difference {:.3} N > 0.05 N",
-        c.window_mean
-    );
-    // The raw load-cell samples differ by the face inertia, not by the flange motion.
-    assert!(
-        c.spring_vs_one < c.raw,
-        "spring {:.3} N, raw {:.3} N",
-        c.spring_vs_one,
-        c.raw
-    );
-}
-
-/// The target, 0.2 N RMS (2 % of 10 N) on the PWM-averaged load cell: measured 0.253 N with
-/// the defaults (see docs/scenes.md); not tuned to pass.
-#[test]
-#[ignore = "measured 0.228 N > 0.2 N (PWM-averaged; raw 0.274 N) with 1 g faces; 0.278 N (raw 0.855 N) with the shipped 9 g face"]
 fn multibody_reproduces_the_one_dof_plant_within_two_percent() {
-    let c = compare("impedance");
+    let (scene, mut rig, mut one) = plants(Some("pneumatics/paper-actuator-proportional.toml"));
+    let r_rig = run(&scene, "impedance", &mut rig);
+    let r_one = run(&scene, "impedance", &mut one);
+    let raw = rms_diff(&r_rig.trace.f_e, &r_one.trace.f_e);
+    let windows = window_mean_diff(&scene, &r_rig, &r_one);
+    println!(
+        "proportional valve, impedance: RMS f_e difference {raw:.3} N; window means within {windows:.3} N"
+    );
     assert!(
-        c.pwm_averaged <= 0.2,
-        "PWM-averaged RMS difference {:.3} N > 0.2 N",
-        c.pwm_averaged
+        raw <= 0.2,
+        "RMS f_e difference {raw:.3} N > 0.2 N (2 % of 10 N)"
+    );
+    assert!(
+        windows <= 0.05,
+        "window mean difference {windows:.3} N > 0.05 N"
+    );
+}
+
+/// With the rig's 40 Hz PWM valve (the shipped scene as it is): the PWM-averaged f_e of the rig differs
+/// from the 1-DOF plant's by no more than 1.5 times what the 1-DOF plant differs from itself with its RK4
+/// step halved (the sensitivity floor of this closed loop), and the mean force over every metric window
+/// agrees to 0.05 N. Measured: rig vs 1-DOF 0.238 N, floor 0.219 N, window means within 0.02 N. Raw samples
+/// differ by ~1.1 N: the 9 g wood face resonates on its mount at 44 Hz, next to the PWM carrier, and the
+/// load cell reads k q + c q' + m_face q'' where the massless 1-DOF spring reads k q.
+#[test]
+fn pwm_rig_matches_the_one_dof_plant_to_its_own_sensitivity_floor() {
+    let (scene, mut rig, mut one) = plants(None);
+    let mut one_fine = OneDofPneumatic::new(
+        *one.model(),
+        scene.environment.x_e_m,
+        one.environment(),
+        2 * rig.drive().element.substeps() * rig.steps_per_tick(),
+    );
+    let r_rig = run(&scene, "impedance", &mut rig);
+    let r_one = run(&scene, "impedance", &mut one);
+    let r_fine = run(&scene, "impedance", &mut one_fine);
+    // 40 Hz PWM of the actuator sheet's valve at a 1 ms control period: 25 samples.
+    let n_pwm = (1.0 / (40.0 * scene.dt_s)).round() as usize;
+    let avg = |r: &RunResult| pwm_average(&r.trace.f_e, n_pwm);
+    let rig_vs_one = rms_diff(&avg(&r_rig), &avg(&r_one));
+    let floor = rms_diff(&avg(&r_fine), &avg(&r_one));
+    let windows = window_mean_diff(&scene, &r_rig, &r_one);
+    println!(
+        "PWM valve, impedance: PWM-averaged RMS f_e difference rig vs 1-DOF {rig_vs_one:.3} N, 1-DOF vs 1-DOF at half the step {floor:.3} N; window means within {windows:.3} N; raw rig vs 1-DOF {:.3} N",
+        rms_diff(&r_rig.trace.f_e, &r_one.trace.f_e)
+    );
+    assert!(
+        rig_vs_one <= 1.5 * floor,
+        "rig vs 1-DOF {rig_vs_one:.3} N > 1.5 x the 1-DOF floor {floor:.3} N"
+    );
+    assert!(
+        windows <= 0.05,
+        "window mean difference {windows:.3} N > 0.05 N"
     );
 }
