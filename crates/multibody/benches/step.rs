@@ -1,10 +1,13 @@
-//! Steps per second of the rig world (Rapier, 3 dynamic bodies + a kinematic carriage, one contact).
+//! Steps per second of the rig world (Rapier, 3 dynamic bodies + a kinematic carriage, one contact), and
+//! of Rapier's floor: the scene of the MuJoCo anchor (2 bodies on slide joints, one contact) built
+//! directly in Rapier, with nothing of this crate in the loop.
 //! `cargo bench -p pneuflex-multibody --bench step -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use pneuflex_multibody::{AxialActuator, MultibodyConfig, RigWorld, SpringActuator};
+use rapier3d_f64::prelude::*;
 
 fn rig(dt: f64, iterations: usize) -> RigWorld {
     let mut cfg = MultibodyConfig::paper_rig();
@@ -26,6 +29,7 @@ fn spring() -> SpringActuator {
 fn bench_step(c: &mut Criterion) {
     for (name, dt, it) in [
         ("step_spring_in_contact_dt1ms_it4", 1e-3, 4),
+        ("step_spring_in_contact_dt1ms_it2", 1e-3, 2),
         ("step_spring_in_contact_dt1ms_it1", 1e-3, 1),
         ("step_spring_in_contact_dt100us_it4", 1e-4, 4),
     ] {
@@ -41,5 +45,73 @@ fn bench_step(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_step);
+/// The anchor scene in plain Rapier: a 0.6 kg flange on a prismatic joint (stroke limits, K_v = 20 N·s/m)
+/// pushed by 10 N into a 9 g face on a 700 N/m, 2 N·s/m prismatic mount; rigid contact, dt = 1 ms.
+fn anchor_world(iterations: usize) -> (PhysicsWorld, RigidBodyHandle) {
+    let mut w = PhysicsWorld::new();
+    w.gravity = Vector::new(4.9, -8.5, 0.0);
+    let ip = &mut w.integration_parameters;
+    ip.dt = 1e-3;
+    ip.num_solver_iterations = iterations;
+    ip.contact_softness = SpringCoefficients::new(1.0e6, 1.0);
+    ip.max_ccd_substeps = 0;
+    let base = w.insert_body(RigidBodyBuilder::fixed().can_sleep(false));
+    let slide = |anchor: f64, k: f64, c: f64| {
+        let mut j = GenericJointBuilder::new(JointAxesMask::LOCKED_PRISMATIC_AXES)
+            .contacts_enabled(false)
+            .local_anchor1(Vector::new(anchor, 0.0, 0.0))
+            .build();
+        j.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
+        j.set_motor(JointAxis::LinX, 0.0, 0.0, k, c);
+        j
+    };
+    let flange = w.insert_body(
+        RigidBodyBuilder::dynamic()
+            .translation(Vector::new(0.02, 0.0, 0.0))
+            .can_sleep(false),
+    );
+    w.insert_collider(
+        ColliderBuilder::cuboid(0.005, 0.02, 0.02).mass(0.6),
+        Some(flange),
+    );
+    let mut j = slide(0.0, 0.0, 20.0);
+    j.set_limits(JointAxis::LinX, [0.0, 0.05]);
+    w.insert_impulse_joint(base, flange, j);
+    let face = w.insert_body(
+        RigidBodyBuilder::dynamic()
+            .translation(Vector::new(0.0301, 0.0, 0.0))
+            .can_sleep(false),
+    );
+    w.insert_collider(
+        ColliderBuilder::cuboid(0.005, 0.02, 0.02).mass(0.009),
+        Some(face),
+    );
+    w.insert_impulse_joint(base, face, slide(0.0301, 700.0, 2.0));
+    (w, flange)
+}
+
+fn bench_anchor(c: &mut Criterion) {
+    for it in [1, 2, 4] {
+        let (mut w, flange) = anchor_world(it);
+        let mut step = move || {
+            let b = &mut w.bodies[flange];
+            b.reset_forces(false);
+            b.add_force(Vector::new(10.0, 0.0, 0.0), true);
+            w.step();
+            w.narrow_phase
+                .contact_pairs()
+                .filter(|p| p.has_any_active_contact())
+                .count()
+        };
+        for _ in 0..1000 {
+            step();
+        }
+        assert_eq!(step(), 1, "the anchor scene runs in contact");
+        c.bench_function(&format!("anchor_plain_rapier_dt1ms_it{it}"), |b| {
+            b.iter(|| black_box(step()))
+        });
+    }
+}
+
+criterion_group!(benches, bench_step, bench_anchor);
 criterion_main!(benches);
