@@ -83,15 +83,15 @@ pub fn run(
     let report = rtloop::run(&mut sup, controller, reference, &mut trace, &opts, &stop)?;
     drop(sup);
     println!("{report}");
-    if let Some(f) = &report.fault {
-        if f.kind != pneuflex_rig::ErrorKind::Interrupted {
-            bail!(
-                "run ended on a fault: {}: {} (tick {})",
-                f.kind,
-                f.message,
-                f.tick
-            );
-        }
+    if let Some(f) = &report.fault
+        && f.kind != pneuflex_rig::ErrorKind::Interrupted
+    {
+        bail!(
+            "run ended on a fault: {}: {} (tick {})",
+            f.kind,
+            f.message,
+            f.tick
+        );
     }
     Ok(report)
 }

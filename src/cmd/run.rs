@@ -132,8 +132,8 @@ fn table(results: &[RunResult]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<12} {:<18} {:>12}  {}",
-        "run", "window", "RMS error", "details"
+        "{:<12} {:<18} {:>12}  details",
+        "run", "window", "RMS error"
     );
     for r in results {
         if let Some(why) = &r.diverged {

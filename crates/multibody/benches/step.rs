@@ -56,37 +56,32 @@ fn anchor_world(iterations: usize) -> (PhysicsWorld, RigidBodyHandle) {
     ip.contact_softness = SpringCoefficients::new(1.0e6, 1.0);
     ip.max_ccd_substeps = 0;
     let base = w.insert_body(RigidBodyBuilder::fixed().can_sleep(false));
-    let slide = |anchor: f64, k: f64, c: f64| {
+    // A 10 mm x 40 mm x 40 mm box of `mass` at x on a prismatic joint along x to the base, whose
+    // force-based motor is the spring-damper (k, c) about that x.
+    let mut slider = |x: f64, mass: f64, k: f64, c: f64, limits: Option<[f64; 2]>| {
+        let body = w.insert_body(
+            RigidBodyBuilder::dynamic()
+                .translation(Vector::new(x, 0.0, 0.0))
+                .can_sleep(false),
+        );
+        w.insert_collider(
+            ColliderBuilder::cuboid(0.005, 0.02, 0.02).mass(mass),
+            Some(body),
+        );
         let mut j = GenericJointBuilder::new(JointAxesMask::LOCKED_PRISMATIC_AXES)
             .contacts_enabled(false)
-            .local_anchor1(Vector::new(anchor, 0.0, 0.0))
+            .local_anchor1(Vector::new(x, 0.0, 0.0))
             .build();
         j.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
         j.set_motor(JointAxis::LinX, 0.0, 0.0, k, c);
-        j
+        if let Some(l) = limits {
+            j.set_limits(JointAxis::LinX, l);
+        }
+        w.insert_impulse_joint(base, body, j);
+        body
     };
-    let flange = w.insert_body(
-        RigidBodyBuilder::dynamic()
-            .translation(Vector::new(0.02, 0.0, 0.0))
-            .can_sleep(false),
-    );
-    w.insert_collider(
-        ColliderBuilder::cuboid(0.005, 0.02, 0.02).mass(0.6),
-        Some(flange),
-    );
-    let mut j = slide(0.0, 0.0, 20.0);
-    j.set_limits(JointAxis::LinX, [0.0, 0.05]);
-    w.insert_impulse_joint(base, flange, j);
-    let face = w.insert_body(
-        RigidBodyBuilder::dynamic()
-            .translation(Vector::new(0.0301, 0.0, 0.0))
-            .can_sleep(false),
-    );
-    w.insert_collider(
-        ColliderBuilder::cuboid(0.005, 0.02, 0.02).mass(0.009),
-        Some(face),
-    );
-    w.insert_impulse_joint(base, face, slide(0.0301, 700.0, 2.0));
+    let flange = slider(0.02, 0.6, 0.0, 20.0, Some([-0.02, 0.03]));
+    slider(0.0301, 0.009, 700.0, 2.0, None);
     (w, flange)
 }
 

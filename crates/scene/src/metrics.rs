@@ -69,8 +69,9 @@ fn solve3(mut m: [[f64; 3]; 3], mut r: [f64; 3]) -> Option<[f64; 3]> {
         r.swap(col, piv);
         for row in col + 1..3 {
             let f = m[row][col] / m[col][col];
-            for k in col..3 {
-                m[row][k] -= f * m[col][k];
+            let pivot_row = m[col];
+            for (a, p) in m[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *a -= f * p;
             }
             r[row] -= f * r[col];
         }

@@ -106,8 +106,7 @@ fn missing_actuator_sheet_is_an_error_not_a_panic() {
     let scene = Scene::from_toml_str(&text, Path::new("scenes/x.toml"), Path::new("/nonexistent"))
         .unwrap_or_else(|e| panic!("{e}"));
     let err = pneuflex_scene::run_scene(&scene, &mut |_| {})
-        .err()
-        .expect("missing actuator sheet accepted");
+        .expect_err("missing actuator sheet accepted");
     let msg = err.to_string();
     assert!(
         msg.contains("scenes/x.toml: plant: plant.actuator") && msg.contains("nowhere.toml"),

@@ -230,7 +230,7 @@ fn force_lines<'a>(ok: &[&'a RunResult]) -> Vec<Line<'a>> {
         label: "reference f_ref".into(),
         t: &ok[0].trace.t,
         y: ok[0].trace.f_ref.clone(),
-        color: BLACK.into(),
+        color: BLACK,
         dashed: true,
         width: 2,
     }];
