@@ -1,7 +1,8 @@
-//! Steps per second of the rig world (Rapier, 3 dynamic bodies + a kinematic carriage, one contact), and
+//! Steps per second of the rig world (Rapier: the flange and the face in front of it dynamic, the carriage
+//! kinematic, one contact; the other faces are out of the simulation while the carriage rests), and
 //! of Rapier's floor: the scene of the MuJoCo anchor (2 bodies on slide joints, one contact) built
 //! directly in Rapier, with nothing of this crate in the loop.
-//! `cargo bench -p pneuflex-multibody --bench step -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p pneuflex-multibody --bench step -- --warm-up-time 1 --measurement-time 4`
 
 use std::hint::black_box;
 
@@ -46,7 +47,8 @@ fn bench_step(c: &mut Criterion) {
 }
 
 /// The anchor scene in plain Rapier: a 0.6 kg flange on a prismatic joint (stroke limits, K_v = 20 N·s/m)
-/// pushed by 10 N into a 9 g face on a 700 N/m, 2 N·s/m prismatic mount; rigid contact, dt = 1 ms.
+/// pushed by 10 N into a 9 g face on a 700 N/m, 2 N·s/m prismatic mount; rigid contact, dt = 1 ms. Gravity
+/// is the rig's at 30°, so the flange presses with ~12.9 N (10 N + m g sin 30°).
 fn anchor_world(iterations: usize) -> (PhysicsWorld, RigidBodyHandle) {
     let mut w = PhysicsWorld::new();
     w.gravity = Vector::new(4.9, -8.5, 0.0);

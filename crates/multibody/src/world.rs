@@ -161,6 +161,19 @@ impl MultibodyConfig {
                     format!("material '{}' is listed twice", m.name),
                 );
             }
+            if let Some(o) = self.materials[..i]
+                .iter()
+                .find(|o| o.mount_joint == m.mount_joint)
+            {
+                // One face, one spring: two materials on one mount would fight over its stiffness.
+                return bad(
+                    "materials.mount_joint",
+                    format!(
+                        "materials '{}' and '{}' both use mount joint '{}'",
+                        o.name, m.name, m.mount_joint
+                    ),
+                );
+            }
         }
         if !self
             .materials
@@ -223,6 +236,10 @@ struct Material {
     x_e_m: f64,
     /// Carriage transverse offset (from its URDF pose) that aligns this face with the flange, m.
     align_offset_m: f64,
+    /// URDF link of the face (its colliders are the contact geometry).
+    face_link: usize,
+    /// Other materials whose faces the flange can touch within its stroke while this one faces it.
+    in_reach: Vec<usize>,
 }
 
 /// A kinematic carriage move in progress: retreat along the axis, slide across, come back.
@@ -262,6 +279,8 @@ pub struct RigWorld {
     carriage_retreat_m: f64,
     swap_retreat_m: f64,
     motion: Option<CarriageMove>,
+    /// A carriage move ended this step: take the faces out of reach out of the simulation after it.
+    settle_faces: bool,
     alpha_rad: f64,
     gravity_m_s2: f64,
     time_s: f64,
@@ -491,7 +510,26 @@ impl RigWorld {
                 // x measured from the retracted stop.
                 x_e_m: x_e_m - lower,
                 align_offset_m,
+                face_link: j.child,
+                in_reach: Vec::new(),
             });
+        }
+        // Faces the flange can reach while another material faces it (only a rig with faces closer together
+        // than the flange is wide): they stay simulated while that material is active.
+        for i in 0..materials.len() {
+            let shift = Pose::from_translation(transverse * materials[i].align_offset_m);
+            for k in 0..materials.len() {
+                let touch = first_touch(
+                    &rig,
+                    &rig.links[flange_link].colliders,
+                    &rig.links[materials[k].face_link].colliders,
+                    &(shift * *rig.world.bodies[materials[k].face_body].position()),
+                    axis,
+                );
+                if k != i && touch.is_some_and(|t| t - lower <= stroke_m) {
+                    materials[i].in_reach.push(k);
+                }
+            }
         }
         // Only the flange and the material faces touch by design: give every other collider an empty
         // filter so the broad and narrow phases never pair them (fewer pairs, faster steps).
@@ -562,6 +600,7 @@ impl RigWorld {
             carriage_retreat_m: 0.0,
             swap_retreat_m,
             motion: None,
+            settle_faces: false,
             alpha_rad: config.alpha_rad,
             gravity_m_s2: config.gravity_m_s2,
             time_s: 0.0,
@@ -663,6 +702,9 @@ impl RigWorld {
         }
         self.advance_carriage(self.time_s + dt);
         self.rig.world.step();
+        if std::mem::take(&mut self.settle_faces) {
+            self.simulate_only_face(self.active);
+        }
         self.time_s += dt;
         self.last = self.read_sensors(force_n);
         self.last
@@ -882,17 +924,22 @@ impl RigWorld {
         if s >= 1.0 {
             self.active = Some(mv.target);
             self.motion = None;
-            self.simulate_only_face(Some(mv.target));
+            // After this step, so that every face rides the carriage's last leg to its rest pose.
+            self.settle_faces = true;
         }
     }
 
-    /// Take the faces of the materials that do not face the flange out of the simulation (`Some(i)`:
-    /// only material i's face and mount stay in; `None`: all are in). A face out of reach of the flange on
-    /// a carriage at rest only rests on its mount: simulating it costs a third of the solver's time per
-    /// step and changes nothing the flange feels. Its pose, mount stiffness and damping are kept.
+    /// Take the faces out of the flange's reach out of the simulation while the carriage rests (`Some(i)`:
+    /// material i faces the flange, and only its face and the faces in its `in_reach` stay in; `None`: all
+    /// are in). A face the flange cannot touch, on a carriage at rest, only rests on its mount: simulating
+    /// it costs a third of the solver's time per step and changes nothing the flange feels. Its pose, mount
+    /// stiffness and damping are kept (a stiffness event on it takes effect when it comes back).
     fn simulate_only_face(&mut self, only: Option<usize>) {
+        let reach = only.map(|k| (k, self.materials[k].in_reach.clone()));
         for (i, m) in self.materials.iter().enumerate() {
-            let on = only.is_none_or(|k| k == i);
+            let on = reach
+                .as_ref()
+                .is_none_or(|(k, near)| *k == i || near.contains(&i));
             self.rig.world.bodies[m.face_body].set_enabled(on);
             if let Some(j) = self.rig.world.impulse_joints.get_mut(m.joint, on) {
                 j.data.set_enabled(on);

@@ -138,3 +138,26 @@ fn non_positive_dt_and_stiffness_are_rejected() {
         }
     ));
 }
+
+#[test]
+fn two_materials_on_one_mount_are_rejected() {
+    let mut cfg = MultibodyConfig::paper_rig();
+    let mut soft = cfg.materials[0].clone();
+    soft.name = "soft wood".into();
+    cfg.materials.push(soft);
+    let (e, msg) = build_err(&rig_path(), &cfg);
+    assert!(
+        matches!(
+            e,
+            MultibodyError::BadConfig {
+                field: "materials.mount_joint",
+                ..
+            }
+        ),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("wood_mount") && msg.contains("soft wood"),
+        "{msg}"
+    );
+}

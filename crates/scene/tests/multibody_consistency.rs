@@ -100,10 +100,11 @@ fn window_mean_diff(scene: &Scene, a: &RunResult, b: &RunResult) -> f64 {
 
 /// The consistency claim: with the proportional valve sheet, impedance control on the Fig. 3
 /// schedule, the Rapier rig's load cell and the 1-DOF plant's f_e differ by at most 2 % of the 10 N level
-/// (0.2 N RMS) on raw samples. Measured 0.108 N; half of it is the stiffness change at 6 s, where the 1-DOF
-/// spring reads the doubled stiffness at once and the load cell (impulse over the last physics step) one
-/// step later. The adaptive run is not compared: with this valve the paper's gains limit-cycle at ~14 Hz
-/// on both plants (docs/control.md).
+/// (0.2 N RMS) on raw samples. Measured 0.108 N, most of it one sample: at the stiffness change (6 s) the
+/// 1-DOF spring reads the doubled force at once and the load cell (the contact impulse over the last
+/// physics step) one step later. Without that sample the difference is 1 % or less (measured 0.061 N).
+/// The adaptive run is not compared: with this valve the paper's gains limit-cycle at ~14 Hz on the 1-DOF
+/// plant (docs/control.md), and a limit cycle's phase is not reproducible across models.
 #[test]
 fn multibody_reproduces_the_one_dof_plant_within_two_percent() {
     let (scene, mut rig, mut one) = plants(Some("pneumatics/paper-actuator-proportional.toml"));
@@ -111,23 +112,38 @@ fn multibody_reproduces_the_one_dof_plant_within_two_percent() {
     let r_one = run(&scene, "impedance", &mut one);
     let raw = rms_diff(&r_rig.trace.f_e, &r_one.trace.f_e);
     let windows = window_mean_diff(&scene, &r_rig, &r_one);
+    // The sample at the stiffness event, where the load cell lags the massless spring by one step.
+    let i_event = (scene.events[0].t_s() / scene.dt_s).round() as usize;
+    let without = |v: &[f64]| {
+        v.iter()
+            .enumerate()
+            .filter(|&(i, _)| i != i_event)
+            .map(|(_, &x)| x)
+            .collect::<Vec<f64>>()
+    };
+    let rest = rms_diff(&without(&r_rig.trace.f_e), &without(&r_one.trace.f_e));
     println!(
-        "proportional valve, impedance: RMS f_e difference {raw:.3} N; window means within {windows:.3} N"
+        "proportional valve, impedance: RMS f_e difference {raw:.3} N ({rest:.3} N without the sample at the stiffness change); window means within {windows:.3} N"
     );
     assert!(
         raw <= 0.2,
         "RMS f_e difference {raw:.3} N > 0.2 N (2 % of 10 N)"
     );
     assert!(
-        windows <= 0.05,
-        "window mean difference {windows:.3} N > 0.05 N"
+        rest <= 0.1,
+        "RMS f_e difference without the event sample {rest:.3} N > 0.1 N (1 % of 10 N)"
+    );
+    assert!(
+        windows <= 0.01,
+        "window mean difference {windows:.3} N > 0.01 N"
     );
 }
 
 /// With the rig's 40 Hz PWM valve (the shipped scene as it is): the PWM-averaged f_e of the rig differs
 /// from the 1-DOF plant's by no more than 1.5 times what the 1-DOF plant differs from itself with its RK4
 /// step halved (the sensitivity floor of this closed loop), and the mean force over every metric window
-/// agrees to 0.05 N. Measured: rig vs 1-DOF 0.238 N, floor 0.219 N, window means within 0.02 N. Raw samples
+/// agrees to 0.05 N; and, whatever the floor, at most 0.35 N. Measured: rig vs 1-DOF 0.238 N, floor
+/// 0.219 N, window means within 0.018 N. Raw samples
 /// differ by ~1.1 N: the 9 g wood face resonates on its mount at 44 Hz, next to the PWM carrier, and the
 /// load cell reads k q + c q' + m_face q'' where the massless 1-DOF spring reads k q.
 #[test]
@@ -155,6 +171,10 @@ fn pwm_rig_matches_the_one_dof_plant_to_its_own_sensitivity_floor() {
     assert!(
         rig_vs_one <= 1.5 * floor,
         "rig vs 1-DOF {rig_vs_one:.3} N > 1.5 x the 1-DOF floor {floor:.3} N"
+    );
+    assert!(
+        rig_vs_one <= 0.35,
+        "rig vs 1-DOF {rig_vs_one:.3} N > 0.35 N"
     );
     assert!(
         windows <= 0.05,
