@@ -234,3 +234,49 @@ fn realistic_materials_obey_spring_law_at_fine_steps() {
         );
     }
 }
+
+/// Dynamic bodies Rapier simulates now.
+fn simulated_dynamic_bodies(w: &RigWorld) -> usize {
+    w.physics()
+        .bodies
+        .iter()
+        .filter(|(_, b)| b.is_dynamic() && b.is_enabled())
+        .count()
+}
+
+/// While the carriage rests only the face in front of the flange is simulated (with the flange); every face
+/// rides a carriage move, and the other faces leave the simulation after it.
+#[test]
+fn faces_out_of_reach_leave_the_simulation_while_the_carriage_rests() {
+    let mut w = RigWorld::from_urdf(rig_path(), &MultibodyConfig::paper_rig()).unwrap();
+    let mut act = ConstantForce { force_n: 10.0 };
+    w.step(&mut act);
+    assert_eq!(simulated_dynamic_bodies(&w), 2, "flange and wood face");
+    w.swap_environment("iron", 0.9).unwrap();
+    w.step(&mut act);
+    assert_eq!(simulated_dynamic_bodies(&w), 3, "all faces during the move");
+    for _ in 0..900 {
+        w.step(&mut act);
+    }
+    assert_eq!(w.active_material(), Some("iron"));
+    assert_eq!(simulated_dynamic_bodies(&w), 2, "flange and iron face");
+}
+
+/// A face the flange can touch while another material faces it stays simulated: in this fixture the iron
+/// face overlaps the flange by 5 mm while the wood faces it, at the same first-touch extension.
+#[test]
+fn a_face_within_the_flanges_reach_stays_simulated() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/close_faces.urdf");
+    let mut w = RigWorld::from_urdf(path, &MultibodyConfig::paper_rig()).unwrap();
+    let mut act = ConstantForce { force_n: 10.0 };
+    for _ in 0..1000 {
+        w.step(&mut act);
+    }
+    assert_eq!(
+        simulated_dynamic_bodies(&w),
+        3,
+        "flange, wood face and the iron face in reach"
+    );
+    assert!(w.measurements().contact);
+}
