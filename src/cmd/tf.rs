@@ -5,13 +5,14 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Context as _;
-use pneuflex_pneumatics::{ActuatorSheet, find_actuator_sheet};
+use pneuflex_pneumatics::load_actuator_sheet;
 
 /// Computes K_n, omega_n, xi_n and the denominator of eq. (16) for the actuator in `path`; returns a
 /// table, or one JSON object (SI units) when `json` is set.
 pub fn tf(path: &Path, json: bool) -> anyhow::Result<String> {
-    let sheet_path = find_actuator_sheet(path)?;
-    let sheet = ActuatorSheet::load(&sheet_path)?;
+    // Errors name the file, the line and the key (also the scene key or sheet key naming a missing file).
+    let sheet = load_actuator_sheet(path)?;
+    let sheet_path = sheet.path.clone();
     let model = sheet.model();
     let (op, tf) = model
         .transfer_function_mid_stroke()

@@ -6,12 +6,29 @@ use std::path::PathBuf;
 /// (where one is involved) and the URDF element at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum MultibodyError {
-    /// The URDF file could not be read or parsed.
+    /// The URDF file does not parse (XML syntax: with its line; or urdf-rs' message).
     #[error("{file}: URDF does not parse: {reason}")]
     Parse {
         /// The URDF file.
         file: PathBuf,
         /// The parser's message.
+        reason: String,
+    },
+    /// The URDF file could not be read: missing, not a regular file (a FIFO, a device), over the size
+    /// limit, or not UTF-8. The OS error is printed once.
+    #[error(transparent)]
+    Input(#[from] pneuflex_files::InputError),
+    /// A URDF element is malformed: a numeric attribute that is not the right count of finite numbers,
+    /// or nesting too deep. Names the file, the line and the element as written.
+    #[error("{file}:{line}: {element}: {reason}")]
+    Element {
+        /// The URDF file.
+        file: PathBuf,
+        /// Line of the element's start tag, from 1.
+        line: usize,
+        /// The start tag, e.g. `<mass value="heavy">`.
+        element: String,
+        /// What was expected and what was found (and the link or joint it is in).
         reason: String,
     },
     /// The configuration names a link that the URDF does not contain.

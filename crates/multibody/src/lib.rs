@@ -7,6 +7,7 @@
 pub mod actuator;
 pub mod error;
 pub mod urdf_build;
+pub mod urdf_scan;
 pub mod world;
 
 pub use actuator::{AxialActuator, ConstantForce, PneumaticForceElement, SpringActuator};

@@ -164,17 +164,42 @@ pub fn urdf_pose(p: &urdf_rs::Pose) -> Pose {
     Pose::from_parts(Vector::from_array(p.xyz.0), rot)
 }
 
-/// Read a URDF file with `urdf-rs`.
+/// Read a URDF file with `urdf-rs`: a regular file within `InputKind::Urdf`'s size limit, pre-scanned
+/// for nesting depth and malformed numbers (errors with line and element, see [`crate::urdf_scan`]).
 pub fn read_urdf(path: &Path) -> Result<urdf_rs::Robot, MultibodyError> {
-    let text = std::fs::read_to_string(path).map_err(|e| MultibodyError::Parse {
-        file: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
+    let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Urdf)?;
+    crate::urdf_scan::scan(path, &text)?;
     urdf_rs::read_from_string(&text).map_err(|e| MultibodyError::Parse {
         file: path.to_path_buf(),
         reason: e.to_string(),
     })
 }
+
+/// Principal moments of a symmetric 3x3 tensor, descending (closed form, Smith 1961).
+fn principal_moments(i: &urdf_rs::Inertia) -> [f64; 3] {
+    let off = i.ixy * i.ixy + i.ixz * i.ixz + i.iyz * i.iyz;
+    let mut e = if off == 0.0 {
+        [i.ixx, i.iyy, i.izz]
+    } else {
+        let q = (i.ixx + i.iyy + i.izz) / 3.0;
+        let (a, b, c) = (i.ixx - q, i.iyy - q, i.izz - q);
+        let p = ((a * a + b * b + c * c + 2.0 * off) / 6.0).sqrt();
+        // det((A - qI) / p) / 2, clamped against rounding.
+        let det = a * (b * c - i.iyz * i.iyz) - i.ixy * (i.ixy * c - i.iyz * i.ixz)
+            + i.ixz * (i.ixy * i.iyz - b * i.ixz);
+        let r = (det / (2.0 * p * p * p)).clamp(-1.0, 1.0);
+        let phi = r.acos() / 3.0;
+        let e1 = q + 2.0 * p * phi.cos();
+        let e3 = q + 2.0 * p * (phi + 2.0 * core::f64::consts::PI / 3.0).cos();
+        [e1, 3.0 * q - e1 - e3, e3]
+    };
+    e.sort_by(|x, y| y.total_cmp(x));
+    e
+}
+
+/// Relative slack of the triangle-inequality check: URDF files round moments to 3-4 digits, and thin
+/// plates sit on the boundary (the shipped carriage plate exceeds it by 0.09 % from rounding).
+const TRIANGLE_SLACK: f64 = 1e-2;
 
 fn inertial_check(
     file: &Path,
@@ -206,6 +231,16 @@ fn inertial_check(
     if !(d1 > 0.0 && d2 > 0.0 && d3 > 0.0) {
         return Err(bad(format!(
             "inertia tensor must be positive definite (ixx={}, ixy={}, ixz={}, iyy={}, iyz={}, izz={})",
+            i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz
+        )));
+    }
+    // Each principal moment is an integral of r^2 over two axes: no rigid body has one larger than the
+    // sum of the other two.
+    let [e1, e2, e3] = principal_moments(i);
+    if e1 > (e2 + e3) * (1.0 + TRIANGLE_SLACK) {
+        return Err(bad(format!(
+            "principal moments of inertia {e1:e}, {e2:e}, {e3:e} kg m^2 break the triangle inequality \
+             ({e1:e} > {e2:e} + {e3:e}): no rigid body has them (ixx={}, ixy={}, ixz={}, iyy={}, iyz={}, izz={})",
             i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz
         )));
     }
@@ -587,4 +622,50 @@ pub fn build(
         joints,
         file: file.to_path_buf(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// diag(d) turned by `a` about z, as a URDF inertia.
+    fn turned(d: [f64; 3], a: f64) -> urdf_rs::Inertia {
+        let (s, c) = a.sin_cos();
+        urdf_rs::Inertia {
+            ixx: c * c * d[0] + s * s * d[1],
+            ixy: c * s * (d[0] - d[1]),
+            ixz: 0.0,
+            iyy: s * s * d[0] + c * c * d[1],
+            iyz: 0.0,
+            izz: d[2],
+        }
+    }
+
+    #[test]
+    fn principal_moments_of_a_full_tensor() {
+        let e = principal_moments(&turned([1.0, 2.0, 2.9], 0.5));
+        for (got, want) in e.iter().zip([2.9, 2.0, 1.0]) {
+            assert!((got - want).abs() < 1e-12, "{e:?}");
+        }
+    }
+
+    #[test]
+    fn a_turned_tensor_breaking_the_triangle_inequality_is_refused() {
+        // Positive definite on the diagonal and by Sylvester, but 5 > 1 + 3 after turning.
+        let link = urdf_rs::Link {
+            name: "l".into(),
+            inertial: urdf_rs::Inertial {
+                origin: Default::default(),
+                mass: urdf_rs::Mass { value: 1.0 },
+                inertia: turned([5.0, 1.0, 3.0], 0.7),
+            },
+            visual: vec![],
+            collision: vec![],
+        };
+        let e = inertial_check(Path::new("t.urdf"), &link).unwrap_err();
+        assert!(e.to_string().contains("triangle inequality"), "{e}");
+        let mut ok = link.clone();
+        ok.inertial.inertia = turned([4.0, 1.0, 3.0], 0.7);
+        assert!(inertial_check(Path::new("t.urdf"), &ok).unwrap().is_some());
+    }
 }

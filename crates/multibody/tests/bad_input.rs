@@ -32,12 +32,14 @@ fn urdf_that_does_not_parse() {
     assert!(msg.contains("not_xml.urdf"), "{msg}");
 }
 
+/// A missing file is an input error naming it, with the OS error printed once (no `source()` repeating it).
 #[test]
-fn missing_file_is_a_parse_error_naming_it() {
+fn missing_file_is_an_input_error_naming_it() {
     let p = fixture("no_such_file.urdf");
     let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
-    assert!(matches!(e, MultibodyError::Parse { .. }), "{msg}");
-    assert!(msg.contains("no_such_file.urdf"), "{msg}");
+    assert!(matches!(e, MultibodyError::Input(_)), "{msg}");
+    assert!(msg.contains("no_such_file.urdf: cannot read: "), "{msg}");
+    assert!(std::error::Error::source(&e).is_none(), "{msg}");
 }
 
 #[test]
@@ -160,4 +162,188 @@ fn two_materials_on_one_mount_are_rejected() {
         msg.contains("wood_mount") && msg.contains("soft wood"),
         "{msg}"
     );
+}
+
+/// A copy of the shipped rig.urdf with `from` replaced by `to` (which must occur), in a scratch directory.
+fn rig_variant(case: &str, from: &str, to: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("pneuflex-multibody-{}-{case}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(rig_path()).unwrap();
+    assert!(text.contains(from), "rig.urdf lacks {from:?}");
+    let p = dir.join("rig.urdf");
+    std::fs::write(&p, text.replacen(from, to, 1)).unwrap();
+    p
+}
+
+/// 1-based line of the first line of `path` containing `needle`.
+fn line_of(path: &Path, needle: &str) -> usize {
+    let text = std::fs::read_to_string(path).unwrap();
+    1 + text.lines().position(|l| l.contains(needle)).unwrap()
+}
+
+/// Builds on a thread; the error within 5 s (a hang or an unbounded read fails the test).
+fn build_err_within_5_s(path: PathBuf) -> (MultibodyError, String) {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(build_err(&path, &MultibodyConfig::paper_rig()));
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(5))
+        .expect("building did not finish within 5 s")
+}
+
+/// Issue 11: 20,000 nested elements aborted the process with a stack overflow inside urdf-rs; now an
+/// error naming the file, the line and the element, found before urdf-rs parses anything.
+#[test]
+fn deeply_nested_urdf_is_an_error_not_a_stack_overflow() {
+    let depth = 20_000;
+    let p = rig_variant(
+        "deep",
+        "<link name=\"flange\">",
+        &format!(
+            "<link name=\"flange\">\n{}{}",
+            "<deep>".repeat(depth),
+            "</deep>".repeat(depth)
+        ),
+    );
+    let line = line_of(&p, "<deep>");
+    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
+    assert!(
+        msg.starts_with(&format!(
+            "{}:{line}: <deep>: elements nested deeper than 64 levels",
+            p.display()
+        )),
+        "{msg}"
+    );
+    assert!(msg.contains("(in link 'flange')"), "{msg}");
+}
+
+/// Issue 11: `<mass value="heavy"/>` gave `custom: invalid float literal`; now file, line, element, key.
+#[test]
+fn non_numeric_mass_names_file_line_and_element() {
+    let p = rig_variant("heavy", "<mass value=\"0.60\"/>", "<mass value=\"heavy\"/>");
+    let line = line_of(&p, "heavy");
+    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
+    assert_eq!(
+        msg,
+        format!(
+            "{}:{line}: <mass value=\"heavy\">: value: expected a finite number, got \"heavy\" (in link 'flange')",
+            p.display()
+        )
+    );
+}
+
+/// Issue 11: a vector with the wrong count or a non-finite entry is reported at its element.
+#[test]
+fn malformed_vectors_name_file_line_and_element() {
+    for (case, from, to, what) in [
+        (
+            "axis",
+            "<axis xyz=\"1 0 0\"/>",
+            "<axis xyz=\"1 0\"/>",
+            "xyz: expected 3 finite numbers",
+        ),
+        (
+            "box",
+            "<box size=\"0.01 0.04 0.04\"/>",
+            "<box size=\"0.01 0.04 inf\"/>",
+            "size: expected 3 finite numbers",
+        ),
+        (
+            "inertia",
+            "ixx=\"1.6e-04\"",
+            "ixx=\"1.6e-04kg\"",
+            "ixx: expected a finite number",
+        ),
+    ] {
+        let p = rig_variant(case, from, to);
+        let line = line_of(&p, to);
+        let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+        assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
+        assert!(
+            msg.starts_with(&format!("{}:{line}: <", p.display())) && msg.contains(what),
+            "{msg}"
+        );
+    }
+}
+
+/// Issue 11: an inertia that breaks the triangle inequality (positive definite, but no rigid body has it)
+/// was accepted; now an error naming the link.
+#[test]
+fn inertia_breaking_the_triangle_inequality_names_the_link() {
+    let p = rig_variant(
+        "triangle",
+        "ixx=\"1.6e-04\" ixy=\"0\" ixz=\"0\" iyy=\"8.5e-05\"",
+        "ixx=\"1.6e-03\" ixy=\"0\" ixz=\"0\" iyy=\"8.5e-05\"",
+    );
+    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    assert!(matches!(e, MultibodyError::BadInertial { .. }), "{msg}");
+    assert!(
+        msg.contains("'flange'") && msg.contains("triangle inequality"),
+        "{msg}"
+    );
+}
+
+/// Issue 11: `/dev/zero` as the URDF was read without bound; now refused before it is opened.
+#[cfg(unix)]
+#[test]
+fn device_as_urdf_is_refused() {
+    let (e, msg) = build_err_within_5_s(PathBuf::from("/dev/zero"));
+    assert!(matches!(e, MultibodyError::Input(_)), "{msg}");
+    assert!(
+        msg.contains("/dev/zero: not a regular file (a character device)"),
+        "{msg}"
+    );
+}
+
+/// Issue 11: a FIFO as the URDF blocked forever in open(); now refused after a stat.
+#[cfg(unix)]
+#[test]
+fn fifo_as_urdf_does_not_block() {
+    let dir = std::env::temp_dir().join(format!("pneuflex-multibody-{}-fifo", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("rig.urdf");
+    let _ = std::fs::remove_file(&fifo);
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    if !made {
+        eprintln!("mkfifo unavailable; skipped");
+        return;
+    }
+    let (e, msg) = build_err_within_5_s(fifo);
+    assert!(matches!(e, MultibodyError::Input(_)), "{msg}");
+    assert!(msg.contains("not a regular file (a FIFO)"), "{msg}");
+}
+
+/// Nesting up to the limit (64 levels, here inside a link's extension element) still parses and builds:
+/// the limit refuses only what urdf-rs could not take.
+#[test]
+fn nesting_at_the_limit_is_accepted() {
+    // robot > link > 62 levels = 64.
+    let n = pneuflex_multibody::urdf_scan::MAX_DEPTH - 2;
+    let p = rig_variant(
+        "at-limit",
+        "<link name=\"flange\">",
+        &format!(
+            "<link name=\"flange\">\n{}{}",
+            "<ext>".repeat(n),
+            "</ext>".repeat(n)
+        ),
+    );
+    RigWorld::from_urdf(&p, &MultibodyConfig::paper_rig()).unwrap();
+    let p = rig_variant(
+        "over-limit",
+        "<link name=\"flange\">",
+        &format!(
+            "<link name=\"flange\">\n{}{}",
+            "<ext>".repeat(n + 1),
+            "</ext>".repeat(n + 1)
+        ),
+    );
+    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
 }

@@ -14,14 +14,17 @@ use crate::valve::{ValveKind, ValveModel};
 /// Error reading or validating a component file.
 #[derive(Debug, thiserror::Error)]
 pub enum ComponentError {
-    /// The file could not be read.
-    #[error("{path}: cannot read: {source}")]
+    /// The operating system refused to read the file (missing, permissions, ...).
+    #[error("{path}: cannot read: {os_error}")]
     Io {
         /// File path.
         path: String,
-        /// Underlying I/O error.
-        source: std::io::Error,
+        /// The OS error: in the message, not a `source()`, so that it is printed once.
+        os_error: std::io::Error,
     },
+    /// Not a regular file (a FIFO, a device, a directory), larger than a sheet may be, or not UTF-8.
+    #[error(transparent)]
+    Input(pneuflex_files::InputError),
     /// The file is not valid TOML or does not match the schema (unknown key, wrong type, missing key).
     #[error("{path}: {message}")]
     Parse {
@@ -31,22 +34,73 @@ pub enum ComponentError {
         message: String,
     },
     /// A value is out of range.
-    #[error("{path}: {field}: {message}")]
+    #[error("{path}{}: {field}: {message}", at_line(*line))]
     Invalid {
         /// File path.
         path: String,
+        /// Line of the key (or of its table when the key is absent), when known.
+        line: Option<usize>,
         /// Dotted field name, e.g. `cylinder.bore_m`.
         field: String,
         /// What was expected and what was found.
         message: String,
     },
+    /// A file named by a key of this file could not be read.
+    #[error("{path}{}: {key}: {error}", at_line(*line))]
+    Referenced {
+        /// The file holding the key.
+        path: String,
+        /// Line of the key, when known.
+        line: Option<usize>,
+        /// Dotted key, e.g. `components.valve`.
+        key: String,
+        /// Why the named file could not be read (in the message, not a `source()`: printed once).
+        error: Box<ComponentError>,
+    },
 }
 
+fn at_line(line: Option<usize>) -> String {
+    line.map_or_else(String::new, |l| format!(":{l}"))
+}
+
+impl ComponentError {
+    /// The OS error behind this error, if any (also through `Referenced`).
+    pub fn os_error(&self) -> Option<&std::io::Error> {
+        match self {
+            ComponentError::Io { os_error, .. } => Some(os_error),
+            ComponentError::Input(pneuflex_files::InputError::Io { os_error, .. }) => {
+                Some(os_error)
+            }
+            ComponentError::Referenced { error, .. } => error.os_error(),
+            _ => None,
+        }
+    }
+}
+
+impl From<pneuflex_files::InputError> for ComponentError {
+    fn from(e: pneuflex_files::InputError) -> Self {
+        match e {
+            pneuflex_files::InputError::Io { path, os_error } => ComponentError::Io {
+                path: path.display().to_string(),
+                os_error,
+            },
+            other => ComponentError::Input(other),
+        }
+    }
+}
+
+/// Reads a sheet: a regular file of at most `InputKind::Sheet.max_bytes()` (a FIFO or `/dev/zero` is an
+/// error, never a hang or an unbounded read).
 fn read(path: &Path) -> Result<String, ComponentError> {
-    std::fs::read_to_string(path).map_err(|source| ComponentError::Io {
-        path: path.display().to_string(),
-        source,
-    })
+    Ok(pneuflex_files::read_text(
+        path,
+        pneuflex_files::InputKind::Sheet,
+    )?)
+}
+
+/// Line of a dotted key in TOML text (of its table when the key is absent).
+fn key_line(text: &str, key: &str) -> Option<usize> {
+    pneuflex_files::toml_key_position(text, key).map(|p| p.line)
 }
 
 fn parse<T: for<'de> Deserialize<'de>>(path: &Path, text: &str) -> Result<T, ComponentError> {
@@ -65,17 +119,31 @@ fn parse<T: for<'de> Deserialize<'de>>(path: &Path, text: &str) -> Result<T, Com
     })
 }
 
-/// Field checker bound to one file.
+/// Field checker bound to one file; errors carry the line of the key.
 struct Check<'a> {
     path: &'a Path,
+    text: &'a str,
 }
 
 impl Check<'_> {
     fn err(&self, field: &str, message: String) -> ComponentError {
         ComponentError::Invalid {
             path: self.path.display().to_string(),
+            line: key_line(self.text, field),
             field: field.to_string(),
             message,
+        }
+    }
+    /// `e` unchanged, unless it says that the file `key` names could not be read: then it also names the key.
+    fn referenced(&self, key: &str, e: ComponentError) -> ComponentError {
+        match e {
+            ComponentError::Io { .. } | ComponentError::Input(_) => ComponentError::Referenced {
+                path: self.path.display().to_string(),
+                line: key_line(self.text, key),
+                key: key.to_string(),
+                error: Box::new(e),
+            },
+            e => e,
         }
     }
     fn finite(&self, field: &str, v: f64) -> Result<f64, ComponentError> {
@@ -116,7 +184,151 @@ impl Check<'_> {
             Err(self.err(field, format!("must be in {what}, got {v}")))
         }
     }
+    /// The sign check, then a physical bound `b` (inclusive); the message says what the bound stands for.
+    fn bounded(&self, field: &str, v: f64, b: Bound) -> Result<f64, ComponentError> {
+        if b.min > 0.0 {
+            self.positive(field, v)?;
+        } else {
+            self.non_negative(field, v)?;
+        }
+        if v >= b.min && v <= b.max {
+            Ok(v)
+        } else {
+            Err(self.err(
+                field,
+                format!(
+                    "must be in [{}, {}] {} ({}), got {}",
+                    num(b.min),
+                    num(b.max),
+                    b.unit,
+                    b.why,
+                    num(v)
+                ),
+            ))
+        }
+    }
 }
+
+/// A number for messages: exponent notation when plain digits would be unreadable (1e300).
+fn num(v: f64) -> String {
+    if v != 0.0 && (v.abs() >= 1e6 || v.abs() < 1e-3) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// Physical range of a sheet value: the model's equations hold and its integration is resolvable only
+/// within these (issue 11: a sonic conductance of 1e-3 or a supply of 1e15 Pa ran to -1e67 Pa).
+#[derive(Clone, Copy)]
+struct Bound {
+    min: f64,
+    max: f64,
+    unit: &'static str,
+    why: &'static str,
+}
+
+/// Bore: 1 mm (micro cylinders) to 1 m (the largest industrial pneumatic cylinders are ~0.3 m).
+const BORE: Bound = Bound {
+    min: 1e-3,
+    max: 1.0,
+    unit: "m",
+    why: "pneumatic cylinders are 1 mm to 1 m in bore",
+};
+/// Stroke: 1 mm to 10 m (rodless cylinders reach ~6 m).
+const STROKE: Bound = Bound {
+    min: 1e-3,
+    max: 10.0,
+    unit: "m",
+    why: "pneumatic cylinders stroke 1 mm to 10 m",
+};
+/// Dead volume per chamber: 1 mm^3 to 1 m^3 (ports and tubing).
+const DEAD_VOLUME: Bound = Bound {
+    min: 1e-9,
+    max: 1.0,
+    unit: "m^3",
+    why: "1 mm^3 to 1 m^3 of ports and tubing",
+};
+/// ISO 6358 sonic conductance C: valves are ~1e-9..1e-7 m^3/(s Pa) (0.1-10 dm^3/(s bar)); 1e-5 leaves
+/// two orders of magnitude.
+const SONIC_CONDUCTANCE: Bound = Bound {
+    min: 1e-12,
+    max: 1e-5,
+    unit: "m^3/(s Pa)",
+    why: "valves are ~1e-9 to 1e-7 m^3/(s Pa); 1 dm^3/(s bar) = 1e-8",
+};
+/// Supply: absolute, at most 10 MPa (pneumatics runs at <= 1.6 MPa).
+const SUPPLY_PRESSURE_MAX_PA: f64 = 10e6;
+/// Atmosphere (exhaust) pressure: 1 kPa (vacuum exhaust) to 200 kPa, absolute.
+const ATMOSPHERE_PRESSURE: Bound = Bound {
+    min: 1e3,
+    max: 2e5,
+    unit: "Pa",
+    why: "absolute exhaust pressure",
+};
+/// Gas temperatures: 200-400 K (the ideal-gas, constant-property model of air).
+const TEMPERATURE: Bound = Bound {
+    min: 200.0,
+    max: 400.0,
+    unit: "K",
+    why: "the range of the constant-property air model",
+};
+/// Valve time constants: up to 10 s.
+const VALVE_TIME: Bound = Bound {
+    min: 0.0,
+    max: 10.0,
+    unit: "s",
+    why: "valve response times are ms to s",
+};
+/// PWM frequency: up to 10 kHz (solenoid valves switch at <= ~500 Hz).
+const PWM_FREQUENCY: Bound = Bound {
+    min: 1e-3,
+    max: 1e4,
+    unit: "Hz",
+    why: "solenoid valves switch at up to a few hundred Hz",
+};
+/// Specific gas constant: CO2 (189) to hydrogen (4124) J/(kg K).
+const GAS_CONSTANT: Bound = Bound {
+    min: 100.0,
+    max: 5000.0,
+    unit: "J/(kg K)",
+    why: "CO2 is 189, air 287, hydrogen 4124",
+};
+/// Moving mass: 0.1 g to 1 t.
+const MOVING_MASS: Bound = Bound {
+    min: 1e-4,
+    max: 1e3,
+    unit: "kg",
+    why: "piston, rod and load",
+};
+/// Viscous friction K_v: up to 1e6 N s/m.
+const VISCOUS: Bound = Bound {
+    min: 0.0,
+    max: 1e6,
+    unit: "N s/m",
+    why: "seal and guide damping",
+};
+/// Friction forces: up to 1e5 N (far beyond any pneumatic cylinder's force).
+const FRICTION_FORCE: Bound = Bound {
+    min: 0.0,
+    max: 1e5,
+    unit: "N",
+    why: "seal and guide friction",
+};
+/// Friction velocity scales: 1 um/s to 10 m/s.
+const FRICTION_VELOCITY: Bound = Bound {
+    min: 1e-6,
+    max: 10.0,
+    unit: "m/s",
+    why: "friction velocity scales",
+};
+/// Gravity: 0 (horizontal test bench in orbit) to 100 m/s^2.
+const GRAVITY: Bound = Bound {
+    min: 0.0,
+    max: 100.0,
+    unit: "m/s^2",
+    why: "9.80665 on Earth",
+};
 
 // ---------------------------------------------------------------- cylinder
 
@@ -156,9 +368,9 @@ impl CylinderSheet {
     /// Parses and validates cylinder TOML text; `path` is used in messages.
     pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
         let f: CylinderFile = parse(path, text)?;
-        let c = Check { path };
+        let c = Check { path, text };
         let s = f.cylinder;
-        let bore = c.positive("cylinder.bore_m", s.bore_m)?;
+        let bore = c.bounded("cylinder.bore_m", s.bore_m, BORE)?;
         let rod = c.positive("cylinder.rod_m", s.rod_m)?;
         if rod >= bore {
             return Err(c.err(
@@ -171,9 +383,17 @@ impl CylinderSheet {
             cylinder: Cylinder {
                 bore_m: bore,
                 rod_m: rod,
-                stroke_m: c.positive("cylinder.stroke_m", s.stroke_m)?,
-                dead_volume_a_m3: c.positive("cylinder.dead_volume_a_m3", s.dead_volume_a_m3)?,
-                dead_volume_b_m3: c.positive("cylinder.dead_volume_b_m3", s.dead_volume_b_m3)?,
+                stroke_m: c.bounded("cylinder.stroke_m", s.stroke_m, STROKE)?,
+                dead_volume_a_m3: c.bounded(
+                    "cylinder.dead_volume_a_m3",
+                    s.dead_volume_a_m3,
+                    DEAD_VOLUME,
+                )?,
+                dead_volume_b_m3: c.bounded(
+                    "cylinder.dead_volume_b_m3",
+                    s.dead_volume_b_m3,
+                    DEAD_VOLUME,
+                )?,
             },
         })
     }
@@ -227,12 +447,13 @@ impl ValveSheet {
     /// Parses and validates valve TOML text; `path` is used in messages.
     pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
         let f: ValveFile = parse(path, text)?;
-        let c = Check { path };
+        let c = Check { path, text };
         let s = f.valve;
         let orifice = Orifice {
-            sonic_conductance_m3_per_s_pa: c.positive(
+            sonic_conductance_m3_per_s_pa: c.bounded(
                 "valve.sonic_conductance_m3_per_s_pa",
                 s.sonic_conductance_m3_per_s_pa,
+                SONIC_CONDUCTANCE,
             )?,
             critical_pressure_ratio: c.range(
                 "valve.critical_pressure_ratio",
@@ -264,6 +485,7 @@ impl ValveSheet {
                     "valve.response_time_s",
                     required("valve.response_time_s", s.response_time_s, "proportional")?,
                 )?;
+                c.bounded("valve.response_time_s", tau, VALVE_TIME)?;
                 let e = c.range(
                     "valve.underlap",
                     s.underlap.unwrap_or(0.0),
@@ -285,6 +507,7 @@ impl ValveSheet {
                     "valve.pwm_frequency_hz",
                     required("valve.pwm_frequency_hz", s.pwm_frequency_hz, "on_off_pwm")?,
                 )?;
+                c.bounded("valve.pwm_frequency_hz", f_hz, PWM_FREQUENCY)?;
                 let delay = c.non_negative(
                     "valve.switching_delay_s",
                     s.switching_delay_s.unwrap_or(0.0),
@@ -351,11 +574,15 @@ impl SupplySheet {
     /// Parses and validates supply TOML text; `path` is used in messages.
     pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
         let f: SupplyFile = parse(path, text)?;
-        let c = Check { path };
+        let c = Check { path, text };
         let (p_atm, t_atm) = match f.atmosphere {
             Some(a) => (
-                c.positive("atmosphere.pressure_abs_pa", a.pressure_abs_pa)?,
-                c.positive("atmosphere.temperature_k", a.temperature_k)?,
+                c.bounded(
+                    "atmosphere.pressure_abs_pa",
+                    a.pressure_abs_pa,
+                    ATMOSPHERE_PRESSURE,
+                )?,
+                c.bounded("atmosphere.temperature_k", a.temperature_k, TEMPERATURE)?,
             ),
             None => (crate::actuator::P_ATM, crate::actuator::T_DEFAULT),
         };
@@ -368,10 +595,24 @@ impl SupplySheet {
                 ),
             ));
         }
+        if ps > SUPPLY_PRESSURE_MAX_PA {
+            return Err(c.err(
+                "supply.pressure_abs_pa",
+                format!(
+                    "must be at most {} Pa absolute (pneumatic supplies are <= 1.6 MPa), got {}",
+                    num(SUPPLY_PRESSURE_MAX_PA),
+                    num(ps)
+                ),
+            ));
+        }
         Ok(Self {
             supply: Supply {
                 supply_pressure_pa: ps,
-                supply_temperature_k: c.positive("supply.temperature_k", f.supply.temperature_k)?,
+                supply_temperature_k: c.bounded(
+                    "supply.temperature_k",
+                    f.supply.temperature_k,
+                    TEMPERATURE,
+                )?,
                 atmosphere_pressure_pa: p_atm,
                 atmosphere_temperature_k: t_atm,
             },
@@ -450,7 +691,7 @@ impl SensorSheet {
     /// Parses and validates sensor TOML text; `path` is used in messages.
     pub fn from_str(path: &Path, text: &str) -> Result<Self, ComponentError> {
         let f: SensorFile = parse(path, text)?;
-        let c = Check { path };
+        let c = Check { path, text };
         let s = f.sensor;
         let lo = c.finite("sensor.range_min_si", s.range_min_si)?;
         let hi = c.finite("sensor.range_max_si", s.range_max_si)?;
@@ -577,17 +818,22 @@ impl ActuatorSheet {
         let path = path.as_ref();
         let text = read(path)?;
         let f: ActuatorFile = parse(path, &text)?;
-        let c = Check { path };
+        let c = Check { path, text: &text };
         let dir = path.parent().unwrap_or_else(|| Path::new(""));
-        let cylinder = CylinderSheet::load(&dir.join(&f.components.cylinder))?;
-        let valve = ValveSheet::load(&dir.join(&f.components.valve))?;
-        let supply = SupplySheet::load(&dir.join(&f.components.supply))?;
+        // A component that cannot be read is blamed on the key naming it, too.
+        let named = |key: &str, e: ComponentError| c.referenced(key, e);
+        let cylinder = CylinderSheet::load(&dir.join(&f.components.cylinder))
+            .map_err(|e| named("components.cylinder", e))?;
+        let valve = ValveSheet::load(&dir.join(&f.components.valve))
+            .map_err(|e| named("components.valve", e))?;
+        let supply = SupplySheet::load(&dir.join(&f.components.supply))
+            .map_err(|e| named("components.supply", e))?;
         let sensor =
             |p: &Option<String>, field: &str, want: Quantity| -> Result<_, ComponentError> {
                 match p {
                     None => Ok(None),
                     Some(p) => {
-                        let s = SensorSheet::load(&dir.join(p))?;
+                        let s = SensorSheet::load(&dir.join(p)).map_err(|e| named(field, e))?;
                         if s.quantity != want {
                             return Err(c.err(
                                 field,
@@ -622,16 +868,17 @@ impl ActuatorSheet {
                     ));
                 }
                 Gas {
-                    gas_constant_j_per_kg_k: c.positive(
+                    gas_constant_j_per_kg_k: c.bounded(
                         "gas.gas_constant_j_per_kg_k",
                         g.gas_constant_j_per_kg_k.unwrap_or(R_AIR),
+                        GAS_CONSTANT,
                     )?,
                     polytropic_exponent: n,
                 }
             }
         };
         let m = f.mechanics;
-        let coulomb = c.non_negative("mechanics.coulomb_n", m.coulomb_n)?;
+        let coulomb = c.bounded("mechanics.coulomb_n", m.coulomb_n, FRICTION_FORCE)?;
         let friction = match m.friction {
             FrictionName::Smooth => {
                 for (field, v) in [
@@ -650,9 +897,10 @@ impl ActuatorSheet {
                 }
                 Friction::Smooth {
                     coulomb_n: coulomb,
-                    smooth_velocity_m_per_s: c.positive(
+                    smooth_velocity_m_per_s: c.bounded(
                         "mechanics.smooth_velocity_m_per_s",
                         m.smooth_velocity_m_per_s.unwrap_or(1e-3),
+                        FRICTION_VELOCITY,
                     )?,
                 }
             }
@@ -663,7 +911,11 @@ impl ActuatorSheet {
                         "applies only to friction = \"smooth\"".into(),
                     ));
                 }
-                let fs = c.non_negative("mechanics.static_n", m.static_n.unwrap_or(coulomb))?;
+                let fs = c.bounded(
+                    "mechanics.static_n",
+                    m.static_n.unwrap_or(coulomb),
+                    FRICTION_FORCE,
+                )?;
                 if fs < coulomb {
                     return Err(c.err(
                         "mechanics.static_n",
@@ -673,13 +925,15 @@ impl ActuatorSheet {
                 Friction::StickSlip {
                     coulomb_n: coulomb,
                     static_n: fs,
-                    stribeck_velocity_m_per_s: c.positive(
+                    stribeck_velocity_m_per_s: c.bounded(
                         "mechanics.stribeck_velocity_m_per_s",
                         m.stribeck_velocity_m_per_s.unwrap_or(1e-3),
+                        FRICTION_VELOCITY,
                     )?,
-                    stick_velocity_m_per_s: c.positive(
+                    stick_velocity_m_per_s: c.bounded(
                         "mechanics.stick_velocity_m_per_s",
                         m.stick_velocity_m_per_s.unwrap_or(1e-4),
+                        FRICTION_VELOCITY,
                     )?,
                 }
             }
@@ -692,14 +946,18 @@ impl ActuatorSheet {
             ));
         }
         let mechanics = Mechanics {
-            moving_mass_kg: c.positive("mechanics.moving_mass_kg", m.moving_mass_kg)?,
-            viscous_n_s_per_m: c
-                .non_negative("mechanics.viscous_n_s_per_m", m.viscous_n_s_per_m)?,
+            moving_mass_kg: c.bounded("mechanics.moving_mass_kg", m.moving_mass_kg, MOVING_MASS)?,
+            viscous_n_s_per_m: c.bounded(
+                "mechanics.viscous_n_s_per_m",
+                m.viscous_n_s_per_m,
+                VISCOUS,
+            )?,
             friction,
             alpha_rad: alpha.to_radians(),
-            gravity_m_per_s2: c.non_negative(
+            gravity_m_per_s2: c.bounded(
                 "mechanics.gravity_m_per_s2",
                 m.gravity_m_per_s2.unwrap_or(STANDARD_GRAVITY),
+                GRAVITY,
             )?,
         };
         Ok(Self {
@@ -737,30 +995,55 @@ impl ActuatorSheet {
 /// The actuator sheet a file refers to: the file itself if it is an actuator sheet (has
 /// `[components]`), or the sheet named by `plant.actuator` (relative to the file) in a scene file.
 pub fn find_actuator_sheet(path: &Path) -> Result<PathBuf, ComponentError> {
+    find_sheet(path).map(|(p, _)| p)
+}
+
+/// The sheet's path and, when a scene named it, the scene's line of `plant.actuator`.
+fn find_sheet(path: &Path) -> Result<(PathBuf, Option<Option<usize>>), ComponentError> {
     let text = read(path)?;
     let table: toml::Table = parse(path, &text)?;
     if table.contains_key("components") {
-        return Ok(path.to_path_buf());
+        return Ok((path.to_path_buf(), None));
     }
     let named = table
         .get("plant")
         .and_then(|p| p.get("actuator"))
         .and_then(|a| a.as_str());
+    let line = key_line(&text, "plant.actuator");
     match named {
         Some(p) => {
             let p = Path::new(p);
-            Ok(if p.is_absolute() {
+            let sheet = if p.is_absolute() {
                 p.to_path_buf()
             } else {
                 path.parent().unwrap_or_else(|| Path::new("")).join(p)
-            })
+            };
+            Ok((sheet, Some(line)))
         }
         None => Err(ComponentError::Invalid {
             path: path.display().to_string(),
+            line,
             field: "plant.actuator".into(),
             message:
                 "neither an actuator sheet ([components]) nor a scene naming one (plant.actuator)"
                     .into(),
         }),
     }
+}
+
+/// Loads the actuator sheet `path` is or names (see [`find_actuator_sheet`]); a sheet named by a scene
+/// that cannot be read is reported at the scene's `plant.actuator` key.
+pub fn load_actuator_sheet(path: &Path) -> Result<ActuatorSheet, ComponentError> {
+    let (sheet, scene_line) = find_sheet(path)?;
+    ActuatorSheet::load(&sheet).map_err(|e| match (e, scene_line) {
+        (e @ (ComponentError::Io { .. } | ComponentError::Input(_)), Some(line)) => {
+            ComponentError::Referenced {
+                path: path.display().to_string(),
+                line,
+                key: "plant.actuator".into(),
+                error: Box::new(e),
+            }
+        }
+        (e, _) => e,
+    })
 }

@@ -21,7 +21,7 @@ pub use actuator::{
 };
 pub use components::{
     ActuatorSheet, ComponentError, CylinderSheet, Quantity, SensorSheet, SignalKind, SupplySheet,
-    ValveSheet, find_actuator_sheet,
+    ValveSheet, find_actuator_sheet, load_actuator_sheet,
 };
 pub use flow::Orifice;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};

@@ -49,3 +49,51 @@ fn tf_bad_file_is_an_error() {
     let err = tf::tf(&data("pneumatics/no-such-sheet.toml"), false).unwrap_err();
     assert!(format!("{err:#}").contains("no-such-sheet.toml"));
 }
+
+/// Issue 11: `tf` with a missing component named the missing file but not the key naming it, and printed
+/// the OS error twice under anyhow's `{:#}`. Now: sheet:line: key: file: cannot read: <OS error>, once.
+#[test]
+fn tf_missing_component_names_sheet_line_and_key_and_the_os_error_once() {
+    let dir = std::env::temp_dir().join(format!("pneuflex-cli-tf-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for e in std::fs::read_dir(data("pneumatics")).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+    }
+    let sheet = dir.join("paper-actuator.toml");
+    let text = std::fs::read_to_string(&sheet).unwrap();
+    std::fs::write(
+        &sheet,
+        text.replace("\"a05ps25x-5-2-valve.toml\"", "\"nope.toml\""),
+    )
+    .unwrap();
+    let line = 1 + text.lines().position(|l| l.starts_with("valve =")).unwrap();
+    let err = format!("{:#}", tf::tf(&sheet, false).unwrap_err());
+    let os = std::io::Error::from(std::io::ErrorKind::NotFound).to_string();
+    let want = format!(
+        "{}:{line}: components.valve: {}: cannot read: ",
+        sheet.display(),
+        dir.join("nope.toml").display()
+    );
+    assert!(err.starts_with(&want), "{err}\nwanted {want}...");
+    assert_eq!(err.matches("No such file").count(), 1, "{err} ({os})");
+
+    // A scene naming a missing sheet is blamed on its plant.actuator line.
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        "name = \"s\"\n\n[plant]\nkind = \"pneumatic\"\nactuator = \"gone.toml\"\n",
+    )
+    .unwrap();
+    let err = format!("{:#}", tf::tf(&scene, false).unwrap_err());
+    assert!(
+        err.starts_with(&format!(
+            "{}:5: plant.actuator: {}: cannot read: ",
+            scene.display(),
+            dir.join("gone.toml").display()
+        )),
+        "{err}"
+    );
+    assert_eq!(err.matches("No such file").count(), 1, "{err}");
+}

@@ -199,3 +199,241 @@ fn wrong_sensor_quantity_is_rejected() {
     );
     assert_names(&msg, &path, "components.position_sensor");
 }
+
+/// The 1-based line of the first line of `file` (in a fresh scratch copy) that starts with `prefix`.
+fn line_of(file: &Path, prefix: &str) -> usize {
+    let text = std::fs::read_to_string(file).unwrap();
+    1 + text
+        .lines()
+        .position(|l| l.trim_start().starts_with(prefix))
+        .unwrap_or_else(|| panic!("{} has no line {prefix:?}", file.display()))
+}
+
+/// Loads `sheet` on a thread; an error within 5 s, or a panic (a hang or an unbounded read fails).
+fn load_err_within_5_s(sheet: PathBuf) -> String {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(ActuatorSheet::load(&sheet).map(|_| ()));
+    });
+    match rx.recv_timeout(std::time::Duration::from_secs(5)) {
+        Ok(Err(e)) => e.to_string(),
+        Ok(Ok(())) => panic!("accepted"),
+        Err(_) => panic!("loading did not finish within 5 s"),
+    }
+}
+
+/// Issue 11: `cylinder = "/dev/zero"` read without bound (~1 GB/s of memory); now a clear error at the
+/// sheet's key, before anything is read.
+#[cfg(unix)]
+#[test]
+fn device_as_component_is_refused_at_its_key() {
+    let dir = scratch("device");
+    let sheet = dir.join("paper-actuator.toml");
+    let text = std::fs::read_to_string(&sheet).unwrap();
+    std::fs::write(
+        &sheet,
+        text.replace("\"smc-mqm16-cylinder.toml\"", "\"/dev/zero\""),
+    )
+    .unwrap();
+    let line = line_of(&sheet, "cylinder =");
+    let msg = load_err_within_5_s(sheet.clone());
+    assert!(
+        msg.contains(&format!(
+            "{}:{line}: components.cylinder: /dev/zero: not a regular file (a character device)",
+            sheet.display()
+        )),
+        "{msg}"
+    );
+}
+
+/// Issue 11: a FIFO as a component blocked forever in open(); now refused after a stat.
+#[cfg(unix)]
+#[test]
+fn fifo_as_component_does_not_block() {
+    let dir = scratch("fifo");
+    let fifo = dir.join("valve.fifo");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    if !made {
+        eprintln!("mkfifo unavailable; skipped");
+        return;
+    }
+    let sheet = dir.join("paper-actuator.toml");
+    let text = std::fs::read_to_string(&sheet).unwrap();
+    std::fs::write(
+        &sheet,
+        text.replace("\"a05ps25x-5-2-valve.toml\"", "\"valve.fifo\""),
+    )
+    .unwrap();
+    let msg = load_err_within_5_s(sheet);
+    assert!(
+        msg.contains("components.valve") && msg.contains("not a regular file (a FIFO)"),
+        "{msg}"
+    );
+}
+
+/// Issue 11: a sheet larger than the sheet limit is refused, not read.
+#[test]
+fn oversized_component_is_refused() {
+    let dir = scratch("oversized");
+    let big = dir.join("supply-0p5mpa.toml");
+    let mut text = std::fs::read_to_string(&big).unwrap();
+    text.push_str(&"#".repeat(2 << 20));
+    std::fs::write(&big, text).unwrap();
+    let msg = load_err_within_5_s(dir.join("paper-actuator.toml"));
+    assert!(
+        msg.contains("components.supply") && msg.contains("byte limit of a component sheet"),
+        "{msg}"
+    );
+}
+
+/// Issue 11: a missing component names the sheet, line and key that name it, and the OS error once.
+#[test]
+fn missing_component_names_the_key_that_names_it() {
+    let (msg, sheet) = broken(
+        "missing-key",
+        "paper-actuator.toml",
+        "\"a05ps25x-5-2-valve.toml\"",
+        "\"nope.toml\"",
+    );
+    let line = line_of(Path::new(&sheet), "valve =");
+    let nope = Path::new(&sheet).with_file_name("nope.toml");
+    assert!(
+        msg.starts_with(&format!(
+            "{sheet}:{line}: components.valve: {}: cannot read: ",
+            nope.display()
+        )),
+        "{msg}"
+    );
+    let err = ActuatorSheet::load(&sheet).unwrap_err();
+    assert_eq!(
+        err.os_error().map(std::io::Error::kind),
+        Some(std::io::ErrorKind::NotFound)
+    );
+    // The OS error is in the message, not also a `source()` (anyhow's `{:#}` would print it twice).
+    assert!(std::error::Error::source(&err).is_none());
+}
+
+/// Issue 11: `stroke_m = 1e300` was accepted; now refused with the file, the key's line and the bound.
+#[test]
+fn absurd_stroke_is_rejected_at_its_line() {
+    let (msg, path) = broken(
+        "stroke",
+        "smc-mqm16-cylinder.toml",
+        "stroke_m = 0.050",
+        "stroke_m = 1e300",
+    );
+    let line = line_of(Path::new(&path), "stroke_m");
+    assert!(
+        msg.starts_with(&format!(
+            "{path}:{line}: cylinder.stroke_m: must be in [0.001, 10] m"
+        )),
+        "{msg}"
+    );
+    assert!(msg.contains("got 1e300"), "{msg}");
+}
+
+/// Issue 11: a bore of 10 m or 10 um is not a pneumatic cylinder.
+#[test]
+fn absurd_bore_is_rejected_at_its_line() {
+    for bad in ["10.0", "1e-5"] {
+        let (msg, path) = broken(
+            &format!("bore-{bad}"),
+            "smc-mqm16-cylinder.toml",
+            "bore_m = 0.016",
+            &format!("bore_m = {bad}"),
+        );
+        let line = line_of(Path::new(&path), "bore_m");
+        assert!(
+            msg.starts_with(&format!(
+                "{path}:{line}: cylinder.bore_m: must be in [0.001, 1] m"
+            )),
+            "{msg}"
+        );
+    }
+}
+
+/// Issue 11: a sonic conductance of 1e-3 m^3/(s Pa) (1e5 times a real valve's) ran to -1e67 Pa.
+#[test]
+fn absurd_sonic_conductance_is_rejected_at_its_line() {
+    let (msg, path) = broken(
+        "sonic",
+        "a05ps25x-5-2-valve.toml",
+        "sonic_conductance_m3_per_s_pa = 5.0e-9",
+        "sonic_conductance_m3_per_s_pa = 1e-3",
+    );
+    let line = line_of(Path::new(&path), "sonic_conductance_m3_per_s_pa");
+    assert!(
+        msg.starts_with(&format!(
+            "{path}:{line}: valve.sonic_conductance_m3_per_s_pa: must be in [1e-12, 1e-5]"
+        )),
+        "{msg}"
+    );
+}
+
+/// Issue 11: a supply of 1e15 Pa was accepted.
+#[test]
+fn absurd_supply_is_rejected_at_its_line() {
+    let (msg, path) = broken(
+        "supply-high",
+        "supply-0p5mpa.toml",
+        "pressure_abs_pa = 601325.0",
+        "pressure_abs_pa = 1e15",
+    );
+    let line = line_of(Path::new(&path), "pressure_abs_pa");
+    assert!(
+        msg.starts_with(&format!(
+            "{path}:{line}: supply.pressure_abs_pa: must be at most 1e7 Pa absolute"
+        )),
+        "{msg}"
+    );
+}
+
+/// Validation errors carry the line of the key, as parse errors do; other physical bounds hold too.
+#[test]
+fn validation_errors_carry_the_line_of_the_key() {
+    for (case, file, from, to, key) in [
+        (
+            "line-mass",
+            "paper-actuator.toml",
+            "moving_mass_kg = 0.6",
+            "moving_mass_kg = -0.6",
+            "moving_mass_kg",
+        ),
+        (
+            "line-temp",
+            "supply-0p5mpa.toml",
+            "temperature_k = 293.15",
+            "temperature_k = 5000.0",
+            "temperature_k",
+        ),
+        (
+            "line-pwm",
+            "a05ps25x-5-2-valve.toml",
+            "pwm_frequency_hz = 40.0",
+            "pwm_frequency_hz = 1e9",
+            "pwm_frequency_hz",
+        ),
+        (
+            "line-dead",
+            "smc-mqm16-cylinder.toml",
+            "dead_volume_a_m3 = 3.5e-6",
+            "dead_volume_a_m3 = 1e3",
+            "dead_volume_a_m3",
+        ),
+        (
+            "line-coulomb",
+            "paper-actuator.toml",
+            "coulomb_n = 0.6",
+            "coulomb_n = 1e12",
+            "coulomb_n",
+        ),
+    ] {
+        let (msg, path) = broken(case, file, from, to);
+        let line = line_of(Path::new(&path), key);
+        assert!(msg.starts_with(&format!("{path}:{line}: ")), "{msg}");
+        assert!(msg.contains(key), "{msg}");
+    }
+}
