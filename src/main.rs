@@ -39,6 +39,12 @@ enum Command {
         /// `spawn` (start a viewer) or `connect <url>` (a running viewer). Needs the `rerun` feature.
         #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
         rerun: Option<Vec<String>>,
+        /// Largest number of integration steps a run may take (default 1e9); the scene is refused beyond it.
+        #[arg(long, value_name = "N")]
+        max_steps: Option<u64>,
+        /// Largest memory all traces may take, MiB (default 2048); the scene is refused beyond it.
+        #[arg(long, value_name = "MIB")]
+        max_trace_mb: Option<u64>,
     },
     /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
     Rig {
@@ -93,7 +99,18 @@ fn main() -> ExitCode {
             out,
             quiet,
             rerun,
-        } => cmd::run::run(&scene, out.as_deref(), quiet, rerun.as_deref()),
+            max_steps,
+            max_trace_mb,
+        } => cmd::run::run(
+            &scene,
+            out.as_deref(),
+            &cmd::run::RunArgs {
+                quiet,
+                rerun,
+                max_steps,
+                max_trace_mb,
+            },
+        ),
         Command::Rig {
             action:
                 RigCommand::Emulate {
@@ -125,7 +142,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err:#}");
-            ExitCode::FAILURE
+            match err.downcast_ref::<cmd::Exit>() {
+                Some(e) => ExitCode::from(e.code),
+                None => ExitCode::FAILURE,
+            }
         }
     }
 }

@@ -4,3 +4,20 @@ pub mod rerun_log;
 pub mod rig;
 pub mod run;
 pub mod tf;
+
+/// An error that ends the process with a given exit code (128 + signal for an interrupted command).
+#[derive(Debug)]
+pub struct Exit {
+    /// The process exit code.
+    pub code: u8,
+    /// What to print.
+    pub message: String,
+}
+
+impl std::fmt::Display for Exit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Exit {}

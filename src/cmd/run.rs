@@ -1,23 +1,111 @@
 //! `pneuflex run <scene.toml> [--out DIR]`: runs every controller of a scene, writes traces, summary and
 //! figures into DIR (default `out/<scene name>/`), prints a short metrics table.
+//!
+//! DIR is written beside and renamed into place (pneuflex_files::OutputDir): a directory pneuflex did not
+//! write is never replaced. SIGINT, SIGTERM and SIGHUP stop the simulation at the next tick; what exists is
+//! written to `DIR.partial` with the reason in summary.json and the manifest, and the exit code is 128 +
+//! the signal. A second signal ends the process at once.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicUsize;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use pneuflex_scene::{RunResult, Scene, Staging, WindowKind, run_scene, write_results};
+use pneuflex_files::OutputDir;
+use pneuflex_files::output::{Manifest, Partial, Recoverable};
+use pneuflex_scene::{
+    Limits, PlantSpec, RunOptions, RunResult, Scene, WindowKind, run_scene_with, write_results,
+};
 
-/// Runs a scene file and writes its outputs; Err on bad input, on a write failure or when a run diverged
-/// (the outputs are still written, with the run marked diverged in summary.json).
-pub fn run(
-    scene_path: &Path,
-    out: Option<&Path>,
-    quiet: bool,
-    rerun: Option<&[String]>,
-) -> anyhow::Result<()> {
+use super::Exit;
+
+/// Options of `run` beyond the scene and the output directory.
+#[derive(Clone, Debug, Default)]
+pub struct RunArgs {
+    /// No progress bar and no metrics table.
+    pub quiet: bool,
+    /// `--rerun MODE [TARGET]`.
+    pub rerun: Option<Vec<String>>,
+    /// `--max-steps`: integration steps allowed per run.
+    pub max_steps: Option<u64>,
+    /// `--max-trace-mb`: trace memory allowed, MiB.
+    pub max_trace_mb: Option<u64>,
+}
+
+/// The input files a run must never write over: the scene, and the sheet and URDF it names.
+fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
+    let mut v = vec![scene_path.to_path_buf()];
+    match &scene.plant {
+        PlantSpec::Ideal { .. } => {}
+        PlantSpec::Pneumatic { actuator, .. } => v.push(scene.resolve(actuator)),
+        PlantSpec::Multibody(mb) => {
+            v.push(scene.resolve(&mb.actuator));
+            v.push(scene.resolve(&mb.urdf));
+        }
+    }
+    v
+}
+
+/// Installs SIGINT, SIGTERM and SIGHUP handlers that store the signal number in the returned flag; a
+/// second signal while the flag is set exits at once (code 128 + 2 for a second Ctrl-C).
+fn install_stop_flag() -> anyhow::Result<Arc<AtomicUsize>> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let flag = Arc::new(AtomicUsize::new(0));
+    let armed = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for sig in [SIGINT, SIGTERM, SIGHUP] {
+        // Order matters: the conditional shutdown sees the flag set by a previous signal only.
+        signal_hook::flag::register_conditional_shutdown(sig, 128 + sig as i32, armed.clone())
+            .context("installing the signal handler")?;
+        signal_hook::flag::register(sig, armed.clone()).context("installing the signal handler")?;
+        signal_hook::flag::register_usize(sig, flag.clone(), sig as usize)
+            .context("installing the signal handler")?;
+    }
+    Ok(flag)
+}
+
+/// Runs a scene file and writes its outputs; Err on bad input, on a write failure, when a run diverged
+/// (the outputs are still written, with the run marked diverged in summary.json) or on a signal.
+pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Result<()> {
+    let (quiet, rerun) = (args.quiet, args.rerun.as_deref());
     let scene = Scene::load(scene_path)?;
+    let mut limits = Limits::default();
+    if let Some(n) = args.max_steps {
+        limits.max_steps_per_run = n;
+    }
+    if let Some(mb) = args.max_trace_mb {
+        limits.max_trace_bytes = mb.saturating_mul(1 << 20);
+    }
+    scene.check_budget(&limits)?;
+    for w in pneuflex_scene::advice::warnings(&scene) {
+        let at = pneuflex_files::toml_key_position(&scene.text, &w.key)
+            .map(|p| format!(":{p}"))
+            .unwrap_or_default();
+        eprintln!("warning: {}{at}: {w}", scene_path.display());
+    }
+    let dest = out
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new("out").join(&scene.name));
+    // The output directory is checked and staged before anything runs: a bad --out fails at once.
+    let inputs = inputs_of(&scene, scene_path);
+    let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let stage = OutputDir::create(&dest, &protect, Recoverable::Regenerable)?;
+    if let Some(words) = rerun
+        && words.first().map(String::as_str) == Some("save")
+        && let Some(target) = words.get(1)
+    {
+        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let t = abs(Path::new(target));
+        if t.starts_with(abs(&dest)) || t.starts_with(abs(&stage.partial_dest())) {
+            bail!(
+                "--rerun save {target}: the recording would be inside the output directory {}, which is \
+                 replaced as a whole by the next run; save it elsewhere (e.g. next to it)",
+                dest.display()
+            );
+        }
+    }
     #[cfg(feature = "rerun")]
     let mut observer = match rerun {
         Some(words) => Some(super::rerun_log::RerunObserver::new(
@@ -35,9 +123,6 @@ pub fn run(
             words.join(" ")
         );
     }
-    let dest = out
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new("out").join(&scene.name));
 
     // The bar stays hidden unless the simulation lasts longer than a moment.
     let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
@@ -58,13 +143,20 @@ pub fn run(
         }
         bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
     };
+    let stop = install_stop_flag()?;
+    let opts = RunOptions {
+        limits,
+        stop: Some(&stop),
+    };
+    struct Quiet;
+    impl pneuflex_scene::StepObserver for Quiet {}
     #[cfg(feature = "rerun")]
     let results = match observer.as_mut() {
-        Some(obs) => pneuflex_scene::run_scene_observed(&scene, &mut progress, obs)?,
-        None => run_scene(&scene, &mut progress)?,
+        Some(obs) => run_scene_with(&scene, &opts, &mut progress, obs)?,
+        None => run_scene_with(&scene, &opts, &mut progress, &mut Quiet)?,
     };
     #[cfg(not(feature = "rerun"))]
-    let results = run_scene(&scene, &mut progress)?;
+    let results = run_scene_with(&scene, &opts, &mut progress, &mut Quiet)?;
     bar.finish_and_clear();
     let sim_time = start.elapsed();
 
@@ -83,13 +175,40 @@ pub fn run(
         }
     }
 
-    let stage = Staging::new(&dest)?;
     write_results(stage.path(), &scene, &results)?;
+    let summary = pneuflex_scene::summary(&scene, &results);
+    let manifest = Manifest::new("run", env!("CARGO_PKG_VERSION"), summary.inputs.clone());
+    let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
+    if !summary.complete {
+        let reason = pneuflex_scene::runner::signal_name(signal.max(2));
+        let time_reached_s = results
+            .last()
+            .and_then(|r| r.trace.t.last().copied())
+            .unwrap_or(0.0);
+        let to = stage.commit_partial(
+            manifest,
+            Partial {
+                reason: reason.clone(),
+                time_reached_s,
+            },
+        )?;
+        return Err(Exit {
+            code: 128 + signal.clamp(1, 64) as u8,
+            message: format!(
+                "{reason}: stopped at t = {time_reached_s:.3} s of run `{}`; the partial results are in {} \
+                 (marked incomplete in summary.json); {} is untouched",
+                results.last().map_or("", |r| r.name.as_str()),
+                to.display(),
+                dest.display()
+            ),
+        }
+        .into());
+    }
     if results.iter().any(|r| r.diverged.is_none()) {
         pneuflex_viz::write_figures(stage.path(), &scene, &results, pneuflex_viz::Format::Png)
             .context("writing figures")?;
     }
-    let dest = stage.commit()?;
+    let dest = stage.commit(manifest)?;
 
     if !quiet {
         println!("{}", table(&results));

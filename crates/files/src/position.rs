@@ -69,6 +69,7 @@ pub fn toml_key_position(text: &str, path: &str) -> Option<Position> {
     let mut span = root.span();
     let mut here: Option<&DeValue<'_>> = None;
     let mut table: &DeTable<'_> = root.get_ref();
+    let mut matched = 0;
     for seg in &segs {
         let next = match (seg, here) {
             (Segment::Key(k), None) => table.get(*k),
@@ -77,13 +78,16 @@ pub fn toml_key_position(text: &str, path: &str) -> Option<Position> {
             _ => None,
         };
         let Some(v) = next else { break };
+        matched += 1;
         span = v.span();
         here = Some(v.get_ref());
         if let DeValue::Table(t) = v.get_ref() {
             table = t;
         }
     }
-    // A table header `[[runs]]` spans from its first key; point at the start of the span either way.
+    if matched == 0 && !segs.is_empty() {
+        return None;
+    }
     Some(line_col(text, span.start))
 }
 

@@ -15,22 +15,28 @@ pyo3::create_exception!(
 pub fn scene(e: pneuflex_scene::SceneError) -> PyErr {
     use pneuflex_scene::SceneError as E;
     match &e {
-        E::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+        E::Input(pneuflex_files::InputError::Io { os_error, .. })
+            if os_error.kind() == std::io::ErrorKind::NotFound =>
+        {
             PyFileNotFoundError::new_err(e.to_string())
         }
-        E::Io { .. } | E::Write { .. } => PyOSError::new_err(e.to_string()),
+        E::Input(pneuflex_files::InputError::Io { .. }) | E::Write { .. } | E::Output(_) => {
+            PyOSError::new_err(e.to_string())
+        }
         _ => PneuflexError::new_err(e.to_string()),
     }
 }
 
 /// A component-sheet error as a Python exception.
 pub fn component(e: pneuflex_pneumatics::ComponentError) -> PyErr {
-    use pneuflex_pneumatics::ComponentError as E;
     match &e {
-        E::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+        _ if e
+            .os_error()
+            .is_some_and(|o| o.kind() == std::io::ErrorKind::NotFound) =>
+        {
             PyFileNotFoundError::new_err(e.to_string())
         }
-        E::Io { .. } => PyOSError::new_err(e.to_string()),
+        _ if e.os_error().is_some() => PyOSError::new_err(e.to_string()),
         _ => PneuflexError::new_err(e.to_string()),
     }
 }

@@ -202,6 +202,7 @@ pub fn summarize<'py>(
             windows,
             lyapunov,
             diverged: reason,
+            interrupted: None,
         });
     }
     to_py(py, &summary(&scene, &results))
@@ -248,6 +249,7 @@ pub fn write_figures<'py>(
             windows: Vec::new(),
             lyapunov: None,
             diverged: None,
+            interrupted: None,
         });
     }
     std::fs::create_dir_all(&out_dir).map_err(|e| {

@@ -1,39 +1,53 @@
-//! Errors of scene loading, simulation and output writing.
+//! Errors of scene loading, simulation and output writing. Each names the file, and where a key is to blame,
+//! the line and column of that key and its dotted path.
 
 use std::path::PathBuf;
+
+use pneuflex_files::Position;
+
+fn located(file: &std::path::Path, at: &Option<Position>, path: &str) -> String {
+    let mut s = file.display().to_string();
+    if let Some(p) = at {
+        s.push_str(&format!(":{}:{}", p.line, p.column));
+    }
+    if !path.is_empty() {
+        s.push_str(": ");
+        s.push_str(path);
+    }
+    s
+}
 
 /// Everything that can go wrong between a scene file and its outputs.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    /// The file could not be read.
-    #[error("{}: cannot read: {source}", file.display())]
-    Io {
-        /// The scene file.
-        file: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
-    },
+    /// The file could not be read (missing, not a regular file, too large, not text).
+    #[error(transparent)]
+    Input(#[from] pneuflex_files::InputError),
     /// TOML syntax error, unknown key, missing key or wrong type.
-    #[error("{}: {}{message}", file.display(), if path.is_empty() { String::new() } else { format!("{path}: ") })]
+    #[error("{}: {message}", located(file, at, path))]
     Parse {
         /// The scene file.
         file: PathBuf,
+        /// Line and column of the error, when known.
+        at: Option<Position>,
         /// Dotted key path, e.g. `environment.stiffness_n_per_m` (empty at the top level).
         path: String,
         /// What was wrong.
         message: String,
     },
     /// A value out of range (negative stiffness, NaN, ...).
-    #[error("{}: {path}: {message}", file.display())]
+    #[error("{}: {message}", located(file, at, path))]
     Invalid {
         /// The scene file.
         file: PathBuf,
+        /// Line and column of the key, when known.
+        at: Option<Position>,
         /// Dotted key path.
         path: String,
         /// What was expected and what was found.
         message: String,
     },
-    /// The plant could not be built (for instance a bad actuator sheet).
+    /// The plant could not be built for a reason no single key explains.
     #[error("{}: plant: {message}", file.display())]
     Plant {
         /// The scene file.
@@ -41,12 +55,15 @@ pub enum SceneError {
         /// What went wrong.
         message: String,
     },
+    /// An output directory could not be prepared or committed.
+    #[error(transparent)]
+    Output(#[from] pneuflex_files::OutputError),
     /// Writing outputs failed.
-    #[error("{}: cannot write: {source}", path.display())]
+    #[error("{}: cannot write: {os_error}", path.display())]
     Write {
         /// The file or directory being written.
         path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The underlying error (in the message, printed once).
+        os_error: std::io::Error,
     },
 }

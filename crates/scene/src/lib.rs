@@ -8,7 +8,9 @@
 //! for r in &results { println!("{}: {:?}", r.name, r.window("sine").map(|w| w.rms_force_error_n)); }
 //! ```
 
+pub mod advice;
 pub mod error;
+mod locate;
 pub mod metrics;
 pub mod multibody;
 pub mod output;
@@ -20,14 +22,16 @@ pub mod trace;
 
 pub use error::SceneError;
 pub use multibody::{FlangeDrive, MultibodyPlant};
-pub use output::{Staging, Summary, summary, write_results};
+pub use output::{Summary, scene_inputs, summary, write_results};
 pub use plant::{IdealLoop, LinearSpring, Plant, Visual, VisualPose, VisualShape};
 pub use pneumatic::OneDofPneumatic;
 pub use runner::{
-    LyapunovSummary, RunResult, StepObserver, WindowMetrics, build_controller, build_plant,
-    build_setpoints, run_scene, run_scene_observed, simulate, simulate_observed,
+    LyapunovSummary, RunOptions, RunResult, StepObserver, WindowMetrics, build_controller,
+    build_plant, build_setpoints, run_scene, run_scene_observed, run_scene_with, signal_name,
+    simulate, simulate_observed,
 };
 pub use schema::{
-    ControllerKind, EventSpec, MaterialSpec, MultibodySpec, PlantSpec, Scene, WindowKind,
+    Budget, ControllerKind, EventSpec, Limits, MaterialSpec, MultibodySpec, PlantSpec,
+    SCENE_SCHEMA_VERSION, Scene, WindowKind,
 };
 pub use trace::Trace;

@@ -80,49 +80,47 @@ impl MultibodyPlant {
         };
         let sheet_path = scene.resolve(&mb.actuator);
         let sheet = ActuatorSheet::load(&sheet_path)
-            .map_err(|e| plant_err(scene, format!("plant.actuator: {e}")))?;
+            .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
         let urdf_file = scene.resolve(&mb.urdf);
         let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf_file)
-            .map_err(|e| plant_err(scene, format!("plant.urdf: {e}")))?;
+            .map_err(|e| scene.invalid("plant.urdf", e.to_string()))?;
         let mut config = config_of(mb, &sheet);
-        let mb_err = |field: &str, e: MultibodyError| plant_err(scene, format!("{field}: {e}"));
+        let mb_err = |field: &str, e: MultibodyError| scene.invalid(field, e.to_string());
         // Build once at x = 0 to learn the initial material's contact position.
         let probe = RigWorld::from_robot(&urdf_file, &robot, &config)
-            .map_err(|e| mb_err(&multibody_field(&e), e))?;
+            .map_err(|e| mb_err(&multibody_field(mb, &e), e))?;
         let init = config.initial_material.clone();
         let x_e = probe
             .material_x_e(&init)
             .map_err(|e| mb_err("plant.initial_material", e))?;
         if (x_e - scene.environment.x_e_m).abs() > 1e-6 {
-            return Err(SceneError::Invalid {
-                file: scene.source.clone(),
-                path: "environment.x_e_m".into(),
-                message: format!(
+            return Err(scene.invalid(
+                "environment.x_e_m",
+                format!(
                     "must be the flange extension where {} first touches material {init:?}: {x_e:.6} m, got {}",
                     urdf_file.display(),
                     scene.environment.x_e_m
                 ),
-            });
+            ));
         }
         let stroke = probe.stroke();
         let x0 = mb.x0_m.unwrap_or(x_e);
         if !(0.0..=stroke).contains(&x0) {
-            return Err(SceneError::Invalid {
-                file: scene.source.clone(),
-                path: if mb.x0_m.is_some() {
-                    "plant.x0_m".into()
+            return Err(scene.invalid(
+                if mb.x0_m.is_some() {
+                    "plant.x0_m"
                 } else {
-                    "environment.x_e_m".into()
+                    "environment.x_e_m"
                 },
-                message: format!(
+                format!(
                     "initial position {x0} m is outside the stroke [0, {stroke}] m of {}",
                     urdf_file.display()
                 ),
-            });
+            ));
         }
         config.initial_x_m = x0;
         let world = RigWorld::from_robot(&urdf_file, &robot, &config)
-            .map_err(|e| mb_err(&multibody_field(&e), e))?;
+            .map_err(|e| mb_err(&multibody_field(mb, &e), e))?;
         let flange_mass_kg = robot
             .links
             .iter()
@@ -241,10 +239,13 @@ fn config_of(mb: &MultibodySpec, sheet: &ActuatorSheet) -> MultibodyConfig {
 }
 
 /// The scene key a multibody build error belongs to.
-fn multibody_field(e: &MultibodyError) -> String {
+fn multibody_field(mb: &MultibodySpec, e: &MultibodyError) -> String {
     match e {
-        MultibodyError::MissingJoint { field, .. } if field.starts_with("materials") => {
-            "plant.materials.mount_joint".into()
+        MultibodyError::MissingJoint { field, joint, .. } if field.starts_with("materials") => {
+            match mb.materials.iter().position(|m| &m.mount_joint == joint) {
+                Some(i) => format!("plant.materials[{i}].mount_joint"),
+                None => "plant.materials".into(),
+            }
         }
         MultibodyError::BadConfig { field, .. } => format!("plant ({field})"),
         _ => "plant.urdf".into(),
@@ -364,6 +365,16 @@ impl Plant for MultibodyPlant {
                 i += 1;
             }
         }
+    }
+
+    fn check_invariants(&self) -> Result<(), String> {
+        let el = &self.drive.element;
+        crate::plant::chamber_invariants(
+            &el.chambers,
+            &el.actuator.supply,
+            self.last.x,
+            self.world.stroke(),
+        )
     }
 
     fn reset(&mut self) {

@@ -1,9 +1,12 @@
-//! Writing a scene's outputs: `<dir>/<run>/trace.csv` and `<dir>/summary.json`, staged in a temporary
-//! sibling directory and renamed into place only when complete.
+//! Writing a scene's outputs: `<dir>/<run>/trace.csv` and `<dir>/summary.json`, into a staging directory
+//! (`pneuflex_files::OutputDir`) that is renamed into place only when complete. summary.json carries the
+//! tool version, its schema version and the SHA-256 of every input file.
 
 use std::fs;
 use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+use pneuflex_files::InputDigest;
 
 use serde::Serialize;
 
@@ -11,73 +14,34 @@ use crate::error::SceneError;
 use crate::runner::{LyapunovSummary, RunResult, WindowMetrics};
 use crate::schema::Scene;
 
-/// A directory being filled; it appears under its final name only on [`Staging::commit`].
-/// Dropped without commit, it is removed.
-#[derive(Debug)]
-pub struct Staging {
-    tmp: PathBuf,
-    dest: PathBuf,
-    committed: bool,
-}
-
 fn werr(path: &Path) -> impl FnOnce(std::io::Error) -> SceneError + '_ {
-    move |source| SceneError::Write {
+    move |os_error| SceneError::Write {
         path: path.to_path_buf(),
-        source,
+        os_error,
     }
 }
 
-impl Staging {
-    /// Creates `<parent>/.<name>.partial-<pid>` for an eventual `dest`.
-    pub fn new(dest: &Path) -> Result<Self, SceneError> {
-        let parent = match dest.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        fs::create_dir_all(&parent).map_err(werr(&parent))?;
-        let name = dest
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "out".into());
-        let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
-        if tmp.exists() {
-            fs::remove_dir_all(&tmp).map_err(werr(&tmp))?;
-        }
-        fs::create_dir_all(&tmp).map_err(werr(&tmp))?;
-        Ok(Self {
-            tmp,
-            dest: dest.to_path_buf(),
-            committed: false,
-        })
-    }
-
-    /// The directory to write into until commit.
-    pub fn path(&self) -> &Path {
-        &self.tmp
-    }
-
-    /// Replaces `dest` by the staged directory.
-    pub fn commit(mut self) -> Result<PathBuf, SceneError> {
-        if self.dest.exists() {
-            fs::remove_dir_all(&self.dest).map_err(werr(&self.dest))?;
-        }
-        fs::rename(&self.tmp, &self.dest).map_err(werr(&self.dest))?;
-        self.committed = true;
-        Ok(self.dest.clone())
-    }
-}
-
-impl Drop for Staging {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = fs::remove_dir_all(&self.tmp);
-        }
-    }
-}
+/// Layout version of summary.json (2: provenance and partial outputs added).
+pub const SUMMARY_SCHEMA_VERSION: u32 = 2;
 
 /// The content of summary.json.
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
+    /// Always `pneuflex`.
+    pub tool: &'static str,
+    /// The pneuflex version that wrote it.
+    pub version: &'static str,
+    /// Layout version of this file.
+    pub schema_version: u32,
+    /// Scene format version of the input.
+    pub scene_schema_version: u32,
+    /// Every input file, by content hash.
+    pub inputs: Vec<InputDigest>,
+    /// Whether every run was simulated to its end (false for an interrupted command).
+    pub complete: bool,
+    /// Why the output is incomplete.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interrupted: Option<String>,
     /// Scene name.
     pub scene: String,
     /// Scene file.
@@ -104,6 +68,11 @@ pub struct RunSummary {
     /// Why (diverged runs only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
+    /// Why the run was cut short (interrupted runs only): the signal and the time reached.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interrupted: Option<String>,
+    /// Simulated time of the last recorded tick, s.
+    pub time_reached_s: f64,
     /// Relative path of the trace file.
     pub trace: String,
     /// Metrics per window (empty for a diverged run).
@@ -113,18 +82,71 @@ pub struct RunSummary {
     pub lyapunov: Option<LyapunovSummary>,
 }
 
-/// Name of a run's trace file: `trace.csv`, or `trace.diverged.csv` for a diverged run.
+/// Name of a run's trace file: `trace.csv`, `trace.diverged.csv` for a diverged run, or
+/// `trace.interrupted.csv` for a run cut short by a signal.
 pub fn trace_file_name(r: &RunResult) -> &'static str {
     if r.diverged.is_some() {
         "trace.diverged.csv"
+    } else if r.interrupted.is_some() {
+        "trace.interrupted.csv"
     } else {
         "trace.csv"
     }
 }
 
-/// The summary of a scene's results.
+/// The input files of a scene: the scene, and the actuator sheet with its components and the URDF
+/// where the plant names them. Files that cannot be read are left out (the plant would have failed).
+pub fn scene_inputs(scene: &Scene) -> Vec<InputDigest> {
+    let mut out = Vec::new();
+    let mut add = |p: &Path, role: &str| {
+        if let Ok(d) = InputDigest::of_file(p, role) {
+            out.push(d);
+        }
+    };
+    add(&scene.source, "scene");
+    let (actuator, urdf) = match &scene.plant {
+        crate::schema::PlantSpec::Ideal { .. } => (None, None),
+        crate::schema::PlantSpec::Pneumatic { actuator, .. } => {
+            (Some(scene.resolve(actuator)), None)
+        }
+        crate::schema::PlantSpec::Multibody(mb) => (
+            Some(scene.resolve(&mb.actuator)),
+            Some(scene.resolve(&mb.urdf)),
+        ),
+    };
+    if let Some(a) = actuator {
+        add(&a, "actuator");
+        // The component sheets the actuator sheet names in [components].
+        let components = pneuflex_files::read_text(&a, pneuflex_files::InputKind::Sheet)
+            .ok()
+            .and_then(|t| t.parse::<toml::Table>().ok())
+            .and_then(|t| t.get("components").and_then(|c| c.as_table()).cloned());
+        let dir = a.parent().map(Path::to_path_buf).unwrap_or_default();
+        for (role, v) in components.iter().flatten() {
+            if let Some(rel) = v.as_str() {
+                add(&dir.join(rel), role);
+            }
+        }
+    }
+    if let Some(u) = urdf {
+        add(&u, "urdf");
+    }
+    out
+}
+
+/// The summary of a scene's results. Runs the command did not reach (after an interrupt) are absent.
 pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
+    let interrupted = results.iter().find_map(|r| r.interrupted.clone());
     Summary {
+        tool: "pneuflex",
+        version: env!("CARGO_PKG_VERSION"),
+        schema_version: SUMMARY_SCHEMA_VERSION,
+        scene_schema_version: scene
+            .schema_version
+            .unwrap_or(crate::schema::SCENE_SCHEMA_VERSION),
+        inputs: scene_inputs(scene),
+        complete: interrupted.is_none() && results.len() == scene.runs.len(),
+        interrupted,
         scene: scene.name.clone(),
         source: scene.source.display().to_string(),
         duration_s: scene.duration_s,
@@ -141,6 +163,8 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
                 controller: r.controller.name().into(),
                 diverged: r.diverged.is_some(),
                 reason: r.diverged.clone(),
+                interrupted: r.interrupted.clone(),
+                time_reached_s: r.trace.t.last().copied().unwrap_or(0.0),
                 trace: format!("{}/{}", r.name, trace_file_name(r)),
                 windows: r.windows.clone(),
                 lyapunov: r.lyapunov,
@@ -167,7 +191,7 @@ pub fn write_results(dir: &Path, scene: &Scene, results: &[RunResult]) -> Result
     let text =
         serde_json::to_string_pretty(&summary(scene, results)).map_err(|e| SceneError::Write {
             path: path.clone(),
-            source: std::io::Error::other(e),
+            os_error: std::io::Error::other(e),
         })?;
     fs::write(&path, text + "\n").map_err(werr(&path))?;
     Ok(())

@@ -59,10 +59,8 @@ impl OneDofPneumatic {
             });
         };
         let path = scene.resolve(actuator);
-        let sheet = ActuatorSheet::load(&path).map_err(|e| SceneError::Plant {
-            file: scene.source.clone(),
-            message: format!("plant.actuator: {e}"),
-        })?;
+        let sheet = ActuatorSheet::load(&path)
+            .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
         let mut model = sheet.model();
         if let Some(a) = alpha_deg {
             model.mechanics.alpha_rad = a.to_radians();
@@ -71,18 +69,17 @@ impl OneDofPneumatic {
         // Default start: touching the environment surface.
         let x0 = x0_m.unwrap_or(env.x_e_m);
         if !(0.0..=stroke).contains(&x0) {
-            return Err(SceneError::Invalid {
-                file: scene.source.clone(),
-                path: if x0_m.is_some() {
-                    "plant.x0_m".into()
+            return Err(scene.invalid(
+                if x0_m.is_some() {
+                    "plant.x0_m"
                 } else {
-                    "environment.x_e_m".into()
+                    "environment.x_e_m"
                 },
-                message: format!(
+                format!(
                     "initial position {x0} m is outside the stroke [0, {stroke}] m of {}",
                     path.display()
                 ),
-            });
+            ));
         }
         Ok(Self::new(model, x0, env, *substeps))
     }
@@ -147,6 +144,16 @@ impl Plant for OneDofPneumatic {
                 Ok(())
             }
         }
+    }
+
+    fn check_invariants(&self) -> Result<(), String> {
+        let a = &self.model.actuator;
+        crate::plant::chamber_invariants(
+            &self.state.chambers,
+            &a.supply,
+            self.state.x,
+            a.cylinder.stroke_m,
+        )
     }
 
     fn reset(&mut self) {

@@ -31,6 +31,8 @@ pub struct RunResult {
     pub lyapunov: Option<LyapunovSummary>,
     /// Why the run was stopped, when it diverged.
     pub diverged: Option<String>,
+    /// Why the run was cut short by the user (a signal), when it was.
+    pub interrupted: Option<String>,
 }
 
 impl RunResult {
@@ -151,11 +153,7 @@ pub fn build_setpoints(scene: &Scene) -> Result<control::SetpointSchedule, Scene
         };
         sp.force_n
             .push(piece.start_s(), r)
-            .map_err(|e| SceneError::Invalid {
-                file: scene.source.clone(),
-                path: format!("reference.force[{i}]"),
-                message: e.to_string(),
-            })?;
+            .map_err(|e| scene.invalid(&format!("reference.force[{i}]"), e.to_string()))?;
     }
     sp.position_m
         .push(
@@ -164,11 +162,7 @@ pub fn build_setpoints(scene: &Scene) -> Result<control::SetpointSchedule, Scene
                 value: scene.reference.x_d_m,
             },
         )
-        .map_err(|e| SceneError::Invalid {
-            file: scene.source.clone(),
-            path: "reference.x_d_m".into(),
-            message: e.to_string(),
-        })?;
+        .map_err(|e| scene.invalid("reference.x_d_m", e.to_string()))?;
     Ok(sp)
 }
 
@@ -234,11 +228,7 @@ pub fn adaptive_params(run: &RunSpec) -> Option<control::AdaptiveParams> {
 /// Builds the controller of run `index` of the scene.
 pub fn build_controller(scene: &Scene, index: usize) -> Result<Box<dyn Controller>, SceneError> {
     let run = &scene.runs[index];
-    let bad = |e: control::ParamError| SceneError::Invalid {
-        file: scene.source.clone(),
-        path: format!("runs[{index}]"),
-        message: e.to_string(),
-    };
+    let bad = |e: control::ParamError| scene.invalid(&format!("runs[{index}]"), e.to_string());
     let imp = impedance_params(run);
     let pid = pid_params(&run.inner);
     Ok(match run.controller {
@@ -246,10 +236,11 @@ pub fn build_controller(scene: &Scene, index: usize) -> Result<Box<dyn Controlle
             Box::new(control::ImpedanceController::new(imp, pid).map_err(bad)?)
         }
         ControllerKind::Adaptive => {
-            let a = adaptive_params(run).ok_or_else(|| SceneError::Invalid {
-                file: scene.source.clone(),
-                path: format!("runs[{index}].adaptive"),
-                message: "missing: controller = \"adaptive\" needs the adaptive gains".into(),
+            let a = adaptive_params(run).ok_or_else(|| {
+                scene.invalid(
+                    &format!("runs[{index}].adaptive"),
+                    "missing: controller = \"adaptive\" needs the adaptive gains".into(),
+                )
             })?;
             Box::new(control::AdaptiveImpedanceController::new(imp, a, pid).map_err(bad)?)
         }
@@ -287,17 +278,56 @@ pub fn run_scene_observed(
     progress: &mut dyn FnMut(f64),
     observer: &mut dyn StepObserver,
 ) -> Result<Vec<RunResult>, SceneError> {
+    run_scene_with(scene, &RunOptions::default(), progress, observer)
+}
+
+/// How a scene is run: the limits it must stay within, and a flag a signal handler sets to stop it.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RunOptions<'a> {
+    /// Refuse scenes beyond these before anything runs.
+    pub limits: crate::schema::Limits,
+    /// Non-zero stops the current run at the next tick (the value is the signal number, e.g. 2 = SIGINT);
+    /// later runs are not started.
+    pub stop: Option<&'a std::sync::atomic::AtomicUsize>,
+}
+
+/// The conventional name of a signal number, for messages.
+pub fn signal_name(signal: usize) -> String {
+    match signal {
+        1 => "SIGHUP".into(),
+        2 => "SIGINT".into(),
+        15 => "SIGTERM".into(),
+        n => format!("signal {n}"),
+    }
+}
+
+/// [`run_scene_observed`] with limits and a stop flag. Runs stopped by the flag come back with
+/// `interrupted` set; runs not started are absent.
+pub fn run_scene_with(
+    scene: &Scene,
+    opts: &RunOptions<'_>,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn StepObserver,
+) -> Result<Vec<RunResult>, SceneError> {
     scene.validate()?;
+    scene.check_budget(&opts.limits)?;
     let setpoints = build_setpoints(scene)?;
     let mut plant = build_plant(scene)?;
     let n_runs = scene.runs.len();
     let mut out = Vec::with_capacity(n_runs);
+    let stopped = || {
+        opts.stop
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed) != 0)
+    };
     for i in 0..n_runs {
+        if stopped() {
+            break;
+        }
         let mut controller = build_controller(scene, i)?;
         plant.reset();
         let mut sub = |f: f64| progress((i as f64 + f) / n_runs as f64);
         observer.begin_run(&scene.runs[i], plant.as_ref());
-        let mut r = simulate_observed(
+        let mut r = simulate_loop(
             scene,
             i,
             plant.as_mut(),
@@ -305,9 +335,10 @@ pub fn run_scene_observed(
             &setpoints,
             &mut sub,
             observer,
+            opts.stop,
         )?;
         observer.end_run(&r);
-        if r.diverged.is_none() {
+        if r.diverged.is_none() && r.interrupted.is_none() {
             r.windows = compute_windows(scene, &r.trace);
         }
         if r.controller == ControllerKind::Adaptive {
@@ -349,6 +380,22 @@ pub fn simulate_observed(
     progress: &mut dyn FnMut(f64),
     observer: &mut dyn StepObserver,
 ) -> Result<RunResult, SceneError> {
+    simulate_loop(
+        scene, index, plant, controller, setpoints, progress, observer, None,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn simulate_loop(
+    scene: &Scene,
+    index: usize,
+    plant: &mut dyn Plant,
+    controller: &mut dyn Controller,
+    setpoints: &control::SetpointSchedule,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn StepObserver,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
+) -> Result<RunResult, SceneError> {
     let run = &scene.runs[index];
     let adaptive = run.controller == ControllerKind::Adaptive;
     let dt = scene.dt_s;
@@ -362,16 +409,15 @@ pub fn simulate_observed(
     let lim = scene.divergence;
     let report_every = (n / 200).max(1);
     let mut diverged = None;
+    let mut interrupted = None;
     for k in 0..=n {
         let t = k as f64 * dt;
         // Events apply at the first tick at or after their time (half a tick of tolerance for rounding).
         while next_event < events.len() && events[next_event].1.t_s() <= t + 0.5 * dt {
             let (index, ev) = events[next_event];
-            plant.apply(ev).map_err(|m| SceneError::Invalid {
-                file: scene.source.clone(),
-                path: format!("events[{index}]"),
-                message: m,
-            })?;
+            plant
+                .apply(ev)
+                .map_err(|m| scene.invalid(&format!("events[{index}]"), m))?;
             next_event += 1;
         }
         let mut s = plant.sense();
@@ -398,7 +444,20 @@ pub fn simulate_observed(
             diverged = Some(reason);
             break;
         }
+        // Physical invariants (chamber pressures, temperatures, the stroke): a finite but impossible
+        // state is a divergence too.
+        if let Err(v) = plant.check_invariants() {
+            diverged = Some(format!("{v} at t = {t:.4} s"));
+            break;
+        }
         if k == n {
+            break;
+        }
+        if let Some(sig) = stop
+            .map(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+            .filter(|&s| s != 0)
+        {
+            interrupted = Some(format!("{} at t = {t:.4} s", signal_name(sig)));
             break;
         }
         plant.actuate(cmd, &tel);
@@ -415,6 +474,7 @@ pub fn simulate_observed(
         windows: Vec::new(),
         lyapunov: None,
         diverged,
+        interrupted,
     })
 }
 

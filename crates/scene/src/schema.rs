@@ -13,6 +13,9 @@ use crate::error::SceneError;
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
+    /// Version of the scene format this file is written for (absent = [`SCENE_SCHEMA_VERSION`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub schema_version: Option<u32>,
     /// Scene name; the default output directory is `out/<name>/`.
     pub name: String,
     /// Free text shown in summaries.
@@ -48,6 +51,47 @@ pub struct Scene {
     /// The file the scene was read from, for error messages (not a TOML key).
     #[serde(skip)]
     pub source: PathBuf,
+    /// The file's text, to point errors at the line of a key (not a TOML key).
+    #[serde(skip)]
+    pub text: String,
+}
+
+/// The scene format version this pneuflex reads and writes.
+pub const SCENE_SCHEMA_VERSION: u32 = 1;
+
+/// Largest `duration_s` a scene may ask for, s (about 11.6 days of simulated time).
+pub const MAX_DURATION_S: f64 = 1.0e6;
+
+/// What a run may cost before it starts; beyond either limit `run` refuses with the estimate and the flag
+/// that raises it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// Largest number of integration steps per run (RK4 substeps or physics steps, the finest of them).
+    pub max_steps_per_run: u64,
+    /// Largest memory the traces of all runs may take, bytes.
+    pub max_trace_bytes: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        // 1e9 steps is ~3 min of the 1-DOF plant or ~3 h of the multibody rig on this project's reference
+        // machine; 2 GiB of traces is 24 M rows of 11 columns.
+        Self {
+            max_steps_per_run: 1_000_000_000,
+            max_trace_bytes: 2 << 30,
+        }
+    }
+}
+
+/// The size of a scene's runs, estimated before anything runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Budget {
+    /// Control ticks per run.
+    pub ticks_per_run: u64,
+    /// Finest integration steps per run (chamber RK4 substeps, or physics steps times chamber substeps).
+    pub steps_per_run: u64,
+    /// Memory of all runs' traces, bytes.
+    pub trace_bytes: u64,
 }
 
 /// Integration method of the plant.
@@ -536,10 +580,7 @@ impl Default for DivergenceSpec {
 impl Scene {
     /// Reads, parses and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
-            file: path.to_path_buf(),
-            source: e,
-        })?;
+        let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Scene)?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Scene::from_toml_str(&text, path, &base)
     }
@@ -548,20 +589,31 @@ impl Scene {
     pub fn from_toml_str(text: &str, file: &Path, base_dir: &Path) -> Result<Scene, SceneError> {
         let de = toml::Deserializer::parse(text).map_err(|e| SceneError::Parse {
             file: file.to_path_buf(),
+            at: e.span().map(|s| pneuflex_files::line_col(text, s.start)),
             path: String::new(),
-            message: e.message().to_string(),
+            message: e.message().trim().to_string(),
         })?;
         let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner();
+            let path = if path == "." { String::new() } else { path };
+            let message = inner.message().trim().to_string();
+            let path = crate::locate::blame_inside_tagged(text, &path, &message);
+            let at = match inner.span() {
+                // A span on an internally tagged table covers the whole table: the key is more precise.
+                Some(s) if path.is_empty() => Some(pneuflex_files::line_col(text, s.start)),
+                _ => pneuflex_files::toml_key_position(text, &path),
+            };
             SceneError::Parse {
                 file: file.to_path_buf(),
-                path: if path == "." { String::new() } else { path },
-                message: inner.message().trim().to_string(),
+                at,
+                path,
+                message,
             }
         })?;
         scene.base_dir = base_dir.to_path_buf();
         scene.source = file.to_path_buf();
+        scene.text = text.to_string();
         scene.validate()?;
         Ok(scene)
     }
@@ -580,9 +632,106 @@ impl Scene {
         }
     }
 
-    /// Checks every number and cross-reference; the error names the file and the key path.
+    /// An error about the value at `path` (a dotted key path), with the line of that key when the text
+    /// of the file is known.
+    pub fn invalid(&self, path: &str, message: String) -> SceneError {
+        SceneError::Invalid {
+            file: self.source.clone(),
+            at: pneuflex_files::toml_key_position(&self.text, path),
+            path: path.to_string(),
+            message,
+        }
+    }
+
+    /// Estimates the ticks, integration steps and trace memory of the scene's runs.
+    pub fn budget(&self) -> Budget {
+        let ticks = (self.duration_s / self.dt_s).round().max(0.0);
+        let fine_per_tick = match &self.plant {
+            PlantSpec::Ideal { .. } => 1.0,
+            PlantSpec::Pneumatic { substeps, .. } => f64::from(*substeps),
+            PlantSpec::Multibody(mb) => {
+                (self.dt_s / mb.physics_dt_s).round().max(1.0) * f64::from(mb.chamber_substeps)
+            }
+        };
+        // Rows are ticks + 1; 11 columns of f64 for adaptive runs, 8 otherwise.
+        let row_bytes: f64 = self
+            .runs
+            .iter()
+            .map(|r| {
+                if r.controller == ControllerKind::Adaptive {
+                    88.0
+                } else {
+                    64.0
+                }
+            })
+            .sum();
+        let sat = |x: f64| {
+            if x >= u64::MAX as f64 {
+                u64::MAX
+            } else {
+                x as u64
+            }
+        };
+        Budget {
+            ticks_per_run: sat(ticks),
+            steps_per_run: sat(ticks * fine_per_tick),
+            trace_bytes: sat((ticks + 1.0) * row_bytes),
+        }
+    }
+
+    /// Refuses a scene whose runs would exceed `limits`, with the estimate and how to raise the limit.
+    pub fn check_budget(&self, limits: &Limits) -> Result<Budget, SceneError> {
+        let b = self.budget();
+        if b.steps_per_run > limits.max_steps_per_run {
+            let key = match &self.plant {
+                PlantSpec::Multibody(_) => "plant.physics_dt_s",
+                PlantSpec::Pneumatic { .. } => "plant.substeps",
+                PlantSpec::Ideal { .. } => "dt_s",
+            };
+            return Err(self.invalid(
+                key,
+                format!(
+                    "the scene needs {:.3e} integration steps per run (duration_s = {} s, dt_s = {} s, and this key), \
+                     more than the limit of {:.3e}; use a coarser step or a shorter duration, or raise the limit with \
+                     `--max-steps {}`",
+                    b.steps_per_run as f64,
+                    self.duration_s,
+                    self.dt_s,
+                    limits.max_steps_per_run as f64,
+                    b.steps_per_run
+                ),
+            ));
+        }
+        if b.trace_bytes > limits.max_trace_bytes {
+            return Err(self.invalid(
+                "duration_s",
+                format!(
+                    "the traces of {} run(s) of {} ticks need {:.0} MiB, more than the limit of {:.0} MiB; \
+                     shorten the run or raise the limit with `--max-trace-mb {}`",
+                    self.runs.len(),
+                    b.ticks_per_run,
+                    b.trace_bytes as f64 / 1048576.0,
+                    limits.max_trace_bytes as f64 / 1048576.0,
+                    b.trace_bytes.div_ceil(1 << 20)
+                ),
+            ));
+        }
+        Ok(b)
+    }
+
+    /// Checks every number and cross-reference; the error names the file, the line and the key path.
     pub fn validate(&self) -> Result<(), SceneError> {
-        let v = Validator { file: &self.source };
+        let v = Validator { scene: self };
+        if let Some(version) = self.schema_version
+            && version != SCENE_SCHEMA_VERSION
+        {
+            return Err(v.err(
+                "schema_version",
+                format!(
+                    "this pneuflex reads scene schema version {SCENE_SCHEMA_VERSION}, the file is written for version {version}"
+                ),
+            ));
+        }
         if self.name.trim().is_empty() {
             return Err(v.err("name", "must not be empty".into()));
         }
@@ -593,6 +742,15 @@ impl Scene {
             ));
         }
         v.positive("duration_s", self.duration_s)?;
+        if self.duration_s > MAX_DURATION_S {
+            return Err(v.err(
+                "duration_s",
+                format!(
+                    "must be at most {MAX_DURATION_S:e} s, got {}",
+                    self.duration_s
+                ),
+            ));
+        }
         v.positive("dt_s", self.dt_s)?;
         if self.dt_s > self.duration_s {
             return Err(v.err(
@@ -601,12 +759,6 @@ impl Scene {
                     "must not exceed duration_s ({}), got {}",
                     self.duration_s, self.dt_s
                 ),
-            ));
-        }
-        if self.n_steps() > 100_000_000 {
-            return Err(v.err(
-                "dt_s",
-                format!("gives {} steps; at most 1e8 are allowed", self.n_steps()),
             ));
         }
         match &self.plant {
@@ -716,6 +868,16 @@ impl Scene {
         for (i, ev) in self.events.iter().enumerate() {
             let at = |k: &str| format!("events[{i}].{k}");
             v.non_negative(&at("t_s"), ev.t_s())?;
+            if ev.t_s() > self.duration_s + 0.5 * self.dt_s {
+                return Err(v.err(
+                    &at("t_s"),
+                    format!(
+                        "the event would never happen: t_s = {} is after the end of the scene (duration_s = {})",
+                        ev.t_s(),
+                        self.duration_s
+                    ),
+                ));
+            }
             let mb = match &self.plant {
                 PlantSpec::Multibody(mb) => Some(mb),
                 _ => None,
@@ -1003,16 +1165,12 @@ impl Scene {
 }
 
 struct Validator<'a> {
-    file: &'a Path,
+    scene: &'a Scene,
 }
 
 impl Validator<'_> {
     fn err(&self, path: &str, message: String) -> SceneError {
-        SceneError::Invalid {
-            file: self.file.to_path_buf(),
-            path: path.to_string(),
-            message,
-        }
+        self.scene.invalid(path, message)
     }
     fn known_material(&self, path: &str, mb: &MultibodySpec, name: &str) -> Result<(), SceneError> {
         if mb.materials.iter().any(|m| m.name == name) {

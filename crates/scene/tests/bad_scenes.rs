@@ -16,7 +16,7 @@ fn load_err(text: &str) -> String {
         Err(e) => {
             let msg = e.to_string();
             assert!(
-                msg.starts_with("scenes/x.toml: "),
+                msg.starts_with("scenes/x.toml:"),
                 "message does not name the file: {msg}"
             );
             msg
@@ -63,7 +63,7 @@ fn negative_stiffness_is_rejected() {
     let msg = load_err(&text);
     assert_eq!(
         msg,
-        "scenes/x.toml: environment.stiffness_n_per_m: must be >= 0, got -700"
+        "scenes/x.toml:17:21: environment.stiffness_n_per_m: must be >= 0, got -700"
     );
 }
 
@@ -73,7 +73,7 @@ fn nan_is_rejected() {
     let msg = load_err(&text);
     assert_eq!(
         msg,
-        "scenes/x.toml: reference.force[1].amplitude_n: must be a finite number, got NaN"
+        "scenes/x.toml:32:15: reference.force[1].amplitude_n: must be a finite number, got NaN"
     );
 }
 
@@ -82,14 +82,14 @@ fn negative_event_stiffness_is_rejected() {
     let text = good_text().replace("stiffness_n_per_m = 1400.0", "stiffness_n_per_m = -1.0");
     assert_eq!(
         load_err(&text),
-        "scenes/x.toml: events[0].stiffness_n_per_m: must be >= 0, got -1"
+        "scenes/x.toml:39:21: events[0].stiffness_n_per_m: must be >= 0, got -1"
     );
 }
 
 #[test]
 fn missing_file_names_the_file() {
     match Scene::load(Path::new("scenes/does-not-exist.toml")) {
-        Err(e @ SceneError::Io { .. }) => {
+        Err(e @ SceneError::Input(_)) => {
             assert!(e.to_string().contains("scenes/does-not-exist.toml"), "{e}")
         }
         other => panic!("expected an I/O error, got {other:?}"),
@@ -109,7 +109,7 @@ fn missing_actuator_sheet_is_an_error_not_a_panic() {
         .expect_err("missing actuator sheet accepted");
     let msg = err.to_string();
     assert!(
-        msg.contains("scenes/x.toml: plant: plant.actuator") && msg.contains("nowhere.toml"),
+        msg.starts_with("scenes/x.toml:12:12: plant.actuator: ") && msg.contains("nowhere.toml"),
         "{msg}"
     );
 }

@@ -92,7 +92,7 @@ fn fig7_text() -> String {
 fn swap_to_an_unknown_material_is_rejected_with_the_field() {
     let msg = scene_err(&fig7_text().replace("to = \"iron\"", "to = \"steel\""));
     assert!(
-        msg.starts_with("scenes/x.toml: events[0].to: unknown material \"steel\""),
+        msg.starts_with("scenes/x.toml:49:6: events[0].to: unknown material \"steel\""),
         "{msg}"
     );
 }
@@ -115,7 +115,7 @@ fn a_missing_mount_joint_names_the_urdf_and_the_joint() {
         &fig7_text().replace("mount_joint = \"iron_mount\"", "mount_joint = \"iron_mnt\""),
     );
     assert!(
-        msg.starts_with("scenes/x.toml: plant: plant.materials.mount_joint: ")
+        msg.starts_with("scenes/x.toml:30:15: plant.materials[1].mount_joint: ")
             && msg.contains("rig.urdf")
             && msg.contains("'iron_mnt'"),
         "{msg}"
@@ -126,7 +126,9 @@ fn a_missing_mount_joint_names_the_urdf_and_the_joint() {
 fn a_control_period_that_is_not_whole_physics_steps_is_rejected() {
     let msg = scene_err(&fig7_text().replace("physics_dt_s = 0.001", "physics_dt_s = 0.0003"));
     assert!(
-        msg.starts_with("scenes/x.toml: plant.physics_dt_s: dt_s (0.001) must be a whole number"),
+        msg.starts_with(
+            "scenes/x.toml:17:16: plant.physics_dt_s: dt_s (0.001) must be a whole number"
+        ),
         "{msg}"
     );
 }

@@ -3,7 +3,17 @@
 
 use std::path::{Path, PathBuf};
 
-use pneuflex_scene::{Scene, Staging, run_scene, write_results};
+use pneuflex_files::OutputDir;
+use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_scene::{Scene, run_scene, write_results};
+
+fn stage(dest: &Path) -> OutputDir {
+    OutputDir::create(dest, &[], Recoverable::Regenerable).unwrap()
+}
+
+fn manifest() -> Manifest {
+    Manifest::new("test", "0", vec![])
+}
 
 fn scene(extra: &str) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3-ideal.toml");
@@ -22,14 +32,14 @@ fn traces_and_summary_are_written_and_read_back() {
     let s = scene("");
     let res = run_scene(&s, &mut |_| {}).unwrap();
     let dest = tmp("ok").join("paper-fig3-ideal");
-    let stage = Staging::new(&dest).unwrap();
+    let stage = stage(&dest);
     let staged = stage.path().to_path_buf();
     write_results(stage.path(), &s, &res).unwrap();
     assert!(
         !dest.exists(),
         "nothing appears under the final name before commit"
     );
-    stage.commit().unwrap();
+    stage.commit(manifest()).unwrap();
     assert!(!staged.exists());
     let csv = std::fs::read_to_string(dest.join("adaptive/trace.csv")).unwrap();
     let mut lines = csv.lines();
@@ -84,9 +94,9 @@ fn a_runaway_run_stops_and_is_marked_diverged() {
         assert!(r.windows.is_empty(), "no metrics for a diverged run");
     }
     let dest = tmp("div").join("x");
-    let stage = Staging::new(&dest).unwrap();
+    let stage = stage(&dest);
     write_results(stage.path(), &s, &res).unwrap();
-    stage.commit().unwrap();
+    stage.commit(manifest()).unwrap();
     assert!(
         !dest.join("impedance/trace.csv").exists(),
         "a diverged trace is never written as trace.csv"
@@ -108,7 +118,7 @@ fn a_runaway_run_stops_and_is_marked_diverged() {
 fn an_uncommitted_staging_directory_is_removed() {
     let dest = tmp("drop").join("x");
     let staged = {
-        let stage = Staging::new(&dest).unwrap();
+        let stage = stage(&dest);
         std::fs::write(stage.path().join("half.csv"), "t\n").unwrap();
         stage.path().to_path_buf()
     };

@@ -1,0 +1,139 @@
+//! Warnings before a run: legal parameters the integrator cannot resolve. Each names the key to change and
+//! a value that would work; the run still goes ahead (and stops as diverged if the state becomes impossible).
+
+use pneuflex_pneumatics::{ActuatorSheet, ChamberState, OneDofModel};
+
+use crate::schema::{EventSpec, PlantSpec, Scene};
+
+/// RK4's stability limit on the negative real axis (|λh| below ≈ 2.785) and on the imaginary axis
+/// (|ωh| below 2√2 ≈ 2.83); a step is resolved, not just stable, well inside: these are the warning lines.
+const REAL_AXIS_RESOLVED: f64 = 1.0;
+const OSCILLATION_RESOLVED: f64 = 0.5;
+
+/// One warning: the key it is about and what to do.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Warning {
+    /// Dotted key path in the scene file.
+    pub key: String,
+    /// The message, with the numbers.
+    pub message: String,
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.key, self.message)
+    }
+}
+
+/// The fastest chamber pressure pole |∂ṗ/∂p|, 1/s, over full valve openings both ways and the piston
+/// at both ends and mid stroke (the smallest chamber volume is the fastest).
+pub fn fastest_chamber_pole(model: &OneDofModel) -> f64 {
+    let a = &model.actuator;
+    let p_mid = 0.5 * (a.supply.supply_pressure_pa + a.supply.atmosphere_pressure_pa);
+    let stroke = a.cylinder.stroke_m;
+    let mut fastest: f64 = 0.0;
+    for x in [0.0, 0.5 * stroke, stroke] {
+        for spool in [-1.0, 1.0] {
+            let s = ChamberState::with_temperature(p_mid, p_mid, a.supply.supply_temperature_k);
+            let r0 = a.chamber_rates(&s, x, 0.0, spool);
+            let d = 1e-3 * p_mid;
+            let ra = a.chamber_rates(
+                &ChamberState {
+                    p_a: s.p_a + d,
+                    ..s
+                },
+                x,
+                0.0,
+                spool,
+            );
+            let rb = a.chamber_rates(
+                &ChamberState {
+                    p_b: s.p_b + d,
+                    ..s
+                },
+                x,
+                0.0,
+                spool,
+            );
+            fastest = fastest
+                .max(((ra.p_a - r0.p_a) / d).abs())
+                .max(((rb.p_b - r0.p_b) / d).abs());
+        }
+    }
+    fastest
+}
+
+/// Warnings for a validated scene (Err only when its actuator sheet cannot be read; building the plant
+/// reports that with its key anyway, so callers may ignore it).
+pub fn warnings(scene: &Scene) -> Vec<Warning> {
+    let mut out = Vec::new();
+    let (sheet, h, steps_key, steps_now) = match &scene.plant {
+        PlantSpec::Ideal { .. } => return out,
+        PlantSpec::Pneumatic {
+            actuator, substeps, ..
+        } => (
+            scene.resolve(actuator),
+            scene.dt_s / f64::from(*substeps),
+            "plant.substeps",
+            f64::from(*substeps),
+        ),
+        PlantSpec::Multibody(mb) => (
+            scene.resolve(&mb.actuator),
+            mb.physics_dt_s / f64::from(mb.chamber_substeps),
+            "plant.chamber_substeps",
+            f64::from(mb.chamber_substeps),
+        ),
+    };
+    let Ok(sheet) = ActuatorSheet::load(&sheet) else {
+        return out;
+    };
+    let model = sheet.model();
+    let lambda = fastest_chamber_pole(&model);
+    if lambda * h > REAL_AXIS_RESOLVED {
+        out.push(Warning {
+            key: steps_key.into(),
+            message: format!(
+                "the chamber pressures move with a time constant of {:.3e} s (fastest pole {lambda:.3e} 1/s), \
+                 shorter than the integration step h = {h:.3e} s (lambda*h = {:.3}; RK4 is unstable beyond 2.78 \
+                 and inaccurate beyond {REAL_AXIS_RESOLVED}): use {steps_key} >= {:.0}",
+                1.0 / lambda,
+                lambda * h,
+                (steps_now * lambda * h / REAL_AXIS_RESOLVED).ceil()
+            ),
+        });
+    }
+    // The 1-DOF plant holds the spring force over a substep: the contact mode must be resolved by it.
+    if let PlantSpec::Pneumatic { .. } = &scene.plant {
+        let mut k_max = (
+            scene.environment.stiffness_n_per_m,
+            "environment.stiffness_n_per_m".to_string(),
+        );
+        for (i, ev) in scene.events.iter().enumerate() {
+            if let EventSpec::Stiffness {
+                stiffness_n_per_m, ..
+            } = ev
+                && *stiffness_n_per_m > k_max.0
+            {
+                k_max = (*stiffness_n_per_m, format!("events[{i}].stiffness_n_per_m"));
+            }
+        }
+        let m = model.mechanics.moving_mass_kg;
+        let omega = (k_max.0 / m).sqrt();
+        if omega * h > OSCILLATION_RESOLVED {
+            out.push(Warning {
+                key: k_max.1,
+                message: format!(
+                    "the contact mode sqrt(k_e/m) = {omega:.3e} rad/s ({:.0} N/m on {m} kg) is faster than the \
+                     integration step h = {h:.3e} s resolves (omega*h = {:.3}; RK4 is unstable beyond 2.83 and \
+                     inaccurate beyond {OSCILLATION_RESOLVED}): use plant.substeps >= {:.0}, or a stiffness \
+                     below {:.3e} N/m",
+                    k_max.0,
+                    omega * h,
+                    (steps_now * omega * h / OSCILLATION_RESOLVED).ceil(),
+                    m * (OSCILLATION_RESOLVED / h).powi(2)
+                ),
+            });
+        }
+    }
+    out
+}
