@@ -148,12 +148,25 @@ impl Plant for OneDofPneumatic {
 
     fn check_invariants(&self) -> Result<(), String> {
         let a = &self.model.actuator;
-        crate::plant::chamber_invariants(
-            &self.state.chambers,
-            &a.supply,
-            self.state.x,
-            a.cylinder.stroke_m,
-        )
+        let stroke = a.cylinder.stroke_m;
+        crate::plant::chamber_invariants(&self.state.chambers, &a.supply, self.state.x, stroke)?;
+        // Energy has one source, the supply: the flange's kinetic energy plus the spring's can never exceed
+        // the spring charged across the whole stroke plus the largest piston and gravity force working
+        // over it (twice that, for margin). Beyond, the integrator is creating energy.
+        let m = &self.model.mechanics;
+        let f_max = a.supply.supply_pressure_pa * a.cylinder.area_a() + m.gravity_force().abs();
+        let k = self.env.stiffness_n_per_m.max(self.env0.stiffness_n_per_m);
+        let e_max = 2.0 * (0.5 * k * stroke * stroke + f_max * stroke);
+        let d = (self.state.x - self.env.x_e_m).max(0.0);
+        let e = 0.5 * m.moving_mass_kg * self.state.x_dot.powi(2)
+            + 0.5 * self.env.stiffness_n_per_m * d * d;
+        if e > e_max {
+            return Err(format!(
+                "mechanical energy {e:.3e} J (flange and environment spring) above the {e_max:.3e} J the supply \
+                 can have put in over the stroke: energy grows without a source"
+            ));
+        }
+        Ok(())
     }
 
     fn reset(&mut self) {
@@ -161,5 +174,54 @@ impl Plant for OneDofPneumatic {
         self.model.mechanics.alpha_rad = self.alpha0_rad;
         self.env = self.env0;
         self.u = 0.0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plant() -> OneDofPneumatic {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3.toml");
+        let scene = Scene::load(&path).unwrap();
+        let env = LinearSpring {
+            stiffness_n_per_m: scene.environment.stiffness_n_per_m,
+            x_e_m: scene.environment.x_e_m,
+        };
+        OneDofPneumatic::from_scene(&scene, env).unwrap()
+    }
+
+    #[test]
+    fn the_initial_state_satisfies_the_invariants() {
+        plant().check_invariants().unwrap();
+    }
+
+    #[test]
+    fn a_flange_faster_than_the_supply_can_drive_it_breaks_the_energy_invariant() {
+        let mut p = plant();
+        let a = &p.model.actuator;
+        // Independent bound: the supply's largest force over the stroke, twice, and the spring at full stroke.
+        let stroke = a.cylinder.stroke_m;
+        let bound = 2.0
+            * (0.5 * 700.0 * stroke * stroke
+                + (a.supply.supply_pressure_pa * a.cylinder.area_a()
+                    + p.model.mechanics.gravity_force().abs())
+                    * stroke);
+        let m = p.model.mechanics.moving_mass_kg;
+        let v_limit = (2.0 * bound / m).sqrt();
+        p.state.x_dot = 0.9 * v_limit;
+        p.check_invariants().unwrap();
+        p.state.x_dot = 1.1 * v_limit;
+        let e = p.check_invariants().unwrap_err();
+        assert!(e.contains("energy grows without a source"), "{e}");
+    }
+
+    #[test]
+    fn a_negative_absolute_pressure_is_named() {
+        let mut p = plant();
+        p.state.chambers.p_b = -1.0;
+        let e = p.check_invariants().unwrap_err();
+        assert!(e.starts_with("chamber pressure p_b = -1"), "{e}");
     }
 }
