@@ -14,9 +14,7 @@ use pneuflex_rerun::{
 };
 use pneuflex_scene::schema::RunSpec;
 use pneuflex_scene::trace::Row;
-use pneuflex_scene::{
-    ControllerKind, Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape,
-};
+use pneuflex_scene::{Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape};
 
 /// Parses the words after `--rerun`: `save FILE`, `spawn` or `connect URL`.
 pub fn parse_sink(words: &[String]) -> anyhow::Result<Sink> {
@@ -117,9 +115,8 @@ struct Recording {
     /// Index of the cylinder body among the visuals.
     cylinder: Option<usize>,
     poses: Vec<VisualPose>,
-    signals: Vec<(&'static str, f64)>,
-    /// Whether the run's controller has adaptive terms to log.
-    adaptive: bool,
+    /// Entity path of each recorded column, from its declaration (filled at the first tick).
+    signal_paths: Vec<String>,
 }
 
 /// Logs every run of a scene to Rerun; the first error stops logging and is returned by [`finish`].
@@ -263,8 +260,7 @@ impl RerunObserver {
             links,
             flange,
             cylinder,
-            signals: Vec::with_capacity(paths::SIGNALS.len()),
-            adaptive: run.controller == ControllerKind::Adaptive,
+            signal_paths: Vec::new(),
         })
     }
 
@@ -274,27 +270,21 @@ impl RerunObserver {
         row: &Row,
         plant: &dyn Plant,
     ) -> anyhow::Result<()> {
-        let t = row.t;
-        r.signals.clear();
-        r.signals.extend([
-            (paths::F_REF, row.f_ref),
-            (paths::F_E, row.f_e),
-            (paths::X, row.x),
-            (paths::X_R, row.x_r),
-            (paths::VALVE_U, row.u),
-        ]);
-        if row.p_a.is_finite() {
-            r.signals
-                .extend([(paths::P_A, row.p_a), (paths::P_B, row.p_b)]);
+        let t = row.t();
+        // Every recorded signal but time, at `signals/<group>/<name>` as its producer declared it; a
+        // signal the plant does not have (NaN) is not logged.
+        if r.signal_paths.is_empty() {
+            r.signal_paths = row
+                .columns
+                .iter()
+                .map(|c| format!("signals/{}/{}", c.group, c.name))
+                .collect();
         }
-        if r.adaptive {
-            r.signals.extend([
-                (paths::ADAPTIVE_G, row.g),
-                (paths::ADAPTIVE_P, row.p),
-                (paths::ADAPTIVE_D, row.d),
-            ]);
+        for (i, (path, &v)) in r.signal_paths.iter().zip(row.values).enumerate() {
+            if i != pneuflex_control::signal::index::T && v.is_finite() {
+                r.rec.log_scalars(t, &[(path.as_str(), v)])?;
+            }
         }
-        r.rec.log_scalars(t, &r.signals)?;
 
         // Where the flange's front face is and which way the axis points.
         let (front, axis) = if r.links.is_empty() {
@@ -302,10 +292,10 @@ impl RerunObserver {
             r.rec.set_link_pose(
                 t,
                 &paths::link("flange"),
-                geo.at(row.x + FLANGE_HALF_THICKNESS_M),
+                geo.at(row.x() + FLANGE_HALF_THICKNESS_M),
                 q,
             )?;
-            let front_s = row.x + 2.0 * FLANGE_HALF_THICKNESS_M;
+            let front_s = row.x() + 2.0 * FLANGE_HALF_THICKNESS_M;
             let face_s = front_s.max(geo.x_e_m + 2.0 * FLANGE_HALF_THICKNESS_M);
             r.rec.set_link_pose(
                 t,
@@ -341,22 +331,22 @@ impl RerunObserver {
                         axis,
                     )
                 }
-                None => (geo.at(row.x), rotate(geo.along_axis(), [1.0, 0.0, 0.0])),
+                None => (geo.at(row.x()), rotate(geo.along_axis(), [1.0, 0.0, 0.0])),
             }
         };
-        let contact = (row.f_e > 0.0).then(|| Contact {
+        let contact = (row.f_e() > 0.0).then(|| Contact {
             point_m: front,
-            force_n: axis.map(|c| c * row.f_e),
+            force_n: axis.map(|c| c * row.f_e()),
         });
         r.rec.log_contact(t, contact.as_ref())?;
-        if row.p_a.is_finite() {
+        if row.p_a().is_finite() {
             r.rec.log_chambers(
                 t,
                 &ChamberSample {
-                    length_a_m: row.x.max(0.0),
-                    pressure_a_pa: row.p_a,
-                    length_b_m: (geo.stroke_m - row.x).max(0.0),
-                    pressure_b_pa: row.p_b,
+                    length_a_m: row.x().max(0.0),
+                    pressure_a_pa: row.p_a(),
+                    length_b_m: (geo.stroke_m - row.x()).max(0.0),
+                    pressure_b_pa: row.p_b(),
                 },
             )?;
         }
@@ -397,7 +387,7 @@ impl StepObserver for RerunObserver {
         let t0 = Instant::now();
         let done = (|| -> anyhow::Result<()> {
             if let Some(why) = &result.diverged {
-                let t_end = result.trace.t.last().copied().unwrap_or(0.0);
+                let t_end = result.trace.t().last().copied().unwrap_or(0.0);
                 r.rec
                     .log_event(t_end, EventLevel::Error, &format!("diverged: {why}"))?;
             }

@@ -183,7 +183,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
         let reason = pneuflex_scene::runner::signal_name(signal.max(2));
         let time_reached_s = results
             .last()
-            .and_then(|r| r.trace.t.last().copied())
+            .and_then(|r| r.trace.t().last().copied())
             .unwrap_or(0.0);
         let to = stage.commit_partial(
             manifest,

@@ -6,6 +6,24 @@ use crate::error::ParamError;
 use crate::impedance::{ImpedanceFilter, ImpedanceParams};
 use crate::io::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
 use crate::pid::{Pid, PidParams};
+use crate::signal::Signal;
+
+/// The adaptive law's parameters, recorded every tick (SI; eq. (35)).
+const ADAPTIVE_SIGNALS: [Signal; 3] = [
+    Signal::new("g", "m", "adaptive", "adaptive auxiliary term g (eq. 35)"),
+    Signal::new(
+        "p",
+        "m/N",
+        "adaptive",
+        "adaptive proportional factor p (eq. 35)",
+    ),
+    Signal::new(
+        "d",
+        "s",
+        "adaptive",
+        "adaptive differential factor d (eq. 35)",
+    ),
+];
 
 /// Position-based impedance control: x_r = x_d + x_f (eq. (23)), then PID on x_r - x.
 #[derive(Clone, Copy, Debug)]
@@ -151,5 +169,14 @@ impl Controller for AdaptiveImpedanceController {
         self.law.reset();
         self.pid.reset();
         self.telemetry = Telemetry::default();
+    }
+
+    fn signals(&self) -> &'static [Signal] {
+        &ADAPTIVE_SIGNALS
+    }
+
+    fn record(&self, out: &mut [f64]) {
+        let t = &self.telemetry;
+        out.copy_from_slice(&[t.g, t.p, t.d]);
     }
 }

@@ -70,4 +70,10 @@ pub trait Controller {
     fn telemetry(&self) -> Telemetry;
     /// Returns to the initial state (integrators, filters, adaptive parameters).
     fn reset(&mut self);
+    /// The controller's own recorded signals (beyond the loop's, `signal::LOOP_SIGNALS`), declared once.
+    fn signals(&self) -> &'static [crate::signal::Signal] {
+        &[]
+    }
+    /// Writes the values of [`Controller::signals`] after the last update into `out` (same length).
+    fn record(&self, _out: &mut [f64]) {}
 }

@@ -15,6 +15,7 @@ pub mod io;
 pub mod lyapunov;
 pub mod pid;
 pub mod reference;
+pub mod signal;
 
 pub use adaptive::{AdaptiveLaw, AdaptiveParams, LambdaDSign, Sigma1Sign, VelocitySource};
 pub use controllers::{AdaptiveImpedanceController, ImpedanceController};
@@ -26,3 +27,4 @@ pub use lyapunov::{
 };
 pub use pid::{AntiWindup, Pid, PidParams};
 pub use reference::{Reference, SCHEDULE_CAPACITY, Schedule, SetpointSchedule};
+pub use signal::{LOOP_SIGNALS, Signal};

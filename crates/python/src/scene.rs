@@ -37,30 +37,10 @@ pub fn load_scene<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, Py
     Ok(d)
 }
 
-const COLUMNS: [&str; 8] = ["t", "f_ref", "f_e", "x", "x_r", "p_a", "p_b", "u"];
-
 fn trace_to_dict<'py>(py: Python<'py>, tr: Trace) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    let Trace {
-        t,
-        f_ref,
-        f_e,
-        x,
-        x_r,
-        p_a,
-        p_b,
-        u,
-        g,
-        p,
-        d: dd,
-    } = tr;
-    for (k, v) in COLUMNS.iter().zip([t, f_ref, f_e, x, x_r, p_a, p_b, u]) {
-        d.set_item(*k, v.into_pyarray(py))?;
-    }
-    if !g.is_empty() {
-        d.set_item("g", g.into_pyarray(py))?;
-        d.set_item("p", p.into_pyarray(py))?;
-        d.set_item("d", dd.into_pyarray(py))?;
+    for (c, v) in tr.into_columns() {
+        d.set_item(c.name, v.into_pyarray(py))?;
     }
     Ok(d)
 }
@@ -77,48 +57,31 @@ fn column(d: &Bound<'_, PyDict>, key: &str, what: &str) -> PyResult<Option<Vec<f
     })
 }
 
-/// A trace from a dict of arrays (t, f_ref, f_e, x, x_r, p_a, p_b, u required; g, p, d optional).
+/// A trace from a dict of arrays: the loop's columns (t, f_ref, f_e, x, x_r, p_a, p_b, u) required, any
+/// other column (g, p, d, ...) kept in the dict's order.
 fn trace_from_dict(d: &Bound<'_, PyDict>, what: &str) -> PyResult<Trace> {
-    let mut cols = Vec::with_capacity(COLUMNS.len());
-    for k in COLUMNS {
-        cols.push(
-            column(d, k, what)?
-                .ok_or_else(|| PyKeyError::new_err(format!("{what}: missing column `{k}`")))?,
-        );
+    let mut cols = Vec::with_capacity(d.len());
+    for s in pneuflex_control::LOOP_SIGNALS.iter() {
+        let v = column(d, s.name, what)?
+            .ok_or_else(|| PyKeyError::new_err(format!("{what}: missing column `{}`", s.name)))?;
+        cols.push((pneuflex_scene::trace::Column::from(s), v));
     }
-    let n = cols[0].len();
-    let mut opt = Vec::new();
-    for k in ["g", "p", "d"] {
-        opt.push(column(d, k, what)?.unwrap_or_default());
-    }
-    for (k, c) in COLUMNS
-        .iter()
-        .zip(&cols)
-        .chain(["g", "p", "d"].iter().zip(&opt))
-    {
-        if c.len() != n && !(c.is_empty() && ["g", "p", "d"].contains(k)) {
-            return Err(PyValueError::new_err(format!(
-                "{what}: column `{k}` has {} samples, `t` has {n}",
-                c.len()
-            )));
+    for key in d.keys() {
+        let key: String = key.extract()?;
+        if pneuflex_control::LOOP_SIGNALS.iter().any(|s| s.name == key) {
+            continue;
         }
+        let v = column(d, &key, what)?.unwrap_or_default();
+        cols.push((
+            pneuflex_scene::trace::Column {
+                name: key,
+                unit: String::new(),
+                group: String::new(),
+            },
+            v,
+        ));
     }
-    let mut it = cols.into_iter();
-    let mut next = || it.next().expect("eight columns");
-    let mut o = opt.into_iter();
-    Ok(Trace {
-        t: next(),
-        f_ref: next(),
-        f_e: next(),
-        x: next(),
-        x_r: next(),
-        p_a: next(),
-        p_b: next(),
-        u: next(),
-        g: o.next().unwrap_or_default(),
-        p: o.next().unwrap_or_default(),
-        d: o.next().unwrap_or_default(),
-    })
+    Trace::from_columns(cols).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))
 }
 
 fn run_all(py: Python<'_>, scene: &Scene) -> PyResult<(Vec<RunResult>, f64)> {
@@ -237,7 +200,7 @@ pub fn write_figures<'py>(
             PyValueError::new_err(format!("runs[{name:?}] must be a dict of arrays"))
         })?;
         let trace = trace_from_dict(d, &format!("runs[{name:?}]"))?;
-        let controller = if trace.g.is_empty() {
+        let controller = if !trace.has("g") {
             ControllerKind::Impedance
         } else {
             ControllerKind::Adaptive

@@ -164,7 +164,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
                 diverged: r.diverged.is_some(),
                 reason: r.diverged.clone(),
                 interrupted: r.interrupted.clone(),
-                time_reached_s: r.trace.t.last().copied().unwrap_or(0.0),
+                time_reached_s: r.trace.t().last().copied().unwrap_or(0.0),
                 trace: format!("{}/{}", r.name, trace_file_name(r)),
                 windows: r.windows.clone(),
                 lyapunov: r.lyapunov,
@@ -182,9 +182,7 @@ pub fn write_results(dir: &Path, scene: &Scene, results: &[RunResult]) -> Result
         let path = run_dir.join(trace_file_name(r));
         let f = fs::File::create(&path).map_err(werr(&path))?;
         let mut w = BufWriter::new(f);
-        r.trace
-            .write_csv(&mut w, r.is_adaptive())
-            .map_err(werr(&path))?;
+        r.trace.write_csv(&mut w).map_err(werr(&path))?;
         w.flush().map_err(werr(&path))?;
     }
     let path = dir.join("summary.json");

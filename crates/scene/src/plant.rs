@@ -23,6 +23,12 @@ pub trait Plant {
     fn check_invariants(&self) -> Result<(), String> {
         Ok(())
     }
+    /// The plant's own recorded signals (beyond what `sense` returns), declared once.
+    fn signals(&self) -> &'static [pneuflex_control::Signal] {
+        &[]
+    }
+    /// Writes the values of [`Plant::signals`] at the current state into `out` (same length).
+    fn record(&self, _out: &mut [f64]) {}
     /// The plant's bodies as drawn in 3D (name and shape), for viewers; empty for plants without geometry.
     fn visuals(&self) -> Vec<Visual> {
         Vec::new()

@@ -397,7 +397,6 @@ fn simulate_loop(
     stop: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<RunResult, SceneError> {
     let run = &scene.runs[index];
-    let adaptive = run.controller == ControllerKind::Adaptive;
     let dt = scene.dt_s;
     let n = scene.n_steps();
     // Event order by time, keeping each event's index in the file for messages.
@@ -405,7 +404,12 @@ fn simulate_loop(
         scene.events.iter().enumerate().collect();
     events.sort_by(|a, b| a.1.t_s().total_cmp(&b.1.t_s()));
     let mut next_event = 0;
-    let mut trace = Trace::with_capacity(n + 1, adaptive);
+    // The row: the loop's signals, then the controller's and the plant's, as each declares them.
+    let (c_sig, p_sig) = (controller.signals(), plant.signals());
+    let columns = Trace::loop_columns(&[c_sig, p_sig]);
+    let n_loop = pneuflex_control::LOOP_SIGNALS.len();
+    let mut values = vec![0.0; columns.len()];
+    let mut trace = Trace::with_capacity(n + 1, columns);
     let lim = scene.divergence;
     let report_every = (n / 200).max(1);
     let mut diverged = None;
@@ -425,21 +429,19 @@ fn simulate_loop(
         let sp: Setpoint = setpoints.at(t);
         let cmd = controller.update(&s, &sp, dt);
         let tel = controller.telemetry();
-        let row = Row {
-            t,
-            f_ref: sp.f_ref,
-            f_e: s.f_e,
-            x: s.x,
-            x_r: tel.x_r,
-            p_a: s.p_a,
-            p_b: s.p_b,
-            u: cmd.u,
-            g: tel.g,
-            p: tel.p,
-            d: tel.d,
-        };
-        trace.push(&row, adaptive);
-        observer.on_step(&row, &*plant);
+        // In the order of pneuflex_control::LOOP_SIGNALS.
+        values[..n_loop].copy_from_slice(&[t, sp.f_ref, s.f_e, s.x, tel.x_r, s.p_a, s.p_b, cmd.u]);
+        let (c_vals, p_vals) = values[n_loop..].split_at_mut(c_sig.len());
+        controller.record(c_vals);
+        plant.record(p_vals);
+        trace.push(&values);
+        observer.on_step(
+            &Row {
+                columns: trace.columns(),
+                values: &values,
+            },
+            &*plant,
+        );
         if let Some(reason) = divergence(t, s.x, s.f_e, tel.x_r, &lim) {
             diverged = Some(reason);
             break;
@@ -520,8 +522,8 @@ pub fn compute_windows(scene: &Scene, tr: &Trace) -> Vec<WindowMetrics> {
         .metrics
         .iter()
         .map(|w| {
-            let (i0, i1) = metrics::window_indices(&tr.t, w.t0_s, w.t1_s);
-            let (t, r, f) = (&tr.t[i0..i1], &tr.f_ref[i0..i1], &tr.f_e[i0..i1]);
+            let (i0, i1) = metrics::window_indices(tr.t(), w.t0_s, w.t1_s);
+            let (t, r, f) = (&tr.t()[i0..i1], &tr.f_ref()[i0..i1], &tr.f_e()[i0..i1]);
             let mut m = WindowMetrics {
                 name: w.name.clone(),
                 kind: w.kind,

@@ -180,8 +180,8 @@ fn a_stiffness_beyond_the_step_is_warned_about_and_stops_as_diverged() {
             .unwrap_or_else(|| panic!("run {} exited as if fine", r.name));
         assert!(why.contains("at t ="), "{why}");
         // Nothing impossible was recorded before the stop: pressures stay absolute and bounded.
-        let last_ok = r.trace.p_a.len() - 1;
-        for &p in &r.trace.p_a[..last_ok] {
+        let last_ok = r.trace.p_a().len() - 1;
+        for &p in &r.trace.p_a()[..last_ok] {
             assert!(p > 0.0 && p < 2.0 * 6.0e5, "{p}");
         }
     }
@@ -211,7 +211,7 @@ struct StopAt<'a> {
 
 impl StepObserver for StopAt<'_> {
     fn on_step(&mut self, row: &pneuflex_scene::trace::Row, _plant: &dyn pneuflex_scene::Plant) {
-        if row.t >= self.at_s {
+        if row.t() >= self.at_s {
             self.flag.store(15, Ordering::Relaxed);
         }
     }
@@ -239,7 +239,7 @@ fn a_stop_request_ends_the_run_at_the_next_tick_and_starts_no_other() {
     assert_eq!(res.len(), 1, "the second run must not start");
     let why = res[0].interrupted.as_deref().unwrap();
     assert!(why.starts_with("SIGTERM at t = 1.0"), "{why}");
-    assert!((res[0].trace.t.last().unwrap() - 1.0).abs() < 1e-9);
+    assert!((res[0].trace.t().last().unwrap() - 1.0).abs() < 1e-9);
     assert!(res[0].windows.is_empty(), "no metrics on a cut trace");
     let summary = pneuflex_scene::summary(&s, &res);
     assert!(!summary.complete);

@@ -92,8 +92,8 @@ fn window_mean_diff(scene: &Scene, a: &RunResult, b: &RunResult) -> f64 {
         .iter()
         .map(|w| {
             let i = (w.t0_s / scene.dt_s).round() as usize;
-            let j = ((w.t1_s / scene.dt_s).round() as usize).min(a.trace.t.len());
-            (mean(&a.trace.f_e, i, j) - mean(&b.trace.f_e, i, j)).abs()
+            let j = ((w.t1_s / scene.dt_s).round() as usize).min(a.trace.t().len());
+            (mean(a.trace.f_e(), i, j) - mean(b.trace.f_e(), i, j)).abs()
         })
         .fold(0.0, f64::max)
 }
@@ -110,7 +110,7 @@ fn multibody_reproduces_the_one_dof_plant_within_two_percent() {
     let (scene, mut rig, mut one) = plants(Some("pneumatics/paper-actuator-proportional.toml"));
     let r_rig = run(&scene, "impedance", &mut rig);
     let r_one = run(&scene, "impedance", &mut one);
-    let raw = rms_diff(&r_rig.trace.f_e, &r_one.trace.f_e);
+    let raw = rms_diff(r_rig.trace.f_e(), r_one.trace.f_e());
     let windows = window_mean_diff(&scene, &r_rig, &r_one);
     // The sample at the stiffness event, where the load cell lags the massless spring by one step.
     let i_event = (scene.events[0].t_s() / scene.dt_s).round() as usize;
@@ -121,7 +121,7 @@ fn multibody_reproduces_the_one_dof_plant_within_two_percent() {
             .map(|(_, &x)| x)
             .collect::<Vec<f64>>()
     };
-    let rest = rms_diff(&without(&r_rig.trace.f_e), &without(&r_one.trace.f_e));
+    let rest = rms_diff(&without(r_rig.trace.f_e()), &without(r_one.trace.f_e()));
     println!(
         "proportional valve, impedance: RMS f_e difference {raw:.3} N ({rest:.3} N without the sample at the stiffness change); window means within {windows:.3} N"
     );
@@ -160,13 +160,13 @@ fn pwm_rig_matches_the_one_dof_plant_to_its_own_sensitivity_floor() {
     let r_fine = run(&scene, "impedance", &mut one_fine);
     // 40 Hz PWM of the actuator sheet's valve at a 1 ms control period: 25 samples.
     let n_pwm = (1.0 / (40.0 * scene.dt_s)).round() as usize;
-    let avg = |r: &RunResult| pwm_average(&r.trace.f_e, n_pwm);
+    let avg = |r: &RunResult| pwm_average(r.trace.f_e(), n_pwm);
     let rig_vs_one = rms_diff(&avg(&r_rig), &avg(&r_one));
     let floor = rms_diff(&avg(&r_fine), &avg(&r_one));
     let windows = window_mean_diff(&scene, &r_rig, &r_one);
     println!(
         "PWM valve, impedance: PWM-averaged RMS f_e difference rig vs 1-DOF {rig_vs_one:.3} N, 1-DOF vs 1-DOF at half the step {floor:.3} N; window means within {windows:.3} N; raw rig vs 1-DOF {:.3} N",
-        rms_diff(&r_rig.trace.f_e, &r_one.trace.f_e)
+        rms_diff(r_rig.trace.f_e(), r_one.trace.f_e())
     );
     assert!(
         rig_vs_one <= 1.5 * floor,

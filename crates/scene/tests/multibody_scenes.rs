@@ -14,9 +14,9 @@ fn load(name: &str) -> Scene {
 
 fn between(r: &RunResult, t0: f64, t1: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
     r.trace
-        .t
+        .t()
         .iter()
-        .zip(&r.trace.f_e)
+        .zip(r.trace.f_e())
         .filter(move |(t, _)| **t >= t0 && **t <= t1)
         .map(|(t, f)| (*t, *f))
 }
@@ -44,10 +44,10 @@ fn check_swap(r: &RunResult) {
     );
     // Bounded: within the force the stroke end allows against the iron (1400 N/m x 30 mm = 42 N) plus
     // the carriage's impact.
-    let peak = r.trace.f_e.iter().fold(0.0_f64, |a, &f| a.max(f));
+    let peak = r.trace.f_e().iter().fold(0.0_f64, |a, &f| a.max(f));
     assert!(peak < 100.0, "{}: peak {peak} N", r.name);
     assert!(
-        r.trace.x.iter().all(|x| (-1e-3..=0.051).contains(x)),
+        r.trace.x().iter().all(|x| (-1e-3..=0.051).contains(x)),
         "{}: x out of the stroke",
         r.name
     );

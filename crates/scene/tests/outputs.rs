@@ -48,9 +48,9 @@ fn traces_and_summary_are_written_and_read_back() {
     // Values read back bit for bit (row 5000 = t 5 s).
     let row: Vec<&str> = csv.lines().nth(5001).unwrap().split(',').collect();
     let r = &res.iter().find(|r| r.name == "adaptive").unwrap().trace;
-    assert_eq!(row[0].parse::<f64>().unwrap(), r.t[5000]);
-    assert_eq!(row[2].parse::<f64>().unwrap(), r.f_e[5000]);
-    assert_eq!(row[8].parse::<f64>().unwrap(), r.g[5000]);
+    assert_eq!(row[0].parse::<f64>().unwrap(), r.t()[5000]);
+    assert_eq!(row[2].parse::<f64>().unwrap(), r.f_e()[5000]);
+    assert_eq!(row[8].parse::<f64>().unwrap(), r.column("g").unwrap()[5000]);
     assert_eq!(row[5], "", "the ideal plant has no chamber pressures");
     let imp = std::fs::read_to_string(dest.join("impedance/trace.csv")).unwrap();
     assert_eq!(imp.lines().next().unwrap(), "t,f_ref,f_e,x,x_r,p_a,p_b,u");
@@ -84,10 +84,10 @@ fn a_runaway_run_stops_and_is_marked_diverged() {
         let reason = r.diverged.as_deref().expect("marked diverged");
         assert!(reason.contains("divergence.max_abs_force_n"), "{reason}");
         assert!(r.trace.len() < s.n_steps() + 1, "stopped early");
-        let last = *r.trace.f_e.last().unwrap();
+        let last = *r.trace.f_e().last().unwrap();
         assert!(
             last > 5.0
-                && r.trace.f_e[..r.trace.len() - 1]
+                && r.trace.f_e()[..r.trace.len() - 1]
                     .iter()
                     .all(|f| f.abs() <= 5.0)
         );

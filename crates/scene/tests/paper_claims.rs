@@ -49,9 +49,9 @@ fn bounded(res: &[RunResult]) {
             r.diverged
         );
         // Bounded: the force never exceeds three times the largest reference (12 N), and x stays finite.
-        let f_max = r.trace.f_e.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
+        let f_max = r.trace.f_e().iter().fold(0.0_f64, |m, f| m.max(f.abs()));
         assert!(f_max < 36.0, "{}: peak |f_e| = {f_max} N", r.name);
-        assert!(r.trace.x.iter().all(|x| x.is_finite()));
+        assert!(r.trace.x().iter().all(|x| x.is_finite()));
     }
 }
 

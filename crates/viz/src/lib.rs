@@ -228,8 +228,8 @@ fn render(path: &Path, format: Format, plot: &Plot) -> Result<(), VizError> {
 fn force_lines<'a>(ok: &[&'a RunResult]) -> Vec<Line<'a>> {
     let mut lines = vec![Line {
         label: "reference f_ref".into(),
-        t: &ok[0].trace.t,
-        y: ok[0].trace.f_ref.clone(),
+        t: ok[0].trace.t(),
+        y: ok[0].trace.f_ref().to_vec(),
         color: BLACK,
         dashed: true,
         width: 2,
@@ -237,8 +237,8 @@ fn force_lines<'a>(ok: &[&'a RunResult]) -> Vec<Line<'a>> {
     for (i, r) in ok.iter().enumerate() {
         lines.push(Line {
             label: format!("f_e, {}", r.name),
-            t: &r.trace.t,
-            y: r.trace.f_e.clone(),
+            t: r.trace.t(),
+            y: r.trace.f_e().to_vec(),
             color: PALETTE[i % PALETTE.len()],
             dashed: false,
             width: 2,
@@ -268,7 +268,7 @@ pub fn write_figures(
     let events: Vec<f64> = scene.events.iter().map(|e| e.t_s()).collect();
     let t_end = ok
         .iter()
-        .map(|r| *r.trace.t.last().unwrap_or(&0.0))
+        .map(|r| *r.trace.t().last().unwrap_or(&0.0))
         .fold(0.0, f64::max);
     let mut written = Vec::new();
 
@@ -290,16 +290,16 @@ pub fn write_figures(
         let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
         lines.push(Line {
             label: format!("x, {}", r.name),
-            t: &r.trace.t,
-            y: mm(&r.trace.x),
+            t: r.trace.t(),
+            y: mm(r.trace.x()),
             color: c,
             dashed: false,
             width: 2,
         });
         lines.push(Line {
             label: format!("x_r, {}", r.name),
-            t: &r.trace.t,
-            y: mm(&r.trace.x_r),
+            t: r.trace.t(),
+            y: mm(r.trace.x_r()),
             color: c,
             dashed: true,
             width: 1,
