@@ -1,21 +1,50 @@
-//! The `pneuflex tf` command body (src/cmd/tf.rs of the root package), compiled against this crate.
-#[path = "../../../src/cmd/tf.rs"]
-mod tf;
+//! `pneuflex tf` as a user meets it: the built binary, its stdout, stderr and exit status.
+//! (Moved from crates/pneumatics/tests, which compiled src/cmd/tf.rs into that crate through a `#[path]`.)
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
-fn data(p: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(p)
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+/// `pneuflex tf <file> [--json]`.
+fn tf(file: &Path, json: bool) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_pneuflex"));
+    c.arg("tf").arg(file);
+    if json {
+        c.arg("--json");
+    }
+    c.output().unwrap()
+}
+
+/// Stdout of a command that must succeed.
+fn ok(o: Output) -> String {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+/// The error message of a command that must fail: stderr without main's `error: ` prefix.
+fn err(o: Output) -> String {
+    assert!(
+        !o.status.success(),
+        "succeeded: {}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let e = String::from_utf8(o.stderr).unwrap();
+    e.strip_prefix("error: ")
+        .unwrap_or(&e)
+        .trim_end()
+        .to_string()
 }
 
 /// JSON output has k_n, omega_n, xi_n in SI and agrees with the library's eq. (17) values; the table
 /// names every quantity with its unit; a scene naming the sheet gives the same numbers.
 #[test]
 fn tf_json_and_table() {
-    let sheet = data("pneumatics/paper-actuator.toml");
-    let out = tf::tf(&sheet, true).unwrap();
-    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let model = pneuflex_pneumatics::ActuatorSheet::load(&sheet)
+    let sheet = repo("pneumatics/paper-actuator.toml");
+    let v: serde_json::Value = serde_json::from_str(&ok(tf(&sheet, true))).unwrap();
+    let model = pneuflex::pneumatics::ActuatorSheet::load(&sheet)
         .unwrap()
         .model();
     let (_, expected) = model.transfer_function_mid_stroke().unwrap();
@@ -23,7 +52,7 @@ fn tf_json_and_table() {
     assert!((v["xi_n"].as_f64().unwrap() / expected.xi_n - 1.0).abs() < 1e-12);
     assert!((v["k_n"].as_f64().unwrap() / expected.k_n - 1.0).abs() < 1e-12);
     assert_eq!(v["den"].as_array().unwrap().len(), 4);
-    let table = tf::tf(&sheet, false).unwrap();
+    let table = ok(tf(&sheet, false));
     for key in [
         "K_n",
         "omega_n",
@@ -35,19 +64,17 @@ fn tf_json_and_table() {
     ] {
         assert!(table.contains(key), "table lacks {key}:\n{table}");
     }
-    let scene = data("scenes/paper-fig3.toml");
-    if scene.exists() {
-        let s: serde_json::Value = serde_json::from_str(&tf::tf(&scene, true).unwrap()).unwrap();
-        assert_eq!(s["omega_n"], v["omega_n"]);
-    }
-    eprintln!("{table}");
+    let scene = repo("scenes/paper-fig3.toml");
+    let s: serde_json::Value = serde_json::from_str(&ok(tf(&scene, true))).unwrap();
+    assert_eq!(s["omega_n"], v["omega_n"]);
 }
 
-/// A bad sheet is an error naming the file, not a panic.
+/// A bad sheet is an error naming the file and a non-zero exit, not a panic.
 #[test]
 fn tf_bad_file_is_an_error() {
-    let err = tf::tf(&data("pneumatics/no-such-sheet.toml"), false).unwrap_err();
-    assert!(format!("{err:#}").contains("no-such-sheet.toml"));
+    let o = tf(&repo("pneumatics/no-such-sheet.toml"), false);
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert!(err(o).contains("no-such-sheet.toml"));
 }
 
 /// Issue 11: `tf` with a missing component named the missing file but not the key naming it, and printed
@@ -57,7 +84,7 @@ fn tf_missing_component_names_sheet_line_and_key_and_the_os_error_once() {
     let dir = std::env::temp_dir().join(format!("pneuflex-cli-tf-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    for e in std::fs::read_dir(data("pneumatics")).unwrap() {
+    for e in std::fs::read_dir(repo("pneumatics")).unwrap() {
         let p = e.unwrap().path();
         std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
     }
@@ -69,15 +96,15 @@ fn tf_missing_component_names_sheet_line_and_key_and_the_os_error_once() {
     )
     .unwrap();
     let line = 1 + text.lines().position(|l| l.starts_with("valve =")).unwrap();
-    let err = format!("{:#}", tf::tf(&sheet, false).unwrap_err());
+    let e = err(tf(&sheet, false));
     let os = std::io::Error::from(std::io::ErrorKind::NotFound).to_string();
     let want = format!(
         "{}:{line}: components.valve: {}: cannot read: ",
         sheet.display(),
         dir.join("nope.toml").display()
     );
-    assert!(err.starts_with(&want), "{err}\nwanted {want}...");
-    assert_eq!(err.matches("No such file").count(), 1, "{err} ({os})");
+    assert!(e.starts_with(&want), "{e}\nwanted {want}...");
+    assert_eq!(e.matches("No such file").count(), 1, "{e} ({os})");
 
     // A scene naming a missing sheet is blamed on its plant.actuator line.
     let scene = dir.join("scene.toml");
@@ -86,14 +113,15 @@ fn tf_missing_component_names_sheet_line_and_key_and_the_os_error_once() {
         "name = \"s\"\n\n[plant]\nkind = \"pneumatic\"\nactuator = \"gone.toml\"\n",
     )
     .unwrap();
-    let err = format!("{:#}", tf::tf(&scene, false).unwrap_err());
+    let e = err(tf(&scene, false));
     assert!(
-        err.starts_with(&format!(
+        e.starts_with(&format!(
             "{}:5: plant.actuator: {}: cannot read: ",
             scene.display(),
             dir.join("gone.toml").display()
         )),
-        "{err}"
+        "{e}"
     );
-    assert_eq!(err.matches("No such file").count(), 1, "{err}");
+    assert_eq!(e.matches("No such file").count(), 1, "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

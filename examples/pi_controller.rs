@@ -1,0 +1,151 @@
+//! A custom controller in a shipped scene: a plain PI force controller on the valve, run on
+//! scenes/paper-fig3.toml next to the scene's own impedance and adaptive runs.
+//!
+//! `cargo run --example pi_controller [-- KP KI]` (defaults 0.01 /N and 0.2 /(N s)).
+//!
+//! Any type implementing `pneuflex::control::Controller` runs in every scene through
+//! `pneuflex::scene::simulate`; the scene supplies the plant, the setpoints, the events and the
+//! divergence checks.
+
+use std::path::Path;
+
+use pneuflex::control::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
+use pneuflex::scene::{Scene, build_plant, build_setpoints, run_scene, simulate};
+
+/// u = kp e + ki ∫e on the force error e = f_ref - f_e, straight to the valve (no impedance filter,
+/// no inner position loop). It drives the valve, so it needs a plant with one (pneumatic or multibody).
+struct PiForce {
+    kp_per_n: f64,
+    ki_per_n_s: f64,
+    integral_n_s: f64,
+    last: Telemetry,
+}
+
+impl PiForce {
+    fn new(kp_per_n: f64, ki_per_n_s: f64) -> Self {
+        Self {
+            kp_per_n,
+            ki_per_n_s,
+            integral_n_s: 0.0,
+            last: Telemetry::default(),
+        }
+    }
+}
+
+impl Controller for PiForce {
+    fn update(&mut self, s: &Sensors, sp: &Setpoint, dt: f64) -> ValveCommand {
+        let e = sp.f_ref - s.f_e;
+        let u = self.kp_per_n * e + self.ki_per_n_s * (self.integral_n_s + e * dt);
+        // Anti-windup: integrate only while the valve is not saturated.
+        if u.abs() < 1.0 {
+            self.integral_n_s += e * dt;
+        }
+        // No position reference: report the flange position as x_r so traces and the divergence
+        // check see a plausible value.
+        self.last = Telemetry {
+            x_r: s.x,
+            e,
+            ..Telemetry::default()
+        };
+        ValveCommand::clamped(u)
+    }
+
+    fn telemetry(&self) -> Telemetry {
+        self.last
+    }
+
+    fn reset(&mut self) {
+        *self = Self::new(self.kp_per_n, self.ki_per_n_s);
+    }
+}
+
+/// Wraps a controller and accumulates the squared force error over the scene's metric windows: the same
+/// samples and definition as `rms_force_error_n` in summary.json (`simulate` alone computes no metrics).
+struct RmsMeter<C> {
+    inner: C,
+    /// (name, t0, t1, sum of squares, samples)
+    windows: Vec<(String, f64, f64, f64, usize)>,
+    end_s: f64,
+}
+
+impl<C: Controller> RmsMeter<C> {
+    fn new(inner: C, scene: &Scene) -> Self {
+        let windows = (scene.metrics.iter())
+            .map(|w| (w.name.clone(), w.t0_s, w.t1_s, 0.0, 0))
+            .collect();
+        Self {
+            inner,
+            windows,
+            end_s: scene.duration_s,
+        }
+    }
+
+    fn rms(&self, name: &str) -> Option<f64> {
+        let w = self.windows.iter().find(|w| w.0 == name)?;
+        Some((w.3 / w.4 as f64).sqrt())
+    }
+}
+
+impl<C: Controller> Controller for RmsMeter<C> {
+    fn update(&mut self, s: &Sensors, sp: &Setpoint, dt: f64) -> ValveCommand {
+        let e = sp.f_ref - s.f_e;
+        for (_, t0, t1, sum, n) in &mut self.windows {
+            // [t0, t1), and t1 itself when the window ends with the run.
+            let eps = 1e-9 * (*t1 - *t0);
+            let at_end = (s.t - *t1).abs() <= eps && (*t1 - self.end_s).abs() <= eps;
+            if (s.t >= *t0 - eps && s.t < *t1 - eps) || at_end {
+                *sum += e * e;
+                *n += 1;
+            }
+        }
+        self.inner.update(s, sp, dt)
+    }
+
+    fn telemetry(&self) -> Telemetry {
+        self.inner.telemetry()
+    }
+
+    fn reset(&mut self) {
+        self.inner.reset();
+        self.windows.iter_mut().for_each(|w| (w.3, w.4) = (0.0, 0));
+    }
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let arg = |i: usize, default: f64| -> Result<f64, Box<dyn std::error::Error>> {
+        Ok(std::env::args().nth(i).map_or(Ok(default), |a| a.parse())?)
+    };
+    let (kp, ki) = (arg(1, 0.01)?, arg(2, 0.2)?);
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/paper-fig3.toml"
+    ));
+    let scene = Scene::load(path)?;
+
+    // The scene's own runs, with the metrics the CLI writes to summary.json.
+    let shipped = run_scene(&scene, &mut |_| {})?;
+
+    // The PI controller on a fresh plant of the same scene; the result is filed under run 0's name.
+    let mut plant = build_plant(&scene)?;
+    let setpoints = build_setpoints(&scene)?;
+    let mut pi = RmsMeter::new(PiForce::new(kp, ki), &scene);
+    let result = simulate(&scene, 0, plant.as_mut(), &mut pi, &setpoints, &mut |_| {})?;
+    if let Some(why) = &result.diverged {
+        println!("PI (kp = {kp}, ki = {ki}) diverged: {why}");
+    }
+
+    println!("{}\nRMS force error, N:", scene.description);
+    print!("{:<24}", "window");
+    shipped.iter().for_each(|r| print!("{:>12}", r.name));
+    println!("{:>12}", "PI");
+    for w in &scene.metrics {
+        print!("{:<24}", format!("{} {}-{} s", w.name, w.t0_s, w.t1_s));
+        for r in &shipped {
+            let m = r.window(&w.name).map(|m| m.rms_force_error_n);
+            print!("{:>12.3}", m.unwrap_or(f64::NAN));
+        }
+        println!("{:>12.3}", pi.rms(&w.name).unwrap_or(f64::NAN));
+    }
+    println!("PI gains: kp = {kp} /N, ki = {ki} /(N s)");
+    Ok(())
+}
