@@ -57,7 +57,7 @@ fn install_stop_flag() -> anyhow::Result<Arc<AtomicUsize>> {
     let armed = Arc::new(std::sync::atomic::AtomicBool::new(false));
     for sig in [SIGINT, SIGTERM, SIGHUP] {
         // Order matters: the conditional shutdown sees the flag set by a previous signal only.
-        signal_hook::flag::register_conditional_shutdown(sig, 128 + sig as i32, armed.clone())
+        signal_hook::flag::register_conditional_shutdown(sig, 128 + sig, armed.clone())
             .context("installing the signal handler")?;
         signal_hook::flag::register(sig, armed.clone()).context("installing the signal handler")?;
         signal_hook::flag::register_usize(sig, flag.clone(), sig as usize)

@@ -17,6 +17,11 @@ use crate::error::{ParamError, finite, non_negative, positive};
 
 /// Sign of the velocity term inside χ (eq. (35)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum LambdaDSign {
     /// χ = -(λp e - λd ẋ): eq. (34)'s χ = -(λp e + λv ė) with ė = -k_e ẋ in contact,
     /// λd = λv k_e > 0. The velocity term then damps (d < 0) instead of anti-damping.
@@ -27,6 +32,11 @@ pub enum LambdaDSign {
 
 /// Sign of the σ1 term in the g law (eq. (35)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum Sigma1Sign {
     /// g' = -μ1 χ - σ1 g: σ-modification (leakage), like the p and d laws.
     Leakage,
@@ -36,6 +46,11 @@ pub enum Sigma1Sign {
 
 /// Velocity signal the adaptive law uses for ẋ in χ, the d law and d·ẋ (eqs. (35), (36)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum VelocitySource {
     /// The measured flange velocity ẋ (eq. (36) as printed).
     Measured,
@@ -47,6 +62,11 @@ pub enum VelocitySource {
 
 /// Gains of the adaptive law (eq. (35)) and the units they are read in.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(from = "crate::spec::AdaptiveFile", into = "crate::spec::AdaptiveFile")
+)]
 pub struct AdaptiveParams {
     /// λp, weight of the force error in χ.
     pub lambda_p: f64,

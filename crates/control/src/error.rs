@@ -27,6 +27,18 @@ pub enum ParamError {
         /// Offending value.
         value: f64,
     },
+    /// The value is outside its admissible interval.
+    #[error("parameter `{name}` must be in [{min}, {max}], got {value}")]
+    OutOfRange {
+        /// Parameter name as in the struct field.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+        /// Lower bound.
+        min: f64,
+        /// Upper bound.
+        max: f64,
+    },
     /// Output limits with min >= max.
     #[error("output limits must satisfy u_min < u_max, got u_min = {u_min}, u_max = {u_max}")]
     BadLimits {
@@ -62,6 +74,68 @@ pub enum ParamError {
         /// Start time of the previous segment, s.
         previous: f64,
     },
+}
+
+impl ParamError {
+    /// The parameter (struct field, = file key) the error is about, when it is about one.
+    pub fn field(&self) -> Option<&'static str> {
+        match self {
+            ParamError::NotFinite { name, .. }
+            | ParamError::Negative { name, .. }
+            | ParamError::NotPositive { name, .. }
+            | ParamError::OutOfRange { name, .. } => Some(name),
+            ParamError::BadLimits { .. } => Some("u_max"),
+            _ => None,
+        }
+    }
+
+    /// What is wrong, without the parameter's name (for messages that name the key themselves).
+    pub fn reason(&self) -> alloc_free::Reason<'_> {
+        alloc_free::Reason(self)
+    }
+}
+
+/// Display of [`ParamError::reason`] without allocation (no_std).
+pub mod alloc_free {
+    use super::ParamError;
+
+    /// The reason of a parameter error, displayed without the parameter's name.
+    pub struct Reason<'a>(pub(crate) &'a ParamError);
+
+    impl core::fmt::Display for Reason<'_> {
+        fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+            match *self.0 {
+                ParamError::NotFinite { value, .. } => {
+                    write!(f, "must be a finite number, got {value}")
+                }
+                ParamError::Negative { value, .. } => write!(f, "must be >= 0, got {value}"),
+                ParamError::NotPositive { value, .. } => write!(f, "must be > 0, got {value}"),
+                ParamError::OutOfRange {
+                    value, min, max, ..
+                } => write!(f, "must be in [{min}, {max}], got {value}"),
+                ParamError::BadLimits { u_min, u_max } => write!(
+                    f,
+                    "need u_min < u_max, got u_min = {u_min}, u_max = {u_max}"
+                ),
+                ref other => write!(f, "{other}"),
+            }
+        }
+    }
+}
+
+/// Checks that `value` is finite and within [min, max].
+pub(crate) fn within(name: &'static str, value: f64, min: f64, max: f64) -> Result<(), ParamError> {
+    finite(name, value)?;
+    if (min..=max).contains(&value) {
+        Ok(())
+    } else {
+        Err(ParamError::OutOfRange {
+            name,
+            value,
+            min,
+            max,
+        })
+    }
 }
 
 /// Checks that `value` is finite.

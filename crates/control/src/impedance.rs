@@ -14,6 +14,11 @@ use crate::error::{ParamError, non_negative, positive};
 
 /// Target impedance of eq. (19): inertia, damping and stiffness of the desired force/position relation.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(deny_unknown_fields)
+)]
 pub struct ImpedanceParams {
     /// Target inertia m_d, kg (paper: 2 kg).
     pub m_d_kg: f64,

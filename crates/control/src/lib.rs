@@ -16,6 +16,8 @@ pub mod lyapunov;
 pub mod pid;
 pub mod reference;
 pub mod signal;
+#[cfg(feature = "serde")]
+pub mod spec;
 
 pub use adaptive::{AdaptiveLaw, AdaptiveParams, LambdaDSign, Sigma1Sign, VelocitySource};
 pub use controllers::{AdaptiveImpedanceController, ImpedanceController};

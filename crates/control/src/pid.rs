@@ -1,7 +1,7 @@
 //! Inner position loop: PID on x_r - x with derivative on the (filtered) measurement,
 //! output limits and anti-windup. Output is the valve command u.
 
-use crate::error::{ParamError, finite, non_negative, positive};
+use crate::error::{ParamError, non_negative, positive, within};
 
 /// How the integrator is kept from winding up while the output saturates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -18,6 +18,11 @@ pub enum AntiWindup {
 
 /// PID gains and limits. Error in m, output is the normalised valve command.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(from = "crate::spec::PidFile", into = "crate::spec::PidFile")
+)]
 pub struct PidParams {
     /// Proportional gain, 1/m (valve command per metre of position error).
     pub kp_per_m: f64,
@@ -59,8 +64,9 @@ impl PidParams {
         non_negative("ki_per_m_s", self.ki_per_m_s)?;
         non_negative("kd_s_per_m", self.kd_s_per_m)?;
         non_negative("derivative_filter_s", self.derivative_filter_s)?;
-        finite("u_min", self.u_min)?;
-        finite("u_max", self.u_max)?;
+        // The valve command is normalised to [-1, 1] (ValveCommand).
+        within("u_min", self.u_min, -1.0, 1.0)?;
+        within("u_max", self.u_max, -1.0, 1.0)?;
         if self.u_min >= self.u_max {
             return Err(ParamError::BadLimits {
                 u_min: self.u_min,

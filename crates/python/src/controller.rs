@@ -3,11 +3,7 @@
 
 use std::path::PathBuf;
 
-use pneuflex_control::{
-    AdaptiveImpedanceController, Controller, ImpedanceController, Sensors, Setpoint,
-    SetpointSchedule, Telemetry,
-};
-use pneuflex_scene::runner::{adaptive_params, impedance_params, pid_params};
+use pneuflex_control::{Controller, Sensors, Setpoint, SetpointSchedule};
 use pneuflex_scene::schema::{ControllerKind, RunSpec};
 use pneuflex_scene::{Scene, build_setpoints};
 use pyo3::prelude::*;
@@ -15,48 +11,9 @@ use pyo3::types::{PyAny, PyDict};
 
 use crate::errors;
 
-enum Ctl {
-    Impedance(ImpedanceController),
-    Adaptive(AdaptiveImpedanceController),
-}
-
-impl Ctl {
-    fn as_dyn(&mut self) -> &mut dyn Controller {
-        match self {
-            Ctl::Impedance(c) => c,
-            Ctl::Adaptive(c) => c,
-        }
-    }
-    fn telemetry(&self) -> Telemetry {
-        match self {
-            Ctl::Impedance(c) => c.telemetry(),
-            Ctl::Adaptive(c) => c.telemetry(),
-        }
-    }
-}
-
-fn build(run: &RunSpec, what: &str) -> PyResult<Ctl> {
-    let bad = |e: pneuflex_control::ParamError| errors::other(format!("{what}: {e}"));
-    let imp = impedance_params(run);
-    let pid = pid_params(&run.inner);
-    Ok(match run.controller {
-        ControllerKind::Impedance => {
-            if run.adaptive.is_some() {
-                return Err(errors::other(format!(
-                    "{what}: `adaptive` is only allowed with kind \"adaptive\""
-                )));
-            }
-            Ctl::Impedance(ImpedanceController::new(imp, pid).map_err(bad)?)
-        }
-        ControllerKind::Adaptive => {
-            let a = adaptive_params(run).ok_or_else(|| {
-                errors::other(format!(
-                    "{what}: kind \"adaptive\" needs the `adaptive` gains"
-                ))
-            })?;
-            Ctl::Adaptive(AdaptiveImpedanceController::new(imp, a, pid).map_err(bad)?)
-        }
-    })
+fn build(run: &RunSpec, what: &str) -> PyResult<Box<dyn Controller + Send + Sync>> {
+    run.build()
+        .map_err(|e| errors::other(format!("{what}: {e}")))
 }
 
 /// Index of a run given by name (str) or index (int).
@@ -72,23 +29,13 @@ pub fn run_index(scene: &Scene, run: &Bound<'_, PyAny>) -> PyResult<usize> {
         )));
     }
     let name: String = run.extract()?;
-    scene
-        .runs
-        .iter()
-        .position(|r| r.name == name)
-        .ok_or_else(|| {
-            let known: Vec<&str> = scene.runs.iter().map(|r| r.name.as_str()).collect();
-            errors::other(format!(
-                "{}: runs: no run named {name:?}, expected one of {known:?}",
-                scene.source.display()
-            ))
-        })
+    scene.run_index(&name).map_err(errors::scene)
 }
 
 /// An impedance or adaptive impedance controller with its inner position PID (Section III).
 #[pyclass(name = "Controller", module = "pneuflex")]
 pub struct PyController {
-    ctl: Ctl,
+    ctl: Box<dyn Controller + Send + Sync>,
     kind: ControllerKind,
 }
 
@@ -161,7 +108,7 @@ impl PyController {
             p_b,
         };
         let sp = Setpoint { f_ref, x_d };
-        self.ctl.as_dyn().update(&s, &sp, dt).u
+        self.ctl.update(&s, &sp, dt).u
     }
 
     /// Internal signals of the last update: x_r, x_f, dx_f (m), e (N), and g (m), p (m/N), d (s).
@@ -198,7 +145,7 @@ impl PyController {
 
     /// Back to the initial state (filters, integrators, adaptive parameters).
     fn reset(&mut self) {
-        self.ctl.as_dyn().reset();
+        self.ctl.reset();
     }
 }
 

@@ -10,10 +10,7 @@ use crate::metrics::{self, EventResponse};
 use crate::multibody::MultibodyPlant;
 use crate::plant::{IdealLoop, LinearSpring, Plant};
 use crate::pneumatic::OneDofPneumatic;
-use crate::schema::{
-    ControllerKind, ForcePiece, LambdaDSign, PidSpec, PlantSpec, RunSpec, Scene, Sigma1Sign,
-    VelocitySource, WindowKind,
-};
+use crate::schema::{ControllerKind, ForcePiece, PlantSpec, RunSpec, Scene, WindowKind};
 use crate::trace::{Row, Trace};
 
 /// The outcome of one controller run: its trace, metrics, Lyapunov check and divergence state.
@@ -166,85 +163,14 @@ pub fn build_setpoints(scene: &Scene) -> Result<control::SetpointSchedule, Scene
     Ok(sp)
 }
 
-/// The control crate's inner-loop PID parameters of a run's `inner` table.
-pub fn pid_params(p: &PidSpec) -> control::PidParams {
-    control::PidParams {
-        kp_per_m: p.kp_per_m,
-        ki_per_m_s: p.ki_per_m_s,
-        kd_s_per_m: p.kd_s_per_m,
-        derivative_filter_s: p.derivative_filter_s,
-        u_min: p.u_min,
-        u_max: p.u_max,
-        anti_windup: match p.tracking_time_s {
-            None => control::AntiWindup::Clamping,
-            Some(tracking_time_s) => control::AntiWindup::BackCalculation { tracking_time_s },
-        },
-    }
-}
-
-/// The control crate's impedance parameters of a run.
-pub fn impedance_params(run: &RunSpec) -> control::ImpedanceParams {
-    control::ImpedanceParams {
-        m_d_kg: run.impedance.m_d_kg,
-        b_d_ns_per_m: run.impedance.b_d_ns_per_m,
-        k_d_n_per_m: run.impedance.k_d_n_per_m,
-    }
-}
-
-/// The control crate's adaptive parameters of a run (None for impedance runs).
-pub fn adaptive_params(run: &RunSpec) -> Option<control::AdaptiveParams> {
-    let a = run.adaptive.as_ref()?;
-    Some(control::AdaptiveParams {
-        lambda_p: a.lambda_p,
-        lambda_d: a.lambda_d,
-        mu1: a.mu1,
-        mu2: a.mu2,
-        mu3: a.mu3,
-        sigma1: a.sigma1,
-        sigma2: a.sigma2,
-        sigma3: a.sigma3,
-        adapt_in_contact_only: a.adapt_in_contact_only,
-        contact_threshold_n: a.contact_threshold_n,
-        force_unit_n: a.force_unit_n,
-        position_unit_m: a.position_unit_m,
-        lambda_d_sign: match a.lambda_d_sign {
-            LambdaDSign::FromEdot => control::LambdaDSign::FromEdot,
-            LambdaDSign::AsPrinted => control::LambdaDSign::AsPrinted,
-        },
-        sigma1_sign: match a.sigma1_sign {
-            Sigma1Sign::Leakage => control::Sigma1Sign::Leakage,
-            Sigma1Sign::AsPrinted => control::Sigma1Sign::AsPrinted,
-        },
-        velocity_source: match a.velocity_source {
-            VelocitySource::Measured => control::VelocitySource::Measured,
-            VelocitySource::ImpedanceFilter => control::VelocitySource::ImpedanceFilter,
-        },
-        g_max_m: a.g_max_m.unwrap_or(f64::INFINITY),
-        p_max_m_per_n: a.p_max_m_per_n.unwrap_or(f64::INFINITY),
-        d_max_s: a.d_max_s.unwrap_or(f64::INFINITY),
-    })
-}
-
-/// Builds the controller of run `index` of the scene.
-pub fn build_controller(scene: &Scene, index: usize) -> Result<Box<dyn Controller>, SceneError> {
-    let run = &scene.runs[index];
-    let bad = |e: control::ParamError| scene.invalid(&format!("runs[{index}]"), e.to_string());
-    let imp = impedance_params(run);
-    let pid = pid_params(&run.inner);
-    Ok(match run.controller {
-        ControllerKind::Impedance => {
-            Box::new(control::ImpedanceController::new(imp, pid).map_err(bad)?)
-        }
-        ControllerKind::Adaptive => {
-            let a = adaptive_params(run).ok_or_else(|| {
-                scene.invalid(
-                    &format!("runs[{index}].adaptive"),
-                    "missing: controller = \"adaptive\" needs the adaptive gains".into(),
-                )
-            })?;
-            Box::new(control::AdaptiveImpedanceController::new(imp, a, pid).map_err(bad)?)
-        }
-    })
+/// Builds the controller of run `index` of the scene; an error names the key of the run it is about.
+pub fn build_controller(
+    scene: &Scene,
+    index: usize,
+) -> Result<Box<dyn Controller + Send + Sync>, SceneError> {
+    scene.runs[index]
+        .build()
+        .map_err(|e| scene.invalid(&format!("runs[{index}].{}", e.key), e.message))
 }
 
 /// Runs every controller the scene lists, each on a fresh plant. `progress` receives the completed

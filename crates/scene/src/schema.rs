@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::SceneError;
+pub use pneuflex_control::{AdaptiveParams, ImpedanceParams, PidParams};
 
 /// A complete experiment: plant, environment, references, events, controllers to compare and metric windows.
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
@@ -353,13 +354,65 @@ pub struct RunSpec {
     pub name: String,
     /// Which controller.
     pub controller: ControllerKind,
-    /// Target impedance m_d, b_d, k_d.
-    pub impedance: ImpedanceSpec,
+    /// Target impedance m_d, b_d, k_d (the control crate's parameters, as the file writes them).
+    pub impedance: ImpedanceParams,
     /// Adaptive law gains (required for, and only allowed with, `controller = "adaptive"`).
     #[serde(default)]
-    pub adaptive: Option<AdaptiveSpec>,
+    pub adaptive: Option<AdaptiveParams>,
     /// Inner position loop.
-    pub inner: PidSpec,
+    pub inner: PidParams,
+}
+
+/// Why a run's controller cannot be built: the key inside the run's table and what is wrong.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{key}: {message}")]
+pub struct RunSpecError {
+    /// Key relative to the run (`adaptive`, `inner.kp_per_m`, ...).
+    pub key: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl RunSpec {
+    /// The controller this run describes, with validated parameters: the one way every caller (the
+    /// scene runner, the rig, Python, the cross-validation) builds a controller.
+    pub fn build(
+        &self,
+    ) -> Result<Box<dyn pneuflex_control::Controller + Send + Sync>, RunSpecError> {
+        use pneuflex_control::{AdaptiveImpedanceController, ImpedanceController, ParamError};
+        let bad = |table: &str| {
+            let table = table.to_string();
+            move |e: ParamError| RunSpecError {
+                key: match e.field() {
+                    Some(f) => format!("{table}.{f}"),
+                    None => table.clone(),
+                },
+                message: e.reason().to_string(),
+            }
+        };
+        self.impedance.validate().map_err(bad("impedance"))?;
+        self.inner.validate().map_err(bad("inner"))?;
+        match (self.controller, self.adaptive) {
+            (ControllerKind::Impedance, None) => Ok(Box::new(
+                ImpedanceController::new(self.impedance, self.inner).map_err(bad("impedance"))?,
+            )),
+            (ControllerKind::Adaptive, Some(a)) => {
+                a.validate().map_err(bad("adaptive"))?;
+                Ok(Box::new(
+                    AdaptiveImpedanceController::new(self.impedance, a, self.inner)
+                        .map_err(bad("adaptive"))?,
+                ))
+            }
+            (ControllerKind::Adaptive, None) => Err(RunSpecError {
+                key: "adaptive".into(),
+                message: "missing: controller = \"adaptive\" needs the adaptive gains".into(),
+            }),
+            (ControllerKind::Impedance, Some(_)) => Err(RunSpecError {
+                key: "adaptive".into(),
+                message: "only allowed with controller = \"adaptive\"".into(),
+            }),
+        }
+    }
 }
 
 /// The controller of a run.
@@ -380,146 +433,6 @@ impl ControllerKind {
             ControllerKind::Adaptive => "adaptive",
         }
     }
-}
-
-/// Target impedance of eq. (19): m_d x_f'' + b_d x_f' + k_d x_f = e.
-#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct ImpedanceSpec {
-    /// Target inertia m_d, kg.
-    pub m_d_kg: f64,
-    /// Target damping b_d, N·s/m.
-    pub b_d_ns_per_m: f64,
-    /// Target stiffness k_d, N/m.
-    pub k_d_n_per_m: f64,
-}
-
-/// Sign of λ_d inside χ of eq. (35) (see docs/control.md).
-#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum LambdaDSign {
-    /// χ = -(λ_p e - λ_d ẋ): eq. (34)'s ė = -k_e ẋ carried through (the velocity term damps).
-    #[default]
-    FromEdot,
-    /// χ = -(λ_p e + λ_d ẋ) exactly as printed in eq. (35).
-    AsPrinted,
-}
-
-/// Sign of the σ_1 term of the g law in eq. (35).
-#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Sigma1Sign {
-    /// g' = -μ_1 χ - σ_1 g: σ-modification (leakage), like the p and d laws.
-    #[default]
-    Leakage,
-    /// g' = -μ_1 χ + σ_1 g exactly as printed (anti-leakage).
-    AsPrinted,
-}
-
-/// Gains of the σ-modified adaptive law, eq. (35), and the units they are read in.
-///
-/// The law runs on e / force_unit_n and ẋ / position_unit_m and its Δx_f comes out in position units:
-/// `position_unit_m = 1` reads the paper's numbers in SI, `1e-3` reads them with positions in mm.
-#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct AdaptiveSpec {
-    /// Force unit the gains are read in, N.
-    #[serde(default = "one")]
-    pub force_unit_n: f64,
-    /// Position unit the gains are read in, m (1 = metres, 0.001 = millimetres).
-    #[serde(default = "one")]
-    pub position_unit_m: f64,
-    /// Sign of λ_d inside χ.
-    #[serde(default)]
-    pub lambda_d_sign: LambdaDSign,
-    /// Sign of the σ_1 term.
-    #[serde(default)]
-    pub sigma1_sign: Sigma1Sign,
-    /// λ_p: weight of e in χ.
-    pub lambda_p: f64,
-    /// λ_d: weight of ẋ in χ.
-    pub lambda_d: f64,
-    /// μ_1: adaptation gain of g.
-    pub mu1: f64,
-    /// μ_2: adaptation gain of p.
-    pub mu2: f64,
-    /// μ_3: adaptation gain of d.
-    pub mu3: f64,
-    /// σ_1: σ-modification of g, 1/s.
-    pub sigma1: f64,
-    /// σ_2: σ-modification of p, 1/s.
-    pub sigma2: f64,
-    /// σ_3: σ-modification of d, 1/s.
-    pub sigma3: f64,
-    /// Adapt only while in contact (f_e > contact_threshold_n); out of contact g, p, d are held and Δx_f = g.
-    /// Default false (the law as printed); scenes where contact is lost on purpose (an environment swap) set it,
-    /// since the paper derives the law for contact only (docs/control.md).
-    #[serde(default)]
-    pub adapt_in_contact_only: bool,
-    /// Contact force above which the flange counts as in contact, N (default 0.5).
-    #[serde(default = "half_newton")]
-    pub contact_threshold_n: f64,
-    /// Velocity used for ẋ in eqs. (35)/(36): "measured" (default, the paper) or "impedance_filter" (x_f').
-    #[serde(default)]
-    pub velocity_source: VelocitySource,
-    /// Projection bound |g| <= g_max_m, m (absent = unbounded).
-    #[serde(default)]
-    pub g_max_m: Option<f64>,
-    /// Projection bound 0 <= p <= p_max_m_per_n, m/N (absent = unbounded).
-    #[serde(default)]
-    pub p_max_m_per_n: Option<f64>,
-    /// Projection bound -d_max_s <= d <= 0, s (absent = unbounded).
-    #[serde(default)]
-    pub d_max_s: Option<f64>,
-}
-
-/// Velocity the adaptive law uses for ẋ (see docs/control.md).
-#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum VelocitySource {
-    /// The measured flange velocity (eq. (36) as printed).
-    #[default]
-    Measured,
-    /// The impedance filter's velocity x_f' (eq. (22)).
-    ImpedanceFilter,
-}
-
-fn half_newton() -> f64 {
-    0.5
-}
-
-/// Inner position loop: PID on x_r - x with derivative on the measurement, anti-windup and output limits.
-#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct PidSpec {
-    /// Proportional gain, 1/m (valve command per metre of position error).
-    pub kp_per_m: f64,
-    /// Integral gain, 1/(m·s).
-    #[serde(default)]
-    pub ki_per_m_s: f64,
-    /// Derivative gain on the measured position, s/m.
-    #[serde(default)]
-    pub kd_s_per_m: f64,
-    /// Time constant of the low-pass on the derivative, s (0 = unfiltered).
-    #[serde(default = "default_derivative_filter")]
-    pub derivative_filter_s: f64,
-    /// Lower limit of the valve command, in [-1, 1].
-    #[serde(default = "minus_one")]
-    pub u_min: f64,
-    /// Upper limit of the valve command, in [-1, 1].
-    #[serde(default = "one")]
-    pub u_max: f64,
-    /// Back-calculation tracking time, s; absent = conditional integration (clamping).
-    #[serde(default)]
-    pub tracking_time_s: Option<f64>,
-}
-
-fn default_derivative_filter() -> f64 {
-    0.002
-}
-
-fn minus_one() -> f64 {
-    -1.0
 }
 
 /// What a metric window measures.
@@ -980,58 +893,15 @@ impl Scene {
                     ));
                 }
                 (ControllerKind::Adaptive, Some(a)) => {
-                    for (k, val) in [
-                        ("lambda_p", a.lambda_p),
-                        ("lambda_d", a.lambda_d),
-                        ("mu1", a.mu1),
-                        ("mu2", a.mu2),
-                        ("mu3", a.mu3),
-                        ("sigma1", a.sigma1),
-                        ("sigma2", a.sigma2),
-                        ("sigma3", a.sigma3),
-                        ("contact_threshold_n", a.contact_threshold_n),
-                    ] {
-                        v.non_negative(&at(&format!("adaptive.{k}")), val)?;
-                    }
-                    v.positive(&at("adaptive.force_unit_n"), a.force_unit_n)?;
-                    v.positive(&at("adaptive.position_unit_m"), a.position_unit_m)?;
-                    for (k, val) in [
-                        ("g_max_m", a.g_max_m),
-                        ("p_max_m_per_n", a.p_max_m_per_n),
-                        ("d_max_s", a.d_max_s),
-                    ] {
-                        if let Some(val) = val {
-                            v.positive(&at(&format!("adaptive.{k}")), val)?;
-                        }
-                    }
+                    a.validate().map_err(|e| v.param(&at("adaptive"), e))?;
                 }
                 (ControllerKind::Impedance, None) => {}
             }
-            let (imp, inner) = (&run.impedance, &run.inner);
-            v.positive(&at("impedance.m_d_kg"), imp.m_d_kg)?;
-            v.non_negative(&at("impedance.b_d_ns_per_m"), imp.b_d_ns_per_m)?;
-            v.non_negative(&at("impedance.k_d_n_per_m"), imp.k_d_n_per_m)?;
-            v.non_negative(&at("inner.kp_per_m"), inner.kp_per_m)?;
-            v.non_negative(&at("inner.ki_per_m_s"), inner.ki_per_m_s)?;
-            v.non_negative(&at("inner.kd_s_per_m"), inner.kd_s_per_m)?;
-            v.non_negative(&at("inner.derivative_filter_s"), inner.derivative_filter_s)?;
-            if let Some(tt) = inner.tracking_time_s {
-                v.positive(&at("inner.tracking_time_s"), tt)?;
-            }
-            v.finite(&at("inner.u_min"), inner.u_min)?;
-            v.finite(&at("inner.u_max"), inner.u_max)?;
-            if !(-1.0..=1.0).contains(&inner.u_min)
-                || !(-1.0..=1.0).contains(&inner.u_max)
-                || inner.u_min >= inner.u_max
-            {
-                return Err(v.err(
-                    &at("inner.u_max"),
-                    format!(
-                        "need -1 <= u_min < u_max <= 1, got u_min = {}, u_max = {}",
-                        inner.u_min, inner.u_max
-                    ),
-                ));
-            }
+            // The control crate's own checks, blamed on the key they are about.
+            run.impedance
+                .validate()
+                .map_err(|e| v.param(&at("impedance"), e))?;
+            run.inner.validate().map_err(|e| v.param(&at("inner"), e))?;
         }
         for (i, w) in self.metrics.iter().enumerate() {
             let at = |k: &str| format!("metrics[{i}].{k}");
@@ -1151,6 +1021,20 @@ impl Scene {
         Ok(())
     }
 
+    /// The index of the run named `name`; the error lists the runs there are.
+    pub fn run_index(&self, name: &str) -> Result<usize, SceneError> {
+        self.runs
+            .iter()
+            .position(|r| r.name == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = self.runs.iter().map(|r| r.name.as_str()).collect();
+                self.invalid(
+                    "runs",
+                    format!("no run named {name:?}, expected one of {names:?}"),
+                )
+            })
+    }
+
     /// The sine reference piece that covers the whole interval [t0, t1], if any.
     pub fn sine_in(&self, t0: f64, t1: f64) -> Option<ForcePiece> {
         let pieces = &self.reference.force;
@@ -1171,6 +1055,14 @@ struct Validator<'a> {
 impl Validator<'_> {
     fn err(&self, path: &str, message: String) -> SceneError {
         self.scene.invalid(path, message)
+    }
+    /// A control-crate parameter error at `table` (`runs[1].inner`), blamed on the key it names.
+    fn param(&self, table: &str, e: pneuflex_control::ParamError) -> SceneError {
+        let path = match e.field() {
+            Some(f) => format!("{table}.{f}"),
+            None => table.to_string(),
+        };
+        self.err(&path, e.reason().to_string())
     }
     fn known_material(&self, path: &str, mb: &MultibodySpec, name: &str) -> Result<(), SceneError> {
         if mb.materials.iter().any(|m| m.name == name) {

@@ -113,3 +113,37 @@ fn missing_actuator_sheet_is_an_error_not_a_panic() {
         "{msg}"
     );
 }
+
+#[test]
+fn controller_parameters_are_checked_by_the_control_crate_and_blamed_on_their_key() {
+    let text = good_text().replacen("kp_per_m = ", "kp_per_m = -", 1);
+    let msg = load_err(&text);
+    assert!(
+        msg.contains(": runs[0].inner.kp_per_m: must be >= 0, got -"),
+        "{msg}"
+    );
+    let text = good_text().replacen("[runs.inner]", "[runs.inner]\nu_max = 2.0", 1);
+    if text != good_text() {
+        let msg = load_err(&text);
+        assert!(
+            msg.contains("runs[0].inner.u_max: must be in [-1, 1], got 2"),
+            "{msg}"
+        );
+    }
+}
+
+#[test]
+fn a_run_is_picked_by_name_with_the_names_in_the_error() {
+    let s = Scene::from_toml_str(
+        &good_text(),
+        Path::new("scenes/x.toml"),
+        Path::new("scenes"),
+    )
+    .unwrap();
+    assert_eq!(s.run_index("adaptive").unwrap(), 1);
+    let e = s.run_index("adaptiv").unwrap_err().to_string();
+    assert!(
+        e.contains("no run named \"adaptiv\"") && e.contains("\"impedance\", \"adaptive\""),
+        "{e}"
+    );
+}
