@@ -4,16 +4,20 @@ use std::path::Path;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, bail};
+use anyhow::{Context, anyhow, bail};
 use pneuflex_control::{Controller, Setpoint};
-use pneuflex_rig::rtloop::{self, LoopReport};
-use pneuflex_rig::trace::TraceWriter;
+use pneuflex_rig::clock::WallClock;
+use pneuflex_rig::record;
+use pneuflex_rig::rtloop::{LoopReport, check_duration};
 use pneuflex_rig::{RigFile, serial, session};
 
 /// `pneuflex rig emulate <rig.toml> [--port <tty>] [--duration <s>]`: runs the rig file's emulated plant in
 /// real time behind a new pseudo-terminal (its path is printed) or on a given serial port, until Ctrl-C or
 /// `duration_s`. Faults listed in the rig file's `[emulator].faults` are injected.
 pub fn emulate(rig_file: &Path, port: Option<&str>, duration_s: Option<f64>) -> anyhow::Result<()> {
+    if let Some(d) = duration_s {
+        check_duration(d).map_err(|e| anyhow!("--duration: {e}"))?;
+    }
     let rig = RigFile::load(rig_file)?;
     let handle = match port {
         Some(p) => session::spawn_port_emulator(&rig, rig_file, p)?,
@@ -52,48 +56,72 @@ pub fn emulate(rig_file: &Path, port: Option<&str>, duration_s: Option<f64>) -> 
 }
 
 /// `pneuflex rig run --rig <rig.toml> [--port <tty>] --scene <scene.toml> [--out DIR]`: runs `controller`
-/// against the reference on the rig (real or emulated) for `duration_s`, writing `out_dir/trace.csv`.
-/// Ctrl-C, any rig fault, a controller panic or NaN puts the valve in its safe state and ends the run
-/// `loop.post_fault_s` later. Returns the loop report; an error if the run ended on a fault other than Ctrl-C.
+/// against the reference on the rig (real or emulated) for `duration_s`, writing `out_dir/trace.csv` and
+/// its manifest. The rig is connected before anything is written; the output is staged beside `out_dir`
+/// and renamed into place (crates/rig `record`). SIGINT, SIGTERM, SIGHUP, any rig fault, a controller panic
+/// or NaN puts the valve in its safe state and ends the run `loop.post_fault_s` later. Returns the loop
+/// report; an error (non-zero exit) if the run ended on a fault or a signal (then the output is committed
+/// as `<out_dir>.partial`).
 pub fn run(
     rig_file: &Path,
     port: Option<&str>,
+    scene: Option<&Path>,
     controller: &mut dyn Controller,
     reference: &mut dyn FnMut(f64) -> Setpoint,
     duration_s: f64,
     out_dir: &Path,
 ) -> anyhow::Result<LoopReport> {
+    check_duration(duration_s).map_err(|e| anyhow!("--duration: {e}"))?;
     let rig = RigFile::load(rig_file)?;
-    std::fs::create_dir_all(out_dir)
-        .with_context(|| format!("cannot create {}", out_dir.display()))?;
-    let trace_path = out_dir.join("trace.csv");
-    let file = std::fs::File::create(&trace_path)
-        .with_context(|| format!("cannot create {}", trace_path.display()))?;
     let stop = session::install_ctrl_c()?;
-    let link = serial::connect(&rig, rig_file, port)?;
-    let mut sup = session::supervised(link, &rig);
-    let mut trace = TraceWriter::new(file, rig.rt.trace_flush_every)?;
-    let opts = session::run_options(&rig, duration_s);
+    let mut inputs = vec![(rig_file, "rig")];
+    if let Some(s) = scene {
+        inputs.push((s, "scene"));
+    }
     println!(
-        "running on `{}` at {} Hz for {duration_s} s; trace: {}",
+        "running on `{}` at {} Hz for {duration_s} s; output: {}",
         port.unwrap_or(&rig.link.port),
         rig.rt.rate_hz,
-        trace_path.display()
+        out_dir.display()
     );
-    let report = rtloop::run(&mut sup, controller, reference, &mut trace, &opts, &stop)?;
-    drop(sup);
-    println!("{report}");
-    if let Some(f) = &report.fault
-        && f.kind != pneuflex_rig::ErrorKind::Interrupted
-    {
-        bail!(
-            "run ended on a fault: {}: {} (tick {})",
-            f.kind,
-            f.message,
-            f.tick
+    let mut clock = WallClock::new(Duration::from_micros(rig.rt.spin_us));
+    let rec = record::record(
+        &rig,
+        || serial::connect(&rig, rig_file, port),
+        out_dir,
+        &inputs,
+        controller,
+        reference,
+        duration_s,
+        &stop,
+        &mut clock,
+    )?;
+    for r in &rec.recovered {
+        eprintln!(
+            "note: the recording of an earlier run that died was kept in {}",
+            r.display()
         );
     }
-    Ok(report)
+    println!("{}", rec.report);
+    let trace = rec.dir.join("trace.csv");
+    if rec.partial {
+        bail!(
+            "interrupted by a signal at t = {} s; the valve was put in its safe state; partial trace: {}",
+            rec.report.time_reached_s,
+            trace.display()
+        );
+    }
+    if let Some(f) = &rec.report.fault {
+        bail!(
+            "run ended on a fault: {}: {} (tick {}); trace: {}",
+            f.kind,
+            f.message,
+            f.tick,
+            trace.display()
+        );
+    }
+    println!("trace: {}", trace.display());
+    Ok(rec.report)
 }
 
 /// `pneuflex rig run --scene <scene.toml>`: the controller and reference of one of the scene's runs (by name,
@@ -107,7 +135,12 @@ pub fn run_scene(
     duration_s: Option<f64>,
     out: Option<&Path>,
 ) -> anyhow::Result<()> {
+    if let Some(d) = duration_s {
+        check_duration(d).map_err(|e| anyhow!("--duration: {e}"))?;
+    }
+    let rig = RigFile::load(rig_file)?;
     let scene = pneuflex_scene::Scene::load(scene_path)?;
+    session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file).map_err(|e| anyhow!(e))?;
     let index = match run_name {
         None => 0,
         Some(name) => scene
@@ -133,10 +166,19 @@ pub fn run_scene(
             .join(&scene.name)
             .join(&scene.runs[index].name),
     };
-    let duration = duration_s.unwrap_or(scene.duration_s);
+    let duration = match duration_s {
+        Some(d) => d,
+        None => {
+            let d = scene.duration_s;
+            check_duration(d)
+                .map_err(|e| anyhow!("{}: `duration_s`: {e}", scene_path.display()))?;
+            d
+        }
+    };
     run(
         rig_file,
         port,
+        Some(scene_path),
         controller.as_mut(),
         &mut reference,
         duration,

@@ -2,6 +2,7 @@
 //! I/O board's protocol, with fault injection. It is the firmware's behaviour in host code: stream samples at
 //! the configured rate, apply valve commands, echo heartbeats, go to its safe state when the host falls silent.
 
+use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{Read, Write};
 use std::os::fd::{AsRawFd, OwnedFd};
@@ -11,6 +12,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use crate::clock::SimClock;
 use crate::error::{ErrorKind, RigError};
 use crate::plant::{EmulatedPlant, Environment, ValveDrive};
 use crate::protocol::{
@@ -213,14 +215,14 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
         }
     }
 
-    /// Runs the emulator on its own thread until stopped.
+    /// Runs the emulator on its own thread, in real time, until stopped.
     pub fn spawn(self, path: Option<PathBuf>) -> EmulatorHandle {
         let stop = Arc::new(AtomicBool::new(false));
         let log = Arc::new(Mutex::new(EmulatorLog::default()));
         let (s, l) = (stop.clone(), log.clone());
         let thread = std::thread::Builder::new()
             .name("pneuflex-emulator".into())
-            .spawn(move || self.run(&s, &l))
+            .spawn(move || self.run(&s, l))
             .ok();
         EmulatorHandle {
             path,
@@ -230,38 +232,13 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
         }
     }
 
-    /// Runs in the calling thread until `stop` is set or the link closes.
-    pub fn run(mut self, stop: &AtomicBool, log: &Mutex<EmulatorLog>) {
-        let period_s = 1.0 / self.cfg.sample_rate_hz;
-        let period = Duration::from_secs_f64(period_s);
-        let substeps = (period_s / self.cfg.plant_dt_s).round().max(1.0) as usize;
-        let h = period_s / substeps as f64;
-        let full = |c: &crate::rigfile::LinearChannel| c.full_scale() as u16;
-        let mut noise = Noise(
-            self.cfg
-                .seed
-                .wrapping_mul(2)
-                .wrapping_add(0x9E37_79B9_7F4A_7C15)
-                | 1,
-        );
-        let mut decoder = Decoder::new();
-        let mut rx = [0u8; 512];
-        let mut tx = [0u8; MAX_FRAME];
-        let mut tx_seq: u8 = 0;
-        let mut drive_mode = ValveMode::SafeVent;
-        let mut duty_q15: i16 = 0;
-        let mut last_tick: u32 = 0;
-        let mut safe_mode = ValveMode::SafeVent;
-        let mut board_wd: Option<Duration> = None;
-        let mut last_host_msg = Instant::now();
-        let mut board_fault = false;
-        let mut wd_tripped = false;
-        let mut run_start: Option<Instant> = None;
-        let mut frozen: Option<SamplePayload> = None;
-        let mut supply_lost = false;
+    /// Runs in the calling thread, one [`Board::step`] per sample period of the wall clock, until `stop`
+    /// is set or the link closes.
+    pub fn run(self, stop: &AtomicBool, log: Arc<Mutex<EmulatorLog>>) {
+        let mut board = self.board(log);
+        let period = Duration::from_secs_f64(board.period_s);
         let start = Instant::now();
         let mut k: u64 = 0;
-        let mut pending: Vec<(Message, bool)> = Vec::with_capacity(8);
         while !stop.load(Ordering::Relaxed) {
             let deadline = start + period.mul_f64(k as f64);
             let now = Instant::now();
@@ -269,233 +246,486 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
                 std::thread::sleep(deadline - now);
             }
             k += 1;
-            // Experiment time runs from the first Run command.
-            let t = run_start.map(|s| (Instant::now() - s).as_secs_f64());
-            let active = |f: &InjectedFault| -> bool {
-                let Some(t) = t else { return false };
-                match *f {
-                    InjectedFault::Stall { at_s, for_s } => t >= at_s && t < at_s + for_s,
-                    InjectedFault::DropFrames { at_s }
-                    | InjectedFault::CorruptCrc { at_s }
-                    | InjectedFault::StuckSensor { at_s }
-                    | InjectedFault::SupplyLoss { at_s }
-                    | InjectedFault::CloseLink { at_s } => t >= at_s,
-                }
-            };
-            let faults = &self.cfg.faults;
-            let stalled = faults
-                .iter()
-                .any(|f| matches!(f, InjectedFault::Stall { .. }) && active(f));
-            let dropping = faults
-                .iter()
-                .any(|f| matches!(f, InjectedFault::DropFrames { .. }) && active(f));
-            let corrupt = faults
-                .iter()
-                .any(|f| matches!(f, InjectedFault::CorruptCrc { .. }) && active(f));
-            let stuck = faults
-                .iter()
-                .any(|f| matches!(f, InjectedFault::StuckSensor { .. }) && active(f));
-            let close = faults
-                .iter()
-                .any(|f| matches!(f, InjectedFault::CloseLink { .. }) && active(f));
-            if !supply_lost
-                && faults
-                    .iter()
-                    .any(|f| matches!(f, InjectedFault::SupplyLoss { .. }) && active(f))
-            {
-                supply_lost = true;
-                self.plant.set_supply_pa(self.cal.atmosphere_pa);
-            }
-            if close && self.link.is_some() {
-                self.link = None;
-                if let Ok(mut l) = log.lock() {
-                    l.ended = Some("link closed by fault injection".into());
-                }
+            if !board.step(start.elapsed().as_secs_f64()) {
                 break;
-            }
-
-            // Receive.
-            if !stalled && let Some(link) = self.link.as_mut() {
-                loop {
-                    match link.read_now(&mut rx) {
-                        Ok(0) => break,
-                        Ok(n) => decoder.feed(&rx[..n], |ev| {
-                            if let DecodeEvent::Frame(f) = ev {
-                                pending.push((f.msg, true));
-                            }
-                        }),
-                        Err(e) => {
-                            if let Ok(mut l) = log.lock() {
-                                l.ended = Some(e.to_string());
-                            }
-                            return;
-                        }
-                    }
-                }
-            }
-            let mut replies: [Option<Message>; 2] = [None, None];
-            if stalled {
-                // A stalled firmware runs nothing, its watchdog included; the host's silence is not its doing.
-                last_host_msg = Instant::now();
-            }
-            for (msg, _) in pending.drain(..) {
-                last_host_msg = Instant::now();
-                match msg {
-                    Message::Valve(v) => {
-                        if run_start.is_none() && v.mode == ValveMode::Run {
-                            run_start = Some(Instant::now());
-                        }
-                        // A latched board fault keeps the valve safe until Reset.
-                        if !board_fault {
-                            drive_mode = v.mode;
-                            duty_q15 = v.duty_q15;
-                        }
-                        last_tick = v.tick;
-                        if let Ok(mut l) = log.lock()
-                            && l.commands.len() < LOG_CAP
-                        {
-                            l.commands.push(CommandRecord {
-                                tick: v.tick,
-                                mode: drive_mode,
-                                duty_q15,
-                                t: t.unwrap_or(0.0),
-                            });
-                        }
-                    }
-                    Message::Heartbeat(c) => replies[0] = Some(Message::Heartbeat(c)),
-                    Message::Config(c) => {
-                        safe_mode = c.safe_mode;
-                        board_wd = (c.watchdog_ms > 0)
-                            .then(|| Duration::from_millis(u64::from(c.watchdog_ms)));
-                    }
-                    Message::Reset(m) if m == RESET_MAGIC => {
-                        board_fault = false;
-                        wd_tripped = false;
-                    }
-                    _ => {}
-                }
-            }
-            // The board's own watchdog: a silent host (or a stalled board, once it wakes) -> safe state.
-            if let Some(wd) = board_wd.filter(|_| !stalled)
-                && run_start.is_some()
-                && !board_fault
-                && last_host_msg.elapsed() > wd
-            {
-                board_fault = true;
-                wd_tripped = true;
-                drive_mode = safe_mode;
-                duty_q15 = 0;
-                replies[1] = Some(Message::Fault {
-                    code: fault_code::HOST_SILENT,
-                    detail: wd.as_millis().min(u128::from(u16::MAX)) as u16,
-                });
-                if let Ok(mut l) = log.lock() {
-                    l.board_watchdog_trips += 1;
-                }
-            }
-
-            // Physics (never stalls). Before the run starts the plant rests.
-            let drive = match drive_mode {
-                ValveMode::Run => ValveDrive::Run(from_q15(duty_q15)),
-                ValveMode::SafeVent => ValveDrive::Vent,
-                ValveMode::SafeHold => ValveDrive::Hold,
-            };
-            let t_now = t.unwrap_or(0.0);
-            if run_start.is_some() {
-                for i in 0..substeps {
-                    let ts = t_now + i as f64 * h;
-                    let x = self.plant.sample().x;
-                    let f_e = self.env.force(ts, x);
-                    // f_ext on the flange = -f_e.
-                    self.plant.step(drive, -f_e, h);
-                }
-            }
-            let ps = self.plant.sample();
-            let f_e = self.env.force(t_now, ps.x);
-            if run_start.is_some()
-                && let Ok(mut l) = log.lock()
-                && l.truth.len() < LOG_CAP
-            {
-                l.truth.push(TruthRecord {
-                    t: t_now,
-                    x: ps.x,
-                    f_e,
-                });
-            }
-
-            // Sample.
-            let c = &self.cal;
-            let (ch1, chb) = c.pressure_counts(ps.p_a, ps.p_b);
-            let ch1_full = match c.channel_a {
-                crate::rigfile::ChannelA::Chamber(ch)
-                | crate::rigfile::ChannelA::Differential(ch) => full(&ch),
-            };
-            let a = self.cfg.adc_noise_counts;
-            let mut sample = SamplePayload {
-                board_time_us: (start.elapsed().as_micros() & 0xFFFF_FFFF) as u32,
-                last_cmd_tick: last_tick,
-                position: add_noise(c.position.from_si(ps.x), noise.counts(a), full(&c.position)),
-                p_a: add_noise(ch1, noise.counts(a), ch1_full),
-                p_b: add_noise(chb, noise.counts(a), full(&c.pressure_b)),
-                p_supply: add_noise(
-                    c.supply.from_si(ps.supply_pa - c.atmosphere_pa),
-                    noise.counts(a),
-                    full(&c.supply),
-                ),
-                load: c.load_from_si(f_e) + noise.counts(a) as i32,
-                duty_q15,
-                status: 0,
-            };
-            if stuck {
-                let f = *frozen.get_or_insert(sample);
-                sample.position = f.position;
-                sample.p_a = f.p_a;
-                sample.p_b = f.p_b;
-                sample.p_supply = f.p_supply;
-                sample.load = f.load;
-            }
-            sample.status = match drive_mode {
-                ValveMode::Run => 0,
-                ValveMode::SafeVent => status::SAFE,
-                ValveMode::SafeHold => status::SAFE | status::SAFE_HOLD,
-            } | if board_fault { status::BOARD_FAULT } else { 0 }
-                | if wd_tripped { status::WATCHDOG } else { 0 };
-
-            // Transmit.
-            if stalled {
-                continue;
-            }
-            let Some(link) = self.link.as_mut() else {
-                break;
-            };
-            let mut dropped = 0;
-            let mut sent = 0;
-            let out = replies
-                .iter()
-                .flatten()
-                .copied()
-                .chain((!dropping).then_some(Message::Sample(sample)));
-            for msg in out {
-                let n = encode(tx_seq, &msg, &mut tx);
-                tx_seq = tx_seq.wrapping_add(1);
-                if corrupt {
-                    tx[n - 1] ^= 0x5A;
-                }
-                match link.write_all_bytes(&tx[..n]) {
-                    Ok(()) => sent += u64::from(matches!(msg, Message::Sample(_))),
-                    Err(e) if e.kind() == ErrorKind::Timeout => dropped += 1,
-                    Err(e) => {
-                        if let Ok(mut l) = log.lock() {
-                            l.ended = Some(e.to_string());
-                        }
-                        return;
-                    }
-                }
-            }
-            if let Ok(mut l) = log.lock() {
-                l.samples_sent += sent;
-                l.tx_dropped += dropped;
             }
         }
     }
+
+    /// The board, to be stepped by the caller.
+    pub fn board(self, log: Arc<Mutex<EmulatorLog>>) -> Board<P, L> {
+        let period_s = 1.0 / self.cfg.sample_rate_hz;
+        let substeps = (period_s / self.cfg.plant_dt_s).round().max(1.0) as usize;
+        let noise = Noise(
+            self.cfg
+                .seed
+                .wrapping_mul(2)
+                .wrapping_add(0x9E37_79B9_7F4A_7C15)
+                | 1,
+        );
+        Board {
+            plant: self.plant,
+            link: self.link,
+            cal: self.cal,
+            cfg: self.cfg,
+            env: self.env,
+            log,
+            period_s,
+            substeps,
+            h: period_s / substeps as f64,
+            noise,
+            decoder: Decoder::new(),
+            tx_seq: 0,
+            drive_mode: ValveMode::SafeVent,
+            duty_q15: 0,
+            last_tick: 0,
+            safe_mode: ValveMode::SafeVent,
+            board_wd_s: None,
+            last_host_msg_s: 0.0,
+            board_fault: false,
+            wd_tripped: false,
+            run_start_s: None,
+            frozen: None,
+            supply_lost: false,
+            pending: Vec::with_capacity(8),
+            finished: false,
+        }
+    }
+}
+
+/// The firmware's state: one [`Board::step`] per sample period at board time `now` (s since power-up).
+/// Time is passed in, so the same board runs in real time ([`Emulator::spawn`]) or in lockstep with a
+/// simulated clock ([`lockstep`]).
+pub struct Board<P: EmulatedPlant, L: Link> {
+    plant: P,
+    link: Option<L>,
+    cal: Calibration,
+    cfg: EmulatorConfig,
+    env: Environment,
+    log: Arc<Mutex<EmulatorLog>>,
+    period_s: f64,
+    substeps: usize,
+    h: f64,
+    noise: Noise,
+    decoder: Decoder,
+    tx_seq: u8,
+    drive_mode: ValveMode,
+    duty_q15: i16,
+    last_tick: u32,
+    safe_mode: ValveMode,
+    board_wd_s: Option<f64>,
+    last_host_msg_s: f64,
+    board_fault: bool,
+    wd_tripped: bool,
+    run_start_s: Option<f64>,
+    frozen: Option<SamplePayload>,
+    supply_lost: bool,
+    pending: Vec<Message>,
+    finished: bool,
+}
+
+impl<P: EmulatedPlant, L: Link> Board<P, L> {
+    /// The sample period, s.
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    fn end(&mut self, why: String) {
+        self.finished = true;
+        if let Ok(mut l) = self.log.lock() {
+            l.ended = Some(why);
+        }
+    }
+
+    /// One sample period at board time `now`: receive, board watchdog, physics, sample, transmit.
+    /// Returns false once the board has stopped (link closed or failed).
+    pub fn step(&mut self, now: f64) -> bool {
+        if self.finished {
+            return false;
+        }
+        let full = |c: &crate::rigfile::LinearChannel| c.full_scale() as u16;
+        // Experiment time runs from the first Run command.
+        let t = self.run_start_s.map(|s| now - s);
+        let active = |f: &InjectedFault| -> bool {
+            let Some(t) = t else { return false };
+            match *f {
+                InjectedFault::Stall { at_s, for_s } => t >= at_s && t < at_s + for_s,
+                InjectedFault::DropFrames { at_s }
+                | InjectedFault::CorruptCrc { at_s }
+                | InjectedFault::StuckSensor { at_s }
+                | InjectedFault::SupplyLoss { at_s }
+                | InjectedFault::CloseLink { at_s } => t >= at_s,
+            }
+        };
+        let faults = &self.cfg.faults;
+        let any = |pred: fn(&InjectedFault) -> bool| faults.iter().any(|f| pred(f) && active(f));
+        let stalled = any(|f| matches!(f, InjectedFault::Stall { .. }));
+        let dropping = any(|f| matches!(f, InjectedFault::DropFrames { .. }));
+        let corrupt = any(|f| matches!(f, InjectedFault::CorruptCrc { .. }));
+        let stuck = any(|f| matches!(f, InjectedFault::StuckSensor { .. }));
+        let close = any(|f| matches!(f, InjectedFault::CloseLink { .. }));
+        if !self.supply_lost && any(|f| matches!(f, InjectedFault::SupplyLoss { .. })) {
+            self.supply_lost = true;
+            self.plant.set_supply_pa(self.cal.atmosphere_pa);
+        }
+        if close && self.link.is_some() {
+            self.link = None;
+            self.end("link closed by fault injection".into());
+            return false;
+        }
+
+        // Receive.
+        if !stalled && let Some(link) = self.link.as_mut() {
+            let mut rx = [0u8; 512];
+            loop {
+                match link.read_now(&mut rx) {
+                    Ok(0) => break,
+                    Ok(n) => {
+                        let pending = &mut self.pending;
+                        self.decoder.feed(&rx[..n], |ev| {
+                            if let DecodeEvent::Frame(f) = ev {
+                                pending.push(f.msg);
+                            }
+                        })
+                    }
+                    Err(e) => {
+                        self.end(e.to_string());
+                        return false;
+                    }
+                }
+            }
+        }
+        let mut replies: [Option<Message>; 2] = [None, None];
+        if stalled {
+            // A stalled firmware runs nothing, its watchdog included; the host's silence is not its doing.
+            self.last_host_msg_s = now;
+        }
+        for msg in std::mem::take(&mut self.pending) {
+            self.last_host_msg_s = now;
+            match msg {
+                Message::Valve(v) => {
+                    if self.run_start_s.is_none() && v.mode == ValveMode::Run {
+                        self.run_start_s = Some(now);
+                    }
+                    // A latched board fault keeps the valve safe until Reset.
+                    if !self.board_fault {
+                        self.drive_mode = v.mode;
+                        self.duty_q15 = v.duty_q15;
+                    }
+                    self.last_tick = v.tick;
+                    if let Ok(mut l) = self.log.lock()
+                        && l.commands.len() < LOG_CAP
+                    {
+                        l.commands.push(CommandRecord {
+                            tick: v.tick,
+                            mode: self.drive_mode,
+                            duty_q15: self.duty_q15,
+                            t: self.run_start_s.map_or(0.0, |s| now - s),
+                        });
+                    }
+                }
+                Message::Heartbeat(c) => replies[0] = Some(Message::Heartbeat(c)),
+                Message::Config(c) => {
+                    self.safe_mode = c.safe_mode;
+                    self.board_wd_s = (c.watchdog_ms > 0).then(|| f64::from(c.watchdog_ms) * 1e-3);
+                }
+                Message::Reset(m) if m == RESET_MAGIC => {
+                    self.board_fault = false;
+                    self.wd_tripped = false;
+                }
+                _ => {}
+            }
+        }
+        // The board's own watchdog: a silent host (or a stalled board, once it wakes) -> safe state.
+        if let Some(wd) = self.board_wd_s.filter(|_| !stalled)
+            && self.run_start_s.is_some()
+            && !self.board_fault
+            && now - self.last_host_msg_s > wd
+        {
+            self.board_fault = true;
+            self.wd_tripped = true;
+            self.drive_mode = self.safe_mode;
+            self.duty_q15 = 0;
+            replies[1] = Some(Message::Fault {
+                code: fault_code::HOST_SILENT,
+                detail: (wd * 1e3).round().min(f64::from(u16::MAX)) as u16,
+            });
+            if let Ok(mut l) = self.log.lock() {
+                l.board_watchdog_trips += 1;
+            }
+        }
+
+        // Physics (never stalls). Before the run starts the plant rests.
+        let drive = match self.drive_mode {
+            ValveMode::Run => ValveDrive::Run(from_q15(self.duty_q15)),
+            ValveMode::SafeVent => ValveDrive::Vent,
+            ValveMode::SafeHold => ValveDrive::Hold,
+        };
+        let t_now = t.unwrap_or(0.0);
+        if self.run_start_s.is_some() {
+            for i in 0..self.substeps {
+                let ts = t_now + i as f64 * self.h;
+                let x = self.plant.sample().x;
+                let f_e = self.env.force(ts, x);
+                // f_ext on the flange = -f_e.
+                self.plant.step(drive, -f_e, self.h);
+            }
+        }
+        let ps = self.plant.sample();
+        let f_e = self.env.force(t_now, ps.x);
+        if self.run_start_s.is_some()
+            && let Ok(mut l) = self.log.lock()
+            && l.truth.len() < LOG_CAP
+        {
+            l.truth.push(TruthRecord {
+                t: t_now,
+                x: ps.x,
+                f_e,
+            });
+        }
+
+        // Sample.
+        let c = &self.cal;
+        let noise = &mut self.noise;
+        let (ch1, chb) = c.pressure_counts(ps.p_a, ps.p_b);
+        let ch1_full = match c.channel_a {
+            crate::rigfile::ChannelA::Chamber(ch) | crate::rigfile::ChannelA::Differential(ch) => {
+                full(&ch)
+            }
+        };
+        let a = self.cfg.adc_noise_counts;
+        let mut sample = SamplePayload {
+            board_time_us: ((now * 1e6) as u64 & 0xFFFF_FFFF) as u32,
+            last_cmd_tick: self.last_tick,
+            position: add_noise(c.position.from_si(ps.x), noise.counts(a), full(&c.position)),
+            p_a: add_noise(ch1, noise.counts(a), ch1_full),
+            p_b: add_noise(chb, noise.counts(a), full(&c.pressure_b)),
+            p_supply: add_noise(
+                c.supply.from_si(ps.supply_pa - c.atmosphere_pa),
+                noise.counts(a),
+                full(&c.supply),
+            ),
+            load: c.load_from_si(f_e) + noise.counts(a) as i32,
+            duty_q15: self.duty_q15,
+            status: 0,
+        };
+        if stuck {
+            let f = *self.frozen.get_or_insert(sample);
+            sample.position = f.position;
+            sample.p_a = f.p_a;
+            sample.p_b = f.p_b;
+            sample.p_supply = f.p_supply;
+            sample.load = f.load;
+        }
+        sample.status = match self.drive_mode {
+            ValveMode::Run => 0,
+            ValveMode::SafeVent => status::SAFE,
+            ValveMode::SafeHold => status::SAFE | status::SAFE_HOLD,
+        } | if self.board_fault {
+            status::BOARD_FAULT
+        } else {
+            0
+        } | if self.wd_tripped { status::WATCHDOG } else { 0 };
+
+        // Transmit.
+        if stalled {
+            return true;
+        }
+        let Some(link) = self.link.as_mut() else {
+            self.finished = true;
+            return false;
+        };
+        let mut tx = [0u8; MAX_FRAME];
+        let mut dropped = 0;
+        let mut sent = 0;
+        let out = replies
+            .iter()
+            .flatten()
+            .copied()
+            .chain((!dropping).then_some(Message::Sample(sample)));
+        for msg in out {
+            let n = encode(self.tx_seq, &msg, &mut tx);
+            self.tx_seq = self.tx_seq.wrapping_add(1);
+            if corrupt {
+                tx[n - 1] ^= 0x5A;
+            }
+            match link.write_all_bytes(&tx[..n]) {
+                Ok(()) => sent += u64::from(matches!(msg, Message::Sample(_))),
+                Err(e) if e.kind() == ErrorKind::Timeout => dropped += 1,
+                Err(e) => {
+                    self.end(e.to_string());
+                    return false;
+                }
+            }
+        }
+        if let Ok(mut l) = self.log.lock() {
+            l.samples_sent += sent;
+            l.tx_dropped += dropped;
+        }
+        true
+    }
+}
+
+/// One direction of an in-memory byte pipe.
+#[derive(Debug, Default)]
+struct Pipe {
+    to_board: VecDeque<u8>,
+    to_host: VecDeque<u8>,
+    host_closed: bool,
+    board_closed: bool,
+}
+
+/// Bytes each direction of a [`MemLink`] holds before writes fail like a full UART buffer.
+pub const MEM_LINK_CAPACITY: usize = 16 * 1024;
+
+/// One end of an in-memory link (board end or host end). Dropping an end is a hang-up for the other.
+#[derive(Debug)]
+pub struct MemLink {
+    pipe: Arc<Mutex<Pipe>>,
+    board_end: bool,
+}
+
+impl MemLink {
+    /// A connected pair: (host end, board end).
+    pub fn pair() -> (MemLink, MemLink) {
+        let pipe = Arc::new(Mutex::new(Pipe::default()));
+        (
+            MemLink {
+                pipe: pipe.clone(),
+                board_end: false,
+            },
+            MemLink {
+                pipe,
+                board_end: true,
+            },
+        )
+    }
+}
+
+impl Link for MemLink {
+    fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError> {
+        let mut guard = self
+            .pipe
+            .lock()
+            .map_err(|_| RigError::new(ErrorKind::LinkLost, "link poisoned"))?;
+        let p = &mut *guard;
+        let (q, peer_closed) = if self.board_end {
+            (&mut p.to_board, p.host_closed)
+        } else {
+            (&mut p.to_host, p.board_closed)
+        };
+        if q.is_empty() {
+            return if peer_closed {
+                Err(RigError::new(ErrorKind::LinkLost, "the other end hung up"))
+            } else {
+                Ok(0)
+            };
+        }
+        let n = buf.len().min(q.len());
+        for (dst, src) in buf.iter_mut().zip(q.drain(..n)) {
+            *dst = src;
+        }
+        Ok(n)
+    }
+
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> Result<(), RigError> {
+        let mut guard = self
+            .pipe
+            .lock()
+            .map_err(|_| RigError::new(ErrorKind::LinkLost, "link poisoned"))?;
+        let p = &mut *guard;
+        let (q, peer_closed) = if self.board_end {
+            (&mut p.to_host, p.host_closed)
+        } else {
+            (&mut p.to_board, p.board_closed)
+        };
+        if peer_closed {
+            return Err(RigError::new(ErrorKind::LinkLost, "the other end hung up"));
+        }
+        if q.len() + bytes.len() > MEM_LINK_CAPACITY {
+            return Err(RigError::new(ErrorKind::Timeout, "link buffer full"));
+        }
+        q.extend(bytes.iter().copied());
+        Ok(())
+    }
+}
+
+impl Drop for MemLink {
+    fn drop(&mut self) {
+        if let Ok(mut p) = self.pipe.lock() {
+            if self.board_end {
+                p.board_closed = true;
+            } else {
+                p.host_closed = true;
+            }
+        }
+    }
+}
+
+/// The host end of a link to a [`Board`] stepped in lockstep with a [`SimClock`]: every read first runs
+/// the board's sample periods up to the clock's time (board time = clock time). Deterministic: no threads,
+/// no wall clock.
+pub struct LockstepLink<P: EmulatedPlant> {
+    host: MemLink,
+    board: Board<P, MemLink>,
+    clock: SimClock,
+    /// Board steps done; step k runs at k · period.
+    steps: u64,
+    period_ns: u64,
+}
+
+impl<P: EmulatedPlant> LockstepLink<P> {
+    fn advance(&mut self) {
+        let now = self.clock.now_ns();
+        while self.steps * self.period_ns <= now {
+            let t = (self.steps * self.period_ns) as f64 * 1e-9;
+            self.steps += 1;
+            if !self.board.step(t) {
+                break;
+            }
+        }
+    }
+}
+
+impl<P: EmulatedPlant> Drop for LockstepLink<P> {
+    /// One more board period, so that the board takes in the last frames sent (the final safe command).
+    fn drop(&mut self) {
+        let t = (self.steps * self.period_ns) as f64 * 1e-9;
+        self.board.step(t);
+    }
+}
+
+impl<P: EmulatedPlant> Link for LockstepLink<P> {
+    fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError> {
+        self.advance();
+        self.host.read_now(buf)
+    }
+
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> Result<(), RigError> {
+        self.host.write_all_bytes(bytes)
+    }
+}
+
+/// The emulated board on an in-memory link, stepped in lockstep with `clock`; returns the host end and the
+/// board's log.
+pub fn lockstep<P: EmulatedPlant + 'static>(
+    plant: P,
+    cal: Calibration,
+    cfg: EmulatorConfig,
+    clock: SimClock,
+) -> (LockstepLink<P>, Arc<Mutex<EmulatorLog>>) {
+    let (host, board_end) = MemLink::pair();
+    let log = Arc::new(Mutex::new(EmulatorLog::default()));
+    let board = Emulator::new(plant, board_end, cal, cfg).board(log.clone());
+    let period_ns = ((board.period_s() * 1e9).round() as u64).max(1);
+    (
+        LockstepLink {
+            host,
+            board,
+            clock,
+            steps: 0,
+            period_ns,
+        },
+        log,
+    )
 }

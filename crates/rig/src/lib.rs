@@ -6,11 +6,14 @@
 //! - [`rig`]: the `Rig` trait and its decorators: [`rig::Calibrated`] (counts to SI), [`rig::Limited`],
 //!   [`rig::Watchdog`];
 //! - [`supervisor`]: fault latch and valve safe state;
+//! - [`clock`]: wall clock, or a simulated clock the emulator runs in lockstep with;
 //! - [`rtloop`]: the fixed-rate `sense → Controller::update → actuate` loop with timing statistics;
 //! - [`trace`]: the crash-safe `trace.csv` writer;
+//! - [`record`]: one run into an output directory that never loses or overwrites data;
 //! - [`emulator`]: the pneumatic plant behind a pseudo-terminal speaking the board's protocol, with fault injection.
 
 pub mod calib;
+pub mod clock;
 pub mod crc;
 pub mod error;
 pub mod protocol;
@@ -20,6 +23,7 @@ pub use error::{ErrorKind, RigError};
 pub use rigfile::{RigFile, RigFileError};
 pub mod emulator;
 pub mod plant;
+pub mod record;
 pub mod rig;
 pub mod rtloop;
 pub mod serial;

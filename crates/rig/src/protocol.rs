@@ -280,11 +280,24 @@ impl Message {
         }
     }
 
-    /// Parses a payload of a given type; `None` if the length or a field is invalid.
+    /// Parses a payload of a given type; `None` if the type, the length or a field is invalid.
     pub fn parse(msg_type: u8, payload: &[u8]) -> Option<Message> {
-        if payload_len(msg_type)? != payload.len() {
-            return None;
+        Self::parse_checked(msg_type, payload).ok()
+    }
+
+    /// Parses a payload of a given type, saying why it is malformed (docs/protocol.md §1 "Receiving").
+    pub fn parse_checked(msg_type: u8, payload: &[u8]) -> Result<Message, MalformedReason> {
+        let want = payload_len(msg_type).ok_or(MalformedReason::UnknownType)?;
+        if want != payload.len() {
+            return Err(MalformedReason::BadLength {
+                len: payload.len() as u8,
+                expected: want as u8,
+            });
         }
+        Self::parse_fields(msg_type, payload).ok_or(MalformedReason::BadField)
+    }
+
+    fn parse_fields(msg_type: u8, payload: &[u8]) -> Option<Message> {
         let mut r = Reader {
             buf: payload,
             pos: 0,
@@ -360,7 +373,25 @@ pub enum DecodeEvent {
     Malformed {
         /// The TYPE byte.
         msg_type: u8,
+        /// What is wrong with it.
+        reason: MalformedReason,
     },
+}
+
+/// Why a frame with a valid CRC was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MalformedReason {
+    /// TYPE is not in docs/protocol.md §3.
+    UnknownType,
+    /// LEN is not the length of TYPE's payload.
+    BadLength {
+        /// LEN as received.
+        len: u8,
+        /// TYPE's payload length.
+        expected: u8,
+    },
+    /// A field holds an invalid value (a valve or safe mode other than 0, 1, 2).
+    BadField,
 }
 
 /// Counters kept by the decoder.
@@ -473,14 +504,17 @@ impl Decoder {
             }
             let seq = self.buf[3];
             let ty = self.buf[4];
-            match Message::parse(ty, &self.buf[HEADER_LEN..body_end]) {
-                Some(msg) => {
+            match Message::parse_checked(ty, &self.buf[HEADER_LEN..body_end]) {
+                Ok(msg) => {
                     self.stats.frames += 1;
                     sink(DecodeEvent::Frame(Frame { seq, msg }));
                 }
-                None => {
+                Err(reason) => {
                     self.stats.malformed += 1;
-                    sink(DecodeEvent::Malformed { msg_type: ty });
+                    sink(DecodeEvent::Malformed {
+                        msg_type: ty,
+                        reason,
+                    });
                 }
             }
             self.consume(total);
@@ -637,6 +671,289 @@ mod tests {
                 0xA5, 0x5A, 0x07, 0x2A, 0x02, 0xE8, 0x03, 0x00, 0x00, 0x00, 0x40, 0x00, 0x63, 0x72
             ]
         );
+    }
+
+    /// A frame with any header and payload and a correct CRC: what a buggy or newer board could send.
+    fn raw_frame(seq: u8, ty: u8, payload: &[u8]) -> Vec<u8> {
+        let mut f = vec![SOF0, SOF1, payload.len() as u8, seq, ty];
+        f.extend_from_slice(payload);
+        let crc = crc16(&f[2..]);
+        f.extend_from_slice(&crc.to_le_bytes());
+        f
+    }
+
+    fn events(bytes: &[u8], chunk: usize) -> (Vec<DecodeEvent>, DecoderStats) {
+        let mut d = Decoder::new();
+        let mut out = Vec::new();
+        for c in bytes.chunks(chunk) {
+            d.feed(c, |e| out.push(e));
+        }
+        (out, d.stats())
+    }
+
+    #[test]
+    fn malformed_frame_corpus_is_rejected_with_its_reason_and_the_next_frame_decodes() {
+        use MalformedReason::*;
+        let valve = |mode: u8| [0xE8, 0x03, 0, 0, 0x00, 0x40, mode];
+        let config = |mode: u8| [0xE8, 0x03, 0, 0, 50, 0, mode];
+        let corpus: Vec<(&str, Vec<u8>, u8, MalformedReason)> = vec![
+            (
+                "unknown type 0x00",
+                raw_frame(1, 0x00, &[1, 2, 3]),
+                0x00,
+                UnknownType,
+            ),
+            (
+                "unknown type 0x07",
+                raw_frame(1, 0x07, &[0; 7]),
+                0x07,
+                UnknownType,
+            ),
+            (
+                "unknown type 0xFF, empty",
+                raw_frame(1, 0xFF, &[]),
+                0xFF,
+                UnknownType,
+            ),
+            (
+                "sample one byte short",
+                raw_frame(2, msg_type::SAMPLE, &[0; 22]),
+                msg_type::SAMPLE,
+                BadLength {
+                    len: 22,
+                    expected: 23,
+                },
+            ),
+            (
+                "valve one byte long",
+                raw_frame(2, msg_type::VALVE, &[0; 8]),
+                msg_type::VALVE,
+                BadLength {
+                    len: 8,
+                    expected: 7,
+                },
+            ),
+            (
+                "heartbeat empty",
+                raw_frame(2, msg_type::HEARTBEAT, &[]),
+                msg_type::HEARTBEAT,
+                BadLength {
+                    len: 0,
+                    expected: 4,
+                },
+            ),
+            (
+                "fault at the maximal length",
+                raw_frame(2, msg_type::FAULT, &[0; MAX_PAYLOAD]),
+                msg_type::FAULT,
+                BadLength {
+                    len: 48,
+                    expected: 3,
+                },
+            ),
+            (
+                "reset with a config's length",
+                raw_frame(2, msg_type::RESET, &[0; 7]),
+                msg_type::RESET,
+                BadLength {
+                    len: 7,
+                    expected: 2,
+                },
+            ),
+            (
+                "valve mode 3",
+                raw_frame(3, msg_type::VALVE, &valve(3)),
+                msg_type::VALVE,
+                BadField,
+            ),
+            (
+                "valve mode 0xFF",
+                raw_frame(3, msg_type::VALVE, &valve(0xFF)),
+                msg_type::VALVE,
+                BadField,
+            ),
+            (
+                "config safe mode 3",
+                raw_frame(3, msg_type::CONFIG, &config(3)),
+                msg_type::CONFIG,
+                BadField,
+            ),
+        ];
+        let mut buf = [0u8; MAX_FRAME];
+        let good = Message::Heartbeat(0xC0DE_0001);
+        let n = encode(9, &good, &mut buf);
+        for (name, bad, ty, reason) in &corpus {
+            let mut wire = bad.clone();
+            wire.extend_from_slice(&buf[..n]);
+            for chunk in [1, 3, wire.len()] {
+                let (ev, stats) = events(&wire, chunk);
+                assert_eq!(
+                    ev,
+                    vec![
+                        DecodeEvent::Malformed {
+                            msg_type: *ty,
+                            reason: *reason
+                        },
+                        DecodeEvent::Frame(Frame { seq: 9, msg: good }),
+                    ],
+                    "{name}, chunks of {chunk}"
+                );
+                assert_eq!(
+                    (stats.malformed, stats.crc_errors, stats.frames),
+                    (1, 0, 1),
+                    "{name}"
+                );
+                assert_eq!(
+                    stats.skipped_bytes, 0,
+                    "{name}: the whole bad frame is dropped, not rescanned"
+                );
+            }
+        }
+        // The same payloads with their right mode are accepted: the corpus fails for the stated reason only.
+        assert!(Message::parse(msg_type::VALVE, &valve(2)).is_some());
+        assert!(Message::parse(msg_type::CONFIG, &config(1)).is_some());
+        // A LEN above 48 is no header at all: skipped byte by byte, no malformed event, next frame decodes.
+        let mut wire = raw_frame(1, msg_type::SAMPLE, &[0; 49]);
+        wire.extend_from_slice(&buf[..n]);
+        let (ev, stats) = events(&wire, 5);
+        assert_eq!(
+            ev.last(),
+            Some(&DecodeEvent::Frame(Frame { seq: 9, msg: good }))
+        );
+        assert_eq!(stats.malformed, 0);
+    }
+
+    /// xorshift64*: a fixed, seeded stream for the fuzz test (no dependency, same on every machine).
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        }
+        fn below(&mut self, n: usize) -> usize {
+            (self.next() % n as u64) as usize
+        }
+    }
+
+    /// Iterations of [`fuzz_decoder_with_mutated_frames`] (override with PNEUFLEX_FUZZ_ITERS).
+    const FUZZ_ITERS: u64 = 200_000;
+
+    /// Stable-Rust fuzzing: valid frames of every type, mutated (bit flips, byte overwrites, insertions,
+    /// deletions, truncation, duplication, CRC fixed up or not), fed in random chunks. The decoder must not
+    /// panic, and every frame it accepts must re-encode to exactly the bytes it was decoded from.
+    #[test]
+    fn fuzz_decoder_with_mutated_frames() {
+        let iters = std::env::var("PNEUFLEX_FUZZ_ITERS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(FUZZ_ITERS);
+        let mut rng = Rng(0x5EED_F0CC_0000_0001);
+        let mut stats = DecoderStats::default();
+        let mut checked = 0u64;
+        let mut buf = [0u8; MAX_FRAME];
+        for _ in 0..iters {
+            // 1..4 valid frames of random types and fields (modes kept valid: mutations break them).
+            let mut wire = Vec::new();
+            for _ in 0..1 + rng.below(3) {
+                let r = rng.next();
+                let msg = match rng.below(6) {
+                    0 => Message::Sample(SamplePayload {
+                        board_time_us: r as u32,
+                        last_cmd_tick: (r >> 32) as u32,
+                        position: r as u16,
+                        p_a: (r >> 8) as u16,
+                        p_b: (r >> 16) as u16,
+                        p_supply: (r >> 24) as u16,
+                        load: (r >> 3) as i32,
+                        duty_q15: (r >> 40) as i16,
+                        status: (r >> 56) as u8,
+                    }),
+                    1 => Message::Valve(ValvePayload {
+                        tick: r as u32,
+                        duty_q15: (r >> 32) as i16,
+                        mode: ValveMode::from_code((r >> 48) as u8 % 3).unwrap(),
+                    }),
+                    2 => Message::Heartbeat(r as u32),
+                    3 => Message::Fault {
+                        code: r as u8,
+                        detail: (r >> 8) as u16,
+                    },
+                    4 => Message::Reset(r as u16),
+                    _ => Message::Config(ConfigPayload {
+                        sample_period_us: r as u32,
+                        watchdog_ms: (r >> 32) as u16,
+                        safe_mode: ValveMode::from_code((r >> 48) as u8 % 3).unwrap(),
+                    }),
+                };
+                let n = encode(rng.next() as u8, &msg, &mut buf);
+                wire.extend_from_slice(&buf[..n]);
+            }
+            for _ in 0..rng.below(4) {
+                if wire.is_empty() {
+                    break;
+                }
+                let i = rng.below(wire.len());
+                match rng.below(7) {
+                    0 => wire[i] ^= 1 << rng.below(8),
+                    1 => wire[i] = rng.next() as u8,
+                    2 => wire.insert(i, rng.next() as u8),
+                    3 => {
+                        wire.remove(i);
+                    }
+                    4 => wire.truncate(i),
+                    5 => {
+                        let j = i + rng.below(wire.len() - i);
+                        let copy = wire[i..=j.min(wire.len() - 1)].to_vec();
+                        wire.splice(i..i, copy);
+                    }
+                    _ => {
+                        // A header byte changed and the CRC recomputed: reaches the malformed path.
+                        let start = wire.windows(2).position(|w| w == [SOF0, SOF1]);
+                        if let Some(s) = start.filter(|s| s + HEADER_LEN <= wire.len()) {
+                            let field = s + 2 + rng.below(3);
+                            wire[field] = rng.next() as u8;
+                            let len = usize::from(wire[s + 2]);
+                            let end = s + HEADER_LEN + len;
+                            if len <= MAX_PAYLOAD && end + 2 <= wire.len() {
+                                let crc = crc16(&wire[s + 2..end]);
+                                wire[end..end + 2].copy_from_slice(&crc.to_le_bytes());
+                            }
+                        }
+                    }
+                }
+            }
+            let chunk = 1 + rng.below(40);
+            let mut d = Decoder::new();
+            let mut accepted = Vec::new();
+            for c in wire.chunks(chunk) {
+                d.feed(c, |e| {
+                    if let DecodeEvent::Frame(f) = e {
+                        accepted.push(f);
+                    }
+                });
+            }
+            for f in accepted {
+                let n = encode(f.seq, &f.msg, &mut buf);
+                assert!(
+                    wire.windows(n).any(|w| w == &buf[..n]),
+                    "accepted {f:?}, which re-encodes to bytes not in the input {wire:02X?}"
+                );
+                checked += 1;
+            }
+            let s = d.stats();
+            stats.frames += s.frames;
+            stats.crc_errors += s.crc_errors;
+            stats.malformed += s.malformed;
+        }
+        eprintln!(
+            "decoder fuzz: {iters} executions, {} frames accepted and re-encoded, {} CRC errors, {} malformed",
+            checked, stats.crc_errors, stats.malformed
+        );
+        assert_eq!(checked, stats.frames);
+        // The mutations reach every path.
+        assert!(stats.frames > 0 && stats.crc_errors > 0 && stats.malformed > 0);
     }
 
     #[test]

@@ -17,6 +17,9 @@ pub enum RigFileError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// Not a regular file, too large, or not UTF-8 (the message names the file once).
+    #[error(transparent)]
+    Input(#[from] pneuflex_files::InputError),
     /// The TOML did not parse or did not match the schema (unknown key, missing field, wrong type).
     #[error("{file}: {message}")]
     Parse {
@@ -466,6 +469,20 @@ impl Check<'_> {
             Err(self.err(field, format!("expected a positive number, got {v}")))
         }
     }
+    fn within(
+        &self,
+        field: &str,
+        v: f64,
+        lo: f64,
+        hi: f64,
+        unit: &str,
+    ) -> Result<(), RigFileError> {
+        if v.is_finite() && (lo..=hi).contains(&v) {
+            Ok(())
+        } else {
+            Err(self.err(field, format!("expected {lo}..={hi} {unit}, got {v}")))
+        }
+    }
     fn range(&self, field: &str, r: [f64; 2]) -> Result<(), RigFileError> {
         self.finite(field, r[0])?;
         self.finite(field, r[1])?;
@@ -688,10 +705,8 @@ impl Check<'_> {
 impl RigFile {
     /// Reads, parses and validates a rig file.
     pub fn load(path: &Path) -> Result<Self, RigFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RigFileError::Read {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        // Bounded: a FIFO or a device is an error, not a hang (crates/files input.rs).
+        let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::RigFile)?;
         Self::parse(&text, path)
     }
 
@@ -717,35 +732,99 @@ impl RigFile {
         if self.link.baud == 0 {
             return Err(c.err("link.baud", "expected a positive baud rate"));
         }
-        c.positive("loop.rate_hz", self.rt.rate_hz)?;
-        if self.rt.rate_hz > 20_000.0 {
-            return Err(c.err("loop.rate_hz", "expected at most 20000 Hz"));
+        if self.link.handshake_timeout_ms == 0 || self.link.handshake_timeout_ms > 60_000 {
+            return Err(c.err(
+                "link.handshake_timeout_ms",
+                format!(
+                    "expected 1..=60000 ms, got {}",
+                    self.link.handshake_timeout_ms
+                ),
+            ));
         }
-        if self.rt.trace_flush_every == 0 {
-            return Err(c.err("loop.trace_flush_every", "expected at least 1"));
+        // Timing options: bounded so that a typo cannot busy-wait forever, buffer without bound or make the
+        // loop's period meaningless.
+        c.within("loop.rate_hz", self.rt.rate_hz, 1.0, 20_000.0, "Hz")?;
+        let period_us = 1e6 / self.rt.rate_hz;
+        if self.rt.spin_us as f64 >= period_us {
+            return Err(c.err(
+                "loop.spin_us",
+                format!(
+                    "{} µs is not below the control period 1/rate_hz = {period_us} µs (the spin is the busy-wait before each deadline)",
+                    self.rt.spin_us
+                ),
+            ));
         }
-        c.finite("loop.post_fault_s", self.rt.post_fault_s)?;
-        if self.rt.post_fault_s < 0.0 {
-            return Err(c.err("loop.post_fault_s", "expected >= 0"));
+        if !(1..=100_000).contains(&self.rt.trace_flush_every) {
+            return Err(c.err(
+                "loop.trace_flush_every",
+                format!(
+                    "expected 1..=100000 rows, got {}",
+                    self.rt.trace_flush_every
+                ),
+            ));
         }
+        c.within("loop.post_fault_s", self.rt.post_fault_s, 0.0, 60.0, "s")?;
         c.positive("loop.velocity_cutoff_hz", self.rt.velocity_cutoff_hz)?;
+        if self.rt.velocity_cutoff_hz >= self.rt.rate_hz / 2.0 {
+            return Err(c.err(
+                "loop.velocity_cutoff_hz",
+                format!(
+                    "{} Hz is not below the Nyquist frequency rate_hz/2 = {} Hz",
+                    self.rt.velocity_cutoff_hz,
+                    self.rt.rate_hz / 2.0
+                ),
+            ));
+        }
         c.range("limits.position_m", self.limits.position_m)?;
         c.range("limits.force_n", self.limits.force_n)?;
         c.range("limits.pressure_pa", self.limits.pressure_pa)?;
         c.finite("limits.supply_min_pa", self.limits.supply_min_pa)?;
         c.positive("watchdog.timeout_ms", self.watchdog.timeout_ms)?;
-        c.finite("watchdog.stale_ms", self.watchdog.stale_ms)?;
-        if self.watchdog.stale_ms < 0.0 {
-            return Err(c.err("watchdog.stale_ms", "expected >= 0 (0 = off)"));
-        }
+        c.within(
+            "watchdog.timeout_ms",
+            self.watchdog.timeout_ms,
+            0.0,
+            60_000.0,
+            "ms",
+        )?;
+        c.within(
+            "watchdog.stale_ms",
+            self.watchdog.stale_ms,
+            0.0,
+            60_000.0,
+            "ms (0 = off)",
+        )?;
         c.positive("watchdog.crc_window_ms", self.watchdog.crc_window_ms)?;
+        c.within(
+            "watchdog.crc_window_ms",
+            self.watchdog.crc_window_ms,
+            0.0,
+            3_600_000.0,
+            "ms",
+        )?;
         if let Some(e) = &self.emulator {
-            c.positive("emulator.sample_rate_hz", e.sample_rate_hz)?;
+            c.within(
+                "emulator.sample_rate_hz",
+                e.sample_rate_hz,
+                1.0,
+                20_000.0,
+                "Hz",
+            )?;
             c.positive("emulator.plant_dt_s", e.plant_dt_s)?;
             if e.plant_dt_s > 1.0 / e.sample_rate_hz {
                 return Err(c.err(
                     "emulator.plant_dt_s",
                     "must not exceed the sample period 1/sample_rate_hz",
+                ));
+            }
+            // Each sample period runs period/plant_dt RK4 steps in real time.
+            if 1.0 / e.sample_rate_hz / e.plant_dt_s > 10_000.0 {
+                return Err(c.err(
+                    "emulator.plant_dt_s",
+                    format!(
+                        "{} s gives more than 10000 plant steps per sample period",
+                        e.plant_dt_s
+                    ),
                 ));
             }
             c.finite("emulator.x0_m", e.x0_m)?;
@@ -770,7 +849,7 @@ impl RigFile {
                     | InjectedFault::SupplyLoss { at_s }
                     | InjectedFault::CloseLink { at_s } => (at_s, None),
                 };
-                c.finite(&format!("emulator.faults[{i}].at_s"), at)?;
+                c.within(&format!("emulator.faults[{i}].at_s"), at, 0.0, 1e6, "s")?;
                 if let Some(d) = dur {
                     c.positive(&format!("emulator.faults[{i}].for_s"), d)?;
                 }
@@ -908,6 +987,77 @@ pub(crate) mod tests {
         // A sheet whose range the ADC cannot reach (no divider: 10 V into a 3.3 V ADC).
         let m = err(&PAPER.replace("divider_ratio = 3.125", ""));
         assert!(m.contains("calibration.position.signal_max"), "{m}");
+    }
+
+    #[test]
+    fn timing_options_out_of_range_name_file_and_key() {
+        for (from, to, key) in [
+            ("spin_us = 150", "spin_us = 10000000", "loop.spin_us"),
+            ("spin_us = 150", "spin_us = 1000", "loop.spin_us"),
+            ("rate_hz = 1000.0", "rate_hz = 0.001", "loop.rate_hz"),
+            ("rate_hz = 1000.0", "rate_hz = inf", "loop.rate_hz"),
+            (
+                "trace_flush_every = 100",
+                "trace_flush_every = 1000000000",
+                "loop.trace_flush_every",
+            ),
+            (
+                "post_fault_s = 0.2",
+                "post_fault_s = 1e9",
+                "loop.post_fault_s",
+            ),
+            (
+                "velocity_cutoff_hz = 50.0",
+                "velocity_cutoff_hz = 600.0",
+                "loop.velocity_cutoff_hz",
+            ),
+            (
+                "handshake_timeout_ms = 500",
+                "handshake_timeout_ms = 0",
+                "link.handshake_timeout_ms",
+            ),
+            (
+                "timeout_ms = 20.0",
+                "timeout_ms = 1e9",
+                "watchdog.timeout_ms",
+            ),
+            ("stale_ms = 50.0", "stale_ms = -1.0", "watchdog.stale_ms"),
+            (
+                "crc_window_ms = 1000.0",
+                "crc_window_ms = 1e12",
+                "watchdog.crc_window_ms",
+            ),
+            (
+                "plant_dt_s = 0.0001",
+                "plant_dt_s = 1e-12",
+                "emulator.plant_dt_s",
+            ),
+            (
+                "sample_rate_hz = 1000.0",
+                "sample_rate_hz = 1e9",
+                "emulator.sample_rate_hz",
+            ),
+            (
+                "faults = []",
+                "faults = [{ kind = \"stall\", at_s = -1.0, for_s = 0.1 }]",
+                "emulator.faults[0].at_s",
+            ),
+        ] {
+            assert!(EMULATED.contains(from), "{from}");
+            let m = RigFile::parse(&EMULATED.replace(from, to), &rigs_dir().join("bad.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(m.contains("bad.toml") && m.contains(key), "{to}: {m}");
+        }
+    }
+
+    #[test]
+    fn a_directory_is_not_read() {
+        let dir = std::env::temp_dir().join(format!("pneuflex-rigfile-{}", std::process::id()));
+        let _ = std::fs::create_dir_all(&dir);
+        let m = RigFile::load(&dir).unwrap_err().to_string();
+        assert!(m.contains("not a regular file"), "{m}");
+        let _ = std::fs::remove_dir(&dir);
     }
 
     #[test]

@@ -2,17 +2,17 @@
 //! controller and rig. It counts overruns and records the period error and the time spent in I/O and in the
 //! controller.
 
-use std::io::Write;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use pneuflex_control::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
 
+use crate::clock::{Clock, WallClock};
 use crate::error::{ErrorKind, RigError};
 use crate::rig::{Rig, SiSample};
 use crate::supervisor::{Fault, Supervisor};
-use crate::trace::{TraceRow, TraceWriter};
+use crate::trace::{TraceRow, TraceSink, TraceWriter};
 
 /// How to run the loop.
 #[derive(Clone, Debug, PartialEq)]
@@ -79,6 +79,8 @@ pub struct LoopReport {
     pub controller: Percentiles,
     /// The latched fault, if any.
     pub fault: Option<Fault>,
+    /// Control time reached, s (ticks × period).
+    pub time_reached_s: f64,
 }
 
 impl std::fmt::Display for LoopReport {
@@ -107,25 +109,151 @@ impl std::fmt::Display for LoopReport {
     }
 }
 
-/// Sleeps, then spins, until `deadline`.
-fn wait_until(deadline: Instant, spin: Duration) {
-    loop {
-        let now = Instant::now();
-        if now >= deadline {
-            return;
+/// Longest run `rig run` accepts, s (24 h: 8.6e7 ticks at 1 kHz, a trace of about 13 GB; the wire's u32
+/// tick counter wraps only after 49 days at 1 kHz).
+pub const MAX_DURATION_S: f64 = 86_400.0;
+
+/// Checks a run length: finite, > 0 and at most [`MAX_DURATION_S`].
+pub fn check_duration(d: f64) -> Result<(), String> {
+    if d.is_finite() && d > 0.0 && d <= MAX_DURATION_S {
+        Ok(())
+    } else {
+        Err(format!(
+            "expected a duration in seconds, finite, > 0 and at most {MAX_DURATION_S} (24 h); got {d}"
+        ))
+    }
+}
+
+impl RunOptions {
+    /// Checks every option; the message names the option.
+    pub fn validate(&self) -> Result<(), String> {
+        check_duration(self.duration_s).map_err(|e| format!("duration: {e}"))?;
+        if !(self.rate_hz.is_finite() && (1.0..=20_000.0).contains(&self.rate_hz)) {
+            return Err(format!(
+                "rate_hz: expected 1..=20000 Hz, got {}",
+                self.rate_hz
+            ));
         }
-        let left = deadline - now;
-        if left > spin {
-            std::thread::sleep(left - spin);
-        } else {
-            std::hint::spin_loop();
+        if self.spin_us as f64 >= 1e6 / self.rate_hz {
+            return Err(format!(
+                "spin_us: {} µs is not below the control period {} µs",
+                self.spin_us,
+                1e6 / self.rate_hz
+            ));
+        }
+        for (name, v, max) in [
+            ("post_fault_s", self.post_fault_s, 60.0),
+            ("first_sample_timeout_s", self.first_sample_timeout_s, 60.0),
+        ] {
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                return Err(format!("{name}: expected 0..={max} s, got {v}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Streaming p50/p99/max/mean of non-negative times in constant memory, whatever the run length:
+/// log-spaced bins 1 % wide from 1 ns up (values at or below 1 ns count as 0), so a percentile is within
+/// 1 % of the nearest-rank value; max and mean are exact.
+#[derive(Clone, Debug)]
+pub struct TimingStats {
+    bins: Vec<u64>,
+    n: u64,
+    sum: f64,
+    max: f64,
+}
+
+const BIN_LO: f64 = 1e-9;
+const BIN_GROWTH: f64 = 1.01;
+/// 1 ns · 1.01^3240 ≈ 1e5 s; anything longer lands in the last bin (max stays exact).
+const BINS: usize = 3241;
+
+impl Default for TimingStats {
+    fn default() -> Self {
+        Self {
+            bins: vec![0; BINS],
+            n: 0,
+            sum: 0.0,
+            max: 0.0,
         }
     }
 }
 
-/// Runs the loop until `duration_s`, `stop` (Ctrl-C), or `post_fault_s` after a fault. Every tick is traced.
-/// A controller panic, a NaN command, a set `stop` flag or any rig error latches a fault and puts the valve in
-/// its safe state in that same tick. The valve is parked in its safe state at the end.
+impl TimingStats {
+    fn index(v: f64) -> usize {
+        if v.is_nan() || v <= BIN_LO {
+            0
+        } else {
+            (1 + ((v / BIN_LO).ln() / BIN_GROWTH.ln()).floor() as usize).min(BINS - 1)
+        }
+    }
+
+    /// Adds one value, s.
+    pub fn push(&mut self, v: f64) {
+        let v = if v.is_finite() { v.max(0.0) } else { 0.0 };
+        self.bins[Self::index(v)] += 1;
+        self.n += 1;
+        self.sum += v;
+        self.max = self.max.max(v);
+    }
+
+    /// Values added.
+    pub fn count(&self) -> u64 {
+        self.n
+    }
+
+    fn rank(&self, q: f64) -> f64 {
+        let r = ((q * self.n as f64).ceil() as u64).clamp(1, self.n);
+        let mut seen = 0;
+        for (i, &c) in self.bins.iter().enumerate() {
+            seen += c;
+            if seen >= r {
+                if i == 0 {
+                    return 0.0;
+                }
+                // Geometric middle of bin i = [lo·g^(i-1), lo·g^i).
+                return (BIN_LO * BIN_GROWTH.powf(i as f64 - 0.5)).min(self.max);
+            }
+        }
+        self.max
+    }
+
+    /// The summary (zeros when empty).
+    pub fn percentiles(&self) -> Percentiles {
+        if self.n == 0 {
+            return Percentiles::default();
+        }
+        Percentiles {
+            p50: self.rank(0.50),
+            p99: self.rank(0.99),
+            max: self.max,
+            mean: self.sum / self.n as f64,
+        }
+    }
+}
+
+/// Why a loop ended, for the trace's end marker.
+fn end_reason(fault: Option<&Fault>) -> String {
+    match fault {
+        None => "complete".into(),
+        Some(f) if f.kind == ErrorKind::Interrupted => "interrupted".into(),
+        Some(f) => format!("fault {}", f.kind.name()),
+    }
+}
+
+/// Latches an `Io` fault (safe state now), then returns the trace error, which names the file.
+fn trace_failed<R: Rig<Sample = SiSample>>(
+    sup: &mut Supervisor<R>,
+    k: u64,
+    now_s: f64,
+    e: std::io::Error,
+) -> std::io::Error {
+    sup.trip(k, now_s, RigError::new(ErrorKind::Io, e.to_string()));
+    e
+}
+
+/// [`run_with_clock`] on the host's wall clock, spinning `opts.spin_us` before each deadline.
 pub fn run<R, C, W>(
     sup: &mut Supervisor<R>,
     controller: &mut C,
@@ -137,47 +265,72 @@ pub fn run<R, C, W>(
 where
     R: Rig<Sample = SiSample>,
     C: Controller + ?Sized,
-    W: Write,
+    W: TraceSink,
 {
-    let period = Duration::from_secs_f64(1.0 / opts.rate_hz);
-    let dt = period.as_secs_f64();
+    let mut clock = WallClock::new(Duration::from_micros(opts.spin_us));
+    run_with_clock(sup, controller, reference, trace, opts, stop, &mut clock)
+}
+
+/// Runs the loop until `duration_s`, `stop` (SIGINT, SIGTERM, SIGHUP), or `post_fault_s` after a fault.
+/// Every tick is traced. A controller panic, a NaN command, a set `stop` flag, a trace write error or any
+/// rig error latches a fault and puts the valve in its safe state in that same tick. The valve is parked in
+/// its safe state at the end, and the trace ends with its end marker, flushed and synced. Invalid options
+/// are an `InvalidInput` error before anything is sent. A trace write error is returned (naming the file)
+/// after the safe state was commanded.
+pub fn run_with_clock<R, C, W, K>(
+    sup: &mut Supervisor<R>,
+    controller: &mut C,
+    reference: &mut dyn FnMut(f64) -> Setpoint,
+    trace: &mut TraceWriter<W>,
+    opts: &RunOptions,
+    stop: &AtomicBool,
+    clock: &mut K,
+) -> std::io::Result<LoopReport>
+where
+    R: Rig<Sample = SiSample>,
+    C: Controller + ?Sized,
+    W: TraceSink,
+    K: Clock + ?Sized,
+{
+    opts.validate()
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
+    let dt = 1.0 / opts.rate_hz;
     let n_ticks = (opts.duration_s / dt).round() as u64;
     let post_fault_ticks = (opts.post_fault_s / dt).round() as u64;
-    let spin = Duration::from_micros(opts.spin_us);
-    let cap = (n_ticks + post_fault_ticks + 1) as usize;
-    let mut period_err = Vec::with_capacity(cap);
-    let mut lateness = Vec::with_capacity(cap);
-    let mut io_t = Vec::with_capacity(cap);
-    let mut ctrl_t = Vec::with_capacity(cap);
+    // Streaming statistics: constant memory whatever the duration.
+    let mut period_err = TimingStats::default();
+    let mut lateness = TimingStats::default();
+    let mut io_t = TimingStats::default();
+    let mut ctrl_t = TimingStats::default();
     let mut report = LoopReport::default();
 
-    let t0 = Instant::now();
     let wall0 = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map(|d| d.as_secs_f64())
         .unwrap_or(0.0);
-    let host = |i: Instant| (i - t0).as_secs_f64();
+    let t0 = clock.now();
+    let host = |clock: &K| clock.now() - t0;
 
     // Wait for the first sample so that tick 0 has sensors (the watchdog arms on the first read).
     let mut last: Option<SiSample> = None;
     while last.is_none() && sup.fault().is_none() {
-        let now = Instant::now();
-        if host(now) > opts.first_sample_timeout_s {
+        let now = host(clock);
+        if now > opts.first_sample_timeout_s {
             sup.trip(
                 0,
-                host(now),
+                now,
                 RigError::new(ErrorKind::Timeout, "no first sample from the rig"),
             );
             break;
         }
-        last = sup.sense(0, host(now));
+        last = sup.sense(0, now);
         if last.is_none() {
-            std::thread::sleep(Duration::from_micros(200));
+            clock.wait_until(t0 + now + 200e-6);
         }
     }
 
-    let start = Instant::now();
-    let mut prev_start: Option<Instant> = None;
+    let start = host(clock);
+    let mut prev_start: Option<f64> = None;
     let mut fault_tick: Option<u64> = None;
     let mut k: u64 = 0;
     let mut fault_label = String::new();
@@ -190,22 +343,24 @@ where
         {
             break;
         }
-        let deadline = start + period.mul_f64(k as f64);
-        wait_until(deadline, spin);
-        let t_start = Instant::now();
-        lateness.push((t_start - deadline).as_secs_f64());
+        let deadline = start + k as f64 * dt;
+        clock.wait_until(t0 + deadline);
+        let now_s = host(clock);
+        lateness.push(now_s - deadline);
         if let Some(p) = prev_start {
-            period_err.push(((t_start - p).as_secs_f64() - dt).abs());
+            period_err.push((now_s - p - dt).abs());
         }
-        prev_start = Some(t_start);
-        let now_s = host(t_start);
+        prev_start = Some(now_s);
         let t = k as f64 * dt;
 
         if stop.load(Ordering::Relaxed) && sup.fault().is_none() {
             sup.trip(
                 k,
                 now_s,
-                RigError::new(ErrorKind::Interrupted, "stopped by the operator (Ctrl-C)"),
+                RigError::new(
+                    ErrorKind::Interrupted,
+                    "stopped by a signal (SIGINT/Ctrl-C, SIGTERM or SIGHUP)",
+                ),
             );
         }
 
@@ -214,7 +369,7 @@ where
             Some(s) => last = Some(s),
             None => report.ticks_without_sample += 1,
         }
-        let t_sensed = Instant::now();
+        let t_sensed = host(clock);
 
         // update
         let setpoint = reference(t);
@@ -246,53 +401,59 @@ where
                 ),
             }
         }
-        let t_updated = Instant::now();
+        let t_updated = host(clock);
 
         // actuate
         let applied = sup.actuate(k, now_s, cmd);
-        let t_done = Instant::now();
-        io_t.push(((t_sensed - t_start) + (t_done - t_updated)).as_secs_f64());
-        ctrl_t.push((t_updated - t_sensed).as_secs_f64());
-        if t_done > deadline + period {
+        let t_done = host(clock);
+        io_t.push((t_sensed - now_s) + (t_done - t_updated));
+        ctrl_t.push(t_updated - t_sensed);
+        if t_done > deadline + dt {
             report.overruns += 1;
         }
 
         // trace
-        let fault_str: &str = match (sup.fault(), fault_tick) {
+        let sensors = last.map(|s| s.sensors).unwrap_or_default();
+        let written = match (sup.fault(), fault_tick) {
             (Some(f), None) => {
                 fault_tick = Some(k);
                 fault_label = f.kind.name().to_string();
-                // The first faulty row carries the message.
+                // The first faulty row carries the message, and is made durable at once.
                 report.fault = Some(f.clone());
                 let msg = format!("{}: {}", f.kind.name(), f.message);
-                let sensors = last.map(|s| s.sensors).unwrap_or_default();
+                trace
+                    .row(&row(
+                        t,
+                        &setpoint,
+                        &sensors,
+                        &telemetry,
+                        0.0,
+                        wall0 + now_s,
+                        &msg,
+                    ))
+                    .and_then(|()| trace.sync())
+            }
+            (fault, _) => {
+                let label = if fault.is_some() {
+                    &fault_label[..]
+                } else {
+                    ""
+                };
+                let u = applied.map(|c| c.u).unwrap_or(0.0);
                 trace.row(&row(
                     t,
                     &setpoint,
                     &sensors,
                     &telemetry,
-                    0.0,
+                    u,
                     wall0 + now_s,
-                    &msg,
-                ))?;
-                report.ticks += 1;
-                k += 1;
-                continue;
+                    label,
+                ))
             }
-            (Some(_), Some(_)) => &fault_label,
-            (None, _) => "",
         };
-        let sensors = last.map(|s| s.sensors).unwrap_or_default();
-        let u = applied.map(|c| c.u).unwrap_or(0.0);
-        trace.row(&row(
-            t,
-            &setpoint,
-            &sensors,
-            &telemetry,
-            u,
-            wall0 + now_s,
-            fault_str,
-        ))?;
+        if let Err(e) = written {
+            return Err(trace_failed(sup, k, now_s, e));
+        }
         report.ticks += 1;
         k += 1;
     }
@@ -303,14 +464,18 @@ where
             kind: e.kind(),
             message: format!("could not park the valve at the end: {}", e.message()),
             tick: k,
-            host_time_s: host(Instant::now()),
+            host_time_s: host(clock),
         });
     }
-    trace.flush()?;
-    report.period_error = Percentiles::of(&period_err);
-    report.lateness = Percentiles::of(&lateness);
-    report.io = Percentiles::of(&io_t);
-    report.controller = Percentiles::of(&ctrl_t);
+    report.time_reached_s = k as f64 * dt;
+    report.period_error = period_err.percentiles();
+    report.lateness = lateness.percentiles();
+    report.io = io_t.percentiles();
+    report.controller = ctrl_t.percentiles();
+    let now = host(clock);
+    trace
+        .finish(&end_reason(report.fault.as_ref()))
+        .map_err(|e| trace_failed(sup, k, now, e))?;
     Ok(report)
 }
 
@@ -351,5 +516,88 @@ mod tests {
         assert_eq!((p.p50, p.p99, p.max), (50.0, 99.0, 100.0));
         assert!((p.mean - 50.5).abs() < 1e-12);
         assert_eq!(Percentiles::of(&[]), Percentiles::default());
+    }
+
+    #[test]
+    fn streaming_stats_match_nearest_rank_within_one_percent() {
+        // Loop-like times: mostly µs, a tail of ms, a few zeros.
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut v = Vec::new();
+        let mut st = TimingStats::default();
+        for i in 0..20_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let u = (x % 1_000_000) as f64 / 1e6;
+            let t = if i % 97 == 0 {
+                0.0
+            } else {
+                1e-7 * (1e5f64).powf(u * u)
+            };
+            v.push(t);
+            st.push(t);
+        }
+        let (a, b) = (Percentiles::of(&v), st.percentiles());
+        for (name, exact, est) in [("p50", a.p50, b.p50), ("p99", a.p99, b.p99)] {
+            assert!(
+                (est - exact).abs() <= 0.01 * exact + 1e-9,
+                "{name}: {est} vs {exact}"
+            );
+        }
+        assert_eq!(a.max, b.max);
+        assert!((a.mean - b.mean).abs() <= 1e-12 * a.mean.max(1.0));
+        assert_eq!(st.count(), 20_000);
+        assert_eq!(TimingStats::default().percentiles(), Percentiles::default());
+    }
+
+    #[test]
+    fn options_are_checked_before_anything_runs() {
+        let ok = RunOptions {
+            rate_hz: 1000.0,
+            spin_us: 150,
+            duration_s: 1.0,
+            post_fault_s: 0.2,
+            first_sample_timeout_s: 0.5,
+        };
+        assert!(ok.validate().is_ok());
+        // 1e10 s used to preallocate 4 × 1e13 timing values and abort; now refused (and streamed anyway).
+        for d in [
+            f64::NAN,
+            -1.0,
+            0.0,
+            1e10,
+            f64::INFINITY,
+            MAX_DURATION_S * 1.001,
+        ] {
+            let e = RunOptions {
+                duration_s: d,
+                ..ok.clone()
+            }
+            .validate()
+            .unwrap_err();
+            assert!(e.contains("duration"), "{e}");
+        }
+        assert!(
+            RunOptions {
+                duration_s: MAX_DURATION_S,
+                ..ok.clone()
+            }
+            .validate()
+            .is_ok()
+        );
+        let e = RunOptions {
+            spin_us: 10_000_000,
+            ..ok.clone()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("spin_us"), "{e}");
+        let e = RunOptions {
+            post_fault_s: 1e9,
+            ..ok.clone()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("post_fault_s"), "{e}");
     }
 }

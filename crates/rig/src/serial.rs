@@ -2,10 +2,11 @@
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use pneuflex_control::ValveCommand;
 
+use crate::clock::{Clock, WallClock};
 use crate::error::{ErrorKind, RigError};
 use crate::protocol::{
     ConfigPayload, DecodeEvent, Decoder, DecoderStats, MAX_FRAME, Message, RESET_MAGIC, ValveMode,
@@ -251,11 +252,22 @@ impl<L: Link> SerialRig<L> {
 
     /// Sends the board configuration and waits for a heartbeat echo (the board is there and speaks the protocol).
     pub fn handshake(&mut self, cfg: ConfigPayload, timeout: Duration) -> Result<(), RigError> {
+        self.handshake_with_clock(cfg, timeout, &mut WallClock::new(Duration::ZERO))
+    }
+
+    /// [`Self::handshake`] on a given clock (a simulated one steps a lockstep emulator).
+    pub fn handshake_with_clock<K: Clock + ?Sized>(
+        &mut self,
+        cfg: ConfigPayload,
+        timeout: Duration,
+        clock: &mut K,
+    ) -> Result<(), RigError> {
         self.send(&Message::Config(cfg))?;
         let token = 0xC0DE_0001;
         self.send(&Message::Heartbeat(token))?;
-        let start = Instant::now();
-        while start.elapsed() < timeout {
+        let start = clock.now();
+        let timeout = timeout.as_secs_f64();
+        while clock.now() - start < timeout {
             // Board faults from before the handshake do not matter yet: the Reset below clears them.
             match self.pump(0.0) {
                 Ok(()) => {}
@@ -266,7 +278,8 @@ impl<L: Link> SerialRig<L> {
                 self.reset()?;
                 return Ok(());
             }
-            std::thread::sleep(Duration::from_micros(500));
+            let t = clock.now() + 500e-6;
+            clock.wait_until(t);
         }
         Err(RigError::new(
             ErrorKind::Timeout,
@@ -326,8 +339,22 @@ pub fn connect(
             baud: rig.link.baud,
             message: e.to_string(),
         })?;
+    connect_link(p, rig, &mut WallClock::new(Duration::ZERO)).map_err(|e| ConnectError::Handshake {
+        file: file.to_path_buf(),
+        port: name,
+        timeout_ms: rig.link.handshake_timeout_ms,
+        message: e.to_string(),
+    })
+}
+
+/// Configures the board behind an open link (rate, board watchdog, safe state) and checks that it answers.
+pub fn connect_link<L: Link, K: Clock + ?Sized>(
+    link: L,
+    rig: &RigFile,
+    clock: &mut K,
+) -> Result<SerialRig<L>, RigError> {
     let mut s = SerialRig::new(
-        p,
+        link,
         rig.watchdog.crc_errors_max,
         rig.watchdog.crc_window_ms * 1e-3,
     );
@@ -336,12 +363,10 @@ pub fn connect(
         watchdog_ms: rig.watchdog.board_watchdog_ms,
         safe_mode: rig.valve.safe_state.mode(),
     };
-    s.handshake(cfg, Duration::from_millis(rig.link.handshake_timeout_ms))
-        .map_err(|e| ConnectError::Handshake {
-            file: file.to_path_buf(),
-            port: name,
-            timeout_ms: rig.link.handshake_timeout_ms,
-            message: e.to_string(),
-        })?;
+    s.handshake_with_clock(
+        cfg,
+        Duration::from_millis(rig.link.handshake_timeout_ms),
+        clock,
+    )?;
     Ok(s)
 }

@@ -87,9 +87,10 @@ pub fn spawn_pty_emulator(rig: &RigFile, file: &Path) -> Result<EmulatorHandle, 
     Ok(Emulator::new(plant, link, rig.cal(), cfg).spawn(Some(path)))
 }
 
-/// Installs a Ctrl-C handler that sets the returned flag; the loop polls it
-/// every tick and latches an `Interrupted` fault, which puts the valve in its safe state and flushes the trace.
-/// A process can install one handler only: a second call returns an error.
+/// Installs a handler for SIGINT (Ctrl-C), SIGTERM and SIGHUP (ctrlc's `termination` feature) that sets the
+/// returned flag; the loop polls it every tick and latches an `Interrupted` fault, which puts the valve in
+/// its safe state in that tick and syncs the trace. A process can install one handler only: a second call
+/// returns an error.
 pub fn install_ctrl_c() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, RigError> {
     let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let f = flag.clone();
@@ -97,7 +98,7 @@ pub fn install_ctrl_c() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>,
         |e| {
             RigError::new(
                 ErrorKind::Io,
-                format!("cannot install the Ctrl-C handler: {e}"),
+                format!("cannot install the SIGINT/SIGTERM/SIGHUP handler: {e}"),
             )
         },
     )?;
@@ -121,4 +122,69 @@ pub fn spawn_port_emulator(
         .open()
         .map_err(|e| RigError::new(ErrorKind::LinkLost, format!("cannot open `{port}`: {e}")))?;
     Ok(Emulator::new(plant, link, rig.cal(), cfg).spawn(None))
+}
+
+/// The emulator of `rig` on an in-memory link, stepped in lockstep with `clock` (see
+/// [`crate::emulator::lockstep`]); with [`serial::connect_link`] and [`crate::rtloop::run_with_clock`] on the
+/// same clock, a run does not depend on the machine's speed.
+pub fn lockstep_emulator(
+    rig: &RigFile,
+    file: &Path,
+    clock: crate::clock::SimClock,
+) -> Result<
+    (
+        crate::emulator::LockstepLink<PneumaticPlant>,
+        std::sync::Arc<std::sync::Mutex<crate::emulator::EmulatorLog>>,
+    ),
+    RigError,
+> {
+    let plant =
+        emulated_plant(rig, file).map_err(|e| RigError::new(ErrorKind::Io, e.to_string()))?;
+    let cfg = rig
+        .emulator
+        .clone()
+        .ok_or_else(|| RigError::new(ErrorKind::Io, "no [emulator] table"))?;
+    Ok(crate::emulator::lockstep(plant, rig.cal(), cfg, clock))
+}
+
+/// A scene's step `dt_s` must be the rig's control period 1/`loop.rate_hz` (docs/rig.md): the controller's
+/// gains and filters were tuned for its dt, and the rig runs at its own rate.
+pub fn check_scene_rate(
+    scene_dt_s: f64,
+    scene_file: &Path,
+    rig: &RigFile,
+    rig_file: &Path,
+) -> Result<(), String> {
+    let dt = rig.dt();
+    if (scene_dt_s - dt).abs() <= 1e-9 * dt {
+        return Ok(());
+    }
+    Err(format!(
+        "{}: `dt_s` = {scene_dt_s} s differs from the rig's control period: {}: `loop.rate_hz` = {} Hz, i.e. dt = {dt} s; set the scene's dt_s = {dt} or the rig's loop.rate_hz = {}",
+        scene_file.display(),
+        rig_file.display(),
+        rig.rt.rate_hz,
+        1.0 / scene_dt_s
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_scene_dt_other_than_the_rig_period_names_both_keys() {
+        let file = crate::rigfile::tests::rigs_dir().join("emulated.toml");
+        let rig = RigFile::parse(crate::rigfile::tests::EMULATED, &file).unwrap();
+        let scene = Path::new("scenes/s.toml");
+        assert!(check_scene_rate(0.001, scene, &rig, &file).is_ok());
+        let m = check_scene_rate(0.01, scene, &rig, &file).unwrap_err();
+        assert!(
+            m.contains("scenes/s.toml")
+                && m.contains("`dt_s` = 0.01")
+                && m.contains("emulated.toml")
+                && m.contains("`loop.rate_hz` = 1000"),
+            "{m}"
+        );
+    }
 }

@@ -1,10 +1,18 @@
-//! The rig's `trace.csv`: the simulation's columns plus `wall_time` and `fault`, flushed every N rows and on
-//! every fault and at exit, so that a crash or Ctrl-C loses at most the last buffer.
+//! The rig's `trace.csv`: provenance comment lines, the simulation's columns plus `wall_time` and `fault`,
+//! then an end marker. Rows are formatted into a reusable buffer and written whole, flushed every N rows, on
+//! every fault and at exit; a failed write is cut back to the last complete row. Format: docs/rig.md "Trace".
 
-use std::io::{self, BufWriter, Write};
+use std::fs::File;
+use std::io::{self, Seek, SeekFrom, Write};
 
-/// The header: the simulation's trace columns, then wall time (s since the Unix epoch) and the fault state.
+use pneuflex_files::InputDigest;
+
+/// The column header: the simulation's trace columns, then wall time (s since the Unix epoch) and the fault.
 pub const TRACE_HEADER: &str = "t,f_ref,f_e,x,x_r,p_a,p_b,u,g,p,d,wall_time,fault";
+/// Layout version of the trace (comment lines, columns, end marker).
+pub const TRACE_SCHEMA: u32 = 1;
+/// Start of the last line of a trace that was closed properly: `# end: <reason>, <n> rows`.
+pub const END_MARKER: &str = "# end: ";
 
 /// One row of the trace (SI units, pressures absolute).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -37,35 +45,126 @@ pub struct TraceRow<'a> {
     pub fault: &'a str,
 }
 
-/// A buffered CSV trace writer.
-pub struct TraceWriter<W: Write> {
-    out: BufWriter<W>,
+/// Where a trace goes: bytes that can be made durable, and cut back after a failed write.
+pub trait TraceSink: Write {
+    /// Makes what was written durable (fsync for a file).
+    fn sync(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+    /// Cuts the sink back to its first `len` bytes; an error if it cannot.
+    fn truncate_to(&mut self, _len: u64) -> io::Result<()> {
+        Err(io::Error::new(
+            io::ErrorKind::Unsupported,
+            "this sink cannot be truncated",
+        ))
+    }
+}
+
+impl TraceSink for File {
+    fn sync(&mut self) -> io::Result<()> {
+        self.sync_data()
+    }
+    fn truncate_to(&mut self, len: u64) -> io::Result<()> {
+        self.set_len(len)?;
+        self.seek(SeekFrom::Start(len)).map(|_| ())
+    }
+}
+
+impl TraceSink for Vec<u8> {
+    fn truncate_to(&mut self, len: u64) -> io::Result<()> {
+        self.truncate(len as usize);
+        Ok(())
+    }
+}
+
+impl TraceSink for io::Sink {}
+
+impl<T: TraceSink + ?Sized> TraceSink for &mut T {
+    fn sync(&mut self) -> io::Result<()> {
+        (**self).sync()
+    }
+    fn truncate_to(&mut self, len: u64) -> io::Result<()> {
+        (**self).truncate_to(len)
+    }
+}
+
+/// A buffered CSV trace writer that never leaves a half line behind.
+pub struct TraceWriter<W: TraceSink> {
+    out: W,
+    name: String,
+    buf: Vec<u8>,
     flush_every: usize,
     since_flush: usize,
     rows: u64,
+    /// Bytes and rows known to be in `out` (complete lines only).
+    committed_bytes: u64,
+    committed_rows: u64,
+    broken: bool,
 }
 
-impl<W: Write> TraceWriter<W> {
-    /// Writes the header and flushes it.
+/// Replaces what would break one-line comment fields.
+fn one_line(s: &str) -> String {
+    s.chars()
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect()
+}
+
+impl<W: TraceSink> TraceWriter<W> {
+    /// Writes the header (no input files listed) and flushes it.
     pub fn new(inner: W, flush_every: usize) -> io::Result<Self> {
-        let mut out = BufWriter::with_capacity(64 * 1024, inner);
-        writeln!(out, "{TRACE_HEADER}")?;
-        out.flush()?;
-        Ok(Self {
-            out,
+        Self::create(inner, flush_every, "trace.csv", &[])
+    }
+
+    /// Writes the provenance lines (`# pneuflex <version>, trace schema 1`, one `# input <role> <path>
+    /// sha256 <hex>` per input) and the column header, and flushes them. `name` (the file's path) is named
+    /// in every error.
+    pub fn create(
+        inner: W,
+        flush_every: usize,
+        name: &str,
+        inputs: &[InputDigest],
+    ) -> io::Result<Self> {
+        let mut w = Self {
+            out: inner,
+            name: name.to_string(),
+            buf: Vec::with_capacity(64 * 1024),
             flush_every: flush_every.max(1),
             since_flush: 0,
             rows: 0,
-        })
+            committed_bytes: 0,
+            committed_rows: 0,
+            broken: false,
+        };
+        let mut head = format!(
+            "# pneuflex {}, trace schema {TRACE_SCHEMA}\n",
+            env!("CARGO_PKG_VERSION")
+        );
+        for i in inputs {
+            head += &format!(
+                "# input {} {} sha256 {}\n",
+                one_line(&i.role),
+                one_line(&i.path),
+                i.sha256
+            );
+        }
+        head += TRACE_HEADER;
+        head.push('\n');
+        w.buf.extend_from_slice(head.as_bytes());
+        w.flush()?;
+        Ok(w)
     }
 
     /// Appends a row; flushes every `flush_every` rows and on any row with a fault.
     pub fn row(&mut self, r: &TraceRow<'_>) -> io::Result<()> {
-        write!(
-            self.out,
+        if self.broken {
+            return Err(self.broken_error());
+        }
+        let start = self.buf.len();
+        let _ = write!(
+            self.buf,
             "{},{},{},{},{},{},{},{},{},{},{},{:.6},",
             r.t, r.f_ref, r.f_e, r.x, r.x_r, r.p_a, r.p_b, r.u, r.g, r.p, r.d, r.wall_time
-        )?;
+        );
         // Keep the CSV one field per fault: no commas, quotes or newlines from messages.
         for ch in r.fault.chars() {
             let c = match ch {
@@ -73,9 +172,12 @@ impl<W: Write> TraceWriter<W> {
                 '"' | '\n' | '\r' => ' ',
                 c => c,
             };
-            write!(self.out, "{c}")?;
+            let mut tmp = [0u8; 4];
+            self.buf
+                .extend_from_slice(c.encode_utf8(&mut tmp).as_bytes());
         }
-        writeln!(self.out)?;
+        self.buf.push(b'\n');
+        debug_assert!(self.buf.len() > start);
         self.rows += 1;
         self.since_flush += 1;
         if self.since_flush >= self.flush_every || !r.fault.is_empty() {
@@ -84,22 +186,108 @@ impl<W: Write> TraceWriter<W> {
         Ok(())
     }
 
-    /// Pushes buffered rows to the file.
-    pub fn flush(&mut self) -> io::Result<()> {
-        self.since_flush = 0;
-        self.out.flush()
+    fn broken_error(&self) -> io::Error {
+        io::Error::other(format!(
+            "{}: the trace could not be written earlier; it ends at its last complete row ({} rows)",
+            self.name, self.committed_rows
+        ))
     }
 
-    /// Rows written so far.
+    /// Pushes buffered rows to the sink with one `write_all`. On failure the sink is cut back to its last
+    /// complete row (if it can be) and the error names the file.
+    pub fn flush(&mut self) -> io::Result<()> {
+        if self.broken {
+            return Err(self.broken_error());
+        }
+        self.since_flush = 0;
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        let res = self
+            .out
+            .write_all(&self.buf)
+            .and_then(|()| self.out.flush());
+        match res {
+            Ok(()) => {
+                self.committed_bytes += self.buf.len() as u64;
+                self.committed_rows = self.rows;
+                self.buf.clear();
+                Ok(())
+            }
+            Err(e) => {
+                self.broken = true;
+                self.buf.clear();
+                let cut = match self.out.truncate_to(self.committed_bytes) {
+                    Ok(()) => format!(
+                        "it was cut back to its last complete row ({} rows)",
+                        self.committed_rows
+                    ),
+                    Err(t) => format!(
+                        "it could not be cut back to its last complete row ({} rows, {} bytes): {t}",
+                        self.committed_rows, self.committed_bytes
+                    ),
+                };
+                Err(io::Error::new(
+                    e.kind(),
+                    format!("{}: cannot write the trace: {e}; {cut}", self.name),
+                ))
+            }
+        }
+    }
+
+    /// Flushes, then makes the trace durable (fsync for a file).
+    pub fn sync(&mut self) -> io::Result<()> {
+        self.flush()?;
+        self.out.sync().map_err(|e| {
+            io::Error::new(
+                e.kind(),
+                format!("{}: cannot sync the trace to disk: {e}", self.name),
+            )
+        })
+    }
+
+    /// Ends the trace with `# end: <reason>, <n> rows`, flushed and synced. A trace without it was cut.
+    pub fn finish(&mut self, reason: &str) -> io::Result<()> {
+        if self.broken {
+            return Err(self.broken_error());
+        }
+        let line = format!("{END_MARKER}{}, {} rows\n", one_line(reason), self.rows);
+        self.buf.extend_from_slice(line.as_bytes());
+        self.sync()
+    }
+
+    /// Rows written so far (buffered or not).
     pub fn rows(&self) -> u64 {
         self.rows
     }
+
+    /// The sink.
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.out
+    }
 }
 
-impl<W: Write> Drop for TraceWriter<W> {
+impl<W: TraceSink> Drop for TraceWriter<W> {
     fn drop(&mut self) {
-        let _ = self.out.flush();
+        if !self.broken {
+            let _ = self.flush();
+        }
     }
+}
+
+/// The data lines of a rig trace (comment lines and the column header skipped), and whether it ends with
+/// the end marker.
+pub fn data_lines(text: &str) -> (Vec<&str>, Option<&str>) {
+    let mut rows = Vec::new();
+    let mut end = None;
+    for l in text.lines() {
+        if let Some(r) = l.strip_prefix(END_MARKER) {
+            end = Some(r);
+        } else if !l.starts_with('#') && l != TRACE_HEADER {
+            rows.push(l);
+        }
+    }
+    (rows, end)
 }
 
 #[cfg(test)]
@@ -108,7 +296,7 @@ mod tests {
     use std::sync::{Arc, Mutex};
 
     #[derive(Clone, Default)]
-    struct Shared(Arc<Mutex<Vec<u8>>>);
+    struct Shared(Arc<Mutex<Vec<u8>>>, Arc<Mutex<u32>>);
     impl Write for Shared {
         fn write(&mut self, b: &[u8]) -> io::Result<usize> {
             self.0.lock().unwrap().extend_from_slice(b);
@@ -118,18 +306,52 @@ mod tests {
             Ok(())
         }
     }
+    impl TraceSink for Shared {
+        fn sync(&mut self) -> io::Result<()> {
+            *self.1.lock().unwrap() += 1;
+            Ok(())
+        }
+    }
+
+    /// A disk that fills up after `room` bytes: the write that crosses it is short, the next one fails.
+    #[derive(Default)]
+    struct FullDisk {
+        data: Vec<u8>,
+        room: usize,
+    }
+    impl Write for FullDisk {
+        fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+            let n = b.len().min(self.room - self.data.len());
+            if n == 0 && !b.is_empty() {
+                return Err(io::Error::new(
+                    io::ErrorKind::StorageFull,
+                    "No space left on device",
+                ));
+            }
+            self.data.extend_from_slice(&b[..n]);
+            Ok(n)
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+    impl TraceSink for FullDisk {
+        fn truncate_to(&mut self, len: u64) -> io::Result<()> {
+            self.data.truncate(len as usize);
+            Ok(())
+        }
+    }
+
+    fn text(s: &Shared) -> String {
+        String::from_utf8(s.0.lock().unwrap().clone()).unwrap()
+    }
 
     #[test]
     fn flushes_every_n_and_on_fault() {
         let sink = Shared::default();
         let mut w = TraceWriter::new(sink.clone(), 3).unwrap();
-        let lines = || {
-            String::from_utf8(sink.0.lock().unwrap().clone())
-                .unwrap()
-                .lines()
-                .count()
-        };
-        assert_eq!(lines(), 1);
+        let lines = || text(&sink).lines().count();
+        assert_eq!(lines(), 2, "version line and column header");
         for k in 0..2 {
             w.row(&TraceRow {
                 t: k as f64,
@@ -137,18 +359,87 @@ mod tests {
             })
             .unwrap();
         }
-        assert_eq!(lines(), 1, "still buffered");
+        assert_eq!(lines(), 2, "still buffered");
         w.row(&TraceRow::default()).unwrap();
-        assert_eq!(lines(), 4, "flushed after 3 rows");
+        assert_eq!(lines(), 5, "flushed after 3 rows");
         w.row(&TraceRow {
             fault: "limit: x = 1, too far",
             ..TraceRow::default()
         })
         .unwrap();
-        let text = String::from_utf8(sink.0.lock().unwrap().clone()).unwrap();
-        assert_eq!(text.lines().count(), 5, "a fault row is flushed at once");
-        let last = text.lines().last().unwrap();
+        let t = text(&sink);
+        assert_eq!(t.lines().count(), 6, "a fault row is flushed at once");
+        let last = t.lines().last().unwrap();
         assert_eq!(last.split(',').count(), TRACE_HEADER.split(',').count());
         assert!(last.ends_with("limit: x = 1; too far"));
+    }
+
+    #[test]
+    fn header_carries_provenance_and_finish_adds_the_end_marker() {
+        let sink = Shared::default();
+        let inputs = [InputDigest {
+            path: "scenes/a b.toml".into(),
+            role: "scene".into(),
+            sha256: "ab".repeat(32),
+            bytes: 3,
+        }];
+        let mut w = TraceWriter::create(sink.clone(), 100, "out/trace.csv", &inputs).unwrap();
+        w.row(&TraceRow::default()).unwrap();
+        w.row(&TraceRow::default()).unwrap();
+        w.finish("complete").unwrap();
+        assert_eq!(*sink.1.lock().unwrap(), 1, "finish syncs");
+        let t = text(&sink);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(
+            lines[0],
+            format!("# pneuflex {}, trace schema 1", env!("CARGO_PKG_VERSION"))
+        );
+        assert_eq!(
+            lines[1],
+            format!("# input scene scenes/a b.toml sha256 {}", "ab".repeat(32))
+        );
+        assert_eq!(lines[2], TRACE_HEADER);
+        assert_eq!(*lines.last().unwrap(), "# end: complete, 2 rows");
+        let (rows, end) = data_lines(&t);
+        assert_eq!((rows.len(), end), (2, Some("complete, 2 rows")));
+    }
+
+    #[test]
+    fn a_full_disk_leaves_no_half_line_and_names_the_file() {
+        // Fill at every byte offset of the third flush: the file must always end with a whole row.
+        let row = |k: u64| TraceRow {
+            t: k as f64 * 1e-3,
+            f_ref: 10.0,
+            ..TraceRow::default()
+        };
+        for room in 150..400 {
+            let mut disk = FullDisk {
+                room,
+                ..FullDisk::default()
+            };
+            let mut w = TraceWriter::create(&mut disk, 2, "/data/run/trace.csv", &[]).unwrap();
+            let mut err = None;
+            for k in 0..10 {
+                if let Err(e) = w.row(&row(k)) {
+                    err = Some(e);
+                    break;
+                }
+            }
+            let e = err.expect("the disk fills up");
+            assert!(e.to_string().contains("/data/run/trace.csv"), "{e}");
+            assert_eq!(e.kind(), io::ErrorKind::StorageFull);
+            assert!(
+                w.row(&row(99)).is_err(),
+                "nothing is written after a failure"
+            );
+            assert!(w.finish("complete").is_err());
+            drop(w);
+            let t = String::from_utf8(disk.data.clone()).unwrap();
+            assert!(t.ends_with('\n'), "room {room}: half line in {t:?}");
+            for l in data_lines(&t).0 {
+                assert_eq!(l.split(',').count(), TRACE_HEADER.split(',').count());
+            }
+            assert_eq!(data_lines(&t).1, None, "a cut trace has no end marker");
+        }
     }
 }

@@ -1,35 +1,39 @@
-//! End to end over a pseudo-terminal pair: the controller drives the emulated rig through the serial protocol,
-//! the supervisor and the trace; each injected fault puts the valve in its safe state and is latched.
+//! End to end: the controller drives the emulated rig through the serial protocol, the supervisor and the
+//! trace; each injected fault puts the valve in its safe state and is latched.
+//!
+//! The emulator runs in lockstep with a simulated clock (`session::lockstep_emulator`, `SimClock`): the
+//! board steps exactly once per sample period of the loop's clock, so the results do not depend on how fast
+//! the machine is or how loaded it is. One test runs over a real pseudo-terminal on the wall clock, with
+//! assertions that hold whatever the scheduling.
 
+use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use pneuflex_control::{
     Controller, ImpedanceController, ImpedanceParams, PidParams, Sensors, Setpoint, Telemetry,
     ValveCommand,
 };
+use pneuflex_rig::clock::SimClock;
 use pneuflex_rig::emulator::EmulatorLog;
 use pneuflex_rig::plant::{EmulatedPlant, Environment, ValveDrive};
 use pneuflex_rig::protocol::ValveMode;
 use pneuflex_rig::rigfile::InjectedFault;
 use pneuflex_rig::rtloop::{self, LoopReport};
-use pneuflex_rig::trace::TraceWriter;
+use pneuflex_rig::trace::{self, TraceSink, TraceWriter};
 use pneuflex_rig::{ErrorKind, RigFile, serial, session};
 
 fn rig_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rigs/emulated.toml")
 }
 
-/// The emulated rig with test-friendly watchdog times: a loaded CI machine (2 cores shared by parallel
-/// builds and tests) has been seen to deschedule the emulator thread for 65 ms, which must not look like a
-/// dead board here.
+/// The emulated rig with its shipped watchdog times (20 ms timeout, 50 ms stale, 50 ms board watchdog):
+/// in lockstep nothing is ever late, so the tests need no allowance for a loaded machine.
 fn rig_with(faults: Vec<InjectedFault>, change_at_s: Option<f64>) -> RigFile {
     let mut rig = RigFile::load(&rig_path()).expect("rigs/emulated.toml loads");
-    rig.watchdog.timeout_ms = 150.0;
-    rig.watchdog.stale_ms = 60.0;
     rig.rt.post_fault_s = 0.05;
-    rig.watchdog.board_watchdog_ms = 200;
     let e = rig.emulator.as_mut().unwrap();
     e.faults = faults;
     e.environment.change_at_s = change_at_s;
@@ -64,43 +68,79 @@ struct Run {
     report: LoopReport,
     rows: Vec<Vec<String>>,
     log: EmulatorLog,
+    end: Option<String>,
 }
 
-fn run_emulated<C: Controller>(
+/// Parses a trace: data rows split into fields, and the end marker's text.
+fn parse_trace(text: &str) -> (Vec<Vec<String>>, Option<String>) {
+    let mut lines = text.lines().filter(|l| !l.starts_with("# pneuflex"));
+    assert_eq!(lines.next(), Some(trace::TRACE_HEADER));
+    let (rows, end) = trace::data_lines(text);
+    (
+        rows.iter()
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect(),
+        end.map(str::to_string),
+    )
+}
+
+/// Runs `ctrl` for `duration_s` against the lockstep emulator; `stop_at_s` sets the stop flag (as the
+/// signal handler does) from the loop's own time, so the interrupt lands on a known tick.
+fn run_lockstep<C: Controller>(
     rig: &RigFile,
     ctrl: &mut C,
     duration_s: f64,
-    stop: Arc<AtomicBool>,
-    name: &str,
+    stop_at_s: Option<f64>,
 ) -> Run {
+    let mut out = Vec::new();
+    let (res, log) = run_lockstep_into(rig, ctrl, duration_s, stop_at_s, &mut out);
+    let report = res.expect("the loop runs");
+    let (rows, end) = parse_trace(&String::from_utf8(out).unwrap());
+    Run {
+        report,
+        rows,
+        log,
+        end,
+    }
+}
+
+fn run_lockstep_into<C: Controller, W: TraceSink>(
+    rig: &RigFile,
+    ctrl: &mut C,
+    duration_s: f64,
+    stop_at_s: Option<f64>,
+    sink: W,
+) -> (io::Result<LoopReport>, EmulatorLog) {
     let file = rig_path();
-    let emu = session::spawn_pty_emulator(rig, &file).expect("emulator starts");
-    let port = emu.path.clone().unwrap();
-    let serial = serial::connect(rig, &file, Some(port.to_str().unwrap())).expect("connects");
+    let mut clock = SimClock::new();
+    let (link, log) = session::lockstep_emulator(rig, &file, clock.clone()).expect("emulator");
+    let serial = serial::connect_link(link, rig, &mut clock).expect("connects");
     let mut sup = session::supervised(serial, rig);
-    let trace_path =
-        std::env::temp_dir().join(format!("pneuflex-rig-{}-{name}.csv", std::process::id()));
-    let report = {
-        let mut trace = TraceWriter::new(
-            std::fs::File::create(&trace_path).unwrap(),
-            rig.rt.trace_flush_every,
-        )
-        .unwrap();
-        let opts = session::run_options(rig, duration_s);
-        rtloop::run(&mut sup, ctrl, &mut setpoint, &mut trace, &opts, &stop).unwrap()
+    let stop = AtomicBool::new(false);
+    let mut reference = |t: f64| {
+        if stop_at_s.is_some_and(|s| t >= s - 1e-9) {
+            stop.store(true, Ordering::Relaxed);
+        }
+        setpoint(t)
     };
+    let res = {
+        let mut trace = TraceWriter::create(sink, rig.rt.trace_flush_every, "mem/trace.csv", &[])
+            .expect("header");
+        let opts = session::run_options(rig, duration_s);
+        rtloop::run_with_clock(
+            &mut sup,
+            ctrl,
+            &mut reference,
+            &mut trace,
+            &opts,
+            &stop,
+            &mut clock,
+        )
+    };
+    // The supervisor parks the valve; the lockstep link lets the board take in the last frames.
     drop(sup);
-    // Let the emulator take in the last frames.
-    std::thread::sleep(std::time::Duration::from_millis(20));
-    let log = emu.stop();
-    let text = std::fs::read_to_string(&trace_path).unwrap();
-    let _ = std::fs::remove_file(&trace_path);
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some(pneuflex_rig::trace::TRACE_HEADER));
-    let rows = lines
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect();
-    Run { report, rows, log }
+    let log = log.lock().unwrap().clone();
+    (res, log)
 }
 
 fn col(rows: &[Vec<String>], i: usize) -> Vec<f64> {
@@ -147,18 +187,12 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 #[test]
-fn force_tracks_reference_through_wood_to_iron_over_a_pty() {
+fn force_tracks_reference_through_wood_to_iron() {
     // Wood (700 N/m) for 1.5 s, then iron (1400 N/m); 3 s in all.
     let duration = 3.0;
     let rig = rig_with(vec![], Some(1.5));
     let mut ctrl = controller();
-    let run = run_emulated(
-        &rig,
-        &mut ctrl,
-        duration,
-        Arc::new(AtomicBool::new(false)),
-        "e2e",
-    );
+    let run = run_lockstep(&rig, &mut ctrl, duration, None);
     assert!(
         run.report.fault.is_none(),
         "unexpected fault: {}",
@@ -166,6 +200,9 @@ fn force_tracks_reference_through_wood_to_iron_over_a_pty() {
     );
     let n = (duration * rig.rt.rate_hz).round() as usize;
     assert_eq!(run.rows.len(), n, "one trace row per tick");
+    assert_eq!(run.end, Some(format!("complete, {n} rows")));
+    // Lockstep: a new sample every tick but tick 0, which uses the one the loop waited for.
+    assert_eq!(run.report.ticks_without_sample, 1);
     let t = col(&run.rows, 0);
     let f_e = col(&run.rows, 2);
     let sim = simulate(&rig, duration);
@@ -185,8 +222,8 @@ fn force_tracks_reference_through_wood_to_iron_over_a_pty() {
     );
     eprintln!("{}", run.report);
     // Tolerance (docs/rig.md): the simulation's own tracking error plus what the link adds — load-cell
-    // quantisation and noise (0.2 mN/count, negligible), one sample of latency, the board/host clock
-    // offset — bounded by 0.5 N RMS, i.e. 5 % of the 10 N level.
+    // quantisation and noise (0.2 mN/count, negligible), one sample of latency, the velocity from quantised
+    // position — bounded by 0.5 N RMS, i.e. 5 % of the 10 N level. In lockstep the run is deterministic.
     assert!(
         rig_wood <= sim_wood + 0.5,
         "wood: rig {rig_wood} vs simulation {sim_wood}"
@@ -280,35 +317,36 @@ fn check_fault(run: &Run, kind: ErrorKind, dt: f64, check_valve: bool) -> usize 
     kf
 }
 
-fn fault_run(fault: InjectedFault, kind: ErrorKind) {
+/// Runs 1 s with `fault` injected at 0.3 s; returns the fault tick.
+fn fault_run(fault: InjectedFault, kind: ErrorKind) -> usize {
     let mut rig = rig_with(vec![fault], None);
     if let InjectedFault::Stall { at_s, for_s } = fault {
         // Keep the host running until the board wakes up and takes in the safe commands.
         rig.rt.post_fault_s = at_s + for_s - 0.3 + 0.1;
     }
     let mut ctrl = controller();
-    let run = run_emulated(
-        &rig,
-        &mut ctrl,
-        1.0,
-        Arc::new(AtomicBool::new(false)),
-        kind.name(),
-    );
+    let run = run_lockstep(&rig, &mut ctrl, 1.0, None);
     let check_valve = !matches!(fault, InjectedFault::CloseLink { .. });
-    check_fault(&run, kind, rig.dt(), check_valve);
-    // Detected after the injection, not before (host time: under load ticks can run late, so the tick
-    // index may lag the emulator's clock; the host clock starts before the emulator's experiment clock).
+    let kf = check_fault(&run, kind, rig.dt(), check_valve);
+    // Detected after the injection (experiment time starts with the first Run command, at tick 0).
     let f = run.report.fault.as_ref().unwrap();
     assert!(
         f.host_time_s >= 0.3 - 0.002,
         "fault at host time {} s",
         f.host_time_s
     );
+    assert_eq!(
+        run.end,
+        Some(format!("fault {}, {} rows", kind.name(), run.rows.len()))
+    );
+    kf
 }
 
 #[test]
 fn dropped_frames_trip_the_watchdog() {
-    fault_run(InjectedFault::DropFrames { at_s: 0.3 }, ErrorKind::Timeout);
+    // Last sample at 0.3 s; no sample for more than timeout_ms = 20 ms: tripped at 0.321 s.
+    let kf = fault_run(InjectedFault::DropFrames { at_s: 0.3 }, ErrorKind::Timeout);
+    assert!((320..=322).contains(&kf), "fault tick {kf}");
 }
 
 #[test]
@@ -318,7 +356,7 @@ fn corrupted_crcs_trip_the_crc_threshold() {
 
 #[test]
 fn a_stalled_board_trips_the_watchdog() {
-    // 250 ms of silence: longer than the 150 ms watchdog.
+    // 250 ms of silence: longer than the 20 ms watchdog.
     fault_run(
         InjectedFault::Stall {
             at_s: 0.3,
@@ -375,49 +413,193 @@ fn a_nan_command_and_a_controller_panic_go_safe() {
             inner: controller(),
             panic,
         };
-        let run = run_emulated(
-            &rig,
-            &mut ctrl,
-            1.0,
-            Arc::new(AtomicBool::new(false)),
-            kind.name(),
-        );
+        let run = run_lockstep(&rig, &mut ctrl, 1.0, None);
         let kf = check_fault(&run, kind, rig.dt(), true);
         assert_eq!(kf, 300, "the misbehaving update is caught in its own tick");
     }
 }
 
 #[test]
-fn ctrl_c_and_a_crossed_limit_go_safe() {
-    // Ctrl-C: the handler sets the flag the loop polls.
+fn a_stop_signal_and_a_crossed_limit_go_safe() {
+    // The signal handler's flag, set at t = 0.4 s (tick 400): the loop sees it at the start of tick 401 and
+    // commands the safe state in that tick.
     let rig = rig_with(vec![], None);
-    let stop = Arc::new(AtomicBool::new(false));
-    let s2 = stop.clone();
-    let t = std::thread::spawn(move || {
-        std::thread::sleep(std::time::Duration::from_millis(400));
-        s2.store(true, Ordering::Relaxed);
-    });
     let mut ctrl = controller();
-    let run = run_emulated(&rig, &mut ctrl, 1.5, stop, "ctrlc");
-    t.join().unwrap();
-    check_fault(&run, ErrorKind::Interrupted, rig.dt(), true);
+    let run = run_lockstep(&rig, &mut ctrl, 1.5, Some(0.4));
+    let kf = check_fault(&run, ErrorKind::Interrupted, rig.dt(), true);
+    assert_eq!(kf, 401);
+    assert_eq!(
+        run.end,
+        Some(format!("interrupted, {} rows", run.rows.len()))
+    );
+    assert_eq!(
+        run.rows.len(),
+        401 + 50 + 1,
+        "post_fault_s = 50 ms of rows after the fault row"
+    );
 
     // A position limit inside the travel to the 10 N contact (x ≈ 34 mm at 700 N/m).
     let mut rig = rig_with(vec![], None);
     rig.limits.position_m = [-0.001, 0.025];
     let mut ctrl = controller();
-    let run = run_emulated(
-        &rig,
-        &mut ctrl,
-        2.0,
-        Arc::new(AtomicBool::new(false)),
-        "limit",
-    );
+    let run = run_lockstep(&rig, &mut ctrl, 2.0, None);
     let kf = check_fault(&run, ErrorKind::Limit, rig.dt(), true);
     let x = col(&run.rows, 3);
     assert!(
         x[kf - 1] <= 0.025,
         "the last healthy sample was inside the limit"
+    );
+}
+
+/// A disk that fills up after `room` bytes: the write that crosses it is short, the next one fails.
+struct FullDisk {
+    data: Vec<u8>,
+    room: usize,
+}
+
+impl io::Write for FullDisk {
+    fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+        let n = b.len().min(self.room - self.data.len());
+        if n == 0 && !b.is_empty() {
+            return Err(io::Error::new(
+                io::ErrorKind::StorageFull,
+                "No space left on device",
+            ));
+        }
+        self.data.extend_from_slice(&b[..n]);
+        Ok(n)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+impl TraceSink for FullDisk {
+    fn truncate_to(&mut self, len: u64) -> io::Result<()> {
+        self.data.truncate(len as usize);
+        Ok(())
+    }
+}
+
+#[test]
+fn a_full_disk_goes_safe_first_then_names_the_trace_and_leaves_no_half_line() {
+    let rig = rig_with(vec![], None);
+    let mut ctrl = controller();
+    let mut disk = FullDisk {
+        data: Vec::new(),
+        room: 40_000,
+    };
+    let (res, log) = run_lockstep_into(&rig, &mut ctrl, 2.0, None, &mut disk);
+    let e = res.expect_err("the disk fills up");
+    assert!(e.to_string().contains("mem/trace.csv"), "{e}");
+    assert_eq!(e.kind(), io::ErrorKind::StorageFull);
+    let text = String::from_utf8(disk.data).unwrap();
+    assert!(text.ends_with('\n'), "no half line");
+    let (rows, end) = trace::data_lines(&text);
+    assert_eq!(end, None, "a cut trace has no end marker");
+    assert!(
+        rows.len() >= 100,
+        "{} rows before the disk filled",
+        rows.len()
+    );
+    // The failing flush happens in the tick of the row that completes a buffer (every 100 rows), after that
+    // tick's Run command: the safe command for the same tick follows it, then only safe ones.
+    let first_safe = log
+        .commands
+        .iter()
+        .position(|c| c.mode.is_safe())
+        .expect("a safe command reached the board");
+    let k = log.commands[first_safe].tick;
+    assert_eq!(k as usize % 100, 99, "failed on the flush of rows ..{k}");
+    assert!(
+        log.commands[..first_safe]
+            .iter()
+            .all(|c| c.mode == ValveMode::Run)
+    );
+    assert_eq!(log.commands[first_safe - 1].tick, k);
+    assert!(log.commands[first_safe..].iter().all(|c| c.mode.is_safe()));
+}
+
+#[test]
+fn durations_that_are_not_finite_positive_and_bounded_are_refused() {
+    let rig = rig_with(vec![], None);
+    for d in [f64::NAN, -1.0, 0.0, 1e10, f64::INFINITY] {
+        let mut ctrl = controller();
+        let (res, log) = run_lockstep_into(&rig, &mut ctrl, d, None, Vec::new());
+        let e = res.expect_err("refused");
+        assert_eq!(e.kind(), io::ErrorKind::InvalidInput);
+        assert!(e.to_string().contains("duration"), "{e}");
+        assert!(
+            log.commands.iter().all(|c| c.mode.is_safe()),
+            "{d}: no Run command was sent"
+        );
+    }
+}
+
+/// The wall-clock path over a real pseudo-terminal: the emulator on its own thread. Only what holds
+/// whatever the scheduling is asserted: watchdogs are 1 s, the limits wide (tracking is not tested here),
+/// and the stop lands on the tick that sees it.
+#[test]
+fn over_a_pty_a_stop_goes_safe_and_the_board_gets_only_safe_commands_after() {
+    let mut rig = rig_with(vec![], None);
+    rig.watchdog.timeout_ms = 1000.0;
+    rig.watchdog.stale_ms = 0.0;
+    rig.watchdog.board_watchdog_ms = 2000;
+    // On the wall clock a late host loop lets the real-time plant overshoot: only the stop may end the run.
+    rig.limits.position_m = [-1.0, 1.0];
+    rig.limits.force_n = [-1e6, 1e6];
+    rig.limits.pressure_pa = [0.0, 1e8];
+    rig.limits.supply_min_pa = 0.0;
+    let file = rig_path();
+    let emu = session::spawn_pty_emulator(&rig, &file).expect("emulator starts");
+    let port = emu.path.clone().unwrap();
+    let serial = serial::connect(&rig, &file, Some(port.to_str().unwrap())).expect("connects");
+    let mut sup = session::supervised(serial, &rig);
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut reference = |t: f64| {
+        if t >= 0.2 {
+            stop.store(true, Ordering::Relaxed);
+        }
+        setpoint(t)
+    };
+    let mut out = Vec::new();
+    let report = {
+        let mut trace = TraceWriter::new(&mut out, rig.rt.trace_flush_every).unwrap();
+        let opts = session::run_options(&rig, 1.0);
+        let mut ctrl = controller();
+        rtloop::run(
+            &mut sup,
+            &mut ctrl,
+            &mut reference,
+            &mut trace,
+            &opts,
+            &stop,
+        )
+        .unwrap()
+    };
+    drop(sup);
+    let f = report.fault.clone().expect("interrupted");
+    assert_eq!(f.kind, ErrorKind::Interrupted, "{}", f.message);
+    assert_eq!(f.tick, 201);
+    // Wait (wall clock, generously) until the board has read a command from the fault tick on.
+    let t0 = Instant::now();
+    while !emu.log().commands.iter().any(|c| c.tick as u64 >= f.tick)
+        && t0.elapsed() < Duration::from_secs(30)
+    {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let log = emu.stop();
+    let (rows, end) = parse_trace(&String::from_utf8(out).unwrap());
+    let run = Run {
+        report,
+        rows,
+        log,
+        end,
+    };
+    check_fault(&run, ErrorKind::Interrupted, rig.dt(), true);
+    assert_eq!(
+        run.end,
+        Some(format!("interrupted, {} rows", run.rows.len()))
     );
 }
 
