@@ -140,6 +140,7 @@ pub struct OutputDir {
     dest: PathBuf,
     tmp: PathBuf,
     done: bool,
+    recoverable: Recoverable,
     /// Staging directories of dead processes that were kept (irreplaceable data), for the caller to report.
     pub recovered: Vec<PathBuf>,
 }
@@ -435,6 +436,7 @@ impl OutputDir {
             dest: dest.to_path_buf(),
             tmp,
             done: false,
+            recoverable,
             recovered,
         })
     }
@@ -482,8 +484,6 @@ impl OutputDir {
             os_error: std::io::Error::other(e),
         })? + "\n";
         fs::write(&mpath, text).map_err(io(&mpath, "write"))?;
-        let mark = self.tmp.join(STAGING_MARK);
-        fs::remove_file(&mark).map_err(io(&mark, "remove"))?;
         // Checked again: the destination may have changed while the command ran.
         check_replaceable(&to)?;
         let aside = parent_of(&to).join(format!(".{}.old-{}", name_of(&to), std::process::id()));
@@ -498,14 +498,16 @@ impl OutputDir {
             return Err(io(&to, "rename into place")(e));
         }
         self.done = true;
+        // The staging mark goes only now: a staging directory whose commit failed keeps it, so the next
+        // command still knows it as pneuflex's.
+        let _ = fs::remove_file(to.join(STAGING_MARK));
         if had_old {
             remove_listed(&aside)?;
         }
         Ok(to)
     }
 
-    /// Keeps the staging directory as it is (for example after a write error on irreplaceable data) and
-    /// returns its path; nothing is removed.
+    /// Keeps the staging directory as it is and returns its path; nothing is removed.
     pub fn keep(mut self) -> PathBuf {
         self.done = true;
         self.tmp.clone()
@@ -513,8 +515,10 @@ impl OutputDir {
 }
 
 impl Drop for OutputDir {
+    /// An uncommitted staging directory is removed, unless it holds irreplaceable data (a rig trace whose
+    /// commit failed): that one stays, and the next command renames it to `<dest>.unfinished-<pid>`.
     fn drop(&mut self) {
-        if !self.done {
+        if !self.done && self.recoverable == Recoverable::Regenerable {
             let _ = fs::remove_dir_all(&self.tmp);
         }
     }
@@ -613,6 +617,24 @@ mod tests {
         let m = read_manifest(&p).unwrap();
         assert!(!m.complete);
         assert_eq!(m.partial.unwrap().reason, "SIGINT");
+    }
+
+    #[test]
+    fn a_failed_commit_keeps_irreplaceable_data() {
+        let d = scratch("failedcommit");
+        let dest = d.join("r");
+        let o = OutputDir::create(&dest, &[], Recoverable::Irreplaceable).unwrap();
+        let staged = o.path().to_path_buf();
+        fs::write(staged.join("trace.csv"), "t\n0\n").unwrap();
+        // Somebody's file appears in the destination while the run goes on: the commit is refused…
+        fs::create_dir_all(&dest).unwrap();
+        fs::write(dest.join("notes.txt"), "mine").unwrap();
+        assert!(o.commit(Manifest::new("test", "0", vec![])).is_err());
+        // …and the recording is still there.
+        assert_eq!(
+            fs::read_to_string(staged.join("trace.csv")).unwrap(),
+            "t\n0\n"
+        );
     }
 
     #[test]
