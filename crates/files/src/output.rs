@@ -518,7 +518,8 @@ impl Drop for OutputDir {
     /// An uncommitted staging directory is removed, unless it holds irreplaceable data (a rig trace whose
     /// commit failed): that one stays, and the next command renames it to `<dest>.unfinished-<pid>`.
     fn drop(&mut self) {
-        if !self.done && self.recoverable == Recoverable::Regenerable {
+        let nothing_written = || list_files(&self.tmp).is_ok_and(|f| f.is_empty());
+        if !self.done && (self.recoverable == Recoverable::Regenerable || nothing_written()) {
             let _ = fs::remove_dir_all(&self.tmp);
         }
     }
