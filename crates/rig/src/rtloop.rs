@@ -329,6 +329,12 @@ where
         }
     }
 
+    // The trace's columns: the loop's signals and the controller's own, as each declares them.
+    let own = controller.signals();
+    trace.columns(own)?;
+    let n_loop = pneuflex_control::LOOP_SIGNALS.len();
+    let mut values = vec![0.0; n_loop + own.len()];
+
     let start = host(clock);
     let mut prev_start: Option<f64> = None;
     let mut fault_tick: Option<u64> = None;
@@ -375,6 +381,8 @@ where
         let setpoint = reference(t);
         let mut cmd = ValveCommand::default();
         let mut telemetry = Telemetry::default();
+        // The controller's own signals read 0 on a tick it did not run (as its telemetry does).
+        values[n_loop..].fill(0.0);
         if sup.fault().is_none()
             && let Some(s) = last
         {
@@ -385,6 +393,7 @@ where
                 Ok(c) if c.u.is_finite() => {
                     cmd = c;
                     telemetry = controller.telemetry();
+                    controller.record(&mut values[n_loop..]);
                 }
                 Ok(c) => sup.trip(
                     k,
@@ -421,16 +430,13 @@ where
                 // The first faulty row carries the message, and is made durable at once.
                 report.fault = Some(f.clone());
                 let msg = format!("{}: {}", f.kind.name(), f.message);
+                fill(&mut values, t, &setpoint, &sensors, &telemetry, 0.0);
                 trace
-                    .row(&row(
-                        t,
-                        &setpoint,
-                        &sensors,
-                        &telemetry,
-                        0.0,
-                        wall0 + now_s,
-                        &msg,
-                    ))
+                    .row(&TraceRow {
+                        values: &values,
+                        wall_time: wall0 + now_s,
+                        fault: &msg,
+                    })
                     .and_then(|()| trace.sync())
             }
             (fault, _) => {
@@ -440,15 +446,12 @@ where
                     ""
                 };
                 let u = applied.map(|c| c.u).unwrap_or(0.0);
-                trace.row(&row(
-                    t,
-                    &setpoint,
-                    &sensors,
-                    &telemetry,
-                    u,
-                    wall0 + now_s,
-                    label,
-                ))
+                fill(&mut values, t, &setpoint, &sensors, &telemetry, u);
+                trace.row(&TraceRow {
+                    values: &values,
+                    wall_time: wall0 + now_s,
+                    fault: label,
+                })
             }
         };
         if let Err(e) = written {
@@ -479,30 +482,10 @@ where
     Ok(report)
 }
 
-fn row<'a>(
-    t: f64,
-    sp: &Setpoint,
-    s: &Sensors,
-    tel: &Telemetry,
-    u: f64,
-    wall: f64,
-    fault: &'a str,
-) -> TraceRow<'a> {
-    TraceRow {
-        t,
-        f_ref: sp.f_ref,
-        f_e: s.f_e,
-        x: s.x,
-        x_r: tel.x_r,
-        p_a: s.p_a,
-        p_b: s.p_b,
-        u,
-        g: tel.g,
-        p: tel.p,
-        d: tel.d,
-        wall_time: wall,
-        fault,
-    }
+/// The loop's signals of a tick, in the order of `pneuflex_control::LOOP_SIGNALS`.
+fn fill(values: &mut [f64], t: f64, sp: &Setpoint, s: &Sensors, tel: &Telemetry, u: f64) {
+    values[..pneuflex_control::LOOP_SIGNALS.len()]
+        .copy_from_slice(&[t, sp.f_ref, s.f_e, s.x, tel.x_r, s.p_a, s.p_b, u]);
 }
 
 #[cfg(test)]

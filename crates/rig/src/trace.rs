@@ -5,10 +5,20 @@
 use std::fs::File;
 use std::io::{self, Seek, SeekFrom, Write};
 
+use pneuflex_control::Signal;
 use pneuflex_files::InputDigest;
 
-/// The column header: the simulation's trace columns, then wall time (s since the Unix epoch) and the fault.
-pub const TRACE_HEADER: &str = "t,f_ref,f_e,x,x_r,p_a,p_b,u,g,p,d,wall_time,fault";
+/// The column header: the loop's signals (`pneuflex_control::LOOP_SIGNALS`), the controller's own signals
+/// as it declares them, then wall time (s since the Unix epoch) and the fault.
+pub fn header_for(own: &[Signal]) -> String {
+    let names: Vec<&str> = pneuflex_control::LOOP_SIGNALS
+        .iter()
+        .chain(own)
+        .map(|s| s.name)
+        .chain(["wall_time", "fault"])
+        .collect();
+    names.join(",")
+}
 /// Layout version of the trace (comment lines, columns, end marker).
 pub const TRACE_SCHEMA: u32 = 1;
 /// Start of the last line of a trace that was closed properly: `# end: <reason>, <n> rows`.
@@ -17,28 +27,9 @@ pub const END_MARKER: &str = "# end: ";
 /// One row of the trace (SI units, pressures absolute).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TraceRow<'a> {
-    /// Control time, s (tick × period).
-    pub t: f64,
-    /// Reference force, N.
-    pub f_ref: f64,
-    /// Measured contact force, N.
-    pub f_e: f64,
-    /// Flange position, m.
-    pub x: f64,
-    /// Reference position of the inner loop, m.
-    pub x_r: f64,
-    /// Chamber A pressure, Pa.
-    pub p_a: f64,
-    /// Chamber B pressure, Pa.
-    pub p_b: f64,
-    /// Valve command sent (0 in the safe state).
-    pub u: f64,
-    /// Adaptive g.
-    pub g: f64,
-    /// Adaptive p.
-    pub p: f64,
-    /// Adaptive d.
-    pub d: f64,
+    /// The loop's signals then the controller's, in the order of the header ([`header_for`]); the valve
+    /// command is the one sent (0 in the safe state).
+    pub values: &'a [f64],
     /// Wall-clock time, s since the Unix epoch.
     pub wall_time: f64,
     /// Empty when healthy, the fault kind while latched; the first faulty row also carries the message.
@@ -100,6 +91,8 @@ pub struct TraceWriter<W: TraceSink> {
     committed_bytes: u64,
     committed_rows: u64,
     broken: bool,
+    /// Values per row, once the column header is written.
+    columns: Option<usize>,
 }
 
 /// Replaces what would break one-line comment fields.
@@ -110,14 +103,14 @@ fn one_line(s: &str) -> String {
 }
 
 impl<W: TraceSink> TraceWriter<W> {
-    /// Writes the header (no input files listed) and flushes it.
+    /// Writes the version line (no input files listed) and flushes it.
     pub fn new(inner: W, flush_every: usize) -> io::Result<Self> {
         Self::create(inner, flush_every, "trace.csv", &[])
     }
 
     /// Writes the provenance lines (`# pneuflex <version>, trace schema 1`, one `# input <role> <path>
-    /// sha256 <hex>` per input) and the column header, and flushes them. `name` (the file's path) is named
-    /// in every error.
+    /// sha256 <hex>` per input) and flushes them; the column header follows with [`TraceWriter::columns`].
+    /// `name` (the file's path) is named in every error.
     pub fn create(
         inner: W,
         flush_every: usize,
@@ -134,6 +127,7 @@ impl<W: TraceSink> TraceWriter<W> {
             committed_bytes: 0,
             committed_rows: 0,
             broken: false,
+            columns: None,
         };
         let mut head = format!(
             "# pneuflex {}, trace schema {TRACE_SCHEMA}\n",
@@ -147,11 +141,23 @@ impl<W: TraceSink> TraceWriter<W> {
                 i.sha256
             );
         }
-        head += TRACE_HEADER;
-        head.push('\n');
         w.buf.extend_from_slice(head.as_bytes());
         w.flush()?;
         Ok(w)
+    }
+
+    /// Writes the column header for a controller with signals `own` ([`header_for`]); once, before rows.
+    pub fn columns(&mut self, own: &[Signal]) -> io::Result<()> {
+        if self.columns.is_some() {
+            return Err(io::Error::other(format!(
+                "{}: the column header is already written",
+                self.name
+            )));
+        }
+        self.columns = Some(pneuflex_control::LOOP_SIGNALS.len() + own.len());
+        let line = header_for(own) + "\n";
+        self.buf.extend_from_slice(line.as_bytes());
+        self.flush()
     }
 
     /// Appends a row; flushes every `flush_every` rows and on any row with a fault.
@@ -159,12 +165,22 @@ impl<W: TraceSink> TraceWriter<W> {
         if self.broken {
             return Err(self.broken_error());
         }
+        if self.columns != Some(r.values.len()) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "{}: a row of {} values where the header has {:?}",
+                    self.name,
+                    r.values.len(),
+                    self.columns
+                ),
+            ));
+        }
         let start = self.buf.len();
-        let _ = write!(
-            self.buf,
-            "{},{},{},{},{},{},{},{},{},{},{},{:.6},",
-            r.t, r.f_ref, r.f_e, r.x, r.x_r, r.p_a, r.p_b, r.u, r.g, r.p, r.d, r.wall_time
-        );
+        for v in r.values {
+            let _ = write!(self.buf, "{v},");
+        }
+        let _ = write!(self.buf, "{:.6},", r.wall_time);
         // Keep the CSV one field per fault: no commas, quotes or newlines from messages.
         for ch in r.fault.chars() {
             let c = match ch {
@@ -275,15 +291,24 @@ impl<W: TraceSink> Drop for TraceWriter<W> {
     }
 }
 
+/// The column header of a rig trace (its first line that is not a comment), if any.
+pub fn header_line(text: &str) -> Option<&str> {
+    text.lines().find(|l| !l.starts_with('#'))
+}
+
 /// The data lines of a rig trace (comment lines and the column header skipped), and whether it ends with
 /// the end marker.
 pub fn data_lines(text: &str) -> (Vec<&str>, Option<&str>) {
     let mut rows = Vec::new();
     let mut end = None;
+    let mut header_seen = false;
     for l in text.lines() {
         if let Some(r) = l.strip_prefix(END_MARKER) {
             end = Some(r);
-        } else if !l.starts_with('#') && l != TRACE_HEADER {
+        } else if l.starts_with('#') {
+        } else if !header_seen {
+            header_seen = true;
+        } else {
             rows.push(l);
         }
     }
@@ -342,6 +367,13 @@ mod tests {
         }
     }
 
+    fn row8() -> TraceRow<'static> {
+        TraceRow {
+            values: &[0.0; 8],
+            ..TraceRow::default()
+        }
+    }
+
     fn text(s: &Shared) -> String {
         String::from_utf8(s.0.lock().unwrap().clone()).unwrap()
     }
@@ -350,28 +382,37 @@ mod tests {
     fn flushes_every_n_and_on_fault() {
         let sink = Shared::default();
         let mut w = TraceWriter::new(sink.clone(), 3).unwrap();
+        w.columns(&[]).unwrap();
         let lines = || text(&sink).lines().count();
         assert_eq!(lines(), 2, "version line and column header");
         for k in 0..2 {
             w.row(&TraceRow {
-                t: k as f64,
+                values: &[k as f64; 8],
                 ..TraceRow::default()
             })
             .unwrap();
         }
         assert_eq!(lines(), 2, "still buffered");
-        w.row(&TraceRow::default()).unwrap();
+        w.row(&row8()).unwrap();
         assert_eq!(lines(), 5, "flushed after 3 rows");
         w.row(&TraceRow {
             fault: "limit: x = 1, too far",
-            ..TraceRow::default()
+            ..row8()
         })
         .unwrap();
         let t = text(&sink);
         assert_eq!(t.lines().count(), 6, "a fault row is flushed at once");
         let last = t.lines().last().unwrap();
-        assert_eq!(last.split(',').count(), TRACE_HEADER.split(',').count());
+        assert_eq!(last.split(',').count(), header_for(&[]).split(',').count());
         assert!(last.ends_with("limit: x = 1; too far"));
+        assert!(
+            w.row(&TraceRow {
+                values: &[0.0; 3],
+                ..TraceRow::default()
+            })
+            .is_err(),
+            "a row that does not match the header is refused"
+        );
     }
 
     #[test]
@@ -384,8 +425,18 @@ mod tests {
             bytes: 3,
         }];
         let mut w = TraceWriter::create(sink.clone(), 100, "out/trace.csv", &inputs).unwrap();
-        w.row(&TraceRow::default()).unwrap();
-        w.row(&TraceRow::default()).unwrap();
+        let own = [Signal::new("g", "m", "adaptive", "")];
+        w.columns(&own).unwrap();
+        w.row(&TraceRow {
+            values: &[0.0; 9],
+            ..TraceRow::default()
+        })
+        .unwrap();
+        w.row(&TraceRow {
+            values: &[0.0; 9],
+            ..TraceRow::default()
+        })
+        .unwrap();
         w.finish("complete").unwrap();
         assert_eq!(*sink.1.lock().unwrap(), 1, "finish syncs");
         let t = text(&sink);
@@ -398,7 +449,7 @@ mod tests {
             lines[1],
             format!("# input scene scenes/a b.toml sha256 {}", "ab".repeat(32))
         );
-        assert_eq!(lines[2], TRACE_HEADER);
+        assert_eq!(lines[2], "t,f_ref,f_e,x,x_r,p_a,p_b,u,g,wall_time,fault");
         assert_eq!(*lines.last().unwrap(), "# end: complete, 2 rows");
         let (rows, end) = data_lines(&t);
         assert_eq!((rows.len(), end), (2, Some("complete, 2 rows")));
@@ -407,9 +458,11 @@ mod tests {
     #[test]
     fn a_full_disk_leaves_no_half_line_and_names_the_file() {
         // Fill at every byte offset of the third flush: the file must always end with a whole row.
+        let values: Vec<[f64; 8]> = (0..100)
+            .map(|k| [k as f64 * 1e-3, 10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+            .collect();
         let row = |k: u64| TraceRow {
-            t: k as f64 * 1e-3,
-            f_ref: 10.0,
+            values: &values[k as usize],
             ..TraceRow::default()
         };
         for room in 150..400 {
@@ -418,8 +471,9 @@ mod tests {
                 ..FullDisk::default()
             };
             let mut w = TraceWriter::create(&mut disk, 2, "/data/run/trace.csv", &[]).unwrap();
+            w.columns(&[]).unwrap();
             let mut err = None;
-            for k in 0..10 {
+            for k in 0..40 {
                 if let Err(e) = w.row(&row(k)) {
                     err = Some(e);
                     break;
@@ -437,7 +491,7 @@ mod tests {
             let t = String::from_utf8(disk.data.clone()).unwrap();
             assert!(t.ends_with('\n'), "room {room}: half line in {t:?}");
             for l in data_lines(&t).0 {
-                assert_eq!(l.split(',').count(), TRACE_HEADER.split(',').count());
+                assert_eq!(l.split(',').count(), header_for(&[]).split(',').count());
             }
             assert_eq!(data_lines(&t).1, None, "a cut trace has no end marker");
         }

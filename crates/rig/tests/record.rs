@@ -107,7 +107,7 @@ fn a_run_writes_trace_with_provenance_end_marker_and_manifest() {
             && input.ends_with(&format!("emulated.toml sha256 {sha}")),
         "{input}"
     );
-    assert_eq!(lines.next(), Some(trace::TRACE_HEADER));
+    assert_eq!(lines.next(), Some(trace::header_for(&[]).as_str()));
     let (rows, end) = trace::data_lines(&text);
     assert_eq!(rows.len(), 500);
     assert_eq!(end, Some("complete, 500 rows"));
