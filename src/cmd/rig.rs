@@ -4,7 +4,7 @@ use std::path::Path;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::{anyhow, bail};
 use pneuflex_control::{Controller, Setpoint};
 use pneuflex_rig::clock::WallClock;
 use pneuflex_rig::record;
@@ -143,18 +143,7 @@ pub fn run_scene(
     session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file).map_err(|e| anyhow!(e))?;
     let index = match run_name {
         None => 0,
-        Some(name) => scene
-            .runs
-            .iter()
-            .position(|r| r.name == name)
-            .with_context(|| {
-                let names: Vec<&str> = scene.runs.iter().map(|r| r.name.as_str()).collect();
-                format!(
-                    "{}: no run named `{name}` (runs: {})",
-                    scene_path.display(),
-                    names.join(", ")
-                )
-            })?,
+        Some(name) => scene.run_index(name)?,
     };
     let mut controller = pneuflex_scene::runner::build_controller(&scene, index)?;
     let setpoints = pneuflex_scene::runner::build_setpoints(&scene)?;
