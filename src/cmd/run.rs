@@ -108,10 +108,9 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
     }
     #[cfg(feature = "rerun")]
     let mut observer = match rerun {
-        Some(words) => Some(super::rerun_log::RerunObserver::new(
-            super::rerun_log::parse_sink(words)?,
+        Some(words) => Some(pneuflex_rerun::SceneRecorder::new(
+            pneuflex_rerun::parse_sink(words)?,
             &scene,
-            scene_path,
         )?),
         None => None,
     };
@@ -163,7 +162,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
     // Rerun logging only reads the plant: the results are those of a run without it. Its cost is reported.
     #[cfg(feature = "rerun")]
     if let Some(obs) = observer {
-        let (cost, steps) = (obs.cost.as_secs_f64(), obs.steps);
+        let (cost, steps) = (obs.cost().as_secs_f64(), obs.steps());
         obs.finish()?;
         if !quiet {
             let sim_s = (sim_time.as_secs_f64() - cost).max(1e-9);

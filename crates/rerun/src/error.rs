@@ -92,4 +92,13 @@ pub enum RerunError {
     /// Data could not be flushed to the sink before the timeout.
     #[error("Rerun recording could not be flushed: {0}")]
     Flush(String),
+
+    /// The recording of one run of a scene failed.
+    #[error("Rerun recording of run `{run}`: {source}")]
+    Run {
+        /// Run name.
+        run: String,
+        /// What failed.
+        source: Box<RerunError>,
+    },
 }

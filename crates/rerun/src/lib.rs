@@ -2,13 +2,15 @@
 //! point and force arrow, the chambers coloured by pressure, the control signals as time series and
 //! scene events as text, on a `sim_time` (simulation) or `wall_time` (rig) timeline.
 //!
-//! The API takes plain numbers and strings only, so that the rest of pneuflex can keep this crate
-//! (and Rerun's long build) behind a cargo feature. See `docs/rerun.md`.
+//! [`RunRecorder`] takes plain numbers and strings; [`SceneRecorder`] is an observer of the scene run
+//! loop that draws a plant from the visuals and actuator geometry the plant describes. Only the CLI
+//! depends on this crate, behind a cargo feature (Rerun's build is long). See `docs/rerun.md`.
 
 mod error;
 mod layout;
 pub mod paths;
 mod recorder;
+mod scene_observer;
 mod sink;
 
 pub use error::RerunError;
@@ -17,4 +19,5 @@ pub use recorder::{
     ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RunRecorder, Shape,
     wall_clock_s,
 };
+pub use scene_observer::{SceneRecorder, parse_sink, sink_for_run};
 pub use sink::{CONNECT_PROBE_TIMEOUT, DEFAULT_VIEWER_PORT, RERUN_VERSION, Sink};

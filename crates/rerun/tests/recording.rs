@@ -1,68 +1,15 @@
 //! Recordings read back with Rerun's own decoder, and the sink errors.
 
-use std::collections::HashMap;
-use std::io::BufReader;
 use std::net::TcpListener;
-use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use pneuflex_rerun::{
     ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RerunError, RunRecorder,
     Shape, Sink, paths,
 };
-use re_log_encoding::DecoderApp;
-use rerun::log::{Chunk, LogMsg};
 
-/// Fresh empty directory under the system temp dir, unique per test.
-fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pneuflex-rerun-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// What a decoded recording holds: rows per entity on a timeline, static entities, and whether
-/// the file ended with Rerun's footer (written only when the file sink is closed).
-struct Readback {
-    rows_on: HashMap<(String, String), usize>,
-    static_entities: Vec<String>,
-    has_footer: bool,
-    bytes: u64,
-}
-
-fn read_back(path: &Path) -> Readback {
-    let file = std::fs::File::open(path).unwrap();
-    let bytes = file.metadata().unwrap().len();
-    let mut it = DecoderApp::decode_eager(BufReader::new(file)).expect("a valid .rrd stream");
-    let mut rows_on = HashMap::new();
-    let mut static_entities = Vec::new();
-    for msg in &mut it {
-        let msg = msg.expect("every message decodes");
-        let LogMsg::ArrowMsg(store, arrow) = msg else {
-            continue;
-        };
-        if !store.is_recording() {
-            continue; // blueprint store
-        }
-        let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
-        let entity = chunk.entity_path().to_string();
-        if chunk.is_static() {
-            static_entities.push(entity.clone());
-        }
-        for name in chunk.timelines().keys() {
-            *rows_on
-                .entry((entity.clone(), name.to_string()))
-                .or_insert(0) += chunk.num_rows();
-        }
-    }
-    let has_footer = !it.rrd_manifests().unwrap().is_empty();
-    Readback {
-        rows_on,
-        static_entities,
-        has_footer,
-        bytes,
-    }
-}
+mod common;
+use common::{read_back, temp_dir};
 
 /// Records `steps` steps of a small scene the way the run loop does.
 fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {

@@ -16,7 +16,9 @@ use pneuflex_multibody::{
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
 
 use crate::error::SceneError;
-use crate::plant::{LinearSpring, Plant, Visual, VisualPose, VisualShape};
+use crate::plant::{
+    ActuatorGeometry, LinearSpring, Plant, Visual, VisualPose, VisualRole, VisualShape,
+};
 use crate::schema::{EventSpec, MultibodySpec, PlantSpec, Scene};
 
 /// The pneumatic force element plus the sheet's Coulomb friction, acting between cylinder and flange.
@@ -203,6 +205,34 @@ impl MultibodyPlant {
         self.last
     }
 
+    /// What a link is to the experiment, from the configuration's link roles: the flange link, the
+    /// cylinder link, and everything mounted on the environment carriage (faces and blocks).
+    pub fn link_role(&self, link: &str) -> VisualRole {
+        if link == self.config.flange_link {
+            VisualRole::Flange
+        } else if link == self.config.cylinder_link {
+            VisualRole::Cylinder
+        } else if self.carried_by_carriage(link) {
+            VisualRole::Environment
+        } else {
+            VisualRole::Other
+        }
+    }
+
+    /// Whether `link` hangs (through any joints) below the carriage link, the carriage itself excluded.
+    fn carried_by_carriage(&self, link: &str) -> bool {
+        let mut at = link;
+        // A URDF is a tree: at most one parent per link; the bound guards against a malformed loop.
+        for _ in 0..=self.robot.joints.len() {
+            match self.robot.joints.iter().find(|j| j.child.link == at) {
+                Some(j) if j.parent.link == self.config.carriage_link => return true,
+                Some(j) => at = &j.parent.link,
+                None => return false,
+            }
+        }
+        false
+    }
+
     fn event_error(&self, e: MultibodyError) -> String {
         format!("{} (URDF {})", e, self.urdf_file.display())
     }
@@ -320,7 +350,7 @@ impl Plant for MultibodyPlant {
 
     fn visuals(&self) -> Vec<Visual> {
         let mut out = Vec::new();
-        for (name, _, geoms) in self.world.link_poses() {
+        for (link_name, _, geoms) in self.world.link_poses() {
             for (j, g) in geoms.iter().enumerate() {
                 let shape = match g.shape {
                     LinkShape::Box { size_m } => VisualShape::Box {
@@ -338,11 +368,15 @@ impl Plant for MultibodyPlant {
                     LinkShape::Sphere { radius_m } => VisualShape::Sphere { radius_m },
                 };
                 let name = if geoms.len() == 1 {
-                    name.to_string()
+                    link_name.to_string()
                 } else {
-                    format!("{name}/{j}")
+                    format!("{link_name}/{j}")
                 };
-                out.push(Visual { name, shape });
+                out.push(Visual {
+                    name,
+                    shape,
+                    role: self.link_role(link_name),
+                });
             }
         }
         out
@@ -365,6 +399,18 @@ impl Plant for MultibodyPlant {
                 i += 1;
             }
         }
+    }
+
+    fn actuator_geometry(&self) -> Option<ActuatorGeometry> {
+        Some(ActuatorGeometry {
+            stroke_m: self.world.stroke(),
+            bore_m: self.drive.element.actuator.cylinder.bore_m,
+            alpha_rad: self.config.alpha_rad,
+            x_e_m: self
+                .world
+                .material_x_e(&self.config.initial_material)
+                .unwrap_or(self.config.initial_x_m),
+        })
     }
 
     fn check_invariants(&self) -> Result<(), String> {
@@ -390,5 +436,47 @@ impl Plant for MultibodyPlant {
             ),
         }
         self.drive = self.drive0.clone();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::VisualRole;
+
+    fn plant(scene: &str) -> MultibodyPlant {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes")
+            .join(scene);
+        MultibodyPlant::from_scene(&Scene::load(&path).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn visuals_carry_the_roles_of_the_configured_links() {
+        let p = plant("paper-fig7-wood-to-iron.toml");
+        let role = |name: &str| {
+            p.visuals()
+                .into_iter()
+                .find(|v| v.name == name)
+                .unwrap_or_else(|| panic!("no visual {name}"))
+                .role
+        };
+        assert_eq!(role("flange"), VisualRole::Flange);
+        assert_eq!(role("cylinder"), VisualRole::Cylinder);
+        for env in ["wood_face", "wood_block", "iron_face", "iron_block"] {
+            assert_eq!(role(env), VisualRole::Environment, "{env}");
+        }
+        assert_eq!(role("carriage"), VisualRole::Other);
+        assert_eq!(role("platform"), VisualRole::Other);
+    }
+
+    #[test]
+    fn the_actuator_geometry_is_the_rigs() {
+        let p = plant("paper-fig3-multibody.toml");
+        let g = p.actuator_geometry().unwrap();
+        assert_eq!(g.stroke_m, p.world().stroke());
+        assert_eq!(g.bore_m, p.drive().element.actuator.cylinder.bore_m);
+        assert_eq!(g.alpha_rad, p.config().alpha_rad);
+        assert!((g.x_e_m - 0.02).abs() < 1e-6, "{g:?}");
     }
 }

@@ -35,6 +35,39 @@ pub trait Plant {
     }
     /// World pose of each entry of [`Plant::visuals`], in that order, at the current state.
     fn visual_poses(&self, _pose: &mut dyn FnMut(usize, VisualPose)) {}
+    /// The actuator's geometry as a viewer draws it (cylinder, chambers, incline, environment surface);
+    /// None for a plant without a pneumatic actuator (the ideal loop).
+    fn actuator_geometry(&self) -> Option<ActuatorGeometry> {
+        None
+    }
+}
+
+/// What a drawn shape is to the experiment, set by the plant that builds it: viewers colour by it and
+/// attach the chambers to the cylinder and the contact force to the flange.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum VisualRole {
+    /// The moving flange (piston rod end) that pushes the environment.
+    Flange,
+    /// The cylinder body, in which the chambers are.
+    Cylinder,
+    /// The environment the flange pushes (faces and their blocks).
+    Environment,
+    /// Anything else (platform, carriage, ...).
+    #[default]
+    Other,
+}
+
+/// The actuator's geometry for viewers (SI), at the plant's initial state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ActuatorGeometry {
+    /// Piston stroke, m.
+    pub stroke_m: f64,
+    /// Cylinder bore, m.
+    pub bore_m: f64,
+    /// Incline of the actuator axis below the horizontal, rad.
+    pub alpha_rad: f64,
+    /// Flange extension at which the environment is first touched, m.
+    pub x_e_m: f64,
 }
 
 /// One drawable collision shape of a plant's link.
@@ -44,6 +77,8 @@ pub struct Visual {
     pub name: String,
     /// The shape, centred on its pose.
     pub shape: VisualShape,
+    /// What the shape is to the experiment.
+    pub role: VisualRole,
 }
 
 /// A primitive shape for viewers (SI).
@@ -233,4 +268,20 @@ pub fn chamber_invariants(
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ideal_loop_has_no_actuator_to_draw() {
+        let env = LinearSpring {
+            stiffness_n_per_m: 700.0,
+            x_e_m: 0.0,
+        };
+        let p = IdealLoop::new(100.0, 0.7, 0.0, env);
+        assert!(p.actuator_geometry().is_none());
+        assert!(p.visuals().is_empty());
+    }
 }

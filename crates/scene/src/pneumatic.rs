@@ -6,7 +6,7 @@ use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, OneDofModel, OneDofState};
 
 use crate::error::SceneError;
-use crate::plant::{LinearSpring, Plant};
+use crate::plant::{ActuatorGeometry, LinearSpring, Plant};
 use crate::schema::{EventSpec, PlantSpec, Scene};
 
 /// The pneumatic actuator against a linear spring, integrated with `substeps` RK4 steps per control period.
@@ -169,6 +169,16 @@ impl Plant for OneDofPneumatic {
         Ok(())
     }
 
+    fn actuator_geometry(&self) -> Option<ActuatorGeometry> {
+        let c = &self.model.actuator.cylinder;
+        Some(ActuatorGeometry {
+            stroke_m: c.stroke_m,
+            bore_m: c.bore_m,
+            alpha_rad: self.alpha0_rad,
+            x_e_m: self.env0.x_e_m,
+        })
+    }
+
     fn reset(&mut self) {
         self.state = self.initial;
         self.model.mechanics.alpha_rad = self.alpha0_rad;
@@ -190,6 +200,16 @@ mod tests {
             x_e_m: scene.environment.x_e_m,
         };
         OneDofPneumatic::from_scene(&scene, env).unwrap()
+    }
+
+    #[test]
+    fn the_actuator_geometry_is_the_sheets() {
+        let p = plant();
+        let g = p.actuator_geometry().unwrap();
+        let c = &p.model.actuator.cylinder;
+        assert_eq!((g.stroke_m, g.bore_m), (c.stroke_m, c.bore_m));
+        assert_eq!(g.alpha_rad, p.model.mechanics.alpha_rad);
+        assert_eq!(g.x_e_m, 0.02);
     }
 
     #[test]
