@@ -18,6 +18,7 @@ pub mod reference;
 pub mod signal;
 #[cfg(feature = "serde")]
 pub mod spec;
+pub mod tick;
 
 pub use adaptive::{AdaptiveLaw, AdaptiveParams, LambdaDSign, Sigma1Sign, VelocitySource};
 pub use controllers::{AdaptiveImpedanceController, ImpedanceController};
@@ -30,3 +31,4 @@ pub use lyapunov::{
 pub use pid::{AntiWindup, Pid, PidParams};
 pub use reference::{Reference, SCHEDULE_CAPACITY, Schedule, SetpointSchedule};
 pub use signal::{LOOP_SIGNALS, Signal};
+pub use tick::{control_tick, write_loop_row};

@@ -387,15 +387,22 @@ where
             && let Some(s) = last
         {
             let sensors = Sensors { t, ..s.sensors };
+            // The tick body shared with every other loop (pneuflex_control::control_tick); the row's loop
+            // part is rewritten below with the command as applied.
             match catch_unwind(AssertUnwindSafe(|| {
-                controller.update(&sensors, &setpoint, dt)
+                pneuflex_control::control_tick(
+                    &mut *controller,
+                    &sensors,
+                    &setpoint,
+                    dt,
+                    &mut values,
+                )
             })) {
-                Ok(c) if c.u.is_finite() => {
+                Ok((c, tel)) if c.u.is_finite() => {
                     cmd = c;
-                    telemetry = controller.telemetry();
-                    controller.record(&mut values[n_loop..]);
+                    telemetry = tel;
                 }
-                Ok(c) => sup.trip(
+                Ok((c, _)) => sup.trip(
                     k,
                     now_s,
                     RigError::new(
@@ -482,10 +489,9 @@ where
     Ok(report)
 }
 
-/// The loop's signals of a tick, in the order of `pneuflex_control::LOOP_SIGNALS`.
+/// The loop's signals of a tick (the command as applied) through the shared row writer.
 fn fill(values: &mut [f64], t: f64, sp: &Setpoint, s: &Sensors, tel: &Telemetry, u: f64) {
-    values[..pneuflex_control::LOOP_SIGNALS.len()]
-        .copy_from_slice(&[t, sp.f_ref, s.f_e, s.x, tel.x_r, s.p_a, s.p_b, u]);
+    pneuflex_control::write_loop_row(values, &Sensors { t, ..*s }, sp, tel, u);
 }
 
 #[cfg(test)]

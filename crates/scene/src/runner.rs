@@ -353,13 +353,9 @@ fn simulate_loop(
         let mut s = plant.sense();
         s.t = t;
         let sp: Setpoint = setpoints.at(t);
-        let cmd = controller.update(&s, &sp, dt);
-        let tel = controller.telemetry();
-        // In the order of pneuflex_control::LOOP_SIGNALS.
-        values[..n_loop].copy_from_slice(&[t, sp.f_ref, s.f_e, s.x, tel.x_r, s.p_a, s.p_b, cmd.u]);
-        let (c_vals, p_vals) = values[n_loop..].split_at_mut(c_sig.len());
-        controller.record(c_vals);
-        plant.record(p_vals);
+        let (ctl_row, plant_row) = values.split_at_mut(n_loop + c_sig.len());
+        let (cmd, tel) = pneuflex_control::control_tick(controller, &s, &sp, dt, ctl_row);
+        plant.record(plant_row);
         trace.push(&values);
         observer.on_step(
             &Row {
