@@ -95,7 +95,13 @@ fn tf_missing_component_names_sheet_line_and_key_and_the_os_error_once() {
         text.replace("\"a05ps25x-5-2-valve.toml\"", "\"nope.toml\""),
     )
     .unwrap();
-    let line = 1 + text.lines().position(|l| l.starts_with("valve =")).unwrap();
+    let (i, l) = text
+        .lines()
+        .enumerate()
+        .find(|(_, l)| l.starts_with("valve ="))
+        .unwrap();
+    // Errors point at the value: line:column.
+    let line = format!("{}:{}", i + 1, l.find('"').unwrap() + 1);
     let e = err(tf(&sheet, false));
     let os = std::io::Error::from(std::io::ErrorKind::NotFound).to_string();
     let want = format!(
@@ -116,7 +122,7 @@ fn tf_missing_component_names_sheet_line_and_key_and_the_os_error_once() {
     let e = err(tf(&scene, false));
     assert!(
         e.starts_with(&format!(
-            "{}:5: plant.actuator: {}: cannot read: ",
+            "{}:5:12: plant.actuator: {}: cannot read: ",
             scene.display(),
             dir.join("gone.toml").display()
         )),

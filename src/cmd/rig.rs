@@ -16,7 +16,7 @@ use pneuflex_rig::{RigFile, serial, session};
 /// `duration_s`. Faults listed in the rig file's `[emulator].faults` are injected.
 pub fn emulate(rig_file: &Path, port: Option<&str>, duration_s: Option<f64>) -> anyhow::Result<()> {
     if let Some(d) = duration_s {
-        check_duration(d).map_err(|e| anyhow!("--duration: {e}"))?;
+        check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
     }
     let rig = RigFile::load(rig_file)?;
     let handle = match port {
@@ -71,7 +71,7 @@ pub fn run(
     duration_s: f64,
     out_dir: &Path,
 ) -> anyhow::Result<LoopReport> {
-    check_duration(duration_s).map_err(|e| anyhow!("--duration: {e}"))?;
+    check_duration(duration_s).map_err(|e| anyhow!("--duration: {}", e.message))?;
     let rig = RigFile::load(rig_file)?;
     let stop = session::install_ctrl_c()?;
     let mut inputs = vec![(rig_file, "rig")];
@@ -136,11 +136,11 @@ pub fn run_scene(
     out: Option<&Path>,
 ) -> anyhow::Result<()> {
     if let Some(d) = duration_s {
-        check_duration(d).map_err(|e| anyhow!("--duration: {e}"))?;
+        check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
     }
     let rig = RigFile::load(rig_file)?;
     let scene = pneuflex_scene::Scene::load(scene_path)?;
-    session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file).map_err(|e| anyhow!(e))?;
+    session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file)?;
     let index = match run_name {
         None => 0,
         Some(name) => scene.run_index(name)?,
@@ -160,7 +160,7 @@ pub fn run_scene(
         None => {
             let d = scene.duration_s;
             check_duration(d)
-                .map_err(|e| anyhow!("{}: `duration_s`: {e}", scene_path.display()))?;
+                .map_err(|e| anyhow!("{}: `duration_s`: {}", scene_path.display(), e.message))?;
             d
         }
     };

@@ -10,15 +10,16 @@ use crate::actuator::{Actuator, Cylinder, Gas, R_AIR, STANDARD_GRAVITY, Supply};
 use crate::flow::Orifice;
 use crate::mechanics::{Friction, Mechanics, OneDofModel};
 use crate::valve::{ValveKind, ValveModel};
+use pneuflex_files::Position;
 
 /// Error reading or validating a component file.
 #[derive(Debug, thiserror::Error)]
 pub enum ComponentError {
     /// The operating system refused to read the file (missing, permissions, ...).
-    #[error("{path}: cannot read: {os_error}")]
+    #[error("{}: cannot read: {os_error}", file.display())]
     Io {
-        /// File path.
-        path: String,
+        /// The file.
+        file: PathBuf,
         /// The OS error: in the message, not a `source()`, so that it is printed once.
         os_error: std::io::Error,
     },
@@ -26,32 +27,34 @@ pub enum ComponentError {
     #[error(transparent)]
     Input(pneuflex_files::InputError),
     /// The file is not valid TOML or does not match the schema (unknown key, wrong type, missing key).
-    #[error("{path}: {message}")]
+    #[error("{}{}: {message}", file.display(), at_pos(at))]
     Parse {
-        /// File path.
-        path: String,
-        /// Parser message (names the key and the line).
+        /// The file.
+        file: PathBuf,
+        /// Line and column of the error, when known.
+        at: Option<Position>,
+        /// Parser message (names the key).
         message: String,
     },
     /// A value is out of range.
-    #[error("{path}{}: {field}: {message}", at_line(*line))]
+    #[error("{}{}: {key}: {message}", file.display(), at_pos(at))]
     Invalid {
-        /// File path.
-        path: String,
-        /// Line of the key (or of its table when the key is absent), when known.
-        line: Option<usize>,
-        /// Dotted field name, e.g. `cylinder.bore_m`.
-        field: String,
+        /// The file.
+        file: PathBuf,
+        /// Line and column of the key (or of its table when the key is absent), when known.
+        at: Option<Position>,
+        /// Dotted key, e.g. `cylinder.bore_m`.
+        key: String,
         /// What was expected and what was found.
         message: String,
     },
     /// A file named by a key of this file could not be read.
-    #[error("{path}{}: {key}: {error}", at_line(*line))]
+    #[error("{}{}: {key}: {error}", file.display(), at_pos(at))]
     Referenced {
         /// The file holding the key.
-        path: String,
-        /// Line of the key, when known.
-        line: Option<usize>,
+        file: PathBuf,
+        /// Line and column of the key, when known.
+        at: Option<Position>,
         /// Dotted key, e.g. `components.valve`.
         key: String,
         /// Why the named file could not be read (in the message, not a `source()`: printed once).
@@ -59,8 +62,9 @@ pub enum ComponentError {
     },
 }
 
-fn at_line(line: Option<usize>) -> String {
-    line.map_or_else(String::new, |l| format!(":{l}"))
+/// `:line:col` of a position, or nothing (the pneuflex file-error convention `file:line:col: key: message`).
+fn at_pos(at: &Option<Position>) -> String {
+    at.map_or_else(String::new, |p| format!(":{p}"))
 }
 
 impl ComponentError {
@@ -81,7 +85,7 @@ impl From<pneuflex_files::InputError> for ComponentError {
     fn from(e: pneuflex_files::InputError) -> Self {
         match e {
             pneuflex_files::InputError::Io { path, os_error } => ComponentError::Io {
-                path: path.display().to_string(),
+                file: path,
                 os_error,
             },
             other => ComponentError::Input(other),
@@ -98,24 +102,16 @@ fn read(path: &Path) -> Result<String, ComponentError> {
     )?)
 }
 
-/// Line of a dotted key in TOML text (of its table when the key is absent).
-fn key_line(text: &str, key: &str) -> Option<usize> {
-    pneuflex_files::toml_key_position(text, key).map(|p| p.line)
+/// Line and column of a dotted key in TOML text (of its table when the key is absent).
+fn key_at(text: &str, key: &str) -> Option<Position> {
+    pneuflex_files::toml_key_position(text, key)
 }
 
 fn parse<T: for<'de> Deserialize<'de>>(path: &Path, text: &str) -> Result<T, ComponentError> {
-    toml::from_str(text).map_err(|e| {
-        let line = e
-            .span()
-            .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
-        let msg = e.message().trim().to_string();
-        ComponentError::Parse {
-            path: path.display().to_string(),
-            message: match line {
-                Some(l) => format!("line {l}: {msg}"),
-                None => msg,
-            },
-        }
+    toml::from_str(text).map_err(|e| ComponentError::Parse {
+        file: path.to_path_buf(),
+        at: e.span().map(|s| pneuflex_files::line_col(text, s.start)),
+        message: e.message().trim().to_string(),
     })
 }
 
@@ -128,9 +124,9 @@ struct Check<'a> {
 impl Check<'_> {
     fn err(&self, field: &str, message: String) -> ComponentError {
         ComponentError::Invalid {
-            path: self.path.display().to_string(),
-            line: key_line(self.text, field),
-            field: field.to_string(),
+            file: self.path.to_path_buf(),
+            at: key_at(self.text, field),
+            key: field.to_string(),
             message,
         }
     }
@@ -138,8 +134,8 @@ impl Check<'_> {
     fn referenced(&self, key: &str, e: ComponentError) -> ComponentError {
         match e {
             ComponentError::Io { .. } | ComponentError::Input(_) => ComponentError::Referenced {
-                path: self.path.display().to_string(),
-                line: key_line(self.text, key),
+                file: self.path.to_path_buf(),
+                at: key_at(self.text, key),
                 key: key.to_string(),
                 error: Box::new(e),
             },
@@ -999,7 +995,7 @@ pub fn find_actuator_sheet(path: &Path) -> Result<PathBuf, ComponentError> {
 }
 
 /// The sheet's path and, when a scene named it, the scene's line of `plant.actuator`.
-fn find_sheet(path: &Path) -> Result<(PathBuf, Option<Option<usize>>), ComponentError> {
+fn find_sheet(path: &Path) -> Result<(PathBuf, Option<Option<Position>>), ComponentError> {
     let text = read(path)?;
     let table: toml::Table = parse(path, &text)?;
     if table.contains_key("components") {
@@ -1009,7 +1005,7 @@ fn find_sheet(path: &Path) -> Result<(PathBuf, Option<Option<usize>>), Component
         .get("plant")
         .and_then(|p| p.get("actuator"))
         .and_then(|a| a.as_str());
-    let line = key_line(&text, "plant.actuator");
+    let line = key_at(&text, "plant.actuator");
     match named {
         Some(p) => {
             let p = Path::new(p);
@@ -1021,9 +1017,9 @@ fn find_sheet(path: &Path) -> Result<(PathBuf, Option<Option<usize>>), Component
             Ok((sheet, Some(line)))
         }
         None => Err(ComponentError::Invalid {
-            path: path.display().to_string(),
-            line,
-            field: "plant.actuator".into(),
+            file: path.to_path_buf(),
+            at: line,
+            key: "plant.actuator".into(),
             message:
                 "neither an actuator sheet ([components]) nor a scene naming one (plant.actuator)"
                     .into(),
@@ -1038,8 +1034,8 @@ pub fn load_actuator_sheet(path: &Path) -> Result<ActuatorSheet, ComponentError>
     ActuatorSheet::load(&sheet).map_err(|e| match (e, scene_line) {
         (e @ (ComponentError::Io { .. } | ComponentError::Input(_)), Some(line)) => {
             ComponentError::Referenced {
-                path: path.display().to_string(),
-                line,
+                file: path.to_path_buf(),
+                at: line,
                 key: "plant.actuator".into(),
                 error: Box::new(e),
             }

@@ -200,13 +200,18 @@ fn wrong_sensor_quantity_is_rejected() {
     assert_names(&msg, &path, "components.position_sensor");
 }
 
-/// The 1-based line of the first line of `file` (in a fresh scratch copy) that starts with `prefix`.
-fn line_of(file: &Path, prefix: &str) -> usize {
+/// `line:column` (1-based) of the value on the first line of `file` (in a fresh scratch copy) that starts
+/// with `prefix`: where errors point (file:line:col: key: message).
+fn line_of(file: &Path, prefix: &str) -> String {
     let text = std::fs::read_to_string(file).unwrap();
-    1 + text
+    let (i, l) = text
         .lines()
-        .position(|l| l.trim_start().starts_with(prefix))
-        .unwrap_or_else(|| panic!("{} has no line {prefix:?}", file.display()))
+        .enumerate()
+        .find(|(_, l)| l.trim_start().starts_with(prefix))
+        .unwrap_or_else(|| panic!("{} has no line {prefix:?}", file.display()));
+    let eq = l.find('=').expect("a key = value line");
+    let value = eq + 1 + (l[eq + 1..].len() - l[eq + 1..].trim_start().len());
+    format!("{}:{}", i + 1, l[..value].chars().count() + 1)
 }
 
 /// Loads `sheet` on a thread; an error within 5 s, or a panic (a hang or an unbounded read fails).

@@ -41,14 +41,14 @@ pub struct Recording {
 pub enum RecordError {
     /// The run length is not usable.
     #[error("--duration: {0}")]
-    Duration(String),
+    Duration(crate::rtloop::OptionError),
     /// An input could not be hashed.
-    #[error("{}: cannot read input: {source}", path.display())]
+    #[error("{}: cannot read input: {os_error}", path.display())]
     Input {
         /// The input.
         path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
+        /// The OS error (in the message, printed once).
+        os_error: std::io::Error,
     },
     /// The output directory is refused or cannot be made.
     #[error(transparent)]
@@ -91,9 +91,9 @@ where
     let digests = inputs
         .iter()
         .map(|(p, role)| {
-            InputDigest::of_file(p, role).map_err(|source| RecordError::Input {
+            InputDigest::of_file(p, role).map_err(|os_error| RecordError::Input {
                 path: p.to_path_buf(),
-                source,
+                os_error,
             })
         })
         .collect::<Result<Vec<_>, _>>()?;

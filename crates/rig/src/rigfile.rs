@@ -9,14 +9,6 @@ use crate::protocol::ValveMode;
 /// A rig file could not be used; every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum RigFileError {
-    /// The file could not be read.
-    #[error("{file}: cannot read rig file: {source}")]
-    Read {
-        /// The rig file.
-        file: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
     /// Not a regular file, too large, or not UTF-8 (the message names the file once).
     #[error(transparent)]
     Input(#[from] pneuflex_files::InputError),
@@ -28,13 +20,15 @@ pub enum RigFileError {
         /// toml's message, which names the key and the line.
         message: String,
     },
-    /// A value is out of range.
-    #[error("{file}: field `{field}`: {message}")]
+    /// A value is out of range (shown as `file:line:col: key: message`, the pneuflex file-error convention).
+    #[error("{}{}: {key}: {message}", file.display(), at.map(|p| format!(":{p}")).unwrap_or_default())]
     Invalid {
         /// The rig file.
         file: PathBuf,
-        /// Dotted path of the field.
-        field: String,
+        /// Line and column of the key, when the file's text is at hand.
+        at: Option<pneuflex_files::Position>,
+        /// Dotted key path.
+        key: String,
         /// What was expected.
         message: String,
     },
@@ -450,7 +444,8 @@ impl Check<'_> {
     fn err(&self, field: &str, message: impl Into<String>) -> RigFileError {
         RigFileError::Invalid {
             file: self.file.to_path_buf(),
-            field: field.to_string(),
+            at: None,
+            key: field.to_string(),
             message: message.into(),
         }
     }
@@ -717,9 +712,24 @@ impl RigFile {
             message: e.to_string(),
         })?;
         rig.dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        rig.validate(path)?;
+        // A value error points at the line of its key (the text is at hand here).
+        let locate = |e: RigFileError| match e {
+            RigFileError::Invalid {
+                file,
+                at: None,
+                key,
+                message,
+            } => RigFileError::Invalid {
+                at: pneuflex_files::toml_key_position(text, &key),
+                file,
+                key,
+                message,
+            },
+            other => other,
+        };
+        rig.validate(path).map_err(locate)?;
         let c = Check { file: path };
-        rig.resolved = Some(c.calibration(&rig.dir, &rig.calibration)?);
+        rig.resolved = Some(c.calibration(&rig.dir, &rig.calibration).map_err(locate)?);
         Ok(rig)
     }
 

@@ -113,32 +113,52 @@ impl std::fmt::Display for LoopReport {
 /// tick counter wraps only after 49 days at 1 kHz).
 pub const MAX_DURATION_S: f64 = 86_400.0;
 
+/// A run option out of range: which option, and what was expected and found.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{option}: {message}")]
+pub struct OptionError {
+    /// The option (`duration`, `rate_hz`, `spin_us`, ...).
+    pub option: &'static str,
+    /// What was expected and what was found.
+    pub message: String,
+}
+
+fn option_err(option: &'static str, message: String) -> OptionError {
+    OptionError { option, message }
+}
+
 /// Checks a run length: finite, > 0 and at most [`MAX_DURATION_S`].
-pub fn check_duration(d: f64) -> Result<(), String> {
+pub fn check_duration(d: f64) -> Result<(), OptionError> {
     if d.is_finite() && d > 0.0 && d <= MAX_DURATION_S {
         Ok(())
     } else {
-        Err(format!(
-            "expected a duration in seconds, finite, > 0 and at most {MAX_DURATION_S} (24 h); got {d}"
+        Err(option_err(
+            "duration",
+            format!(
+                "expected a duration in seconds, finite, > 0 and at most {MAX_DURATION_S} (24 h); got {d}"
+            ),
         ))
     }
 }
 
 impl RunOptions {
-    /// Checks every option; the message names the option.
-    pub fn validate(&self) -> Result<(), String> {
-        check_duration(self.duration_s).map_err(|e| format!("duration: {e}"))?;
+    /// Checks every option; the error names the option.
+    pub fn validate(&self) -> Result<(), OptionError> {
+        check_duration(self.duration_s)?;
         if !(self.rate_hz.is_finite() && (1.0..=20_000.0).contains(&self.rate_hz)) {
-            return Err(format!(
-                "rate_hz: expected 1..=20000 Hz, got {}",
-                self.rate_hz
+            return Err(option_err(
+                "rate_hz",
+                format!("expected 1..=20000 Hz, got {}", self.rate_hz),
             ));
         }
         if self.spin_us as f64 >= 1e6 / self.rate_hz {
-            return Err(format!(
-                "spin_us: {} µs is not below the control period {} µs",
-                self.spin_us,
-                1e6 / self.rate_hz
+            return Err(option_err(
+                "spin_us",
+                format!(
+                    "{} µs is not below the control period {} µs",
+                    self.spin_us,
+                    1e6 / self.rate_hz
+                ),
             ));
         }
         for (name, v, max) in [
@@ -146,7 +166,7 @@ impl RunOptions {
             ("first_sample_timeout_s", self.first_sample_timeout_s, 60.0),
         ] {
             if !(v.is_finite() && (0.0..=max).contains(&v)) {
-                return Err(format!("{name}: expected 0..={max} s, got {v}"));
+                return Err(option_err(name, format!("expected 0..={max} s, got {v}")));
             }
         }
         Ok(())
@@ -564,7 +584,7 @@ mod tests {
             }
             .validate()
             .unwrap_err();
-            assert!(e.contains("duration"), "{e}");
+            assert!(e.to_string().contains("duration"), "{e}");
         }
         assert!(
             RunOptions {
@@ -580,13 +600,13 @@ mod tests {
         }
         .validate()
         .unwrap_err();
-        assert!(e.contains("spin_us"), "{e}");
+        assert!(e.to_string().contains("spin_us"), "{e}");
         let e = RunOptions {
             post_fault_s: 1e9,
             ..ok.clone()
         }
         .validate()
         .unwrap_err();
-        assert!(e.contains("post_fault_s"), "{e}");
+        assert!(e.to_string().contains("post_fault_s"), "{e}");
     }
 }

@@ -45,21 +45,24 @@ pub fn emulated_plant(rig: &RigFile, file: &Path) -> Result<PneumaticPlant, RigF
     let Some(e) = &rig.emulator else {
         return Err(RigFileError::Invalid {
             file: file.to_path_buf(),
-            field: "emulator".into(),
+            at: None,
+            key: "emulator".into(),
             message: "missing: `pneuflex rig emulate` needs an [emulator] table".into(),
         });
     };
     let Some(sheet) = &e.actuator else {
         return Err(RigFileError::Invalid {
             file: file.to_path_buf(),
-            field: "emulator.actuator".into(),
+            at: None,
+            key: "emulator.actuator".into(),
             message: "missing: expected the path of an actuator sheet (e.g. ../pneumatics/paper-actuator.toml)".into(),
         });
     };
     let path = rig.resolve_path(sheet);
     let sheet = ActuatorSheet::load(&path).map_err(|err| RigFileError::Invalid {
         file: file.to_path_buf(),
-        field: "emulator.actuator".into(),
+        at: None,
+        key: "emulator.actuator".into(),
         message: err.to_string(),
     })?;
     let model = sheet.model();
@@ -67,7 +70,8 @@ pub fn emulated_plant(rig: &RigFile, file: &Path) -> Result<PneumaticPlant, RigF
     if !(0.0..=stroke).contains(&e.x0_m) {
         return Err(RigFileError::Invalid {
             file: file.to_path_buf(),
-            field: "emulator.x0_m".into(),
+            at: None,
+            key: "emulator.x0_m".into(),
             message: format!("{} m is outside the stroke [0, {stroke}] m", e.x0_m),
         });
     }
@@ -147,6 +151,23 @@ pub fn lockstep_emulator(
     Ok(crate::emulator::lockstep(plant, rig.cal(), cfg, clock))
 }
 
+/// A scene whose control period is not the rig's: both files and both keys named.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error(
+    "{}: `dt_s` = {scene_dt_s} s differs from the rig's control period: {}: `loop.rate_hz` = {rate_hz} Hz, i.e. dt = {} s; set the scene's dt_s = {} or the rig's loop.rate_hz = {}",
+    scene_file.display(), rig_file.display(), 1.0 / rate_hz, 1.0 / rate_hz, 1.0 / scene_dt_s
+)]
+pub struct RateMismatch {
+    /// The scene file.
+    pub scene_file: std::path::PathBuf,
+    /// Its `dt_s`, s.
+    pub scene_dt_s: f64,
+    /// The rig file.
+    pub rig_file: std::path::PathBuf,
+    /// Its `loop.rate_hz`, Hz.
+    pub rate_hz: f64,
+}
+
 /// A scene's step `dt_s` must be the rig's control period 1/`loop.rate_hz` (docs/rig.md): the controller's
 /// gains and filters were tuned for its dt, and the rig runs at its own rate.
 pub fn check_scene_rate(
@@ -154,18 +175,17 @@ pub fn check_scene_rate(
     scene_file: &Path,
     rig: &RigFile,
     rig_file: &Path,
-) -> Result<(), String> {
+) -> Result<(), RateMismatch> {
     let dt = rig.dt();
     if (scene_dt_s - dt).abs() <= 1e-9 * dt {
         return Ok(());
     }
-    Err(format!(
-        "{}: `dt_s` = {scene_dt_s} s differs from the rig's control period: {}: `loop.rate_hz` = {} Hz, i.e. dt = {dt} s; set the scene's dt_s = {dt} or the rig's loop.rate_hz = {}",
-        scene_file.display(),
-        rig_file.display(),
-        rig.rt.rate_hz,
-        1.0 / scene_dt_s
-    ))
+    Err(RateMismatch {
+        scene_file: scene_file.to_path_buf(),
+        scene_dt_s,
+        rig_file: rig_file.to_path_buf(),
+        rate_hz: rig.rt.rate_hz,
+    })
 }
 
 #[cfg(test)]
@@ -178,7 +198,9 @@ mod tests {
         let rig = RigFile::parse(crate::rigfile::tests::EMULATED, &file).unwrap();
         let scene = Path::new("scenes/s.toml");
         assert!(check_scene_rate(0.001, scene, &rig, &file).is_ok());
-        let m = check_scene_rate(0.01, scene, &rig, &file).unwrap_err();
+        let m = check_scene_rate(0.01, scene, &rig, &file)
+            .unwrap_err()
+            .to_string();
         assert!(
             m.contains("scenes/s.toml")
                 && m.contains("`dt_s` = 0.01")

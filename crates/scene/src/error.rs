@@ -1,18 +1,19 @@
 //! Errors of scene loading, simulation and output writing. Each names the file, and where a key is to blame,
-//! the line and column of that key and its dotted path.
+//! the line and column of that key and its dotted path — the convention of every pneuflex file error:
+//! fields `file`, `at` (line and column), `key` (dotted path), `message`; shown as `file:line:col: key: message`.
 
 use std::path::PathBuf;
 
 use pneuflex_files::Position;
 
-fn located(file: &std::path::Path, at: &Option<Position>, path: &str) -> String {
+fn located(file: &std::path::Path, at: &Option<Position>, key: &str) -> String {
     let mut s = file.display().to_string();
     if let Some(p) = at {
         s.push_str(&format!(":{}:{}", p.line, p.column));
     }
-    if !path.is_empty() {
+    if !key.is_empty() {
         s.push_str(": ");
-        s.push_str(path);
+        s.push_str(key);
     }
     s
 }
@@ -24,26 +25,26 @@ pub enum SceneError {
     #[error(transparent)]
     Input(#[from] pneuflex_files::InputError),
     /// TOML syntax error, unknown key, missing key or wrong type.
-    #[error("{}: {message}", located(file, at, path))]
+    #[error("{}: {message}", located(file, at, key))]
     Parse {
         /// The scene file.
         file: PathBuf,
         /// Line and column of the error, when known.
         at: Option<Position>,
         /// Dotted key path, e.g. `environment.stiffness_n_per_m` (empty at the top level).
-        path: String,
+        key: String,
         /// What was wrong.
         message: String,
     },
     /// A value out of range (negative stiffness, NaN, ...).
-    #[error("{}: {message}", located(file, at, path))]
+    #[error("{}: {message}", located(file, at, key))]
     Invalid {
         /// The scene file.
         file: PathBuf,
         /// Line and column of the key, when known.
         at: Option<Position>,
         /// Dotted key path.
-        path: String,
+        key: String,
         /// What was expected and what was found.
         message: String,
     },

@@ -503,7 +503,7 @@ impl Scene {
         let de = toml::Deserializer::parse(text).map_err(|e| SceneError::Parse {
             file: file.to_path_buf(),
             at: e.span().map(|s| pneuflex_files::line_col(text, s.start)),
-            path: String::new(),
+            key: String::new(),
             message: e.message().trim().to_string(),
         })?;
         let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
@@ -520,7 +520,7 @@ impl Scene {
             SceneError::Parse {
                 file: file.to_path_buf(),
                 at,
-                path,
+                key: path,
                 message,
             }
         })?;
@@ -551,7 +551,7 @@ impl Scene {
         SceneError::Invalid {
             file: self.source.clone(),
             at: pneuflex_files::toml_key_position(&self.text, path),
-            path: path.to_string(),
+            key: path.to_string(),
             message,
         }
     }
