@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 (paths::P_A, p_a),
                 (paths::P_B, p_b),
                 (paths::VALVE_U, (50.0 - f_e) / 50.0),
-                (paths::VALVE_PWM, (k % 10 < 5) as u8 as f64),
+                (paths::VALVE_SPOOL, (k % 10 < 5) as u8 as f64),
                 (paths::ADAPTIVE_G, 1.0),
                 (paths::ADAPTIVE_P, 0.5),
                 (paths::ADAPTIVE_D, 0.1),

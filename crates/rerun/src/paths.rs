@@ -19,8 +19,8 @@ pub const P_A: &str = "signals/pressure/p_a";
 pub const P_B: &str = "signals/pressure/p_b";
 /// Continuous valve command u.
 pub const VALVE_U: &str = "signals/valve/u";
-/// PWM state of the on/off valves.
-pub const VALVE_PWM: &str = "signals/valve/pwm";
+/// Valve spool (under PWM the energised side, +1 / -1), declared by the pneumatic plants.
+pub const VALVE_SPOOL: &str = "signals/valve/spool";
 /// Adaptive impedance gain g.
 pub const ADAPTIVE_G: &str = "signals/adaptive/g";
 /// Adaptive impedance stiffness-like term p.
@@ -30,7 +30,17 @@ pub const ADAPTIVE_D: &str = "signals/adaptive/d";
 
 /// The signals registered (entity path and series name) when a recorder opens.
 pub const SIGNALS: [&str; 11] = [
-    F_REF, F_E, X, X_R, P_A, P_B, VALVE_U, VALVE_PWM, ADAPTIVE_G, ADAPTIVE_P, ADAPTIVE_D,
+    F_REF,
+    F_E,
+    X,
+    X_R,
+    P_A,
+    P_B,
+    VALVE_U,
+    VALVE_SPOOL,
+    ADAPTIVE_G,
+    ADAPTIVE_P,
+    ADAPTIVE_D,
 ];
 
 /// Root of the 3D scene.

@@ -283,6 +283,14 @@ fn multibody_field(mb: &MultibodySpec, e: &MultibodyError) -> String {
 }
 
 impl Plant for MultibodyPlant {
+    fn signals(&self) -> &'static [pneuflex_control::Signal] {
+        &crate::plant::VALVE_SIGNALS
+    }
+
+    fn record(&self, out: &mut [f64]) {
+        out[0] = self.drive.element.valve.spool;
+    }
+
     fn sense(&self) -> Sensors {
         let (p_a, p_b) = self.drive.element.pressures();
         Sensors {

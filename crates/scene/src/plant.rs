@@ -233,6 +233,15 @@ impl Plant for IdealLoop {
     }
 }
 
+/// The valve's recorded signal, for plants with a pneumatic valve: its spool, which under PWM is the
+/// energised side (+1 / -1) — the valve's PWM state.
+pub const VALVE_SIGNALS: [pneuflex_control::Signal; 1] = [pneuflex_control::Signal::new(
+    "spool",
+    "1",
+    "valve",
+    "valve spool position in [-1, 1] (on/off valve under PWM: the energised side, +1 or -1)",
+)];
+
 /// How far above the supply pressure a chamber may go before the state is impossible: a closed chamber
 /// compressed by the piston can exceed supply, but not double it in any case the model is meant for.
 pub const PRESSURE_MARGIN: f64 = 2.0;

@@ -101,6 +101,14 @@ impl OneDofPneumatic {
 }
 
 impl Plant for OneDofPneumatic {
+    fn signals(&self) -> &'static [pneuflex_control::Signal] {
+        &crate::plant::VALVE_SIGNALS
+    }
+
+    fn record(&self, out: &mut [f64]) {
+        out[0] = self.state.valve.spool;
+    }
+
     fn sense(&self) -> Sensors {
         let s = &self.state;
         Sensors {
@@ -235,6 +243,25 @@ mod tests {
         p.state.x_dot = 1.1 * v_limit;
         let e = p.check_invariants().unwrap_err();
         assert!(e.contains("energy grows without a source"), "{e}");
+    }
+
+    #[test]
+    fn the_valve_spool_is_recorded_and_under_pwm_is_one_side_or_the_other() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3.toml");
+        let mut scene = Scene::load(&path).unwrap();
+        scene.duration_s = 0.5;
+        scene.metrics.clear();
+        scene.events.clear();
+        let r = &crate::run_scene(&scene, &mut |_| {}).unwrap()[0];
+        let spool = r.trace.column("spool").expect("the plant declares spool");
+        assert_eq!(spool.len(), r.trace.len());
+        // The 40 Hz on/off valve: after the first tick every sample is fully on one side.
+        assert!(
+            spool[1..].iter().all(|&s| s == 1.0 || s == -1.0),
+            "{spool:?}"
+        );
+        assert!(spool.contains(&1.0) && spool.contains(&-1.0));
     }
 
     #[test]
