@@ -198,6 +198,29 @@ struct NoObserver;
 
 impl StepObserver for NoObserver {}
 
+/// Any number of observers watching the same runs (Rerun, a live plot, a progress display …), each
+/// called in order.
+#[derive(Default)]
+pub struct Observers<'a>(pub Vec<&'a mut dyn StepObserver>);
+
+impl StepObserver for Observers<'_> {
+    fn begin_run(&mut self, run: &crate::schema::RunSpec, plant: &dyn Plant) {
+        for o in &mut self.0 {
+            o.begin_run(run, plant);
+        }
+    }
+    fn on_step(&mut self, row: &Row, plant: &dyn Plant) {
+        for o in &mut self.0 {
+            o.on_step(row, plant);
+        }
+    }
+    fn end_run(&mut self, result: &RunResult) {
+        for o in &mut self.0 {
+            o.end_run(result);
+        }
+    }
+}
+
 /// [`run_scene`] with an observer called at every tick of every run.
 pub fn run_scene_observed(
     scene: &Scene,

@@ -125,3 +125,34 @@ fn an_uncommitted_staging_directory_is_removed() {
     assert!(!staged.exists() && !dest.exists());
     let _ = std::fs::remove_dir_all(dest.parent().unwrap());
 }
+
+/// Counts what it sees, to check that observers fan out.
+#[derive(Default)]
+struct Count {
+    runs: usize,
+    steps: usize,
+    last_t: f64,
+}
+
+impl pneuflex_scene::StepObserver for Count {
+    fn begin_run(&mut self, _: &pneuflex_scene::schema::RunSpec, _: &dyn pneuflex_scene::Plant) {
+        self.runs += 1;
+    }
+    fn on_step(&mut self, row: &pneuflex_scene::trace::Row, _: &dyn pneuflex_scene::Plant) {
+        self.steps += 1;
+        self.last_t = row.t();
+    }
+}
+
+#[test]
+fn every_observer_sees_every_tick_of_every_run() {
+    let s = scene("");
+    let (mut a, mut b) = (Count::default(), Count::default());
+    let mut all = pneuflex_scene::Observers(vec![&mut a, &mut b]);
+    let res = pneuflex_scene::run_scene_observed(&s, &mut |_| {}, &mut all).unwrap();
+    let rows: usize = res.iter().map(|r| r.trace.len()).sum();
+    for c in [&a, &b] {
+        assert_eq!((c.runs, c.steps), (2, rows));
+        assert_eq!(c.last_t, s.duration_s);
+    }
+}
