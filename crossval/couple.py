@@ -1,9 +1,10 @@
 """Run a pneuflex scene in MuJoCo with the Rust pneumatic force element and controller (via the bindings).
 
-The loop is the scene runner's (crates/scene/src/runner.rs): at each control tick t_k = k dt the events due
-are applied, the plant is sensed, the controller updates, the row is recorded, and the plant is advanced
-by dt with the valve command held. Here "advanced" means `substeps` MuJoCo steps of dt/substeps, each one
-preceded by a force-element step over the same interval along the flange motion MuJoCo reports:
+The loop is the scene runner's own (crates/scene/src/runner.rs, called through `pneuflex.run_plant`): at each
+control tick t_k = k dt the events due are applied, the plant is sensed, the controller updates, the row is
+recorded, the divergence checks run, and the plant is advanced by dt with the valve command held. The plant
+is `MujocoPlant`, written here; "advanced" means `substeps` MuJoCo steps of dt/substeps, each one preceded
+by a force-element step over the same interval along the flange motion MuJoCo reports:
 
     F = ForceElement.step(x, x_dot, u, h)            # chambers + valve over [t, t+h], mean force
     qfrc_applied[flange] = F - friction(x_dot)       # eq. (1)'s F_1 and f; K_v is the joint damping
@@ -16,6 +17,7 @@ forces between the two geoms from mj_contactForce, projected on the actuator axi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -152,6 +154,9 @@ class Sim:
         self.flange_geom = m.geom("flange_box").id
         self.faces = {}
         for f in c.spec.faces:
+            # A copy: events change a face's stiffness here, not in the coupled scene's spec (a reset model
+            # starts from the spec's).
+            f = dataclasses.replace(f)
             j = m.joint(f"{f.name}_mount").id
             self.faces[f.name] = (f, j, int(m.jnt_qposadr[j]), m.geom(f"{f.name}_box").id)
         self.face_geoms = {v[3] for v in self.faces.values()}
@@ -254,82 +259,75 @@ class Sim:
                 raise DivergedError(f"MuJoCo warning {name} ({n}x) by t = {t:.4f} s: MuJoCo reset the run")
 
 
-def simulate(c: Coupled, run) -> dict:
-    """Runs one of the scene's controllers (name or index) in MuJoCo; returns the trace (the runner's columns)
-    and `wall_s` (wall time of the whole loop)."""
-    scene = c.scene
-    dt = c.dt_s
-    n = int(scene["n_steps"])
-    h = dt / c.substeps
-    sim = Sim(c)
-    act = pneuflex.Actuator.from_scene(c.scene_path)
-    init = pneuflex.initial_state(c.scene_path)
-    fe = pneuflex.ForceElement(act, p_a=init["p_a"], p_b=init["p_b"], substeps=c.chamber_substeps)
-    # Gravity along the axis on the flange: the drive seen by a stick-slip friction law (as FlangeDrive).
-    g_flange = c.spec.flange_mass_kg * c.spec.gravity_m_s2 * math.sin(c.spec.alpha_rad)
-    multibody = c.plant_kind == "multibody"
-    ctl = pneuflex.Controller.from_scene(c.scene_path, run)
-    sp = pneuflex.Setpoints(c.scene_path)
-    adaptive = ctl.kind == "adaptive"
-    div = scene["divergence"]
-    events = sorted(scene.get("events", []), key=lambda e: e["t_s"])
-    next_ev = 0
-    cols = {k: np.full(n + 1, np.nan) for k in ("t", "f_ref", "f_e", "x", "x_r", "p_a", "p_b", "u")}
-    if adaptive:
-        cols.update({k: np.full(n + 1, np.nan) for k in ("g", "p", "d")})
-    qfrc = sim.data.qfrc_applied
-    dof = sim.flange_dof
-    model, data = sim.model, sim.data
-    friction = fe.friction_force
-    f_e = sim.contact_force()
-    applied = False
-    t0 = time.perf_counter()
-    rows = 0
-    for k in range(n + 1):
-        t = k * dt
-        while next_ev < len(events) and events[next_ev]["t_s"] <= t + 0.5 * dt:
-            sim.apply(events[next_ev])
-            next_ev += 1
-            applied = True
-        if applied and not multibody:
+class MujocoPlant:
+    """A coupled scene's MuJoCo model as a plant of the scene crate's loop (`pneuflex.run_plant`): the Rust
+    loop applies the events, senses, updates the controller, records the row, checks divergence, then
+    calls `actuate` and `advance`. Advancing by dt is `substeps` MuJoCo steps of h = dt / substeps, each
+    preceded by a force-element step over the same interval along the flange motion MuJoCo reports."""
+
+    def __init__(self, c: Coupled):
+        self.c = c
+        self.act = pneuflex.Actuator.from_scene(c.scene_path)
+        self.init = pneuflex.initial_state(c.scene_path)
+        self.reset()
+
+    def reset(self) -> None:
+        """A fresh MuJoCo model and data (events change the model) and force element at the initial state."""
+        c = self.c
+        self.sim = Sim(c)
+        self.fe = pneuflex.ForceElement(self.act, p_a=self.init["p_a"], p_b=self.init["p_b"], substeps=c.chamber_substeps)
+        self._gravity_drive()
+        self.u = 0.0
+        self.ticks = 0
+        self.f_e = self.sim.contact_force()
+
+    def _gravity_drive(self) -> None:
+        # Gravity along the axis on the flange: the drive seen by a stick-slip friction law (as FlangeDrive).
+        s = self.c.spec
+        self.g_flange = s.flange_mass_kg * s.gravity_m_s2 * math.sin(self.sim.alpha)
+
+    def sense(self) -> tuple[float, float, float, float, float]:
+        x, xd = self.sim.x()
+        return x, xd, self.f_e, self.fe.p_a, self.fe.p_b
+
+    def actuate(self, u: float, x_r: float) -> None:
+        self.u = u
+
+    def apply(self, ev: dict) -> None:
+        self.sim.apply(ev)
+        if self.c.plant_kind != "multibody":
             # The 1-DOF plant's load cell reads the new environment at once (f_e = k_e (x - x_e)): recompute
             # the contact forces at the current state. (The Rapier plant reads the last step's impulses.)
-            mujoco.mj_forward(model, data)
-            f_e = sim.contact_force()
-        if applied:
-            g_flange = c.spec.flange_mass_kg * c.spec.gravity_m_s2 * math.sin(sim.alpha)
-            applied = False
-        x, xd = sim.x()
-        f_ref, x_d = sp.at(t)
-        u = ctl.update(t, x, xd, f_e, fe.p_a, fe.p_b, f_ref, x_d, dt)
-        x_r = ctl.x_r
-        cols["t"][k] = t
-        cols["f_ref"][k] = f_ref
-        cols["f_e"][k] = f_e
-        cols["x"][k] = x
-        cols["x_r"][k] = x_r
-        cols["p_a"][k] = fe.p_a
-        cols["p_b"][k] = fe.p_b
-        cols["u"][k] = u
-        if adaptive:
-            cols["g"][k], cols["p"][k], cols["d"][k] = ctl.gpd()
-        rows = k + 1
-        if not (math.isfinite(x) and math.isfinite(f_e) and math.isfinite(x_r)):
-            raise DivergedError(f"non-finite state at t = {t:.4f} s")
-        if abs(x) > div["max_abs_position_m"] or abs(x_r) > div["max_abs_position_m"] or abs(f_e) > div["max_abs_force_n"]:
-            raise DivergedError(f"run left the divergence limits at t = {t:.4f} s (x = {x}, x_r = {x_r}, f_e = {f_e})")
-        if k == n:
-            break
-        for _ in range(c.substeps):
-            xs, vs = data.qpos[sim.flange_qpos], data.qvel[dof]
-            f = fe.step(xs, vs, u, h)
-            qfrc[dof] = f - friction(vs, f + g_flange)
+            mujoco.mj_forward(self.sim.model, self.sim.data)
+            self.f_e = self.sim.contact_force()
+        self._gravity_drive()
+
+    def advance(self, dt: float) -> None:
+        sim, fe, u, g = self.sim, self.fe, self.u, self.g_flange
+        qpos, qvel, qfrc = sim.data.qpos, sim.data.qvel, sim.data.qfrc_applied
+        iq, dof = sim.flange_qpos, sim.flange_dof
+        friction, step = fe.friction_force, fe.step
+        h = dt / self.c.substeps
+        for _ in range(self.c.substeps):
+            xs, vs = qpos[iq], qvel[dof]
+            f = step(xs, vs, u, h)
+            qfrc[dof] = f - friction(vs, f + g)
             sim.step(h)
-        sim.check(t + dt)
-        f_e = sim.contact_force()
-    wall = time.perf_counter() - t0
-    out = {k: v[:rows] for k, v in cols.items()}
-    return {"trace": out, "wall_s": wall, "ticks": rows, "physics_steps": (rows - 1) * c.substeps}
+        self.ticks += 1
+        sim.check(self.ticks * dt)
+        self.f_e = sim.contact_force()
+
+
+def simulate(c: Coupled, run) -> dict:
+    """Runs one of the scene's controllers (name or index) on the MuJoCo plant in the scene crate's loop
+    (`pneuflex.run_plant`); returns the trace (the runner's columns), the run's summary.json content and
+    `wall_s` (wall time of the loop). Raises DivergedError with the loop's reason when the run diverged
+    (a MuJoCo warning raised in `advance` is one)."""
+    trace, status, wall = pneuflex.run_plant(c.scene_path, run, MujocoPlant(c))
+    if isinstance(status, str):
+        raise DivergedError(status)
+    rows = len(trace["t"])
+    return {"trace": trace, "summary": status, "wall_s": wall, "ticks": rows, "physics_steps": (rows - 1) * c.substeps}
 
 
 def bench_mujoco(c: Coupled, n_steps: int = 20000, force_n: float = 10.0) -> dict:

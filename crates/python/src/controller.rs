@@ -131,6 +131,19 @@ impl PyController {
         self.ctl.telemetry().x_r
     }
 
+    /// Names of the controller's own recorded signals (beyond the loop's), as the controller declares them.
+    #[getter]
+    fn signals(&self) -> Vec<&'static str> {
+        self.ctl.signals().iter().map(|s| s.name).collect()
+    }
+
+    /// Values of `signals` after the last update, in the same order.
+    fn record(&self) -> Vec<f64> {
+        let mut out = vec![0.0; self.ctl.signals().len()];
+        self.ctl.record(&mut out);
+        out
+    }
+
     /// Adaptive (g, p, d) of the last update in SI (zeros for the impedance controller).
     fn gpd(&self) -> (f64, f64, f64) {
         let t = self.ctl.telemetry();

@@ -3,12 +3,14 @@
 //! What Python gets: the pneumatic actuator model of `pneuflex-pneumatics` (an actuator sheet, the 1-DOF
 //! model, the axial force element that an external physics engine couples to, the transfer function of
 //! eqs. (16)-(17)), the controllers of `pneuflex-control`, scene files, `run(scene)` through the scene
-//! crate's runner with the traces as numpy arrays, the metrics and summary.json of arbitrary traces, the
+//! crate's runner with the traces as numpy arrays, `run_plant(scene, run, plant)`: the same loop driving a
+//! plant written in Python (MuJoCo in crossval/), the metrics and summary.json of arbitrary traces, the
 //! figures of `pneuflex-viz`, and a Rapier step-rate probe. SI units throughout, pressures absolute.
 
 mod controller;
 mod errors;
 mod model;
+mod plant;
 mod scene;
 
 use pyo3::prelude::*;
@@ -25,7 +27,12 @@ mod _native {
     use crate::controller::{PyController, PySetpoints};
 
     #[pymodule_export]
-    use crate::scene::{bench_rapier, initial_state, load_scene, run, run_with_summary, summarize};
+    use crate::plant::run_plant;
+
+    #[pymodule_export]
+    use crate::scene::{
+        bench_rapier, initial_state, load_scene, loop_signals, run, run_with_summary, summarize,
+    };
 
     #[cfg(feature = "figures")]
     #[pymodule_export]

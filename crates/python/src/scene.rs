@@ -20,7 +20,10 @@ fn load(path: &Path) -> PyResult<Scene> {
 }
 
 /// A JSON-serialisable Rust value as Python objects (via the json module).
-fn to_py<'py, T: serde::Serialize>(py: Python<'py>, v: &T) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn to_py<'py, T: serde::Serialize>(
+    py: Python<'py>,
+    v: &T,
+) -> PyResult<Bound<'py, PyAny>> {
     let text = serde_json::to_string(v).map_err(errors::other)?;
     py.import("json")?.call_method1("loads", (text,))
 }
@@ -37,7 +40,17 @@ pub fn load_scene<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, Py
     Ok(d)
 }
 
-fn trace_to_dict<'py>(py: Python<'py>, tr: Trace) -> PyResult<Bound<'py, PyDict>> {
+/// The signals every control loop records, in order: [(name, unit, group)], as `pneuflex-control` declares
+/// them (`LOOP_SIGNALS`); a trace's further columns are the controller's `Controller.signals`.
+#[pyfunction]
+pub fn loop_signals() -> Vec<(&'static str, &'static str, &'static str)> {
+    pneuflex_control::LOOP_SIGNALS
+        .iter()
+        .map(|s| (s.name, s.unit, s.group))
+        .collect()
+}
+
+pub(crate) fn trace_to_dict<'py>(py: Python<'py>, tr: Trace) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     for (c, v) in tr.into_columns() {
         d.set_item(c.name, v.into_pyarray(py))?;

@@ -176,6 +176,205 @@ def bad_inputs_raise_python_exceptions_naming_the_file():
         raise AssertionError("dt = 0 accepted")
 
 
+# A scene for plants written in Python: 10 N step against a spring whose stiffness doubles at 2 s; k_d > 0
+# leaves a static force error with a closed form. Its [plant] is not built by run_plant (the Python plant
+# replaces it); it only has to be a valid scene.
+SERVO_SCENE = """
+name = "python-servo"
+duration_s = 4.0
+dt_s = 0.001
+
+[plant]
+kind = "ideal"
+omega_rad_per_s = 200.0
+zeta = 1.0
+x0_m = 0.0
+
+[environment]
+stiffness_n_per_m = 700.0
+x_e_m = 0.0
+
+[reference]
+x_d_m = 0.0
+
+[[reference.force]]
+kind = "step"
+start_s = 0.0
+value_n = 10.0
+
+[[events]]
+kind = "stiffness"
+t_s = 2.0
+stiffness_n_per_m = 1400.0
+
+[[runs]]
+name = "impedance"
+controller = "impedance"
+impedance = { m_d_kg = 2.0, b_d_ns_per_m = 52.4, k_d_n_per_m = 300.0 }
+inner = { kp_per_m = 200.0, ki_per_m_s = 50.0, kd_s_per_m = 2.0 }
+
+[[runs]]
+name = "adaptive"
+controller = "adaptive"
+impedance = { m_d_kg = 2.0, b_d_ns_per_m = 52.4, k_d_n_per_m = 300.0 }
+inner = { kp_per_m = 200.0, ki_per_m_s = 50.0, kd_s_per_m = 2.0 }
+adaptive = { position_unit_m = 1.0, force_unit_n = 1.0, lambda_d_sign = "from_edot", sigma1_sign = "leakage", lambda_p = 1.0, lambda_d = 8.0, mu1 = 0.01, mu2 = 0.0001, mu3 = 0.01, sigma1 = 0.1, sigma2 = 0.1, sigma3 = 0.1 }
+
+[[metrics]]
+name = "soft"
+t0_s = 1.5
+t1_s = 2.0
+kind = "step"
+
+[[metrics]]
+name = "stiff"
+t0_s = 3.5
+t1_s = 4.0
+kind = "step"
+"""
+
+
+class Servo:
+    """A first-order position servo (time constant tau, exact step) against a linear spring f_e = k (x - x_e):
+    a plant for pneuflex.run_plant, in pure Python."""
+
+    def __init__(self, tau: float = 0.01, k: float = 700.0, x_e: float = 0.0):
+        self.tau, self.k0, self.x_e = tau, k, x_e
+        self.reset()
+
+    def reset(self):
+        self.x = self.v = self.x_r = 0.0
+        self.k = self.k0
+        self.ticks = 0
+        self.events = []
+
+    def apply(self, ev):
+        self.events.append(ev)
+        if ev["kind"] != "stiffness":
+            raise NotImplementedError(ev["kind"])
+        self.k = ev["stiffness_n_per_m"]
+
+    def sense(self):
+        return self.x, self.v, self.k * max(self.x - self.x_e, 0.0), math.nan, math.nan
+
+    def actuate(self, u, x_r):
+        self.x_r = x_r
+
+    def advance(self, dt):
+        x1 = self.x + (self.x_r - self.x) * (1.0 - math.exp(-dt / self.tau))
+        self.v = (x1 - self.x) / dt
+        self.x = x1
+        self.ticks += 1
+
+
+def python_loop(scene_path: str, run: str, plant) -> dict:
+    """The scene loop written out in Python (events, sense, update, record, actuate, advance), to check run_plant
+    against: the same controller and setpoints through the bindings."""
+    scene = pneuflex.load_scene(scene_path)
+    dt, n = scene["dt_s"], scene["n_steps"]
+    ctl = pneuflex.Controller.from_scene(scene_path, run)
+    sp = pneuflex.Setpoints(scene_path)
+    events = sorted(scene["events"], key=lambda e: e["t_s"])
+    names = [name for name, _unit, _group in pneuflex.loop_signals()] + list(ctl.signals)
+    rows = []
+    plant.reset()
+    for k in range(n + 1):
+        t = k * dt
+        while events and events[0]["t_s"] <= t + 0.5 * dt:
+            plant.apply(events.pop(0))
+        x, xd, f_e, p_a, p_b = plant.sense()
+        f_ref, x_d = sp.at(t)
+        u = ctl.update(t, x, xd, f_e, p_a, p_b, f_ref, x_d, dt)
+        rows.append([t, f_ref, f_e, x, ctl.x_r, p_a, p_b, u] + ctl.record())
+        if k == n:
+            break
+        plant.actuate(u, ctl.x_r)
+        plant.advance(dt)
+    return {name: np.array(col) for name, col in zip(names, zip(*rows))}
+
+
+@test
+def run_plant_drives_a_python_plant_in_the_scene_loop():
+    """pneuflex.run_plant runs the scene crate's loop with a plant written in Python: the same numbers as the
+    loop written out in Python, the event handed over as the scene's dict, the columns the controller
+    declares (g, p, d for the adaptive run), and, for impedance control with k_d > 0 on a servo against a
+    spring, the closed-form static force error e = k_d (f_r - k_e (x_d - x_e)) / (k_d + k_e) before and after
+    the stiffness doubles."""
+    with tempfile.TemporaryDirectory() as d:
+        path = str(Path(d) / "servo.toml")
+        Path(path).write_text(SERVO_SCENE)
+        loop_names = [name for name, _unit, _group in pneuflex.loop_signals()]
+        assert loop_names == ["t", "f_ref", "f_e", "x", "x_r", "p_a", "p_b", "u"], loop_names
+        for run, own in (("impedance", []), ("adaptive", ["g", "p", "d"])):
+            plant = Servo()
+            trace, summary, wall = pneuflex.run_plant(path, run, plant)
+            assert isinstance(summary, dict), f"{run} diverged: {summary}"
+            assert wall > 0.0
+            assert list(trace) == loop_names + own, list(trace)
+            assert list(pneuflex.Controller.from_scene(path, run).signals) == own
+            assert len(trace["t"]) == 4001 and plant.ticks == 4000
+            assert len(plant.events) == 1 and plant.events[0]["kind"] == "stiffness", plant.events
+            assert plant.events[0]["t_s"] == 2.0 and plant.events[0]["stiffness_n_per_m"] == 1400.0
+            expected = python_loop(path, run, Servo())
+            for name, col in expected.items():
+                assert np.array_equal(trace[name], col, equal_nan=True), (run, name, np.nanmax(np.abs(trace[name] - col)))
+            (r,) = summary["runs"]
+            assert r["name"] == run and not r["diverged"]
+            if run == "impedance":
+                windows = {w["name"]: w for w in r["windows"]}
+                for window, k_e in (("soft", 700.0), ("stiff", 1400.0)):
+                    e_ss = 300.0 * 10.0 / (300.0 + k_e)  # x_d = x_e = 0
+                    got = windows[window]["steady_state_error_n"]
+                    assert abs(got - e_ss) < 1e-5, (window, got, e_ss)
+
+
+@test
+def run_plant_stops_a_raising_plant_as_diverged_naming_the_exception():
+    """An exception in advance (or a bad sense) stops the run as diverged: the reason names the method, the
+    time, the exception's type, message and line; the trace ends with the tick that could not be sensed. An
+    exception in apply is the runner's event error with the exception as its cause; an object without the
+    plant's methods is a TypeError naming them."""
+
+    class Stuck(Servo):
+        def advance(self, dt):
+            if self.ticks == 500:
+                raise RuntimeError("valve stuck")
+            super().advance(dt)
+
+    class BadSense(Servo):
+        def sense(self):
+            return (self.x, self.v)
+
+    class NoEvents(Servo):
+        def apply(self, ev):
+            raise NotImplementedError("no stiffness events here")
+
+    with tempfile.TemporaryDirectory() as d:
+        path = str(Path(d) / "servo.toml")
+        Path(path).write_text(SERVO_SCENE)
+        trace, reason, _ = pneuflex.run_plant(path, "impedance", Stuck())
+        assert isinstance(reason, str), reason
+        for part in ("advance(dt)", "t = 0.5000 s", "RuntimeError: valve stuck", "test_bindings.py:"):
+            assert part in reason, (part, reason)
+        assert len(trace["t"]) == 502 and math.isnan(trace["x"][-1]) and np.all(np.isfinite(trace["x"][:-1])), len(trace["t"])
+        _, reason, _ = pneuflex.run_plant(path, 0, BadSense())
+        assert isinstance(reason, str) and "sense()" in reason and "5 floats" in reason, reason
+        try:
+            pneuflex.run_plant(path, "adaptive", NoEvents())
+        except pneuflex.PneuflexError as e:
+            assert "servo.toml" in str(e) and "events[0]" in str(e), str(e)
+            assert "NotImplementedError: no stiffness events here" in str(e), str(e)
+            assert isinstance(e.__cause__, NotImplementedError), repr(e.__cause__)
+        else:
+            raise AssertionError("a failing apply went unnoticed")
+        try:
+            pneuflex.run_plant(path, "impedance", object())
+        except TypeError as e:
+            assert "reset, apply, sense, actuate, advance" in str(e), str(e)
+        else:
+            raise AssertionError("an object without the plant's methods was accepted")
+
+
 @test
 def mujoco_face_mount_obeys_eq21_at_three_inclines():
     """The generated MJCF (crossval/mjcf.py): under a constant push the steady contact force equals the push
@@ -251,6 +450,18 @@ def mujoco_divergence_is_detected():
         assert "MuJoCo" in str(e)
     else:
         raise AssertionError("MuJoCo's reset went unnoticed")
+
+    # In the coupled run, the warning raised by MujocoPlant.advance stops the Rust loop as diverged.
+    class Blowup(couple.MujocoPlant):
+        def advance(self, dt):
+            self.sim.data.qfrc_applied[self.sim.flange_dof] = 1e300
+            for _ in range(5):
+                mujoco.mj_step(self.sim.model, self.sim.data)
+            self.sim.check(dt)
+
+    trace, reason, _ = pneuflex.run_plant(c.scene_path, "impedance", Blowup(c))
+    assert isinstance(reason, str) and "DivergedError: MuJoCo warning" in reason and "advance(dt)" in reason, reason
+    assert len(trace["t"]) == 2, len(trace["t"])
 
 
 def main() -> int:

@@ -13,6 +13,10 @@ The classes and functions come from the Rust crates through the native module ``
 - ``Setpoints(scene_path).at(t) -> (f_ref, x_d)``; ``load_scene(path) -> dict``; ``initial_state(path)``.
 - ``run(scene_path) -> {run: {column: ndarray}}``; ``run_with_summary``; ``summarize(scene_path, traces)``
   (summary.json of any traces); ``write_figures(scene_path, out_dir, runs)``; ``bench_rapier(urdf_path, ...)``.
+- ``run_plant(scene_path, run, plant) -> (trace, summary or diverged reason, wall_s)``: the scene runner's loop
+  driving a plant written in Python (methods ``reset()``, ``apply(event)``, ``sense() -> (x, x_dot, f_e, p_a,
+  p_b)``, ``actuate(u, x_r)``, ``advance(dt)``; MuJoCo in crossval/). ``loop_signals()``: the loop's recorded
+  signals [(name, unit, group)]; ``Controller.signals`` / ``Controller.record()``: the controller's own.
 
 SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError`` for unreadable files,
 ``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key.
