@@ -211,6 +211,13 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
 
     if !quiet {
         println!("{}", table(&results));
+        for w in results.iter().flat_map(|r| &r.warnings) {
+            println!("warning: {w}");
+        }
+        let claims = pneuflex_scene::claims::check_all(&scene, &results);
+        if !claims.is_empty() {
+            println!("{}", claims_table(&claims));
+        }
         println!(
             "{}: {} run(s) of {} s simulated in {:.2} s; outputs in {}",
             scene.name,
@@ -236,6 +243,27 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
         );
     }
     Ok(())
+}
+
+/// The scene's claims: the statement, the two values and the verdict.
+fn claims_table(claims: &[pneuflex_scene::claims::ClaimResult]) -> String {
+    let mut s = String::from("claims:\n");
+    for c in claims {
+        let v = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{x:.4}"));
+        let _ = writeln!(
+            s,
+            "  {:<13} {} ({} {}: {} {}, {} {})",
+            if c.holds { "holds" } else { "DOES NOT HOLD" },
+            c.statement,
+            c.window,
+            c.metric,
+            c.better,
+            v(c.better_value),
+            c.than,
+            v(c.than_value)
+        );
+    }
+    s
 }
 
 fn opt(v: Option<f64>, unit: &str, prec: usize) -> String {
@@ -266,12 +294,16 @@ fn table(results: &[RunResult]) -> String {
                 }
                 WindowKind::Event => match &w.event {
                     Some(e) => format!(
-                        "peak {}, overshoot {}, settling {} (2% band: {})",
+                        "peak {}, jump {}, overshoot {} ({:.0} % of the jump), {}",
                         opt(Some(e.peak_force_n), "N", 2),
+                        opt(Some(e.jump_n), "N", 2),
                         opt(Some(e.recovery_overshoot_n), "N", 3),
-                        opt(e.settling_time_to_tracking_s, "s", 3),
-                        e.settling_time_s
-                            .map_or("not settled".into(), |t| format!("{t:.3} s")),
+                        e.recovery_overshoot_pct,
+                        match (e.settling_time_s, &e.not_settled) {
+                            (Some(ts), _) => format!("settled in {ts:.3} s"),
+                            (None, Some(why)) => format!("NOT SETTLED: {why}"),
+                            (None, None) => "not settled".into(),
+                        }
                     ),
                     None => "-".into(),
                 },

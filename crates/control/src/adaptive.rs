@@ -102,9 +102,12 @@ pub struct AdaptiveParams {
     pub velocity_source: VelocitySource,
     /// Projection bound |g| <= g_max_m, m (parameter projection onto a known set; +inf = off, the default).
     pub g_max_m: f64,
-    /// Projection bound 0 <= p <= p_max_m_per_n when finite, m/N (+inf = off, the default: p unbounded).
+    /// Projection bound 0 <= p <= p_max_m_per_n when finite, m/N (+inf = off, the default: p unbounded;
+    /// 0 switches the p term off).
     pub p_max_m_per_n: f64,
-    /// Projection bound -d_max_s <= d <= 0 when finite, s (+inf = off, the default: d unbounded).
+    /// Projection bound on d when finite, s (+inf = off, the default: d unbounded): -d_max_s <= d <= 0 with
+    /// `LambdaDSign::FromEdot` (the law drives d negative, a damping), 0 <= d <= d_max_s with `AsPrinted`;
+    /// 0 switches the d term off.
     pub d_max_s: f64,
 }
 
@@ -296,7 +299,13 @@ impl AdaptiveLaw {
                 .clamp(0.0, a.p_max_m_per_n * a.force_unit_n / a.position_unit_m);
         }
         if a.d_max_s.is_finite() {
-            self.d = self.d.clamp(-a.d_max_s, 0.0);
+            // The box lies on the side the law drives d to (docs/control.md, "Projection"): d <= 0 (damping)
+            // with the λd sign carried through from ė, d >= 0 with the sign as printed — so the bound limits
+            // the term instead of silently switching it off. d_max = 0 switches it off on purpose.
+            self.d = match a.lambda_d_sign {
+                LambdaDSign::FromEdot => self.d.clamp(-a.d_max_s, 0.0),
+                LambdaDSign::AsPrinted => self.d.clamp(0.0, a.d_max_s),
+            };
         }
         // eq. (36): Δx_f = g + p e + d ẋ (scaled), back to metres.
         (self.g + self.p * e + self.d * v) * a.position_unit_m

@@ -562,3 +562,41 @@ fn projection_bounds_p_and_d_where_sigma_modification_alone_drifts() {
         a.p()
     );
 }
+
+/// The d box follows the sign convention: with λd as printed the law drives d positive (anti-damping, mean
+/// +μ3 λd A²/(2 σ3) under a velocity ripple), and the bound [0, d_max] limits it there instead of clamping
+/// it to zero — the d term stays on. d_max = 0 switches it off on purpose.
+#[test]
+fn the_d_bound_limits_the_as_printed_sign_instead_of_switching_the_term_off() {
+    let (amp, w, dt): (f64, f64, f64) = (0.3, 2.0 * core::f64::consts::PI * 40.0, 1e-3 / 8.0);
+    let printed = AdaptiveParams::paper_si_as_printed()
+        .with_signs(LambdaDSign::AsPrinted, Sigma1Sign::Leakage);
+    let bounded = AdaptiveParams {
+        d_max_s: 0.005,
+        ..printed
+    };
+    let off = AdaptiveParams {
+        d_max_s: 0.0,
+        ..printed
+    };
+    let (mut b, mut z) = (
+        AdaptiveLaw::new(bounded).unwrap(),
+        AdaptiveLaw::new(off).unwrap(),
+    );
+    for k in 0..(60.0 / dt) as usize {
+        let v = amp * (w * k as f64 * dt).sin();
+        b.update(0.0, v, dt);
+        z.update(0.0, v, dt);
+        assert!(
+            (0.0..=0.005).contains(&b.d()),
+            "d = {} left [0, 5 ms]",
+            b.d()
+        );
+        assert_eq!(z.d(), 0.0);
+    }
+    assert!(
+        b.d() >= 0.0049,
+        "d reaches its bound and stays on: {}",
+        b.d()
+    );
+}

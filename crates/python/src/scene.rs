@@ -179,6 +179,7 @@ pub fn summarize<'py>(
             lyapunov,
             diverged: reason,
             interrupted: None,
+            warnings: Vec::new(),
         });
     }
     to_py(py, &summary(&scene, &results))
@@ -226,6 +227,7 @@ pub fn write_figures<'py>(
             lyapunov: None,
             diverged: None,
             interrupted: None,
+            warnings: Vec::new(),
         });
     }
     std::fs::create_dir_all(&out_dir).map_err(|e| {

@@ -9,6 +9,7 @@
 //! ```
 
 pub mod advice;
+pub mod claims;
 pub mod error;
 mod locate;
 pub mod metrics;

@@ -103,79 +103,236 @@ pub fn phase_lag_deg(t: &[f64], reference: &[f64], y: &[f64], frequency_hz: f64)
     Some(d)
 }
 
-/// Response to an event (a disturbance such as a stiffness change) over a window starting at the event.
+/// A sustained oscillation found where a run should have settled (a limit cycle, or chatter).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct EventResponse {
-    /// Largest contact force f_e in the window, N.
-    pub peak_force_n: f64,
-    /// Largest force error |f_e - f_ref| in the window, N (the disturbance peak).
-    pub peak_error_n: f64,
-    /// Recovery overshoot, N: after the force error first returns through zero, the largest error on the
-    /// opposite side (0 when it never crosses, or crosses without overshooting).
-    pub recovery_overshoot_n: f64,
-    /// The ±band for settling, N: 2% of the largest |f_ref| in the window.
-    pub settling_band_n: f64,
-    /// 2% settling time after the event, s: from the window start until |f_ref - f_e| stays within the band
-    /// to the end of the window; None when it is outside the band at the window end (not settled).
-    pub settling_time_s: Option<f64>,
-    /// Steady tracking error, N: the largest |f_ref - f_e| over the window's tail (its last reference period
-    /// for a sine, else its last 10%). A sine reference leaves a periodic error that never enters the
-    /// plain 2% band.
-    pub tracking_error_n: f64,
-    /// Settling time back to the steady tracking level, s: until |f_ref - f_e| stays within
-    /// `tracking_error_n + settling_band_n` (None when the window's tail is still outside it).
-    pub settling_time_to_tracking_s: Option<f64>,
+pub struct Oscillation {
+    /// Its frequency, Hz (from the zero crossings of the residual).
+    pub frequency_hz: f64,
+    /// Its amplitude, N (half the peak-to-peak of the residual).
+    pub amplitude_n: f64,
 }
 
-/// Peak force, recovery overshoot and 2% settling times of f_e after an event at `t[0]`; `tail_s` is the
-/// length of the window's tail over which the steady tracking error is measured.
-pub fn event_response(t: &[f64], f_ref: &[f64], f_e: &[f64], tail_s: f64) -> Option<EventResponse> {
-    if t.is_empty() {
+/// Response to an event (a disturbance such as a stiffness change) over a window starting at the event,
+/// measured against the run's own periodic steady state: the force error over the window's tail (its last
+/// reference period on a sine, its last 10 % on a step), continued periodically back to the event.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EventResponse {
+    /// Which force the response is read on: `f_e`, or `f_e averaged over one PWM period (… s)` on a
+    /// plant with an on/off valve, whose raw force chatters at the PWM frequency.
+    pub signal: String,
+    /// Largest contact force f_e in the window (raw), N.
+    pub peak_force_n: f64,
+    /// Largest force error |f_ref - f_e| in the window (on `signal`), N.
+    pub peak_error_n: f64,
+    /// The jump: the largest deviation of the error from its periodic steady state, N (the disturbance).
+    pub jump_n: f64,
+    /// Recovery overshoot, N: after the deviation first returns through zero, its largest excursion on the
+    /// other side (0 when it never crosses).
+    pub recovery_overshoot_n: f64,
+    /// The recovery overshoot as a percentage of the jump.
+    pub recovery_overshoot_pct: f64,
+    /// The ±band for settling, N: 2 % of the largest |f_ref| in the window, or the run's own steady
+    /// ripple (the tail's largest residual) when that is larger.
+    pub settling_band_n: f64,
+    /// Whether the run settled: back within the band of its periodic steady state, with no sustained
+    /// oscillation and a bounded steady error.
+    pub settled: bool,
+    /// Settling time, s: from the event until the deviation stays within the band; None when not settled.
+    pub settling_time_s: Option<f64>,
+    /// Why the run did not settle (None when it did).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_settled: Option<String>,
+    /// The sustained oscillation found in the tail, when there is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub oscillation: Option<Oscillation>,
+    /// Steady tracking error, N: the largest |f_ref - f_e| over the window's tail (on `signal`).
+    pub tracking_error_n: f64,
+}
+
+/// Centred moving average over `n` samples: always a whole window of `n` (shifted inwards at the ends, so a
+/// PWM period is always averaged whole); `n` <= 1 returns the input.
+pub fn moving_average(y: &[f64], n: usize) -> Vec<f64> {
+    if n <= 1 || y.is_empty() {
+        return y.to_vec();
+    }
+    let mut prefix = Vec::with_capacity(y.len() + 1);
+    prefix.push(0.0);
+    for v in y {
+        prefix.push(prefix.last().copied().unwrap_or(0.0) + v);
+    }
+    let n = n.min(y.len());
+    (0..y.len())
+        .map(|i| {
+            let a = i.saturating_sub(n / 2).min(y.len() - n);
+            (prefix[a + n] - prefix[a]) / n as f64
+        })
+        .collect()
+}
+
+/// The shape of the reference over a window, for the steady state the response is measured against.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Steady {
+    /// A constant reference: the steady state is the tail's mean error.
+    Constant,
+    /// A sine of this frequency, Hz: the steady state is the tail's last period, repeated.
+    Periodic(f64),
+}
+
+/// Peak force, jump, recovery overshoot and settling of the force error after an event at `t[0]`, against
+/// the window's own periodic steady state; `averaging_s` is the PWM period to average f_e over (None on a
+/// continuous valve). A tail that oscillates (residual after the reference's own periodic part above
+/// 7.5 % of the reference) or keeps a steady error above 25 % of the reference is "not settled" and reports
+/// why.
+pub fn event_response(
+    t: &[f64],
+    f_ref: &[f64],
+    f_e: &[f64],
+    steady: Steady,
+    averaging_s: Option<f64>,
+) -> Option<EventResponse> {
+    let n = t.len().min(f_ref.len()).min(f_e.len());
+    if n < 4 {
         return None;
     }
-    let peak_force_n = f_e.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let err: Vec<f64> = f_ref.iter().zip(f_e).map(|(r, f)| r - f).collect();
-    // Disturbance peak: the sample of largest |e|; its sign tells which way the error was pushed.
-    let (i_pk, peak_error_n) = err
+    let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
+    let peak_force_n = f_e[..n].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let raw: Vec<f64> = (0..n).map(|i| f_ref[i] - f_e[i]).collect();
+    let (err, signal) = match averaging_s {
+        Some(p) if p > 1.5 * dt => (
+            moving_average(&raw, (p / dt).round() as usize),
+            format!("f_e averaged over one PWM period ({p} s)"),
+        ),
+        _ => (raw, "f_e".to_string()),
+    };
+    // The tail: the last two reference periods of a sine (at most half the window), the last 10 % of a
+    // step. The periodic steady state is the tail's mean period, so one period's wander does not define it.
+    let (tail_s, periods) = match steady {
+        Steady::Periodic(f) => {
+            let half = 0.5 * (t[n - 1] - t[0]);
+            if 2.0 / f <= half {
+                (2.0 / f, 2)
+            } else {
+                ((1.0 / f).min(half), 1)
+            }
+        }
+        Steady::Constant => (0.1 * (t[n - 1] - t[0]), 1),
+    };
+    let n_tail = ((tail_s / dt).round() as usize).clamp(2 * periods, n / 2);
+    let i_tail = n - n_tail;
+    let tail = &err[i_tail..];
+    let n_period = n_tail / periods;
+    let tail_mean = tail.iter().sum::<f64>() / n_tail as f64;
+    let period_mean: Vec<f64> = (0..n_period)
+        .map(|k| (0..periods).map(|p| tail[p * n_period + k]).sum::<f64>() / periods as f64)
+        .collect();
+    // The periodic steady state, continued back from the tail; the deviation from it.
+    let ss = |i: usize| -> f64 {
+        match steady {
+            Steady::Constant => tail_mean,
+            Steady::Periodic(_) => {
+                let k = (i as isize - i_tail as isize).rem_euclid(n_period as isize) as usize;
+                period_mean[k]
+            }
+        }
+    };
+    let dev: Vec<f64> = (0..n).map(|i| err[i] - ss(i)).collect();
+    let (i_pk, jump_n) = dev
         .iter()
         .enumerate()
-        .fold((0, 0.0_f64), |(bi, bv), (i, e)| {
-            if e.abs() > bv { (i, e.abs()) } else { (bi, bv) }
+        .fold((0, 0.0_f64), |(bi, bv), (i, d)| {
+            if d.abs() > bv { (i, d.abs()) } else { (bi, bv) }
         });
-    let sign = err[i_pk].signum();
-    let recovery_overshoot_n = match (i_pk..err.len()).find(|&i| sign * err[i] <= 0.0) {
-        Some(ic) => err[ic..].iter().map(|e| -sign * e).fold(0.0_f64, f64::max),
+    let sign = dev[i_pk].signum();
+    let recovery_overshoot_n = match (i_pk..n).find(|&i| sign * dev[i] <= 0.0) {
+        Some(ic) => dev[ic..].iter().map(|d| -sign * d).fold(0.0_f64, f64::max),
         None => 0.0,
     };
-    let ref_peak = f_ref.iter().fold(0.0_f64, |m, r| m.max(r.abs()));
-    let band = 0.02 * ref_peak;
-    let settle = |band: f64| match err.iter().rposition(|e| e.abs() > band) {
-        None => Some(0.0),
-        Some(i) if i + 1 < err.len() => Some(t[i + 1] - t[0]),
-        Some(_) => None,
+    let ref_peak = f_ref[..n].iter().fold(0.0_f64, |m, r| m.max(r.abs()));
+    let peak_error_n = err.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
+    let tracking_error_n = tail.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
+
+    // Does the tail hold a sustained oscillation? Remove the reference's own periodic part (bias, and the
+    // sine at the reference frequency) and look at what is left.
+    let tt = &t[i_tail..n];
+    let residual: Vec<f64> = match steady {
+        Steady::Periodic(f) => match fit_sine(tt, tail, std::f64::consts::TAU * f) {
+            Some((a, ph, c)) => tt
+                .iter()
+                .zip(tail)
+                .map(|(&ti, &e)| e - (a * (std::f64::consts::TAU * f * ti + ph).sin() + c))
+                .collect(),
+            None => tail.to_vec(),
+        },
+        Steady::Constant => {
+            let m = tail.iter().sum::<f64>() / n_tail as f64;
+            tail.iter().map(|e| e - m).collect()
+        }
     };
-    let t_end = t[t.len() - 1];
-    let i_tail = t
-        .partition_point(|&ti| ti < t_end - tail_s)
-        .min(t.len() - 1);
-    let tracking_error_n = err[i_tail..].iter().fold(0.0_f64, |m, e| m.max(e.abs()));
-    // The tail itself is inside its own band by construction, so "not settled" needs the band's edge to be
-    // reached just at the end; require the last crossing to lie before the tail.
-    let to_tracking = match err.iter().rposition(|e| e.abs() > tracking_error_n + band) {
-        // The disturbance peak lies in the tail itself: the error has not come down at all.
-        _ if i_pk >= i_tail => None,
-        None => Some(0.0),
-        Some(i) if i + 1 < i_tail => Some(t[i + 1] - t[0]),
-        Some(_) => None,
+    let (lo, hi) = residual
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &r| {
+            (l.min(r), h.max(r))
+        });
+    let amplitude_n = 0.5 * (hi - lo);
+    let crossings = residual
+        .windows(2)
+        .filter(|w| (w[0] < 0.0) != (w[1] < 0.0))
+        .count();
+    let span = tt[tt.len() - 1] - tt[0];
+    // A sustained oscillation is one above 7.5 % of the reference (a 16 Hz limit cycle of 3.4 N on a 12 N
+    // reference, not the PWM loop's ±0.3 N wander); the settling band is 2 % of the reference, or the
+    // run's own steady ripple when that is larger (a PWM loop settles to its wander, not below it).
+    let ripple = residual.iter().fold(0.0_f64, |m, r| m.max(r.abs()));
+    let band = (0.02 * ref_peak).max(ripple);
+    let oscillation =
+        (amplitude_n > 0.075 * ref_peak && crossings >= 4 && span > 0.0).then(|| Oscillation {
+            frequency_hz: crossings as f64 / (2.0 * span),
+            amplitude_n,
+        });
+    let mean_abs_tail = tail.iter().map(|e| e.abs()).sum::<f64>() / n_tail as f64;
+    let not_settled = if let Some(o) = oscillation {
+        Some(format!(
+            "sustained oscillation at {:.1} Hz, amplitude {:.2} N",
+            o.frequency_hz, o.amplitude_n
+        ))
+    } else if mean_abs_tail > 0.25 * ref_peak {
+        Some(format!(
+            "steady force error of {mean_abs_tail:.2} N (over 25 % of the {ref_peak:.2} N reference): \
+             not tracking (an end stop, or lost contact)"
+        ))
+    } else {
+        None
+    };
+    // Settling: the deviation stays within the band from then to the end of the window.
+    let settling_time_s = match (&not_settled, dev.iter().rposition(|d| d.abs() > band)) {
+        (Some(_), _) => None,
+        (None, None) => Some(0.0),
+        (None, Some(i)) if i + 1 < i_tail => Some(t[i + 1] - t[0]),
+        (None, Some(_)) => None,
+    };
+    let not_settled = match (&not_settled, settling_time_s) {
+        (None, None) => Some(format!(
+            "still outside the ±{band:.2} N band of its periodic steady state in the last {tail_s:.2} s"
+        )),
+        _ => not_settled,
     };
     Some(EventResponse {
+        signal,
         peak_force_n,
         peak_error_n,
+        jump_n,
         recovery_overshoot_n,
+        recovery_overshoot_pct: if jump_n > 0.0 {
+            100.0 * recovery_overshoot_n / jump_n
+        } else {
+            0.0
+        },
         settling_band_n: band,
-        settling_time_s: settle(band),
+        settled: settling_time_s.is_some(),
+        settling_time_s,
+        not_settled,
+        oscillation,
         tracking_error_n,
-        settling_time_to_tracking_s: to_tracking,
     })
 }
 
@@ -202,8 +359,9 @@ mod tests {
 
     #[test]
     fn event_response_of_a_damped_oscillation() {
-        // e(t) = -A e^{-at} cos(wt): peak error A at t = 0; the recovery overshoot is the extremum of the
-        // second half-wave, where d/dt[e^{-at} cos(wt)] = 0: w t* = π - atan(a/w).
+        // e(t) = -A e^{-at} cos(wt) on a constant reference: the steady state is 0, the jump A at t = 0,
+        // the recovery overshoot the extremum of the second half-wave, where d/dt[e^{-at} cos(wt)] = 0:
+        // w t* = π - atan(a/w).
         let (amp, a, w) = (5.0, 2.0, 10.0);
         let t: Vec<f64> = (0..=4000).map(|k| k as f64 * 1e-3).collect();
         let f_ref = vec![10.0; t.len()];
@@ -211,17 +369,20 @@ mod tests {
             .iter()
             .map(|&ti| 10.0 + amp * (-a * ti).exp() * (w * ti).cos())
             .collect();
-        let r = event_response(&t, &f_ref, &f_e, 0.4).unwrap();
+        let r = event_response(&t, &f_ref, &f_e, Steady::Constant, None).unwrap();
         assert!((r.peak_force_n - 15.0).abs() < 1e-9);
+        assert!((r.jump_n - amp).abs() < 1e-2, "{}", r.jump_n);
         let ts_pk = (std::f64::consts::PI - (a / w).atan()) / w;
         let want = amp * (-a * ts_pk).exp() * (w * ts_pk).cos().abs();
         assert!(
-            (r.recovery_overshoot_n - want).abs() < 1e-4 * want,
+            (r.recovery_overshoot_n - want).abs() < 1e-2 * want,
             "{} vs {want}",
             r.recovery_overshoot_n
         );
-        // Settles when the envelope A e^{-at} falls to 0.2 N: t = ln(25)/2 ≈ 1.609 s; the last
+        assert!((r.recovery_overshoot_pct - 100.0 * want / amp).abs() < 0.5);
+        // Settles when the envelope A e^{-at} falls to the 0.2 N band: t = ln(25)/2 ≈ 1.609 s; the last
         // band crossing is at a cosine peak just before that.
+        assert!(r.settled && r.not_settled.is_none());
         let ts = r.settling_time_s.unwrap();
         let env = (amp / 0.2_f64).ln() / a;
         assert!(
@@ -231,13 +392,75 @@ mod tests {
     }
 
     #[test]
-    fn unsettled_window_reports_none() {
-        let t: Vec<f64> = (0..100).map(|k| k as f64 * 0.01).collect();
-        let f_ref = vec![10.0; 100];
-        let f_e = vec![9.0; 100];
-        let r = event_response(&t, &f_ref, &f_e, 0.1).unwrap();
-        assert_eq!(r.settling_time_s, None);
-        assert!((r.tracking_error_n - 1.0).abs() < 1e-12);
-        assert_eq!(r.settling_time_to_tracking_s, Some(0.0));
+    fn a_limit_cycle_on_a_sine_is_not_settled_and_reports_its_frequency() {
+        // A 1 Hz sine reference tracked with a lag, plus a 16 Hz oscillation of 3.4 N that never decays.
+        let t: Vec<f64> = (0..=4000).map(|k| 6.0 + k as f64 * 1e-3).collect();
+        let w = std::f64::consts::TAU;
+        let f_ref: Vec<f64> = t.iter().map(|&ti| 10.0 + 2.0 * (w * ti).sin()).collect();
+        let f_e: Vec<f64> = t
+            .iter()
+            .map(|&ti| {
+                10.0 + 1.8 * (w * ti - 0.4).sin() + 3.4 * (std::f64::consts::TAU * 16.0 * ti).sin()
+            })
+            .collect();
+        let r = event_response(&t, &f_ref, &f_e, Steady::Periodic(1.0), None).unwrap();
+        assert!(!r.settled && r.settling_time_s.is_none());
+        let o = r.oscillation.unwrap();
+        assert!((o.frequency_hz - 16.0).abs() < 0.5, "{o:?}");
+        assert!((o.amplitude_n - 3.4).abs() < 0.1, "{o:?}");
+        assert!(
+            r.not_settled
+                .unwrap()
+                .contains("sustained oscillation at 1")
+        );
+        // The same tracking without the oscillation settles at once: the lagging sine is its steady state.
+        let f_e: Vec<f64> = t
+            .iter()
+            .map(|&ti| 10.0 + 1.8 * (w * ti - 0.4).sin())
+            .collect();
+        let r = event_response(&t, &f_ref, &f_e, Steady::Periodic(1.0), None).unwrap();
+        assert_eq!(r.settling_time_s, Some(0.0));
+        assert!(
+            r.tracking_error_n > 0.5,
+            "a periodic error, not a settling failure"
+        );
+    }
+
+    #[test]
+    fn a_run_pinned_at_an_end_stop_is_not_settled() {
+        let t: Vec<f64> = (0..1000).map(|k| k as f64 * 1e-3).collect();
+        let f_ref = vec![10.0; 1000];
+        let f_e = vec![42.0; 1000];
+        let r = event_response(&t, &f_ref, &f_e, Steady::Constant, None).unwrap();
+        assert!(!r.settled);
+        assert!(r.not_settled.unwrap().contains("not tracking"));
+    }
+
+    #[test]
+    fn pwm_chatter_is_averaged_away_when_the_period_is_given() {
+        // A settled 10 N force with ±1.3 N of 40 Hz square-wave ripple.
+        let t: Vec<f64> = (0..=2000).map(|k| k as f64 * 1e-3).collect();
+        let f_ref = vec![10.0; t.len()];
+        let f_e: Vec<f64> = t
+            .iter()
+            .map(|&ti| 10.0 + if (ti * 40.0).fract() < 0.5 { 1.3 } else { -1.3 })
+            .collect();
+        let raw = event_response(&t, &f_ref, &f_e, Steady::Constant, None).unwrap();
+        assert!(!raw.settled, "the raw chatter is an oscillation");
+        let avg = event_response(&t, &f_ref, &f_e, Steady::Constant, Some(0.025)).unwrap();
+        assert!(avg.settled, "{:?}", avg.not_settled);
+        assert!(avg.signal.contains("PWM period"));
+    }
+
+    #[test]
+    fn moving_average_of_a_ramp_is_the_ramp_inside() {
+        let y: Vec<f64> = (0..20).map(f64::from).collect();
+        let m = moving_average(&y, 5);
+        // Whole windows everywhere: the first values average 0..5, the last 15..20.
+        assert!(
+            (m[10] - 10.0).abs() < 1e-12
+                && (m[0] - 2.0).abs() < 1e-12
+                && (m[19] - 17.0).abs() < 1e-12
+        );
     }
 }

@@ -418,6 +418,7 @@ impl Plant for MultibodyPlant {
                 .world
                 .material_x_e(&self.config.initial_material)
                 .unwrap_or(self.config.initial_x_m),
+            pwm_period_s: crate::plant::pwm_period_s(&self.drive.element.actuator.valve),
         })
     }
 

@@ -21,8 +21,9 @@ fn werr(path: &Path) -> impl FnOnce(std::io::Error) -> SceneError + '_ {
     }
 }
 
-/// Layout version of summary.json (2: provenance and partial outputs added).
-pub const SUMMARY_SCHEMA_VERSION: u32 = 2;
+/// Layout version of summary.json (2: provenance and partial outputs; 3: event metrics against the run's
+/// periodic steady state, claims).
+pub const SUMMARY_SCHEMA_VERSION: u32 = 3;
 
 /// The content of summary.json.
 #[derive(Clone, Debug, Serialize)]
@@ -54,6 +55,9 @@ pub struct Summary {
     pub plant: String,
     /// One entry per run.
     pub runs: Vec<RunSummary>,
+    /// The scene's claims, each with the two values and whether it holds.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub claims: Vec<crate::claims::ClaimResult>,
 }
 
 /// One run in summary.json.
@@ -80,6 +84,9 @@ pub struct RunSummary {
     /// Lyapunov check (adaptive runs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lyapunov: Option<LyapunovSummary>,
+    /// Warnings about the run's results.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Name of a run's trace file: `trace.csv`, `trace.diverged.csv` for a diverged run, or
@@ -168,8 +175,10 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
                 trace: format!("{}/{}", r.name, trace_file_name(r)),
                 windows: r.windows.clone(),
                 lyapunov: r.lyapunov,
+                warnings: r.warnings.clone(),
             })
             .collect(),
+        claims: crate::claims::check_all(scene, results),
     }
 }
 

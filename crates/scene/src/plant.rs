@@ -68,6 +68,18 @@ pub struct ActuatorGeometry {
     pub alpha_rad: f64,
     /// Flange extension at which the environment is first touched, m.
     pub x_e_m: f64,
+    /// Period of the valve's PWM carrier, s (an on/off valve under PWM); None for a proportional valve.
+    pub pwm_period_s: Option<f64>,
+}
+
+/// The PWM period of `valve`, s, if it is an on/off valve switched by PWM.
+pub fn pwm_period_s(valve: &pneuflex_pneumatics::ValveModel) -> Option<f64> {
+    match valve.kind {
+        pneuflex_pneumatics::ValveKind::OnOffPwm {
+            pwm_frequency_hz, ..
+        } => Some(1.0 / pwm_frequency_hz),
+        pneuflex_pneumatics::ValveKind::Proportional { .. } => None,
+    }
 }
 
 /// One drawable collision shape of a plant's link.

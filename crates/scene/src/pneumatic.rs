@@ -184,6 +184,7 @@ impl Plant for OneDofPneumatic {
             bore_m: c.bore_m,
             alpha_rad: self.alpha0_rad,
             x_e_m: self.env0.x_e_m,
+            pwm_period_s: crate::plant::pwm_period_s(&self.model.actuator.valve),
         })
     }
 
@@ -252,6 +253,7 @@ mod tests {
         let mut scene = Scene::load(&path).unwrap();
         scene.duration_s = 0.5;
         scene.metrics.clear();
+        scene.claims.clear();
         scene.events.clear();
         let r = &crate::run_scene(&scene, &mut |_| {}).unwrap()[0];
         let spool = r.trace.column("spool").expect("the plant declares spool");

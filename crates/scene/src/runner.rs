@@ -30,6 +30,8 @@ pub struct RunResult {
     pub diverged: Option<String>,
     /// Why the run was cut short by the user (a signal), when it was.
     pub interrupted: Option<String>,
+    /// What a reader of the results should know (e.g. an adaptive parameter pinned at its projection bound).
+    pub warnings: Vec<String>,
 }
 
 impl RunResult {
@@ -262,6 +264,7 @@ pub fn run_scene_with(
     scene.check_budget(&opts.limits)?;
     let setpoints = build_setpoints(scene)?;
     let mut plant = build_plant(scene)?;
+    let pwm_period = pwm_period_s(scene);
     let n_runs = scene.runs.len();
     let mut out = Vec::with_capacity(n_runs);
     let stopped = || {
@@ -288,11 +291,12 @@ pub fn run_scene_with(
         )?;
         observer.end_run(&r);
         if r.diverged.is_none() && r.interrupted.is_none() {
-            r.windows = compute_windows(scene, &r.trace);
+            r.windows = compute_windows_with(scene, &r.trace, pwm_period);
         }
         if r.controller == ControllerKind::Adaptive {
             r.lyapunov = lyapunov_summary(scene, &scene.runs[i]);
         }
+        r.warnings = pinned_parameters(&scene.runs[i], &r.trace);
         out.push(r);
     }
     progress(1.0);
@@ -422,6 +426,7 @@ fn simulate_loop(
         lyapunov: None,
         diverged,
         interrupted,
+        warnings: Vec::new(),
     })
 }
 
@@ -461,8 +466,73 @@ fn divergence(
     None
 }
 
+/// Warnings for adaptive parameters that sat at their projection bound for most of the run: then the bound,
+/// not the adaptive law, set them (issue: a silently pinned parameter).
+pub fn pinned_parameters(run: &RunSpec, tr: &Trace) -> Vec<String> {
+    let Some(a) = run.adaptive else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (name, key, bound) in [
+        ("p", "p_max_m_per_n", a.p_max_m_per_n),
+        ("d", "d_max_s", a.d_max_s),
+    ] {
+        let Some(col) = tr.column(name).filter(|c| !c.is_empty()) else {
+            continue;
+        };
+        if !(bound.is_finite() && bound > 0.0) {
+            continue;
+        }
+        let at = col
+            .iter()
+            .filter(|v| (v.abs() - bound).abs() <= 1e-9 * bound)
+            .count();
+        let frac = at as f64 / col.len() as f64;
+        if frac > 0.5 {
+            out.push(format!(
+                "run `{}`: the adaptive {name} sat at its projection bound {key} = {bound} for {:.0} % of the \
+                 run: the bound, not the adaptive law, set it (widen the bound or retune; docs/control.md)",
+                run.name,
+                100.0 * frac
+            ));
+        }
+    }
+    out
+}
+
+/// The PWM period of the scene's valve, s, when it is an on/off valve under PWM (the period its force and
+/// pressures are averaged over for the event metrics and the figures); None for a continuous valve or a
+/// plant without one.
+pub fn pwm_period_s(scene: &Scene) -> Option<f64> {
+    let sheet = match &scene.plant {
+        PlantSpec::Ideal { .. } => return None,
+        PlantSpec::Pneumatic { actuator, .. } => scene.resolve(actuator),
+        PlantSpec::Multibody(mb) => scene.resolve(&mb.actuator),
+    };
+    match pneuflex_pneumatics::ActuatorSheet::load(&sheet)
+        .ok()?
+        .valve
+        .valve
+        .kind
+    {
+        pneuflex_pneumatics::ValveKind::OnOffPwm {
+            pwm_frequency_hz, ..
+        } => Some(1.0 / pwm_frequency_hz),
+        pneuflex_pneumatics::ValveKind::Proportional { .. } => None,
+    }
+}
+
 /// The metrics of every window of the scene on a trace.
 pub fn compute_windows(scene: &Scene, tr: &Trace) -> Vec<WindowMetrics> {
+    compute_windows_with(scene, tr, pwm_period_s(scene))
+}
+
+/// [`compute_windows`] with the PWM period already known (None: no averaging).
+pub fn compute_windows_with(
+    scene: &Scene,
+    tr: &Trace,
+    pwm_period_s: Option<f64>,
+) -> Vec<WindowMetrics> {
     scene
         .metrics
         .iter()
@@ -498,15 +568,15 @@ pub fn compute_windows(scene: &Scene, tr: &Trace) -> Vec<WindowMetrics> {
                 }
                 WindowKind::Step => m.steady_state_error_n = Some(metrics::mean_error(r, f)),
                 WindowKind::Event => {
-                    // The steady tracking error is measured over the last reference period when the window
-                    // ends on a sine, else over its last 10%.
-                    let tail = match scene.sine_in(w.t1_s - 1e-9, w.t1_s) {
+                    // The steady state the response is measured against: the sine the window ends on,
+                    // repeated, or the constant reference's mean error.
+                    let steady = match scene.sine_in(w.t1_s - 1e-9, w.t1_s) {
                         Some(ForcePiece::Sine { frequency_hz, .. }) => {
-                            (1.0 / frequency_hz).min(0.5 * (w.t1_s - w.t0_s))
+                            metrics::Steady::Periodic(frequency_hz)
                         }
-                        _ => 0.1 * (w.t1_s - w.t0_s),
+                        _ => metrics::Steady::Constant,
                     };
-                    m.event = metrics::event_response(t, r, f, tail);
+                    m.event = metrics::event_response(t, r, f, steady, pwm_period_s);
                 }
             }
             m

@@ -1,46 +1,26 @@
-//! The paper's claims (Section III-E, Figs. 3–4) as thresholds on paper-fig3, on the ideal inner loop and on
-//! the 1-DOF pneumatic plant: against impedance control, adaptive impedance control has a lower RMS force
-//! error and less phase lag on the sine, and after the stiffness change (700 → 1400 N/m at 6 s) a smaller
-//! recovery overshoot and a shorter settling time; both runs stay bounded.
-//!
-//! Settling after the event is measured back to the steady tracking level (`settling_time_to_tracking_s`):
-//! the reference after 6 s is a sine, whose tracking error never enters a plain 2% band for either
-//! controller (`settling_time_s` is null for both; see docs/scenes.md).
+//! The paper's claims as the tool states them: every shipped paper scene carries its claims (Section III-E,
+//! Figs. 3–4; Section IV, Fig. 7) in `[[claims]]`, and `pneuflex run` prints each with the two values and a
+//! verdict. These tests assert the verdicts on the shipped scenes — the ones that hold and, as honestly, the
+//! ones that do not — so a model or controller change that flips one is seen. The values behind each
+//! verdict are in docs/scenes.md ("The paper scenes and what they show").
 
 use std::path::Path;
-use std::sync::OnceLock;
 
-use pneuflex_scene::{RunResult, Scene, WindowMetrics, run_scene};
+use pneuflex_scene::claims::{ClaimResult, check_all};
+use pneuflex_scene::{RunResult, Scene, run_scene};
 
-fn run(file: &str) -> Vec<RunResult> {
+fn run(file: &str) -> (Vec<RunResult>, Vec<ClaimResult>) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../scenes")
         .join(file);
     let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-    run_scene(&scene, &mut |_| {}).unwrap_or_else(|e| panic!("{e}"))
+    let res = run_scene(&scene, &mut |_| {}).unwrap_or_else(|e| panic!("{e}"));
+    let claims = check_all(&scene, &res);
+    (res, claims)
 }
 
-fn ideal() -> &'static [RunResult] {
-    static R: OnceLock<Vec<RunResult>> = OnceLock::new();
-    R.get_or_init(|| run("paper-fig3-ideal.toml"))
-}
-
-fn pneumatic() -> &'static [RunResult] {
-    static R: OnceLock<Vec<RunResult>> = OnceLock::new();
-    R.get_or_init(|| run("paper-fig3.toml"))
-}
-
-fn window<'a>(res: &'a [RunResult], run: &str, window: &str) -> &'a WindowMetrics {
-    let r = res
-        .iter()
-        .find(|r| r.name == run)
-        .unwrap_or_else(|| panic!("no run {run}"));
-    assert!(r.diverged.is_none(), "{run} diverged: {:?}", r.diverged);
-    r.window(window)
-        .unwrap_or_else(|| panic!("no window {window}"))
-}
-
-fn bounded(res: &[RunResult]) {
+/// Both runs bounded: no divergence, |f_e| below three times the largest reference, x finite.
+fn bounded(res: &[RunResult], f_cap: f64) {
     for r in res {
         assert!(
             r.diverged.is_none(),
@@ -48,111 +28,107 @@ fn bounded(res: &[RunResult]) {
             r.name,
             r.diverged
         );
-        // Bounded: the force never exceeds three times the largest reference (12 N), and x stays finite.
         let f_max = r.trace.f_e().iter().fold(0.0_f64, |m, f| m.max(f.abs()));
-        assert!(f_max < 36.0, "{}: peak |f_e| = {f_max} N", r.name);
+        assert!(f_max < f_cap, "{}: peak |f_e| = {f_max} N", r.name);
         assert!(r.trace.x().iter().all(|x| x.is_finite()));
     }
 }
 
-fn lower_rms_on_sine(res: &[RunResult]) {
-    let (a, i) = (
-        window(res, "adaptive", "sine"),
-        window(res, "impedance", "sine"),
-    );
-    assert!(
-        a.rms_force_error_n < i.rms_force_error_n,
-        "RMS force error on the sine: adaptive {:.4} N, impedance {:.4} N",
-        a.rms_force_error_n,
-        i.rms_force_error_n
-    );
-}
-
-fn less_lag_on_sine(res: &[RunResult]) {
-    let (a, i) = (
-        window(res, "adaptive", "sine"),
-        window(res, "impedance", "sine"),
-    );
-    let (la, li) = (a.phase_lag_deg.unwrap(), i.phase_lag_deg.unwrap());
-    assert!(
-        la >= 0.0 && la < li,
-        "phase lag on the sine: adaptive {la:.2}°, impedance {li:.2}°"
-    );
-}
-
-fn smaller_recovery_overshoot(res: &[RunResult]) {
-    let a = window(res, "adaptive", "stiffness_change").event.unwrap();
-    let i = window(res, "impedance", "stiffness_change").event.unwrap();
-    assert!(
-        a.recovery_overshoot_n < i.recovery_overshoot_n,
-        "recovery overshoot after the stiffness change: adaptive {:.3} N, impedance {:.3} N",
-        a.recovery_overshoot_n,
-        i.recovery_overshoot_n
-    );
-}
-
-fn shorter_settling(res: &[RunResult]) {
-    let a = window(res, "adaptive", "stiffness_change").event.unwrap();
-    let i = window(res, "impedance", "stiffness_change").event.unwrap();
-    let ta = a
-        .settling_time_to_tracking_s
-        .expect("adaptive settles back to its tracking level");
-    // Impedance not settling at all also satisfies the claim.
-    if let Some(ti) = i.settling_time_to_tracking_s {
+/// The verdict of each claim, by statement prefix, as expected.
+fn verdicts(claims: &[ClaimResult], expected: &[(&str, bool)]) {
+    assert_eq!(claims.len(), expected.len(), "{claims:#?}");
+    for (c, (prefix, holds)) in claims.iter().zip(expected) {
         assert!(
-            ta < ti,
-            "settling time after the stiffness change: adaptive {ta:.3} s, impedance {ti:.3} s"
+            c.statement.starts_with(prefix),
+            "{} vs {prefix}",
+            c.statement
+        );
+        assert_eq!(
+            c.holds, *holds,
+            "{}: {} {:?} vs {} {:?} ({:?})",
+            c.statement, c.better, c.better_value, c.than, c.than_value, c.why_not
         );
     }
 }
 
+const FIG3_CLAIMS: [&str; 5] = [
+    "adaptive tracks the sine with less phase lag",
+    "adaptive tracks the sine with a lower RMS",
+    "after the stiffness change, adaptive recovers with less overshoot",
+    "after the stiffness change, adaptive settles faster",
+    "on the stiffer environment, adaptive tracks the sine",
+];
+
 #[test]
-fn ideal_both_bounded() {
-    bounded(ideal());
-}
-#[test]
-fn ideal_adaptive_lower_rms_force_error_on_sine() {
-    lower_rms_on_sine(ideal());
-}
-#[test]
-fn ideal_adaptive_less_phase_lag_on_sine() {
-    less_lag_on_sine(ideal());
-}
-#[test]
-fn ideal_adaptive_smaller_recovery_overshoot() {
-    smaller_recovery_overshoot(ideal());
-}
-#[test]
-fn ideal_adaptive_shorter_settling() {
-    shorter_settling(ideal());
+fn ideal_loop_every_claim_of_fig3_holds() {
+    let (res, claims) = run("paper-fig3-ideal.toml");
+    bounded(&res, 36.0);
+    verdicts(&claims, &FIG3_CLAIMS.map(|s| (s, true)));
 }
 
 #[test]
-fn pneumatic_both_bounded() {
-    bounded(pneumatic());
+fn pneumatic_plant_claims_of_fig3() {
+    let (res, claims) = run("paper-fig3.toml");
+    bounded(&res, 36.0);
+    // The recovery overshoot claim does not hold on the 40 Hz PWM plant (docs/scenes.md).
+    verdicts(
+        &claims,
+        &[
+            (FIG3_CLAIMS[0], true),
+            (FIG3_CLAIMS[1], true),
+            (FIG3_CLAIMS[2], false),
+            (FIG3_CLAIMS[3], true),
+            (FIG3_CLAIMS[4], true),
+        ],
+    );
 }
+
 #[test]
-fn pneumatic_adaptive_lower_rms_force_error_on_sine() {
-    lower_rms_on_sine(pneumatic());
+fn multibody_rig_claims_of_fig3() {
+    let (res, claims) = run("paper-fig3-multibody.toml");
+    bounded(&res, 36.0);
+    // Settling on the PWM rig is read within the loop's own wander, and here adaptive settles later.
+    verdicts(
+        &claims,
+        &[
+            (FIG3_CLAIMS[0], true),
+            (FIG3_CLAIMS[1], true),
+            (FIG3_CLAIMS[2], false),
+            (FIG3_CLAIMS[3], false),
+            (FIG3_CLAIMS[4], true),
+        ],
+    );
 }
+
 #[test]
-fn pneumatic_adaptive_less_phase_lag_on_sine() {
-    less_lag_on_sine(pneumatic());
-}
-#[test]
-#[ignore = "does not hold with the defaults: adaptive 5.44 N vs impedance 4.18 N recovery overshoot on the \
-            pneumatic plant (the 40 Hz PWM ripple of about ±1.3 N dominates the peak); reported, not tuned"]
-fn pneumatic_adaptive_smaller_recovery_overshoot() {
-    smaller_recovery_overshoot(pneumatic());
-}
-#[test]
-fn pneumatic_adaptive_shorter_settling() {
-    shorter_settling(pneumatic());
+fn wood_to_iron_claims_of_fig7() {
+    let (res, claims) = run("paper-fig7-wood-to-iron.toml");
+    bounded(&res, 60.0);
+    verdicts(
+        &claims,
+        &[
+            (
+                "on the swap to iron, adaptive hits with a lower peak force",
+                true,
+            ),
+            (
+                "on the swap to iron, adaptive recovers with less overshoot",
+                false,
+            ),
+            ("on the swap to iron, adaptive settles faster", false),
+            // Within 0.1 %: too close to call.
+            (
+                "on iron, adaptive holds the force with a lower RMS error",
+                false,
+            ),
+        ],
+    );
 }
 
 #[test]
 fn lyapunov_field_is_present_and_non_increasing() {
-    for res in [ideal(), pneumatic()] {
+    for file in ["paper-fig3-ideal.toml", "paper-fig3.toml"] {
+        let (res, _) = run(file);
         let a = res.iter().find(|r| r.name == "adaptive").unwrap();
         let l = a.lyapunov.expect("adaptive runs carry the Lyapunov check");
         assert!(l.non_increasing && l.v_end <= l.v0, "{l:?}");
@@ -163,5 +139,30 @@ fn lyapunov_field_is_present_and_non_increasing() {
                 .lyapunov
                 .is_none()
         );
+    }
+}
+
+#[test]
+fn a_claim_on_an_unknown_window_or_metric_is_refused_with_its_key() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3-ideal.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    for (from, to, key) in [
+        (
+            "window = \"sine\"",
+            "window = \"sinus\"",
+            "claims[0].window",
+        ),
+        (
+            "metric = \"phase_lag_deg\"",
+            "metric = \"lag\"",
+            "claims[0].metric",
+        ),
+        ("than = \"impedance\"", "than = \"pid\"", "claims[0].than"),
+    ] {
+        let bad = text.replacen(from, to, 1);
+        let e = Scene::from_toml_str(&bad, &path, path.parent().unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(key), "{e}");
     }
 }
