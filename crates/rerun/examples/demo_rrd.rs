@@ -66,6 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let contact = (f_e > 0.0).then_some(Contact {
             point_m: [0.0, 0.0, 0.115],
             force_n: [0.0, 0.0, f_e],
+            arrow_from_m: [0.0, 0.04, 0.115],
         });
         rec.log_contact(t, contact.as_ref())?;
         rec.log_chambers(

@@ -12,12 +12,13 @@ pub mod paths;
 mod recorder;
 mod scene_observer;
 mod sink;
+pub mod units;
 
 pub use error::RerunError;
-pub use layout::default_blueprint;
+pub use layout::{Layout, Plot, blueprint, default_blueprint};
 pub use recorder::{
     ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RunRecorder, Shape,
     wall_clock_s,
 };
-pub use scene_observer::{SceneRecorder, parse_sink, sink_for_run};
+pub use scene_observer::{SceneRecorder, force_arrow_scale, parse_sink, sink_for_run};
 pub use sink::{CONNECT_PROBE_TIMEOUT, DEFAULT_VIEWER_PORT, RERUN_VERSION, Sink};

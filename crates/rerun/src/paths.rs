@@ -43,20 +43,42 @@ pub const SIGNALS: [&str; 11] = [
     ADAPTIVE_D,
 ];
 
+/// SI unit of a signal of [`SIGNALS`] as its producer declares it (`""` for another path).
+pub fn unit_of(path: &str) -> &'static str {
+    match path {
+        F_REF | F_E => "N",
+        X | X_R | ADAPTIVE_G => "m",
+        P_A | P_B => "Pa",
+        VALVE_U | VALVE_SPOOL => "1",
+        ADAPTIVE_P => "m/N",
+        ADAPTIVE_D => "s",
+        _ => "",
+    }
+}
+
+/// Path of the PWM-period average recorded beside a chattering signal (`signals/force/f_e_avg`).
+pub fn average(path: &str) -> String {
+    format!("{path}_avg")
+}
+
 /// Root of the 3D scene.
 pub const WORLD: &str = "world";
 /// Prefix of link entities (`world/links/<name>`).
 pub const LINKS: &str = "world/links";
 /// Contact point (Points3D).
 pub const CONTACT_POINT: &str = "world/contact/point";
-/// Contact force arrow (Arrows3D) starting at the contact point.
+/// Contact force arrow (Arrows3D) beside the contact, with its value as label.
 pub const CONTACT_FORCE: &str = "world/contact/force";
+/// Leader line (LineStrips3D) from the force arrow's start to the contact point.
+pub const CONTACT_LEADER: &str = "world/contact/leader";
 /// Frame of the cylinder chambers: its z axis is the cylinder axis.
 pub const CHAMBERS: &str = "world/chambers";
 /// Chamber A cylinder, coloured by p_a.
 pub const CHAMBER_A: &str = "world/chambers/a";
 /// Chamber B cylinder, coloured by p_b.
 pub const CHAMBER_B: &str = "world/chambers/b";
+/// Piston rod (Cylinders3D along its z, static) from the piston to the flange; its pose over time.
+pub const ROD: &str = "world/rod";
 /// Scene events (TextLog).
 pub const EVENTS: &str = "events";
 

@@ -4,12 +4,13 @@ use std::collections::HashMap;
 use std::time::Duration;
 
 use rerun::{
-    Arrows3D, Boxes3D, Color, Cylinders3D, Ellipsoids3D, EntityPath, FillMode, Points3D,
-    RecordingStream, RecordingStreamBuilder, Scalars, SeriesLines, TextLog, TimeCell, TimeColumn,
-    Transform3D,
+    Arrows3D, Boxes3D, Color, Cylinders3D, Ellipsoids3D, EntityPath, FillMode, LineStrips3D,
+    Points3D, RecordingStream, RecordingStreamBuilder, Scalars, SeriesLines, TextLog, TimeCell,
+    TimeColumn, Transform3D, ViewCoordinates,
 };
 
 use crate::RerunError;
+use crate::layout::Layout;
 use crate::paths;
 use crate::sink::{self, CONNECT_PROBE_TIMEOUT, RERUN_VERSION, Sink};
 
@@ -55,8 +56,10 @@ pub struct RecorderOptions {
     pub pressure_high_pa: f64,
     /// Length of the contact-force arrow per newton (m/N).
     pub force_arrow_m_per_n: f64,
-    /// Send the default layout (3D view beside force and position plots).
+    /// Send the layout (3D view beside force and position plots), active from the start and the default.
     pub send_blueprint: bool,
+    /// The plots of the layout.
+    pub layout: Layout,
     /// Longest wait for a viewer to take the data in `flush`/`finish` (file sinks always wait).
     pub stream_flush_timeout: Duration,
 }
@@ -70,6 +73,7 @@ impl Default for RecorderOptions {
             pressure_high_pa: 7.0e5,
             force_arrow_m_per_n: 1.0e-3,
             send_blueprint: true,
+            layout: Layout::default(),
             stream_flush_timeout: Duration::from_secs(5),
         }
     }
@@ -139,11 +143,20 @@ pub struct LinkShape {
 /// A contact between the actuator and the environment at one instant (world frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Contact {
-    /// Contact point (m).
+    /// Contact point (m), drawn as a point.
     pub point_m: [f64; 3],
-    /// Force on the environment at that point (N).
+    /// The force drawn (N), as an arrow of `force_arrow_m_per_n` per newton labelled with its magnitude.
     pub force_n: [f64; 3],
+    /// Where the arrow starts (m): the contact point, or beside it so that the arrow is outside the bodies.
+    pub arrow_from_m: [f64; 3],
 }
+
+/// Radius of the drawn contact point, m.
+const CONTACT_POINT_RADIUS_M: f32 = 0.003;
+/// Shaft radius of the contact-force arrow, m.
+const FORCE_ARROW_RADIUS_M: f32 = 0.0015;
+/// Colour of the contact point and the force arrow: a yellow that stands out against every body.
+const CONTACT_COLOUR: [u8; 4] = [255, 210, 0, 255];
 
 /// Both chambers of the cylinder at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -189,8 +202,13 @@ struct ContactColumn {
     times: Vec<i64>,
     counts: Vec<usize>,
     points: Vec<[f32; 3]>,
+    origins: Vec<[f32; 3]>,
     arrows: Vec<[f32; 3]>,
+    labels: Vec<String>,
 }
+
+/// Radius of the leader line from the arrow to the contact point, m.
+const LEADER_RADIUS_M: f32 = 0.0005;
 
 /// Per-step chamber cylinders (length, centre and pressure colour per row).
 struct ChamberColumn {
@@ -237,7 +255,9 @@ impl RunRecorder {
         })?;
         let mut builder = RecordingStreamBuilder::new(app).recording_name(recording_name);
         if opts.send_blueprint {
-            builder = builder.with_default_blueprint(crate::layout::default_blueprint(opts.clock));
+            // Active when the recording starts (a viewer's own layout does not win over it) and the
+            // default the viewer returns to on "reset".
+            builder = builder.with_blueprint(crate::layout::blueprint(opts.clock, &opts.layout));
         }
         let rec = match sink {
             Sink::Save(path) => {
@@ -287,15 +307,73 @@ impl RunRecorder {
                 times: Vec::with_capacity(n),
                 counts: Vec::with_capacity(n),
                 points: Vec::with_capacity(n),
+                origins: Vec::with_capacity(n),
                 arrows: Vec::with_capacity(n),
+                labels: Vec::with_capacity(n),
             },
             chambers: [chamber(paths::CHAMBER_A), chamber(paths::CHAMBER_B)],
             opts,
         };
-        for path in paths::SIGNALS {
-            me.scalar_slot(path)?;
-        }
+        me.log_static_styles()?;
         Ok(me)
+    }
+
+    /// What does not change over a run: the 3D view's up direction (z), the contact's colour and sizes.
+    fn log_static_styles(&mut self) -> Result<(), RerunError> {
+        let [r, g, b, a] = CONTACT_COLOUR;
+        let colour = Color::from_unmultiplied_rgba(r, g, b, a);
+        let statics: [(&str, &dyn rerun::AsComponents); 4] = [
+            (paths::WORLD, &ViewCoordinates::RIGHT_HAND_Z_UP()),
+            (
+                paths::CONTACT_POINT,
+                &Points3D::update_fields()
+                    .with_radii([CONTACT_POINT_RADIUS_M])
+                    .with_colors([colour]),
+            ),
+            (
+                paths::CONTACT_FORCE,
+                &Arrows3D::update_fields()
+                    .with_radii([FORCE_ARROW_RADIUS_M])
+                    .with_colors([colour])
+                    .with_show_labels(true),
+            ),
+            (
+                paths::CONTACT_LEADER,
+                &LineStrips3D::update_fields()
+                    .with_radii([LEADER_RADIUS_M])
+                    .with_colors([colour]),
+            ),
+        ];
+        for (path, arch) in statics {
+            let entity = EntityPath::from(path);
+            self.rec
+                .log_static(entity.clone(), arch)
+                .map_err(|e| Self::log_err(&entity, e))?;
+        }
+        Ok(())
+    }
+
+    /// Registers a signal path with its series name, colour (RGBA) and line width (UI points), before
+    /// or after its first sample; without it a path is registered on first use named by its last part.
+    pub fn register_series(
+        &mut self,
+        path: &str,
+        name: &str,
+        colour: [u8; 4],
+        width: f32,
+    ) -> Result<(), RerunError> {
+        self.scalar_slot(path)?;
+        let entity = EntityPath::from(path);
+        let [r, g, b, a] = colour;
+        self.rec
+            .log_static(
+                entity.clone(),
+                &SeriesLines::new()
+                    .with_names([name])
+                    .with_colors([Color::from_unmultiplied_rgba(r, g, b, a)])
+                    .with_widths([width]),
+            )
+            .map_err(|e| Self::log_err(&entity, e))
     }
 
     /// The options this recorder runs with.
@@ -502,9 +580,12 @@ impl RunRecorder {
         match contact {
             Some(k) => {
                 let s = self.opts.force_arrow_m_per_n;
+                let magnitude = k.force_n.iter().map(|f| f * f).sum::<f64>().sqrt();
                 c.counts.push(1);
                 c.points.push(k.point_m.map(|v| v as f32));
+                c.origins.push(k.arrow_from_m.map(|v| v as f32));
                 c.arrows.push(k.force_n.map(|f| (f * s) as f32));
+                c.labels.push(format!("{magnitude:.1} N"));
             }
             None => c.counts.push(0),
         }
@@ -530,18 +611,30 @@ impl RunRecorder {
             .send_columns(point_path.clone(), [self.time_column(&c.times)], points)
             .map_err(|e| Self::log_err(&point_path, e))?;
         let arrows = Arrows3D::update_fields()
-            .with_origins(c.points.iter().copied())
+            .with_origins(c.origins.iter().copied())
             .with_vectors(c.arrows.iter().copied())
+            .with_labels(c.labels.iter().map(String::as_str))
             .columns(counts.iter().copied())
             .map_err(|e| Self::log_err(&force_path, e))?;
         self.rec
             .send_columns(force_path.clone(), [self.time_column(&c.times)], arrows)
             .map_err(|e| Self::log_err(&force_path, e))?;
+        let leader_path = EntityPath::from(paths::CONTACT_LEADER);
+        // A leader line from where the arrow starts to the contact point, when they differ.
+        let leaders = LineStrips3D::update_fields()
+            .with_strips(c.origins.iter().zip(&c.points).map(|(a, b)| [*a, *b]))
+            .columns(counts.iter().copied())
+            .map_err(|e| Self::log_err(&leader_path, e))?;
+        self.rec
+            .send_columns(leader_path.clone(), [self.time_column(&c.times)], leaders)
+            .map_err(|e| Self::log_err(&leader_path, e))?;
         let c = &mut self.contact;
         c.times.clear();
         c.counts.clear();
         c.points.clear();
+        c.origins.clear();
         c.arrows.clear();
+        c.labels.clear();
         Ok(())
     }
 

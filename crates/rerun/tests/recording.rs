@@ -31,6 +31,8 @@ fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
     })
     .unwrap();
     rec.set_chamber_bore(0.032).unwrap();
+    rec.register_series(paths::VALVE_U, "u [-]", [0, 200, 0, 255], 1.5)
+        .unwrap();
     rec.log_event(0.0, EventLevel::Info, "start").unwrap();
     for k in 0..steps {
         let t = k as f64 * dt;
@@ -57,6 +59,7 @@ fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
         let contact = (k % 2 == 0).then_some(Contact {
             point_m: [0.0, 0.0, x],
             force_n: [0.0, 0.0, -20.0],
+            arrow_from_m: [0.0, 0.03, x],
         });
         rec.log_contact(t, contact.as_ref()).unwrap();
         rec.log_chambers(
