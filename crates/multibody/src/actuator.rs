@@ -45,8 +45,8 @@ impl<T: AxialActuator + ?Sized> AxialActuator for &mut T {
 }
 
 /// The pneumatic cylinder as a force element: it integrates the two chamber states (eqs. (2)-(10), via
-/// `pneuflex_pneumatics::Actuator::step_chambers`) and the valve (`ValveModel::spool`) over each physics
-/// step, in `substeps` equal substeps, with the flange moving at the step's velocity, and returns the
+/// `pneuflex_pneumatics::Actuator::step_chambers`) and the valve (`ValveModel::segment`) over each physics
+/// step, in `substeps` equal substeps split at the valve's spool edges, with the flange moving at the step's velocity, and returns the
 /// piston force p_a S_a - p_b S_b - p_atm S_rod (eq. (1)'s F_1 - F_2). Viscous friction K_v is the
 /// URDF joint damping and is not added here.
 #[derive(Debug, Clone)]
@@ -116,15 +116,36 @@ impl AxialActuator for PneumaticForceElement {
         let mut f_sum = 0.0;
         for i in 0..n {
             let xi = x + x_dot * h * f64::from(i);
-            let spool = self
-                .actuator
-                .valve
-                .spool(&mut self.valve, self.command, self.time_s, h);
-            // Average of the force at both ends of the substep (trapezoid over the physics step).
-            let f0 = self.actuator.piston_force(&self.chambers);
-            self.actuator
-                .step_chambers(&mut self.chambers, xi, x_dot, spool, h);
-            f_sum += 0.5 * (f0 + self.actuator.piston_force(&self.chambers));
+            // The substep is split at every spool edge inside it (`ValveModel::segment`: the delayed PWM
+            // edges of an on/off valve; never for the proportional valve): RK4 up to the edge with the
+            // spool before it, on from it with the spool after it.
+            let (t_sub, t_end) = (self.time_s, self.time_s + h);
+            let (mut tau, mut rest) = (t_sub, h);
+            loop {
+                let (spool, edge) =
+                    self.actuator
+                        .valve
+                        .segment(&mut self.valve, self.command, tau, rest);
+                let len = edge.map_or(rest, |e| e - tau);
+                // Average of the force at both ends of the piece (trapezoid over the physics step,
+                // weighted by the piece's share of the substep: 1 for an unsplit substep).
+                let f0 = self.actuator.piston_force(&self.chambers);
+                let x_piece = if tau == t_sub {
+                    xi
+                } else {
+                    xi + x_dot * (tau - t_sub)
+                };
+                self.actuator
+                    .step_chambers(&mut self.chambers, x_piece, x_dot, spool, len);
+                f_sum += 0.5 * (f0 + self.actuator.piston_force(&self.chambers)) * (len / h);
+                match edge {
+                    Some(e) if e < t_end => {
+                        tau = e;
+                        rest = t_end - e;
+                    }
+                    _ => break,
+                }
+            }
             self.time_s += h;
         }
         f_sum / f64::from(n)

@@ -169,33 +169,65 @@ impl OneDofModel {
         }
     }
 
-    /// Advances the model by one fixed RK4 step `dt` under valve command `u` in [-1, 1] and external force
-    /// `f_ext` (N, along +x). The valve is advanced first and its spool held over the step; the end stops
-    /// are hard (inelastic) and applied after the step. Allocation-free.
-    pub fn step(&self, state: &mut OneDofState, u: f64, f_ext: f64, dt: f64) {
-        let spool = self.actuator.valve.spool(&mut state.valve, u, state.t, dt);
-        // The spool is held over the step: openings, areas and flow constants are evaluated once, and
-        // f_load = G_alpha + f_ext (sin is costly).
-        let f_load = self.mechanics.gravity_force() + f_ext;
-        let k = StepConsts {
-            chambers: self.actuator.step_consts(spool),
-            f_load,
-            inv_mass: 1.0 / self.mechanics.moving_mass_kg,
-        };
-        let (x0, v0, c0) = (state.x, state.x_dot, state.chambers);
+    /// One classic RK4 step of length `dt` from `(x0, v0, c0)` with the constants `k` held.
+    #[inline(always)]
+    fn rk4(
+        &self,
+        k: &StepConsts,
+        x0: f64,
+        v0: f64,
+        c0: ChamberState,
+        dt: f64,
+    ) -> (f64, f64, ChamberState) {
         let h = 0.5 * dt;
-        let k1 = self.rates(&k, x0, v0, &c0);
-        let k2 = self.rates(&k, x0 + h * k1.x, v0 + h * k1.v, &axpy(&c0, h, &k1.c));
-        let k3 = self.rates(&k, x0 + h * k2.x, v0 + h * k2.v, &axpy(&c0, h, &k2.c));
-        let k4 = self.rates(&k, x0 + dt * k3.x, v0 + dt * k3.v, &axpy(&c0, dt, &k3.c));
+        let k1 = self.rates(k, x0, v0, &c0);
+        let k2 = self.rates(k, x0 + h * k1.x, v0 + h * k1.v, &axpy(&c0, h, &k1.c));
+        let k3 = self.rates(k, x0 + h * k2.x, v0 + h * k2.v, &axpy(&c0, h, &k2.c));
+        let k4 = self.rates(k, x0 + dt * k3.x, v0 + dt * k3.v, &axpy(&c0, dt, &k3.c));
         let w = dt / 6.0;
-        let mut x = x0 + w * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
-        let mut v = v0 + w * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
+        let x = x0 + w * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
+        let v = v0 + w * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
         let mut c = c0;
         c.p_a += w * (k1.c.p_a + 2.0 * k2.c.p_a + 2.0 * k3.c.p_a + k4.c.p_a);
         c.p_b += w * (k1.c.p_b + 2.0 * k2.c.p_b + 2.0 * k3.c.p_b + k4.c.p_b);
         c.t_a += w * (k1.c.t_a + 2.0 * k2.c.t_a + 2.0 * k3.c.t_a + k4.c.t_a);
         c.t_b += w * (k1.c.t_b + 2.0 * k2.c.t_b + 2.0 * k3.c.t_b + k4.c.t_b);
+        (x, v, c)
+    }
+
+    /// Advances the model by one fixed step `dt` under valve command `u` in [-1, 1] and external force
+    /// `f_ext` (N, along +x), with classic RK4. The step is split at every spool edge inside it
+    /// ([`crate::ValveModel::segment`]: the PWM edges of an on/off valve, delayed by the switching delay):
+    /// RK4 up to the edge with the spool before it, then on from the edge with the spool after it, so the
+    /// result converges with `dt` (for the proportional valve: one RK4 step with the spool held). The end
+    /// stops are hard (inelastic) and applied after the step. Allocation-free.
+    pub fn step(&self, state: &mut OneDofState, u: f64, f_ext: f64, dt: f64) {
+        // f_load = G_alpha + f_ext is held over the step (sin is costly).
+        let f_load = self.mechanics.gravity_force() + f_ext;
+        let inv_mass = 1.0 / self.mechanics.moving_mass_kg;
+        let (mut x, mut v, mut c) = (state.x, state.x_dot, state.chambers);
+        let t_end = state.t + dt;
+        let (mut tau, mut rest) = (state.t, dt);
+        let mut chambers;
+        loop {
+            let (spool, edge) = self.actuator.valve.segment(&mut state.valve, u, tau, rest);
+            // The spool is held over the piece: openings, areas and flow constants are evaluated once.
+            let k = StepConsts {
+                chambers: self.actuator.step_consts(spool),
+                f_load,
+                inv_mass,
+            };
+            let h = edge.map_or(rest, |e| e - tau);
+            (x, v, c) = self.rk4(&k, x, v, c, h);
+            chambers = k.chambers;
+            match edge {
+                Some(e) if e < t_end => {
+                    tau = e;
+                    rest = t_end - e;
+                }
+                _ => break,
+            }
+        }
         // End stops: inelastic, the stop absorbs any velocity into it.
         let stroke = self.actuator.cylinder.stroke_m;
         if x <= 0.0 {
@@ -212,7 +244,7 @@ impl OneDofModel {
             ..
         } = self.mechanics.friction
             && v.abs() < stick_velocity_m_per_s
-            && (k.chambers.piston_force(&c) + f_load).abs() <= static_n
+            && (chambers.piston_force(&c) + f_load).abs() <= static_n
         {
             v = 0.0;
         }

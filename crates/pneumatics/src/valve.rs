@@ -104,7 +104,8 @@ impl ValveModel {
 
     /// Advances the valve over `[t, t + dt]` under command `u` and returns the spool position to hold
     /// during that step (zero-order hold; for PWM the spool is sampled at mid-step, so `dt` must be much
-    /// shorter than the PWM period to resolve the duty).
+    /// shorter than the PWM period to resolve the duty, and an edge inside the step is not located: the
+    /// integrators use [`ValveModel::segment`], which is this for the proportional valve).
     pub fn spool(&self, state: &mut ValveState, u: f64, t: f64, dt: f64) -> f64 {
         let u = sanitize(u);
         match self.kind {
@@ -161,6 +162,59 @@ impl ValveModel {
         state.spool
     }
 
+    /// Advances the valve from `t` over at most `dt` under command `u` (held) and returns the spool
+    /// position and how far it holds: `(spool, None)` for the whole of `[t, t + dt]`, `(spool, Some(t_e))`
+    /// up to the spool edge at the absolute time `t_e`, strictly inside `(t, t + dt)`. An integrator calls it
+    /// again from `t_e` (with the rest of its step) and integrates each piece with its spool held, so every
+    /// PWM edge, delayed by `switching_delay_s`, falls on a piece boundary: the results converge with the
+    /// step instead of sampling the spool once per step ([`ValveModel::spool`]).
+    ///
+    /// For the proportional valve this is [`ValveModel::spool`] over `dt` and never an edge. Under PWM the
+    /// duty of each period is latched from `u` at the period start (a start inside `[t, t + dt)` latches the
+    /// `u` of this call: the caller holds `u` over its step). Allocation-free; `t` must not go backwards.
+    pub fn segment(&self, state: &mut ValveState, u: f64, t: f64, dt: f64) -> (f64, Option<f64>) {
+        let ValveKind::OnOffPwm {
+            pwm_frequency_hz,
+            switching_delay_s,
+        } = self.kind
+        else {
+            return (self.spool(state, u, t, dt), None);
+        };
+        let pwm = Pwm {
+            period: 1.0 / pwm_frequency_hz,
+            delay: switching_delay_s,
+        };
+        let duty = 0.5 * (1.0 + sanitize(u));
+        pwm.latch(state, duty, t);
+        let s0 = pwm.spool_at(state, t);
+        state.spool = s0;
+        let t_end = t + dt;
+        let mut tau = t;
+        loop {
+            // Inside the current period [start_k, start_k+1) the spool can change at the previous
+            // period's delayed falling edge, this period's delayed rising edge and its falling edge.
+            let next_start = pwm.start(state, state.period + 1);
+            let lim = next_start.min(t_end);
+            for c in [pwm.fall_prev(state), pwm.rise(state), pwm.fall(state)] {
+                if c > tau && c < lim && pwm.spool_at(state, c) != s0 {
+                    return (s0, Some(c));
+                }
+            }
+            // A period start within `snap` of the step's end belongs to the next call (see `Pwm::snap`).
+            if next_start >= t_end - pwm.snap() {
+                return (s0, None);
+            }
+            // The next period starts inside the step: latch its duty from this call's command.
+            state.prev_duty = state.duty;
+            state.duty = duty;
+            state.period += 1;
+            tau = next_start;
+            if pwm.spool_at(state, tau) != s0 {
+                return (s0, Some(tau));
+            }
+        }
+    }
+
     /// The duty-cycle (PWM) or spool (proportional) weights used to average the flows of a steady
     /// command `u`: returns `(w, s_hi, s_lo)` so that mean flow = w q(s_hi) + (1 - w) q(s_lo).
     pub fn averaging(&self, u: f64) -> (f64, f64, f64) {
@@ -169,5 +223,92 @@ impl ValveModel {
             ValveKind::Proportional { .. } => (1.0, u, u),
             ValveKind::OnOffPwm { .. } => (0.5 * (1.0 + u), 1.0, -1.0),
         }
+    }
+}
+
+/// The PWM clock of an on/off valve: period and switching delay, and the edge times of the latched
+/// periods. Every time is computed by one expression (`start`, `rise`, `fall`, `fall_prev`), so an edge
+/// returned by [`ValveModel::segment`] compares equal to itself when the next piece starts there.
+struct Pwm {
+    /// PWM period T, s.
+    period: f64,
+    /// Switching delay, s (< T).
+    delay: f64,
+}
+
+impl Pwm {
+    /// How close (s) a period start may lie after a call's time `t` and still count as started at `t`:
+    /// 1e-7 of the period. The callers' clocks accumulate their steps (`t += dt`), so a period start meant
+    /// to coincide with a control tick lands a rounding error before or after it; without the snap the duty
+    /// would be latched from the previous tick's command or the new one's at random, and results would not
+    /// converge with the step. With it, a period start at a step boundary latches the new step's command.
+    #[inline]
+    fn snap(&self) -> f64 {
+        1e-7 * self.period
+    }
+
+    /// Start of period `k`, s.
+    #[inline]
+    fn start(&self, st: &ValveState, k: u64) -> f64 {
+        st.t0 + k as f64 * self.period
+    }
+
+    /// The delayed rising edge of the current period (the energised position from here on if duty > 0).
+    #[inline]
+    fn rise(&self, st: &ValveState) -> f64 {
+        self.start(st, st.period) + self.delay
+    }
+
+    /// The delayed falling edge of the current period (back to the spring position).
+    #[inline]
+    fn fall(&self, st: &ValveState) -> f64 {
+        self.rise(st) + st.duty * self.period
+    }
+
+    /// The delayed falling edge of the previous period (before the first period: the coil was off).
+    #[inline]
+    fn fall_prev(&self, st: &ValveState) -> f64 {
+        self.start(st, st.period) - self.period + self.delay + st.prev_duty * self.period
+    }
+
+    /// Starts the clock on the first call, and moves it to the period containing `t` (the largest k with
+    /// start(k) <= t + snap), latching `duty` for a new period.
+    fn latch(&self, st: &mut ValveState, duty: f64, t: f64) {
+        if !st.started {
+            st.started = true;
+            st.t0 = t;
+            st.period = 0;
+            st.duty = duty;
+            // Before the first period the coil was off: spring position.
+            st.prev_duty = 0.0;
+        }
+        // Estimate floor((t - t0) / T) (the cast truncates: the floor for positive values, without a
+        // libm call), then settle it with the exact comparisons against start(k).
+        let k = (t - st.t0) / self.period;
+        let mut k = if k > 0.0 { k as u64 } else { 0 };
+        let t = t + self.snap();
+        while self.start(st, k + 1) <= t {
+            k += 1;
+        }
+        while k > 0 && self.start(st, k) > t {
+            k -= 1;
+        }
+        if k > st.period {
+            st.prev_duty = if k == st.period + 1 { st.duty } else { duty };
+            st.duty = duty;
+            st.period = k;
+        }
+    }
+
+    /// The spool just after `tau` (right-continuous), for `tau` in the current period [start_k - snap,
+    /// start_k+1).
+    #[inline]
+    fn spool_at(&self, st: &ValveState, tau: f64) -> f64 {
+        let on = if tau >= self.rise(st) {
+            tau < self.fall(st)
+        } else {
+            tau < self.fall_prev(st)
+        };
+        if on { 1.0 } else { -1.0 }
     }
 }

@@ -59,18 +59,22 @@ fn mass_balance_with_switching_valve() {
     let (mut in_a, mut in_b, mut through) = (0.0, 0.0, 0.0);
     let mut switches = 0;
     let mut last_spool = st.valve.spool;
-    for k in 0..100_000 {
+    let t_stop = 100_000.0 * dt;
+    while st.t < t_stop {
         // A command sweeping through the duty range, so the valve switches many times.
-        let u = (2.0 * std::f64::consts::PI * 3.0 * k as f64 * dt).sin() * 0.8;
+        let u = (2.0 * std::f64::consts::PI * 3.0 * st.t).sin() * 0.8;
+        // Steps end on the valve's edges (`ValveModel::segment`), so the spool is constant over each
+        // step and the trapezoid of the port flows is the step's mass flow.
         let mut probe = st.valve;
-        let spool = m.actuator.valve.spool(&mut probe, u, st.t, dt);
+        let (spool, edge) = m.actuator.valve.segment(&mut probe, u, st.t, dt);
+        let h = edge.map_or(dt, |e| e - st.t);
         let f0 = m.actuator.port_flows(&st.chambers, spool);
-        m.step(&mut st, u, 0.0, dt);
+        m.step(&mut st, u, 0.0, h);
         assert_eq!(st.valve.spool, spool);
         let f1 = m.actuator.port_flows(&st.chambers, spool);
-        in_a += 0.5 * dt * (f0.into_a() + f1.into_a());
-        in_b += 0.5 * dt * (f0.into_b() + f1.into_b());
-        through += 0.5 * dt * (f0.p_a.abs() + f0.a_r.abs() + f1.p_a.abs() + f1.a_r.abs());
+        in_a += 0.5 * h * (f0.into_a() + f1.into_a());
+        in_b += 0.5 * h * (f0.into_b() + f1.into_b());
+        through += 0.5 * h * (f0.p_a.abs() + f0.a_r.abs() + f1.p_a.abs() + f1.a_r.abs());
         if spool != last_spool {
             switches += 1;
             last_spool = spool;

@@ -87,14 +87,15 @@ fn pneumatic_plant_claims_of_fig3() {
 fn multibody_rig_claims_of_fig3() {
     let (res, claims) = run("paper-fig3-multibody.toml");
     bounded(&res, 36.0);
-    // Settling on the PWM rig is read within the loop's own wander, and here adaptive settles later.
+    // With the PWM edges located inside the step (issue 13 item 1) adaptive settles faster here too
+    // (0.578 vs 0.806 s); with the spool sampled once per substep it settled later.
     verdicts(
         &claims,
         &[
             (FIG3_CLAIMS[0], true),
             (FIG3_CLAIMS[1], true),
             (FIG3_CLAIMS[2], false),
-            (FIG3_CLAIMS[3], false),
+            (FIG3_CLAIMS[3], true),
             (FIG3_CLAIMS[4], true),
         ],
     );
@@ -104,18 +105,21 @@ fn multibody_rig_claims_of_fig3() {
 fn wood_to_iron_claims_of_fig7() {
     let (res, claims) = run("paper-fig7-wood-to-iron.toml");
     bounded(&res, 60.0);
+    // With the PWM edges located inside the step (issue 13 item 1) the impact peaks are a tie that
+    // impedance wins by 0.06 N (45.270 vs 45.210 N; before: 45.15 vs 47.67 N, set by where in the PWM
+    // cycle the flange met the iron face), and adaptive settles faster (1.26 vs 2.33 s).
     verdicts(
         &claims,
         &[
             (
                 "on the swap to iron, adaptive hits with a lower peak force",
-                true,
+                false,
             ),
             (
                 "on the swap to iron, adaptive recovers with less overshoot",
                 false,
             ),
-            ("on the swap to iron, adaptive settles faster", false),
+            ("on the swap to iron, adaptive settles faster", true),
             // Within 0.1 %: too close to call.
             (
                 "on iron, adaptive holds the force with a lower RMS error",
