@@ -41,6 +41,7 @@ fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
     match &scene.plant {
         PlantSpec::Ideal { .. } => {}
         PlantSpec::Pneumatic { actuator, .. } => v.push(scene.resolve(actuator)),
+        PlantSpec::Linear { actuator, .. } => v.extend(actuator.iter().map(|a| scene.resolve(a))),
         PlantSpec::Multibody(mb) => {
             v.push(scene.resolve(&mb.actuator));
             v.push(scene.resolve(&mb.urdf));

@@ -79,9 +79,9 @@ impl PyActuator {
                 ..
             } => (actuator, *alpha_deg),
             PlantSpec::Multibody(mb) => (&mb.actuator, mb.alpha_deg),
-            PlantSpec::Ideal { .. } => {
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => {
                 return Err(errors::other(format!(
-                    "{}: plant: the ideal plant has no actuator sheet (kind must be \"pneumatic\" or \"multibody\")",
+                    "{}: plant: the ideal and linear plants have no actuator model to couple (kind must be \"pneumatic\" or \"multibody\")",
                     scene_path.display()
                 )));
             }

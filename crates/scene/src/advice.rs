@@ -68,7 +68,7 @@ pub fn fastest_chamber_pole(model: &OneDofModel) -> f64 {
 pub fn warnings(scene: &Scene) -> Vec<Warning> {
     let mut out = Vec::new();
     let (sheet, h, steps_key, steps_now) = match &scene.plant {
-        PlantSpec::Ideal { .. } => return out,
+        PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => return out,
         PlantSpec::Pneumatic {
             actuator, substeps, ..
         } => (

@@ -11,6 +11,7 @@
 pub mod advice;
 pub mod claims;
 pub mod error;
+pub mod linear;
 mod locate;
 pub mod metrics;
 pub mod multibody;

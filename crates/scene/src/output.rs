@@ -113,6 +113,9 @@ pub fn scene_inputs(scene: &Scene) -> Vec<InputDigest> {
     add(&scene.source, "scene");
     let (actuator, urdf) = match &scene.plant {
         crate::schema::PlantSpec::Ideal { .. } => (None, None),
+        crate::schema::PlantSpec::Linear { actuator, .. } => {
+            (actuator.as_ref().map(|a| scene.resolve(a)), None)
+        }
         crate::schema::PlantSpec::Pneumatic { actuator, .. } => {
             (Some(scene.resolve(actuator)), None)
         }
@@ -162,6 +165,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
             crate::schema::PlantSpec::Ideal { .. } => "ideal".into(),
             crate::schema::PlantSpec::Pneumatic { .. } => "pneumatic".into(),
             crate::schema::PlantSpec::Multibody(_) => "multibody".into(),
+            crate::schema::PlantSpec::Linear { .. } => "linear".into(),
         },
         runs: results
             .iter()

@@ -120,6 +120,9 @@ pub fn build_plant(scene: &Scene) -> Result<Box<dyn Plant>, SceneError> {
         ))),
         PlantSpec::Pneumatic { .. } => Ok(Box::new(OneDofPneumatic::from_scene(scene, env)?)),
         PlantSpec::Multibody(_) => Ok(Box::new(MultibodyPlant::from_scene(scene)?)),
+        PlantSpec::Linear { .. } => Ok(Box::new(crate::linear::LinearPlant::from_scene(
+            scene, env,
+        )?)),
     }
 }
 
@@ -505,7 +508,7 @@ pub fn pinned_parameters(run: &RunSpec, tr: &Trace) -> Vec<String> {
 /// plant without one.
 pub fn pwm_period_s(scene: &Scene) -> Option<f64> {
     let sheet = match &scene.plant {
-        PlantSpec::Ideal { .. } => return None,
+        PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => return None,
         PlantSpec::Pneumatic { actuator, .. } => scene.resolve(actuator),
         PlantSpec::Multibody(mb) => scene.resolve(&mb.actuator),
     };

@@ -140,6 +140,36 @@ pub enum PlantSpec {
     /// The rig as a Rapier multibody world built from URDF (pneuflex-multibody): the pneumatic force
     /// element between cylinder and flange, compliant material faces on a kinematic carriage.
     Multibody(MultibodySpec),
+    /// The paper's linear model, eqs. (16)/(17): Y(s)/P_L(s) = K_n / (s (s²/ω_n² + 2 ξ_n s/ω_n + 1)), with the
+    /// valve command as a load-pressure command p_L = u · load_pressure_range_pa and the contact force as the
+    /// load-pressure disturbance -f_e/S_a (Section III-B's simulation). From an actuator sheet (linearised at
+    /// mid-stroke, as `pneuflex tf` prints) or from given numbers.
+    Linear {
+        /// Actuator sheet to linearise; absent = the numbers below are all given.
+        #[serde(default)]
+        actuator: Option<PathBuf>,
+        /// K_n of eq. (17), m/(Pa·s).
+        #[serde(default)]
+        k_n_m_per_pa_s: Option<f64>,
+        /// ω_n of eq. (17), rad/s.
+        #[serde(default)]
+        omega_n_rad_per_s: Option<f64>,
+        /// ξ_n of eq. (17), 1.
+        #[serde(default)]
+        zeta_n: Option<f64>,
+        /// Piston area S_a, m² (turns the contact force into a load pressure).
+        #[serde(default)]
+        area_a_m2: Option<f64>,
+        /// Load pressure commanded by u = 1, Pa. Absent with a sheet: the supply's gauge pressure.
+        #[serde(default)]
+        load_pressure_range_pa: Option<f64>,
+        /// RK4 substeps per control period.
+        #[serde(default = "default_substeps")]
+        substeps: u32,
+        /// Initial flange position, m. Absent: environment.x_e_m (touching).
+        #[serde(default)]
+        x0_m: Option<f64>,
+    },
 }
 
 /// The multibody plant: URDF rig, actuator sheet, physics step and the environment materials.
@@ -605,7 +635,9 @@ impl Scene {
         let ticks = (self.duration_s / self.dt_s).round().max(0.0);
         let fine_per_tick = match &self.plant {
             PlantSpec::Ideal { .. } => 1.0,
-            PlantSpec::Pneumatic { substeps, .. } => f64::from(*substeps),
+            PlantSpec::Pneumatic { substeps, .. } | PlantSpec::Linear { substeps, .. } => {
+                f64::from(*substeps)
+            }
             PlantSpec::Multibody(mb) => {
                 (self.dt_s / mb.physics_dt_s).round().max(1.0) * f64::from(mb.chamber_substeps)
             }
@@ -642,7 +674,7 @@ impl Scene {
         if b.steps_per_run > limits.max_steps_per_run {
             let key = match &self.plant {
                 PlantSpec::Multibody(_) => "plant.physics_dt_s",
-                PlantSpec::Pneumatic { .. } => "plant.substeps",
+                PlantSpec::Pneumatic { .. } | PlantSpec::Linear { .. } => "plant.substeps",
                 PlantSpec::Ideal { .. } => "dt_s",
             };
             return Err(self.invalid(
@@ -764,6 +796,53 @@ impl Scene {
                 }
             }
             PlantSpec::Multibody(mb) => self.validate_multibody(&v, mb)?,
+            PlantSpec::Linear {
+                actuator,
+                k_n_m_per_pa_s,
+                omega_n_rad_per_s,
+                zeta_n,
+                area_a_m2,
+                load_pressure_range_pa,
+                substeps,
+                x0_m,
+            } => {
+                if *substeps == 0 {
+                    return Err(v.err("plant.substeps", "must be >= 1, got 0".into()));
+                }
+                let given = [
+                    ("plant.k_n_m_per_pa_s", *k_n_m_per_pa_s),
+                    ("plant.omega_n_rad_per_s", *omega_n_rad_per_s),
+                    ("plant.zeta_n", *zeta_n),
+                    ("plant.area_a_m2", *area_a_m2),
+                    ("plant.load_pressure_range_pa", *load_pressure_range_pa),
+                ];
+                for (key, val) in given {
+                    match (val, key) {
+                        (Some(z), "plant.zeta_n") => v.non_negative(key, z)?,
+                        (Some(x), _) => v.positive(key, x)?,
+                        (None, _) => {
+                            // Without a sheet every number is needed; with one, only the pressure range
+                            // has a default and the rest comes from the linearisation.
+                            if actuator.is_none() {
+                                return Err(v.err(
+                                    key,
+                                    "missing: give an actuator sheet (plant.actuator) or all of k_n_m_per_pa_s, omega_n_rad_per_s, zeta_n, area_a_m2 and load_pressure_range_pa".into(),
+                                ));
+                            }
+                        }
+                    }
+                }
+                if actuator.is_some() && given[..4].iter().any(|(_, x)| x.is_some()) {
+                    return Err(v.err(
+                        "plant.actuator",
+                        "give either an actuator sheet or K_n, omega_n, zeta_n and S_a, not both"
+                            .into(),
+                    ));
+                }
+                if let Some(x) = x0_m {
+                    v.finite("plant.x0_m", *x)?;
+                }
+            }
         }
         v.non_negative(
             "environment.stiffness_n_per_m",
@@ -896,10 +975,13 @@ impl Scene {
                             format!("must be in [-90, 90], got {alpha_deg}"),
                         ));
                     }
-                    if matches!(self.plant, PlantSpec::Ideal { .. }) {
+                    if matches!(
+                        self.plant,
+                        PlantSpec::Ideal { .. } | PlantSpec::Linear { .. }
+                    ) {
                         return Err(v.err(
                             &at("kind"),
-                            "\"alpha\" has no effect on plant.kind = \"ideal\" (no gravity in the ideal loop)".into(),
+                            "\"alpha\" has no effect on plant.kind = \"ideal\" or \"linear\" (no gravity in those models)".into(),
                         ));
                     }
                 }
