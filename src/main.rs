@@ -24,6 +24,13 @@ enum Command {
         /// Print one JSON object (SI units) instead of a table.
         #[arg(long)]
         json: bool,
+        /// For a scene: the inner position loop's margins for each run at every stiffness the scene meets,
+        /// the largest kp with `--margin-db` of gain margin, and the predicted limit-cycle onset.
+        #[arg(long = "loop")]
+        loop_analysis: bool,
+        /// Gain margin the largest kp is computed for, dB.
+        #[arg(long, default_value_t = 6.0)]
+        margin_db: f64,
     },
     /// Run every controller a scene lists; write traces, summary.json and figures.
     Run {
@@ -93,7 +100,13 @@ enum RigCommand {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Tf { file, json } => cmd::tf::tf(&file, json).map(|text| println!("{text}")),
+        Command::Tf {
+            file,
+            json,
+            loop_analysis: true,
+            margin_db,
+        } => cmd::tf::loop_margins(&file, margin_db, json).map(|text| println!("{text}")),
+        Command::Tf { file, json, .. } => cmd::tf::tf(&file, json).map(|text| println!("{text}")),
         Command::Run {
             scene,
             out,

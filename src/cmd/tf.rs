@@ -66,3 +66,60 @@ pub fn tf(path: &Path, json: bool) -> anyhow::Result<String> {
     }
     Ok(s)
 }
+
+/// `pneuflex tf <scene> --loop`: each run's inner-loop margins at every stiffness the scene meets, the
+/// largest kp with `margin_db` of gain margin, and (on a pneumatic plant) the limit-cycle onset predicted by
+/// describing functions of the valve and the friction (docs/scenes.md, "Inner-loop margins").
+pub fn loop_margins(path: &Path, margin_db: f64, json: bool) -> anyhow::Result<String> {
+    use pneuflex_scene::loop_analysis::{analyse, limit_cycle_onset};
+    anyhow::ensure!(
+        margin_db.is_finite() && margin_db >= 0.0,
+        "--margin-db: expected a finite number >= 0, got {margin_db}"
+    );
+    let scene = pneuflex_scene::Scene::load(path)?;
+    let mut out = Vec::new();
+    let mut s = String::new();
+    for i in 0..scene.runs.len() {
+        let a = analyse(&scene, i, margin_db)?;
+        writeln!(
+            s,
+            "run `{}` (kp = {} /m): inner position loop, broken at the valve command",
+            a.run, a.kp_per_m
+        )?;
+        let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
+        let mut onsets = Vec::new();
+        for m in &a.margins {
+            let onset = match &scene.plant {
+                pneuflex_scene::PlantSpec::Pneumatic { .. } => {
+                    let env = pneuflex_scene::LinearSpring {
+                        stiffness_n_per_m: m.stiffness_n_per_m,
+                        x_e_m: scene.environment.x_e_m,
+                    };
+                    let p = pneuflex_scene::OneDofPneumatic::from_scene(&scene, env)?;
+                    limit_cycle_onset(&p, &scene, &scene.runs[i], m.stiffness_n_per_m)
+                }
+                _ => None,
+            };
+            writeln!(
+                s,
+                "  k_e = {:>8} N/m: crossover {} Hz, phase margin {} deg; phase crossover {} Hz, gain margin {} dB; kp for {margin_db} dB: {} /m{}",
+                m.stiffness_n_per_m,
+                f(m.crossover_hz, 2),
+                f(m.phase_margin_deg, 1),
+                f(m.phase_crossover_hz, 2),
+                f(m.gain_margin_db, 1),
+                f(m.kp_max_per_m, 2),
+                onset.map_or(String::new(), |(k, hz, a)| format!(
+                    "; limit cycle predicted from kp = {k:.2} /m at {hz:.1} Hz ({:.1} mm)",
+                    a * 1e3
+                ))
+            )?;
+            onsets.push(onset.map(|(k, hz, a)| serde_json::json!({"kp_per_m": k, "frequency_hz": hz, "amplitude_m": a})));
+        }
+        out.push(serde_json::json!({"analysis": a, "limit_cycle_onsets": onsets}));
+    }
+    if json {
+        return Ok(serde_json::to_string_pretty(&out)?);
+    }
+    Ok(s)
+}

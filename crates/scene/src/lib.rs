@@ -13,6 +13,7 @@ pub mod claims;
 pub mod error;
 pub mod linear;
 mod locate;
+pub mod loop_analysis;
 pub mod metrics;
 pub mod multibody;
 pub mod output;

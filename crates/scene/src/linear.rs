@@ -137,6 +137,18 @@ impl LinearPlant {
     }
 }
 
+impl crate::loop_analysis::Linearisable for LinearPlant {
+    fn state_vector(&self) -> Vec<f64> {
+        self.state.to_vec()
+    }
+    fn set_state_vector(&mut self, v: &[f64]) {
+        self.state.copy_from_slice(&v[..3]);
+    }
+    fn perturbation_scales(&self) -> Vec<f64> {
+        vec![1e-7, 1e-6, 1e-5]
+    }
+}
+
 impl Plant for LinearPlant {
     fn sense(&self) -> Sensors {
         Sensors {

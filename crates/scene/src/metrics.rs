@@ -84,6 +84,64 @@ fn solve3(mut m: [[f64; 3]; 3], mut r: [f64; 3]) -> Option<[f64; 3]> {
     Some(x)
 }
 
+/// `y` less its least-squares fit by a bias and the first `harmonics` harmonics of `frequency_hz`: what is
+/// left is not periodic with the reference (a limit cycle at its own frequency, noise). A reference-periodic
+/// distortion — the odd harmonics friction puts on a tracked sine — is removed with it.
+pub fn remove_harmonics(t: &[f64], y: &[f64], frequency_hz: f64, harmonics: usize) -> Vec<f64> {
+    let w = std::f64::consts::TAU * frequency_hz;
+    let m = 1 + 2 * harmonics;
+    let basis = |ti: f64| -> Vec<f64> {
+        let mut b = Vec::with_capacity(m);
+        b.push(1.0);
+        for k in 1..=harmonics {
+            let a = k as f64 * w * ti;
+            b.push(a.sin());
+            b.push(a.cos());
+        }
+        b
+    };
+    let mut ata = vec![vec![0.0; m]; m];
+    let mut aty = vec![0.0; m];
+    for (&ti, &yi) in t.iter().zip(y) {
+        let b = basis(ti);
+        for i in 0..m {
+            for j in 0..m {
+                ata[i][j] += b[i] * b[j];
+            }
+            aty[i] += b[i] * yi;
+        }
+    }
+    // Gaussian elimination with partial pivoting; a singular fit leaves y as it is.
+    for col in 0..m {
+        let Some(piv) = (col..m).max_by(|&a, &b| ata[a][col].abs().total_cmp(&ata[b][col].abs()))
+        else {
+            return y.to_vec();
+        };
+        if ata[piv][col].abs() < 1e-12 {
+            return y.to_vec();
+        }
+        ata.swap(col, piv);
+        aty.swap(col, piv);
+        for row in col + 1..m {
+            let f = ata[row][col] / ata[col][col];
+            let pivot_row = ata[col].clone();
+            for (x, p) in ata[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *x -= f * p;
+            }
+            aty[row] -= f * aty[col];
+        }
+    }
+    let mut c = vec![0.0; m];
+    for i in (0..m).rev() {
+        let s: f64 = (i + 1..m).map(|k| ata[i][k] * c[k]).sum();
+        c[i] = (aty[i] - s) / ata[i][i];
+    }
+    t.iter()
+        .zip(y)
+        .map(|(&ti, &yi)| yi - basis(ti).iter().zip(&c).map(|(b, ci)| b * ci).sum::<f64>())
+        .collect()
+}
+
 /// Phase lag of `y` behind `reference` at frequency `frequency_hz`, degrees in (-180, 180]
 /// (positive = y lags). Both signals are fitted by least squares with a bias.
 pub fn phase_lag_deg(t: &[f64], reference: &[f64], y: &[f64], frequency_hz: f64) -> Option<f64> {
@@ -251,18 +309,11 @@ pub fn event_response(
     let peak_error_n = err.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
     let tracking_error_n = tail.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
 
-    // Does the tail hold a sustained oscillation? Remove the reference's own periodic part (bias, and the
-    // sine at the reference frequency) and look at what is left.
+    // Does the tail hold a sustained oscillation? Remove the reference's own periodic part (bias and the
+    // first five harmonics of the reference frequency) and look at what is left.
     let tt = &t[i_tail..n];
     let residual: Vec<f64> = match steady {
-        Steady::Periodic(f) => match fit_sine(tt, tail, std::f64::consts::TAU * f) {
-            Some((a, ph, c)) => tt
-                .iter()
-                .zip(tail)
-                .map(|(&ti, &e)| e - (a * (std::f64::consts::TAU * f * ti + ph).sin() + c))
-                .collect(),
-            None => tail.to_vec(),
-        },
+        Steady::Periodic(f) => remove_harmonics(tt, tail, f, 5),
         Steady::Constant => {
             let m = tail.iter().sum::<f64>() / n_tail as f64;
             tail.iter().map(|e| e - m).collect()

@@ -100,6 +100,66 @@ impl OneDofPneumatic {
     }
 }
 
+impl crate::loop_analysis::Linearisable for OneDofPneumatic {
+    fn state_vector(&self) -> Vec<f64> {
+        let s = &self.state;
+        let c = &s.chambers;
+        vec![s.x, s.x_dot, c.p_a, c.p_b, c.t_a, c.t_b, s.valve.spool]
+    }
+    fn set_state_vector(&mut self, v: &[f64]) {
+        let s = &mut self.state;
+        (s.x, s.x_dot) = (v[0], v[1]);
+        (
+            s.chambers.p_a,
+            s.chambers.p_b,
+            s.chambers.t_a,
+            s.chambers.t_b,
+        ) = (v[2], v[3], v[4], v[5]);
+        s.valve.spool = v[6];
+    }
+    fn perturbation_scales(&self) -> Vec<f64> {
+        // m, m/s, Pa, Pa, K, K, 1: small against each state's range, large against rounding.
+        vec![1e-7, 1e-6, 1.0, 1.0, 1e-3, 1e-3, 1e-6]
+    }
+    fn coulomb_n(&self) -> f64 {
+        match self.model.mechanics.friction {
+            pneuflex_pneumatics::Friction::Smooth { coulomb_n, .. }
+            | pneuflex_pneumatics::Friction::StickSlip { coulomb_n, .. } => coulomb_n,
+        }
+    }
+    fn add_viscous(&mut self, c: f64) {
+        self.model.mechanics.viscous_n_s_per_m += c;
+    }
+    fn without_coulomb_friction(&mut self) {
+        use pneuflex_pneumatics::Friction;
+        self.model.mechanics.friction = match self.model.mechanics.friction {
+            Friction::Smooth {
+                smooth_velocity_m_per_s,
+                ..
+            } => Friction::Smooth {
+                coulomb_n: 0.0,
+                smooth_velocity_m_per_s,
+            },
+            Friction::StickSlip {
+                stribeck_velocity_m_per_s,
+                stick_velocity_m_per_s,
+                ..
+            } => Friction::StickSlip {
+                coulomb_n: 0.0,
+                static_n: 0.0,
+                stribeck_velocity_m_per_s,
+                stick_velocity_m_per_s,
+            },
+        };
+    }
+    fn switching(&self) -> bool {
+        matches!(
+            self.model.actuator.valve.kind,
+            pneuflex_pneumatics::ValveKind::OnOffPwm { .. }
+        )
+    }
+}
+
 impl Plant for OneDofPneumatic {
     fn signals(&self) -> &'static [pneuflex_control::Signal] {
         &crate::plant::VALVE_SIGNALS
