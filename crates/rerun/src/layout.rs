@@ -3,9 +3,12 @@
 
 use rerun::blueprint::components::{PanelState, PlayState};
 use rerun::blueprint::{
-    Blueprint, BlueprintPanel, ContainerLike, Horizontal, SelectionPanel, Spatial3DView,
-    TextLogView, TimePanel, TimeSeriesView, Vertical,
+    Blueprint, BlueprintActivation, BlueprintPanel, ContainerLike, Horizontal, SelectionPanel,
+    Spatial3DView, TextLogView, TimePanel, TimeSeriesView, Vertical,
 };
+use rerun::external::re_log_types::BlueprintActivationCommand;
+use rerun::log::LogMsg;
+use rerun::{ApplicationId, EntityPath, RecordingStream, RecordingStreamBuilder};
 
 use crate::paths;
 use crate::recorder::Clock;
@@ -33,6 +36,17 @@ pub struct Layout {
     /// Entities recorded but left out of the 3D view, so that it frames the actuator and the
     /// environment (the platform and the carriage: large, and not what the experiment is about).
     pub hidden_in_3d: Vec<String>,
+    /// Where the 3D view's camera starts (world frame); None: the viewer's own choice.
+    pub eye: Option<Eye>,
+}
+
+/// A camera of the 3D view: where it is and what it looks at (world frame, m; z up).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Eye {
+    /// Camera position, m.
+    pub position_m: [f64; 3],
+    /// The point it looks at (and orbits around), m.
+    pub look_at_m: [f64; 3],
 }
 
 /// Groups drawn beside the 3D view.
@@ -82,6 +96,7 @@ impl Layout {
             bottom,
             stacked,
             hidden_in_3d: Vec::new(),
+            eye: None,
         }
     }
 }
@@ -118,18 +133,26 @@ pub fn default_blueprint(clock: Clock) -> Blueprint {
 /// stacked plots (if any) and the event log in a row below. The blueprint and selection panels start
 /// collapsed, the time panel shows the recording's clock and follows the latest data.
 pub fn blueprint(clock: Clock, layout: &Layout) -> Blueprint {
+    build(clock, layout).0
+}
+
+/// The blueprint and the blueprint path of its 3D view.
+fn build(clock: Clock, layout: &Layout) -> (Blueprint, EntityPath) {
     let contents = std::iter::once("+ $origin/**".to_owned()).chain(
         layout
             .hidden_in_3d
             .iter()
             .map(|p| format!("- /{}/**", p.trim_matches('/'))),
     );
-    let mut top: Vec<ContainerLike> = vec![
-        Spatial3DView::new("rig")
-            .with_origin(paths::WORLD)
-            .with_contents(contents)
-            .into(),
-    ];
+    let rig: ContainerLike = Spatial3DView::new("rig")
+        .with_origin(paths::WORLD)
+        .with_contents(contents)
+        .into();
+    let rig_path = match &rig {
+        ContainerLike::View(v) => v.blueprint_path(),
+        _ => unreachable!("a view converts to ContainerLike::View"),
+    };
+    let mut top: Vec<ContainerLike> = vec![rig];
     if !layout.side.is_empty() {
         top.push(Vertical::new(plots(&layout.side)).into());
     }
@@ -147,7 +170,7 @@ pub fn blueprint(clock: Clock, layout: &Layout) -> Blueprint {
     // The event log gets more room: its lines are sentences.
     let shares: Vec<f32> = (0..n).map(|i| if i + 1 == n { 1.6 } else { 1.0 }).collect();
     let bottom = Horizontal::new(bottom).with_column_shares(shares);
-    Blueprint::new(Vertical::new([top.into(), bottom.into()]).with_row_shares([3.0, 2.0]))
+    let bp = Blueprint::new(Vertical::new([top.into(), bottom.into()]).with_row_shares([3.0, 2.0]))
         .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Collapsed))
         .with_selection_panel(SelectionPanel::new().with_state(PanelState::Collapsed))
         .with_time_panel(
@@ -155,7 +178,70 @@ pub fn blueprint(clock: Clock, layout: &Layout) -> Blueprint {
                 .with_state(PanelState::Collapsed)
                 .with_timeline(clock.timeline())
                 .with_play_state(PlayState::Following),
+        );
+    (bp, rig_path)
+}
+
+/// Sends the layout to `rec`, active and the default, with the 3D view's camera at `eye`. The SDK's
+/// blueprint API has no camera for a 3D view: the blueprint is rendered to messages in memory, the
+/// view's `EyeControls3D` property added to the same blueprint store, then all are sent as one
+/// blueprint followed by its activation command (as `RecordingStreamBuilder::with_blueprint` does).
+pub(crate) fn send_with_eye(
+    rec: &RecordingStream,
+    app: &ApplicationId,
+    clock: Clock,
+    layout: &Layout,
+    eye: Eye,
+) -> Result<(), String> {
+    let (bp, view) = build(clock, layout);
+    let (mem, storage) = RecordingStreamBuilder::new(app.clone())
+        .memory()
+        .map_err(|e| e.to_string())?;
+    bp.send(
+        &mem,
+        BlueprintActivation {
+            make_active: true,
+            make_default: true,
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let mut msgs = Vec::new();
+    let mut cmd: Option<BlueprintActivationCommand> = None;
+    for m in storage.take() {
+        match m {
+            LogMsg::BlueprintActivationCommand(c) => cmd = Some(c),
+            m if m.store_id().is_blueprint() => msgs.push(m),
+            _ => {}
+        }
+    }
+    drop(mem);
+    let cmd = cmd.ok_or("the blueprint rendered without an activation command")?;
+    let (eye_rec, eye_storage) = RecordingStreamBuilder::new(app.clone())
+        .recording_id(cmd.blueprint_id.recording_id().clone())
+        .blueprint()
+        .memory()
+        .map_err(|e| e.to_string())?;
+    // The blueprint store's own timeline, as the SDK's blueprint messages use it.
+    eye_rec.set_time_sequence("blueprint", 0);
+    let f = |v: [f64; 3]| v.map(|c| c as f32);
+    eye_rec
+        .log(
+            format!("{view}/EyeControls3D"),
+            &re_sdk_types::blueprint::archetypes::EyeControls3D::new()
+                .with_position(f(eye.position_m))
+                .with_look_target(f(eye.look_at_m))
+                .with_eye_up([0.0f32, 0.0, 1.0]),
         )
+        .map_err(|e| e.to_string())?;
+    msgs.extend(
+        eye_storage
+            .take()
+            .into_iter()
+            .filter(|m| matches!(m, LogMsg::ArrowMsg(..))),
+    );
+    drop(eye_rec);
+    rec.send_blueprint(msgs, cmd);
+    Ok(())
 }
 
 #[cfg(test)]

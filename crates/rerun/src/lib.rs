@@ -15,7 +15,7 @@ mod sink;
 pub mod units;
 
 pub use error::RerunError;
-pub use layout::{Layout, Plot, blueprint, default_blueprint};
+pub use layout::{Eye, Layout, Plot, blueprint, default_blueprint};
 pub use recorder::{
     ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RunRecorder, Shape,
     wall_clock_s,

@@ -9,13 +9,13 @@ pub const WALL_TIME: &str = "wall_time";
 pub const F_REF: &str = "signals/force/f_ref";
 /// Measured environment force f_e (N).
 pub const F_E: &str = "signals/force/f_e";
-/// Piston position x (m).
+/// Piston position x (m; `SceneRecorder` logs mm).
 pub const X: &str = "signals/position/x";
-/// Position reference x_r (m).
+/// Position reference x_r (m; `SceneRecorder` logs mm).
 pub const X_R: &str = "signals/position/x_r";
-/// Absolute pressure in chamber A (Pa).
+/// Absolute pressure in chamber A (Pa; `SceneRecorder` logs kPa).
 pub const P_A: &str = "signals/pressure/p_a";
-/// Absolute pressure in chamber B (Pa).
+/// Absolute pressure in chamber B (Pa; `SceneRecorder` logs kPa).
 pub const P_B: &str = "signals/pressure/p_b";
 /// Continuous valve command u.
 pub const VALVE_U: &str = "signals/valve/u";

@@ -253,8 +253,8 @@ impl RunRecorder {
             option: "app_id",
             reason: format!("`{app_id}`: {e}"),
         })?;
-        let mut builder = RecordingStreamBuilder::new(app).recording_name(recording_name);
-        if opts.send_blueprint {
+        let mut builder = RecordingStreamBuilder::new(app.clone()).recording_name(recording_name);
+        if opts.send_blueprint && opts.layout.eye.is_none() {
             // Active when the recording starts (a viewer's own layout does not win over it) and the
             // default the viewer returns to on "reset".
             builder = builder.with_blueprint(crate::layout::blueprint(opts.clock, &opts.layout));
@@ -288,6 +288,16 @@ impl RunRecorder {
                     .map_err(|e| RerunError::Spawn(e.to_string()))?
             }
         };
+        if opts.send_blueprint
+            && let Some(eye) = opts.layout.eye
+        {
+            crate::layout::send_with_eye(&rec, &app, opts.clock, &opts.layout, eye).map_err(
+                |reason| RerunError::Log {
+                    entity: "blueprint".into(),
+                    reason,
+                },
+            )?;
+        }
         let n = opts.batch_rows;
         let chamber = |path: &str| ChamberColumn {
             path: EntityPath::from(path),

@@ -17,7 +17,7 @@ use pneuflex_scene::schema::{EventSpec, ForcePiece, PlantSpec, RunSpec};
 use pneuflex_scene::trace::{Column, Row, Trace};
 use pneuflex_scene::{Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape};
 
-use crate::layout::Layout;
+use crate::layout::{Eye, Layout};
 use crate::{
     ChamberSample, Contact, EventLevel, LinkShape, RecorderOptions, RerunError, RunRecorder, Shape,
     Sink, paths, units,
@@ -483,7 +483,8 @@ impl Drawing {
 /// How the signals of a run are logged: each column's path and scale to its display unit, and the
 /// PWM-period averages.
 struct SignalLog {
-    /// Per column: entity path and the factor from SI to the display unit; None for time.
+    /// Per column (in the row's order): entity path and the factor from SI to the display unit; None for
+    /// time and for a signal the plant does not have.
     columns: Vec<Option<(String, f64)>>,
     /// The moving averages over one PWM period, of the columns that chatter.
     averages: Vec<PeriodMean>,
@@ -553,13 +554,14 @@ impl SignalLog {
     fn register(
         rec: &mut RunRecorder,
         columns: &[Column],
+        shown: &[bool],
         pwm_period_s: Option<f64>,
         dt_s: f64,
     ) -> Result<Self, RerunError> {
         let mut out = Vec::with_capacity(columns.len());
         let mut averages = Vec::new();
         for (i, c) in columns.iter().enumerate() {
-            if i == index::T {
+            if i == index::T || !shown[i] {
                 out.push(None);
                 continue;
             }
@@ -761,19 +763,19 @@ impl SceneRecorder {
     fn begin(&mut self, run: &RunSpec, plant: &dyn Plant) -> Result<Recording, RerunError> {
         let sink = sink_for_run(&self.sink, &run.name, self.n_runs);
         self.geometry = plant.actuator_geometry();
-        let mut columns = Self::run_columns(run, plant);
-        if self.geometry.is_none() {
-            // No chambers (the ideal loop): its pressures are not signals it has.
-            columns.retain(|c| c.group != "pressure");
-        }
+        let columns = Self::run_columns(run, plant);
+        // No chambers (the ideal loop): its pressures are not signals it has.
+        let has = |c: &Column| self.geometry.is_some() || c.group != "pressure";
         let mut options = self.options.clone();
         let pwm = self.geometry.and_then(|g| g.pwm_period_s);
         options.layout = Layout::for_signals(
             columns
                 .iter()
+                .filter(|c| has(c))
                 .map(|c| (c.name.as_str(), c.unit.as_str(), c.group.as_str())),
         );
         let visuals = plant.visuals();
+        options.layout.eye = Some(self.initial_eye(plant, &visuals));
         options.layout.hidden_in_3d = visuals
             .iter()
             .filter(|v| v.role == VisualRole::Other)
@@ -785,7 +787,8 @@ impl SceneRecorder {
             &sink,
             options,
         )?;
-        let signals = SignalLog::register(&mut rec, &columns, pwm, self.dt_s)?;
+        let shown: Vec<bool> = columns.iter().map(has).collect();
+        let signals = SignalLog::register(&mut rec, &columns, &shown, pwm, self.dt_s)?;
         let drawing = if visuals.is_empty() {
             self.begin_schematic(&mut rec)?
         } else {
@@ -809,10 +812,9 @@ impl SceneRecorder {
         })
     }
 
-    /// The schematic: the cylinder body behind the flange's retracted stop (s = 0), the flange plate at
-    /// s = x, the environment face at x_e. Without an actuator: flange and face on a horizontal axis.
-    fn begin_schematic(&self, rec: &mut RunRecorder) -> Result<Drawing, RerunError> {
-        let axis = match &self.geometry {
+    /// The schematic's axis: the actuator's, or horizontal through the environment surface without one.
+    fn schematic_axis(&self) -> Axis {
+        match &self.geometry {
             Some(g) => Axis {
                 alpha_rad: g.alpha_rad,
                 x_e_m: g.x_e_m,
@@ -821,7 +823,47 @@ impl SceneRecorder {
                 alpha_rad: 0.0,
                 x_e_m: self.x_e_m,
             },
+        }
+    }
+
+    /// The 3D view's camera: beside the actuator (the side from which its axis runs left to right),
+    /// a little above and in front, looking at the middle between the cylinder's back end and the
+    /// environment, at 4.5 strokes — the rig fills the view.
+    fn initial_eye(&self, plant: &dyn Plant, visuals: &[pneuflex_scene::Visual]) -> Eye {
+        let drawing = if visuals.is_empty() {
+            Drawing::Schematic(self.schematic_axis())
+        } else {
+            let (mut d, _) = Drawing::links(visuals);
+            d.update_poses(plant);
+            d
         };
+        let f = drawing.frame(self.geometry.as_ref(), plant.sense().x);
+        let stroke = self.geometry.map_or(0.05, |g| g.stroke_m);
+        let back = match f.chamber_base {
+            Some(b) => add(b, -0.3 * stroke, f.axis),
+            None => add(f.flange_back, -stroke, f.axis),
+        };
+        let front = add(f.flange_front, 0.8 * stroke, f.axis);
+        let look_at_m: [f64; 3] = std::array::from_fn(|k| 0.5 * (back[k] + front[k]));
+        let (u, a) = (f.up, f.axis);
+        // up × axis: seen from minus this, the axis points right and up is up.
+        let forward = [
+            u[1] * a[2] - u[2] * a[1],
+            u[2] * a[0] - u[0] * a[2],
+            u[0] * a[1] - u[1] * a[0],
+        ];
+        let d = 4.5 * stroke;
+        let position_m = add(add(add(look_at_m, -d, forward), 0.3 * d, u), 0.1 * d, a);
+        Eye {
+            position_m,
+            look_at_m,
+        }
+    }
+
+    /// The schematic: the cylinder body behind the flange's retracted stop (s = 0), the flange plate at
+    /// s = x, the environment face at x_e. Without an actuator: flange and face on a horizontal axis.
+    fn begin_schematic(&self, rec: &mut RunRecorder) -> Result<Drawing, RerunError> {
+        let axis = self.schematic_axis();
         for (name, half_extents_m, colour) in [
             (
                 "flange",

@@ -88,7 +88,7 @@ pub fn series_style(name: &str, averaged: bool) -> ([u8; 4], f32) {
         // The raw chattering signal: a pale version of the colour, behind the average.
         let [r, g, b, _] = base;
         let pale = |c: u8| (c as u16 + (255 - c as u16) * 3 / 5) as u8;
-        ([pale(r), pale(g), pale(b), 90], 1.0)
+        ([pale(r), pale(g), pale(b), 60], 1.0)
     } else {
         (base, 1.5)
     }

@@ -1,7 +1,7 @@
 //! Every shipped scene (`scenes/*.toml`) recorded through [`SceneRecorder`] to `.rrd` files, read back
 //! with Rerun's decoder: the file is complete, every tick of the force signals is there, multibody scenes
 //! carry their links (the flange among them), pneumatic plants their chambers, and the ideal loop (no
-//! actuator) is drawn without chambers.
+//! actuator) is drawn without chambers; every file carries its layout made active (not only a default).
 
 use std::path::{Path, PathBuf};
 
@@ -38,7 +38,16 @@ fn every_shipped_scene_records_to_a_readable_rrd() {
             .unwrap_or_else(|e| panic!("{stem}: recording failed: {e}"));
 
         let multibody = matches!(scene.plant, PlantSpec::Multibody(_));
-        let ideal = matches!(scene.plant, PlantSpec::Ideal { .. });
+        let pwm = pneuflex_scene::build_plant(&scene)
+            .unwrap()
+            .actuator_geometry()
+            .and_then(|g| g.pwm_period_s)
+            .is_some();
+        // Plants without chambers (the ideal loop, the linear model of eqs. (16)/(17)) log no pressures.
+        let ideal = matches!(
+            scene.plant,
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. }
+        );
         for r in &results {
             let Sink::Save(file) = sink_for_run(&sink, &r.name, results.len()) else {
                 unreachable!()
@@ -46,8 +55,20 @@ fn every_shipped_scene_records_to_a_readable_rrd() {
             let what = format!("{stem}/{}: {}", r.name, file.display());
             let back = read_back(&file);
             assert!(back.has_footer, "{what}: no footer (unfinished file)");
+            assert!(
+                back.has_active_blueprint(),
+                "{what}: no active blueprint (activations {:?}, blueprints {:?})",
+                back.activations,
+                back.blueprints
+            );
             let n = r.trace.len();
-            for p in [paths::F_REF, paths::F_E, paths::X] {
+            for p in [
+                paths::F_REF,
+                paths::F_E,
+                paths::X,
+                paths::X_R,
+                paths::VALVE_U,
+            ] {
                 assert_eq!(
                     back.rows(&format!("/{p}"), paths::SIM_TIME),
                     n,
@@ -70,6 +91,9 @@ fn every_shipped_scene_records_to_a_readable_rrd() {
                     assert!(back.static_entities.contains(&e), "{what}: no {e}");
                 }
             }
+            // The PWM-period means beside the chattering signals, one per tick.
+            let avg = back.rows(&format!("/{}", paths::average(paths::F_E)), paths::SIM_TIME);
+            assert_eq!(avg, if pwm { n } else { 0 }, "{what}: f_e mean");
             let chambers = back.rows(&format!("/{}", paths::CHAMBER_A), paths::SIM_TIME);
             if ideal {
                 assert_eq!(chambers, 0, "{what}: the ideal loop has no chambers");

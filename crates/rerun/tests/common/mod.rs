@@ -25,11 +25,26 @@ pub struct Readback {
     pub static_entities: Vec<String>,
     /// Whether the file ends with Rerun's footer.
     pub has_footer: bool,
+    /// Blueprint stores with data in the file.
+    pub blueprints: Vec<rerun::StoreId>,
+    /// Blueprint activation commands in file order: (blueprint, make_active, make_default, whether
+    /// that blueprint's data came before the command).
+    pub activations: Vec<(rerun::StoreId, bool, bool, bool)>,
     /// File size.
     pub bytes: u64,
 }
 
 impl Readback {
+    /// Whether the file's layout is what a viewer shows first: a blueprint whose data is in the file,
+    /// then the command that makes it active and the default.
+    pub fn has_active_blueprint(&self) -> bool {
+        self.activations
+            .iter()
+            .any(|(id, active, default, sent_before)| {
+                *active && *default && *sent_before && self.blueprints.contains(id)
+            })
+    }
+
     /// Rows of `entity` (with its leading `/`) on `timeline`, 0 when absent.
     pub fn rows(&self, entity: &str, timeline: &str) -> usize {
         self.rows_on
@@ -46,12 +61,28 @@ pub fn read_back(path: &Path) -> Readback {
     let mut it = DecoderApp::decode_eager(BufReader::new(file)).expect("a valid .rrd stream");
     let mut rows_on = HashMap::new();
     let mut static_entities = Vec::new();
+    let mut blueprints = Vec::new();
+    let mut activations = Vec::new();
     for msg in &mut it {
         let msg = msg.expect("every message decodes");
-        let LogMsg::ArrowMsg(store, arrow) = msg else {
-            continue;
+        let (store, arrow) = match msg {
+            LogMsg::ArrowMsg(store, arrow) => (store, arrow),
+            LogMsg::BlueprintActivationCommand(cmd) => {
+                let sent_before = blueprints.contains(&cmd.blueprint_id);
+                activations.push((
+                    cmd.blueprint_id,
+                    cmd.make_active,
+                    cmd.make_default,
+                    sent_before,
+                ));
+                continue;
+            }
+            LogMsg::SetStoreInfo(_) => continue,
         };
         if !store.is_recording() {
+            if !blueprints.contains(&store) {
+                blueprints.push(store);
+            }
             continue; // blueprint store
         }
         let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
@@ -70,6 +101,8 @@ pub fn read_back(path: &Path) -> Readback {
         rows_on,
         static_entities,
         has_footer,
+        blueprints,
+        activations,
         bytes,
     }
 }
