@@ -1,6 +1,11 @@
 //! Figures of pneuflex runs, like the paper's Figs. 2–4: force against reference, position against reference
 //! position (controllers overlaid), and a zoom on the force around each scene event. PNG (plotters' bitmap
 //! backend) or SVG, with an embedded DejaVu Sans font so the output does not depend on system fonts.
+//!
+//! On a plant with an on/off valve the measured signals are drawn as their PWM-period mean (the metrics'
+//! `moving_average`) over a light band of the raw signal, the references on top; every series is reduced to
+//! its per-pixel-column first/min/max/last before drawing ([`decimate`]), so the picture is the same and the
+//! cost does not grow with the length of the trace.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -8,8 +13,10 @@ use std::sync::OnceLock;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
-use pneuflex_scene::schema::EventSpec;
-use pneuflex_scene::{RunResult, Scene};
+use pneuflex_scene::metrics::moving_average;
+use pneuflex_scene::runner::pwm_period_s;
+use pneuflex_scene::schema::{EventSpec, WindowKind};
+use pneuflex_scene::{RunResult, Scene, WindowMetrics};
 
 /// DejaVu Sans (fonts-dejavu-core; free license in assets/DejaVuSans-LICENSE.txt).
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
@@ -72,6 +79,106 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(86, 180, 233),
 ];
 
+/// Reduces a series to what the pixel columns of a plot can show: for each of the `columns` pixel columns
+/// spanning `[t0, t1]` ([`column_index`]), the first, lowest, highest and last finite sample in it, in time
+/// order (fewer when they coincide). A polyline through them covers what the full series' polyline covers in every column — its
+/// whole vertical extent and its joins to the neighbouring columns — so a figure looks the same while the
+/// cost of drawing it no longer grows with the length of the trace. Samples outside `[t0, t1]` and
+/// non-finite values are left out; `t` must be ascending.
+pub fn decimate(t: &[f64], y: &[f64], t0: f64, t1: f64, columns: usize) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(4 * columns.min(t.len()));
+    for_each_column(t, y, t0, t1, columns, |c| {
+        let mut idx = [c.first, c.min, c.max, c.last];
+        idx.sort_unstable();
+        let mut prev = usize::MAX;
+        for i in idx {
+            if i != prev {
+                out.push((t[i], y[i]));
+                prev = i;
+            }
+        }
+    });
+    out
+}
+
+/// The envelope of a series per pixel column of `[t0, t1]` (as [`decimate`] splits it): for every column
+/// holding samples, (the middle of its samples' times, their minimum, their maximum).
+pub fn envelope(t: &[f64], y: &[f64], t0: f64, t1: f64, columns: usize) -> Vec<(f64, f64, f64)> {
+    let mut out = Vec::with_capacity(columns.min(t.len()));
+    for_each_column(t, y, t0, t1, columns, |c| {
+        out.push((0.5 * (t[c.first] + t[c.last]), y[c.min], y[c.max]));
+    });
+    out
+}
+
+/// The pixel column that time `t` falls in, of `columns` pixel columns spanning `[t0, t1]`, as plotters maps
+/// a coordinate to a pixel (t0 on the first column's left edge, t1 on the last one's).
+pub fn column_index(t: f64, t0: f64, t1: f64, columns: usize) -> usize {
+    let last = columns.max(1) - 1;
+    if t1 > t0 {
+        ((((t - t0) / (t1 - t0)) * last as f64 + 1e-3)
+            .floor()
+            .max(0.0) as usize)
+            .min(last)
+    } else {
+        0
+    }
+}
+
+/// Indices of one column's first, lowest, highest and last sample.
+#[derive(Clone, Copy)]
+struct Column {
+    first: usize,
+    min: usize,
+    max: usize,
+    last: usize,
+}
+
+fn for_each_column(
+    t: &[f64],
+    y: &[f64],
+    t0: f64,
+    t1: f64,
+    columns: usize,
+    mut f: impl FnMut(Column),
+) {
+    let mut cur: Option<(usize, Column)> = None;
+    for (i, (&ti, &yi)) in t.iter().zip(y).enumerate() {
+        if !(ti >= t0 && ti <= t1 && yi.is_finite()) {
+            continue;
+        }
+        let col = column_index(ti, t0, t1, columns);
+        match &mut cur {
+            Some((c, acc)) if *c == col => {
+                if yi < y[acc.min] {
+                    acc.min = i;
+                }
+                if yi > y[acc.max] {
+                    acc.max = i;
+                }
+                acc.last = i;
+            }
+            _ => {
+                if let Some((_, acc)) = cur.take() {
+                    f(acc);
+                }
+                cur = Some((
+                    col,
+                    Column {
+                        first: i,
+                        min: i,
+                        max: i,
+                        last: i,
+                    },
+                ));
+            }
+        }
+    }
+    if let Some((_, acc)) = cur {
+        f(acc);
+    }
+}
+
 /// One line of a plot.
 struct Line<'a> {
     label: String,
@@ -82,29 +189,142 @@ struct Line<'a> {
     width: u32,
 }
 
+/// A light band: the raw signal's per-column min/max envelope, under the line of its period mean.
+struct Band<'a> {
+    label: String,
+    t: &'a [f64],
+    y: Vec<f64>,
+    color: RGBColor,
+    /// The PWM period, s: each column's band spans the raw signal's range over the period around it (a
+    /// column shorter than the period holds only part of a ripple and the band would be hatched).
+    period_s: f64,
+}
+
+/// [`envelope`] widened to the min/max over the columns within half a period either side of each.
+fn period_envelope(
+    env: &[(f64, f64, f64)],
+    t0: f64,
+    t1: f64,
+    columns: usize,
+    period_s: f64,
+) -> Vec<(f64, f64, f64)> {
+    let col_s = (t1 - t0) / columns.max(1) as f64;
+    let k = if col_s > 0.0 {
+        (0.5 * period_s / col_s).round() as usize
+    } else {
+        0
+    };
+    if k == 0 {
+        return env.to_vec();
+    }
+    (0..env.len())
+        .map(|j| {
+            let near = &env[j.saturating_sub(k)..(j + k + 1).min(env.len())];
+            let lo = near.iter().map(|e| e.1).fold(f64::INFINITY, f64::min);
+            let hi = near.iter().map(|e| e.2).fold(f64::NEG_INFINITY, f64::max);
+            (env[j].0, lo, hi)
+        })
+        .collect()
+}
+
 struct Plot<'a> {
     title: String,
     y_label: String,
     t_range: (f64, f64),
+    bands: Vec<Band<'a>>,
+    /// Drawn in order: the measured signals first, the references last (on top).
     lines: Vec<Line<'a>>,
     events: Vec<f64>,
     /// A shaded time interval with a label (the environment swap of Fig. 7).
-    band: Option<(f64, f64, String)>,
+    shade: Option<(f64, f64, String)>,
+    /// Vertical dotted lines in a run's colour (the settling time of each run after an event).
+    marks: Vec<(f64, RGBColor)>,
+    /// Lines of text in the upper left corner, in a run's colour.
+    notes: Vec<(String, RGBColor)>,
 }
 
-fn draw_plot<DB: DrawingBackend>(
-    root: DrawingArea<DB, plotters::coord::Shift>,
-    plot: &Plot,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+impl<'a> Plot<'a> {
+    fn new(title: String, y_label: &str, t_range: (f64, f64), events: Vec<f64>) -> Self {
+        Plot {
+            title,
+            y_label: y_label.into(),
+            t_range,
+            bands: Vec::new(),
+            lines: Vec::new(),
+            events,
+            shade: None,
+            marks: Vec::new(),
+            notes: Vec::new(),
+        }
+    }
+
+    /// A run's measured signal `y` (already in display units): on an on/off valve (`average` = samples per
+    /// PWM period) its PWM-period mean as the line over a light band of the raw signal; on a continuous
+    /// valve the raw signal as the line.
+    fn measured(
+        &mut self,
+        label: String,
+        t: &'a [f64],
+        y: Vec<f64>,
+        color: RGBColor,
+        average: Option<(usize, f64)>,
+    ) {
+        match average {
+            Some((n, period_s)) => {
+                let mean = moving_average(&y, n);
+                self.lines.push(Line {
+                    label: format!("{label} ({} ms PWM-period mean)", fmt_ms(period_s)),
+                    t,
+                    y: mean,
+                    color,
+                    dashed: false,
+                    width: 2,
+                });
+                self.bands.push(Band {
+                    label: format!("{label}, raw (range over a PWM period)"),
+                    t,
+                    y,
+                    color,
+                    period_s,
+                });
+            }
+            None => self.lines.push(Line {
+                label,
+                t,
+                y,
+                color,
+                dashed: false,
+                width: 2,
+            }),
+        }
+    }
+}
+
+fn fmt_ms(period_s: f64) -> String {
+    let ms = period_s * 1e3;
+    if (ms - ms.round()).abs() < 1e-9 {
+        format!("{}", ms.round())
+    } else {
+        format!("{ms:.1}")
+    }
+}
+
+/// The light shade of a run's colour for its raw band.
+fn band_color(c: RGBColor) -> RGBAColor {
+    c.mix(0.22)
+}
+
+fn y_range(plot: &Plot) -> (f64, f64) {
     let (t0, t1) = plot.t_range;
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
-    for l in &plot.lines {
-        for (t, y) in l.t.iter().zip(&l.y) {
+    let series = plot
+        .bands
+        .iter()
+        .map(|b| (b.t, &b.y))
+        .chain(plot.lines.iter().map(|l| (l.t, &l.y)));
+    for (t, y) in series {
+        for (t, y) in t.iter().zip(y) {
             if *t >= t0 && *t <= t1 && y.is_finite() {
                 lo = lo.min(*y);
                 hi = hi.max(*y);
@@ -116,7 +336,19 @@ where
         hi = 1.0;
     }
     let pad = ((hi - lo) * 0.08).max(1e-9 + 1e-3 * hi.abs().max(lo.abs()));
-    let (lo, hi) = (lo - pad, hi + pad);
+    (lo - pad, hi + pad)
+}
+
+fn draw_plot<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    plot: &Plot,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (t0, t1) = plot.t_range;
+    let (lo, hi) = y_range(plot);
     let mut chart = ChartBuilder::on(&root)
         .caption(&plot.title, (FAMILY, 26))
         .margin(16)
@@ -133,7 +365,10 @@ where
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(|e| e.to_string())?;
-    if let Some((b0, b1, label)) = &plot.band {
+    let (px, py) = chart.plotting_area().get_pixel_range();
+    // One column per pixel of the plotting area: every series is reduced to what the pixels can show.
+    let columns = (px.end - px.start).max(1) as usize;
+    if let Some((b0, b1, label)) = &plot.shade {
         let (b0, b1) = (b0.max(t0), b1.min(t1));
         if b1 > b0 {
             chart
@@ -145,7 +380,7 @@ where
             chart
                 .draw_series(std::iter::once(Text::new(
                     label.clone(),
-                    (b0, hi - 0.04 * (hi - lo)),
+                    (b0, lo + 0.04 * (hi - lo)),
                     (FAMILY, 16).into_font().color(&RGBColor(140, 80, 0)),
                 )))
                 .map_err(|e| e.to_string())?;
@@ -163,13 +398,25 @@ where
                 .map_err(|e| e.to_string())?;
         }
     }
+    for b in &plot.bands {
+        let env = period_envelope(
+            &envelope(b.t, &b.y, t0, t1, columns),
+            t0,
+            t1,
+            columns,
+            b.period_s,
+        );
+        let mut outline: Vec<(f64, f64)> = env.iter().map(|&(t, _, hi)| (t, hi)).collect();
+        outline.extend(env.iter().rev().map(|&(t, lo, _)| (t, lo)));
+        let fill = band_color(b.color);
+        chart
+            .draw_series(std::iter::once(Polygon::new(outline, fill.filled())))
+            .map_err(|e| e.to_string())?
+            .label(b.label.as_str())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 24, y + 6)], fill.filled()));
+    }
     for l in &plot.lines {
-        let pts: Vec<(f64, f64)> =
-            l.t.iter()
-                .zip(&l.y)
-                .filter(|(t, y)| **t >= t0 && **t <= t1 && y.is_finite())
-                .map(|(t, y)| (*t, *y))
-                .collect();
+        let pts = decimate(l.t, &l.y, t0, t1, columns);
         let style = l.color.stroke_width(l.width);
         let color = l.color;
         let width = l.width;
@@ -201,6 +448,50 @@ where
                 });
         }
     }
+    for &(tm, color) in &plot.marks {
+        if tm >= t0 && tm <= t1 {
+            chart
+                .draw_series(DashedLineSeries::new(
+                    vec![(tm, lo), (tm, hi)],
+                    3,
+                    4,
+                    color.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    if !plot.notes.is_empty() {
+        let font = (FAMILY, 16).into_font();
+        let measure: TextStyle = font.clone().into();
+        let line_h = 22;
+        let w = plot
+            .notes
+            .iter()
+            .map(|(s, _)| {
+                root.estimate_text_size(s, &measure)
+                    .map(|(w, _)| w as i32)
+                    .unwrap_or(0)
+            })
+            .max()
+            .unwrap_or(0);
+        let (x0, y0) = (px.start + 10, py.start + 10);
+        let h = line_h * plot.notes.len() as i32 + 8;
+        root.draw(&Rectangle::new(
+            [(x0, y0), (x0 + w + 16, y0 + h)],
+            WHITE.mix(0.85).filled(),
+        ))
+        .map_err(|e| e.to_string())?;
+        root.draw(&Rectangle::new([(x0, y0), (x0 + w + 16, y0 + h)], BLACK))
+            .map_err(|e| e.to_string())?;
+        for (k, (s, c)) in plot.notes.iter().enumerate() {
+            root.draw(&Text::new(
+                s.clone(),
+                (x0 + 8, y0 + 6 + line_h * k as i32),
+                font.clone().color(c),
+            ))
+            .map_err(|e| e.to_string())?;
+        }
+    }
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
@@ -225,32 +516,92 @@ fn render(path: &Path, format: Format, plot: &Plot) -> Result<(), VizError> {
     })
 }
 
-fn force_lines<'a>(ok: &[&'a RunResult]) -> Vec<Line<'a>> {
-    let mut lines = vec![Line {
+/// Samples per PWM period and the period, s, for a run's trace (None: a continuous valve, nothing to
+/// average — the same rule as the event metrics).
+fn averaging(period_s: Option<f64>, t: &[f64]) -> Option<(usize, f64)> {
+    let p = period_s?;
+    let n = t.len();
+    if n < 2 {
+        return None;
+    }
+    let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
+    (p > 1.5 * dt).then(|| ((p / dt).round() as usize, p))
+}
+
+/// The force of every run (mean over the raw band on an on/off valve) with the reference on top.
+fn force_plot<'a>(
+    title: String,
+    t_range: (f64, f64),
+    events: Vec<f64>,
+    ok: &[&'a RunResult],
+    period_s: Option<f64>,
+) -> Plot<'a> {
+    let mut plot = Plot::new(title, "contact force f_e [N]", t_range, events);
+    for (i, r) in ok.iter().enumerate() {
+        let t = r.trace.t();
+        plot.measured(
+            format!("f_e, {}", r.name),
+            t,
+            r.trace.f_e().to_vec(),
+            PALETTE[i % PALETTE.len()],
+            averaging(period_s, t),
+        );
+    }
+    plot.lines.push(Line {
         label: "reference f_ref".into(),
         t: ok[0].trace.t(),
         y: ok[0].trace.f_ref().to_vec(),
         color: BLACK,
         dashed: true,
         width: 2,
-    }];
+    });
+    plot
+}
+
+/// The metrics window of a run that measures its response to the event at `te`: the event window starting
+/// at the event, else the first event window starting inside `[te, t_max]`.
+fn event_window(r: &RunResult, te: f64, t_max: f64) -> Option<&WindowMetrics> {
+    let events = || {
+        r.windows
+            .iter()
+            .filter(|w| w.kind == WindowKind::Event && w.event.is_some())
+    };
+    events()
+        .find(|w| (w.t0_s - te).abs() <= 1e-6)
+        .or_else(|| events().find(|w| w.t0_s >= te - 1e-6 && w.t0_s <= t_max))
+}
+
+/// Marks each run's settling time after the event at `te` (or says why it did not settle).
+fn mark_settling(plot: &mut Plot, ok: &[&RunResult], te: f64) {
     for (i, r) in ok.iter().enumerate() {
-        lines.push(Line {
-            label: format!("f_e, {}", r.name),
-            t: r.trace.t(),
-            y: r.trace.f_e().to_vec(),
-            color: PALETTE[i % PALETTE.len()],
-            dashed: false,
-            width: 2,
-        });
+        let color = PALETTE[i % PALETTE.len()];
+        let Some(w) = event_window(r, te, plot.t_range.1) else {
+            continue;
+        };
+        let Some(ev) = &w.event else { continue };
+        let text = match (ev.settling_time_s, &ev.not_settled) {
+            (Some(ts), _) if ev.settled => {
+                plot.marks.push((w.t0_s + ts, color));
+                format!(
+                    "{}: settled {ts:.3} s after {} s (band ±{:.2} N, window '{}')",
+                    r.name, w.t0_s, ev.settling_band_n, w.name
+                )
+            }
+            (_, Some(why)) => format!("{}: not settled: {why} (window '{}')", r.name, w.name),
+            _ => format!("{}: not settled (window '{}')", r.name, w.name),
+        };
+        plot.notes.push((text, color));
     }
-    lines
 }
 
 /// Writes the figures of a scene's runs into `dir`; returns the files written.
 ///
-/// `force.<ext>`: f_e of every run against f_ref; `position.<ext>`: x (solid) and x_r (dashed) of every
-/// run, mm; `event-<i>.<ext>`: the force from 0.5 s before to 2.5 s after event i. Diverged runs are left out.
+/// `force.<ext>`: f_e of every run with f_ref on top; `position.<ext>`: x (solid) and x_r (dashed, on top)
+/// of every run, mm; `event-<i>.<ext>`: the force from 0.5 s before to 2.5 s after event i (longer when a
+/// run settles later), each run's settling time marked (dotted, in its colour) or why it did not settle.
+/// On an on/off valve the measured f_e and x are drawn as their PWM-period mean over a light band of the raw
+/// signal (its per-pixel-column min/max); on a continuous valve raw. Every series is reduced to its
+/// per-pixel-column first/min/max/last before drawing. Diverged runs are left out.
 pub fn write_figures(
     dir: &Path,
     scene: &Scene,
@@ -265,6 +616,7 @@ pub fn write_figures(
     if ok.is_empty() {
         return Err(VizError::Empty);
     }
+    let period_s = pwm_period_s(scene);
     let events: Vec<f64> = scene.events.iter().map(|e| e.t_s()).collect();
     let t_end = ok
         .iter()
@@ -272,71 +624,90 @@ pub fn write_figures(
         .fold(0.0, f64::max);
     let mut written = Vec::new();
 
-    let force = Plot {
-        title: format!("{}: contact force", scene.name),
-        y_label: "force [N]".into(),
-        t_range: (0.0, t_end),
-        lines: force_lines(&ok),
-        events: events.clone(),
-        band: None,
-    };
+    let force = force_plot(
+        format!("{}: contact force", scene.name),
+        (0.0, t_end),
+        events.clone(),
+        &ok,
+        period_s,
+    );
     let p = dir.join(format!("force.{}", format.ext()));
     render(&p, format, &force)?;
     written.push(p);
 
-    let mut lines = Vec::new();
+    let mut position = Plot::new(
+        format!(
+            "{}: flange position x against reference position x_r",
+            scene.name
+        ),
+        "position [mm]",
+        (0.0, t_end),
+        events.clone(),
+    );
+    let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
     for (i, r) in ok.iter().enumerate() {
-        let c = PALETTE[i % PALETTE.len()];
-        let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
-        lines.push(Line {
-            label: format!("x, {}", r.name),
-            t: r.trace.t(),
-            y: mm(r.trace.x()),
-            color: c,
-            dashed: false,
+        let t = r.trace.t();
+        position.measured(
+            format!("x, {}", r.name),
+            t,
+            mm(r.trace.x()),
+            PALETTE[i % PALETTE.len()],
+            averaging(period_s, t),
+        );
+    }
+    // x_r follows the measured force through the controller and ripples with it: drawn as its PWM-period
+    // mean too, so the reference stays readable on top of the positions.
+    for (i, r) in ok.iter().enumerate() {
+        let t = r.trace.t();
+        let x_r = mm(r.trace.x_r());
+        let (y, label) = match averaging(period_s, t) {
+            Some((n, p)) => (
+                moving_average(&x_r, n),
+                format!("x_r, {} ({} ms PWM-period mean)", r.name, fmt_ms(p)),
+            ),
+            None => (x_r, format!("x_r, {}", r.name)),
+        };
+        position.lines.push(Line {
+            label,
+            t,
+            y,
+            color: darker(PALETTE[i % PALETTE.len()]),
+            dashed: true,
             width: 2,
         });
-        lines.push(Line {
-            label: format!("x_r, {}", r.name),
-            t: r.trace.t(),
-            y: mm(r.trace.x_r()),
-            color: c,
-            dashed: true,
-            width: 1,
-        });
     }
-    let position = Plot {
-        title: format!("{}: flange position against reference position", scene.name),
-        y_label: "position [mm]".into(),
-        t_range: (0.0, t_end),
-        lines,
-        events: events.clone(),
-        band: None,
-    };
     let p = dir.join(format!("position.{}", format.ext()));
     render(&p, format, &position)?;
     written.push(p);
 
     for (i, ev) in scene.events.iter().enumerate() {
         let te = ev.t_s();
-        let zoom = Plot {
-            title: format!(
+        // Long enough to show every run's settling time, within the trace.
+        let settle_end = ok
+            .iter()
+            .filter_map(|r| event_window(r, te, t_end))
+            .filter_map(|w| Some(w.t0_s + w.event.as_ref()?.settling_time_s?))
+            .fold(te + 2.5, f64::max);
+        let t_range = ((te - 0.5).max(0.0), (settle_end + 0.3).min(t_end));
+        if t_range.1 <= t_range.0 {
+            continue;
+        }
+        let mut zoom = force_plot(
+            format!(
                 "{}: force around event {} at t = {te} s ({})",
                 scene.name,
                 i,
                 event_label(ev)
             ),
-            y_label: "force [N]".into(),
-            t_range: ((te - 0.5).max(0.0), (te + 2.5).min(t_end)),
-            lines: force_lines(&ok),
-            events: vec![te],
-            band: None,
-        };
-        if zoom.t_range.1 > zoom.t_range.0 {
-            let p = dir.join(format!("event-{i}.{}", format.ext()));
-            render(&p, format, &zoom)?;
-            written.push(p);
-        }
+            t_range,
+            vec![te],
+            &ok,
+            period_s,
+        );
+        mark_settling(&mut zoom, &ok, te);
+        let p = dir.join(format!("event-{i}.{}", format.ext()));
+        render(&p, format, &zoom)?;
+        written.push(p);
     }
     // Paper Fig. 7: the force response of every controller around each environment swap, the carriage
     // move shaded.
@@ -347,25 +718,33 @@ pub fn write_figures(
             duration_s,
         } = ev
         {
-            let fig7 = Plot {
-                title: format!(
+            let t_range = ((t_s - 1.0).max(0.0), (t_s + duration_s + 4.0).min(t_end));
+            if t_range.1 <= t_range.0 {
+                continue;
+            }
+            let mut fig7 = force_plot(
+                format!(
                     "{}: force response to the environment change (swap to {to} at {t_s} s)",
                     scene.name
                 ),
-                y_label: "contact force f_e [N]".into(),
-                t_range: ((t_s - 1.0).max(0.0), (t_s + duration_s + 4.0).min(t_end)),
-                lines: force_lines(&ok),
-                events: vec![*t_s, t_s + duration_s],
-                band: Some((*t_s, t_s + duration_s, format!(" carriage swaps to {to}"))),
-            };
-            if fig7.t_range.1 > fig7.t_range.0 {
-                let p = dir.join(format!("fig7-swap-{i}.{}", format.ext()));
-                render(&p, format, &fig7)?;
-                written.push(p);
-            }
+                t_range,
+                vec![*t_s, t_s + duration_s],
+                &ok,
+                period_s,
+            );
+            fig7.shade = Some((*t_s, t_s + duration_s, format!(" carriage swaps to {to}")));
+            let p = dir.join(format!("fig7-swap-{i}.{}", format.ext()));
+            render(&p, format, &fig7)?;
+            written.push(p);
         }
     }
     Ok(written)
+}
+
+/// A darker shade of a run's colour, for its reference line drawn over its measured signal.
+fn darker(c: RGBColor) -> RGBColor {
+    let f = |v: u8| (f64::from(v) * 0.55) as u8;
+    RGBColor(f(c.0), f(c.1), f(c.2))
 }
 
 fn event_label(ev: &EventSpec) -> String {
