@@ -102,7 +102,9 @@ impl Layout {
 }
 
 impl Default for Layout {
-    /// Every signal of [`paths::SIGNALS`] (the pneumatic plant under adaptive control).
+    /// Every signal of [`paths::SIGNALS`] (the pneumatic plant under adaptive control), titled in the
+    /// display units of [`crate::units`] — the units `SceneRecorder` logs in; a `RunRecorder` fed SI
+    /// values sets its own layout.
     fn default() -> Self {
         Self::for_signals(paths::SIGNALS.iter().map(|p| {
             let (group, name) = p
