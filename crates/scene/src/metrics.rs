@@ -263,7 +263,7 @@ pub fn event_response(
         _ => (raw, "f_e".to_string()),
     };
     // The tail: the last two reference periods of a sine (at most half the window), the last 10 % of a
-    // step. The periodic steady state is the tail's mean period, so one period's wander does not define it.
+    // step. The periodic steady state is the tail's mean period, so one period's ripple does not define it.
     let (tail_s, periods) = match steady {
         Steady::Periodic(f) => {
             let half = 0.5 * (t[n - 1] - t[0]);
@@ -331,8 +331,8 @@ pub fn event_response(
         .count();
     let span = tt[tt.len() - 1] - tt[0];
     // A sustained oscillation is one above 7.5 % of the reference (a 16 Hz limit cycle of 3.4 N on a 12 N
-    // reference, not the PWM loop's ±0.3 N wander); the settling band is 2 % of the reference, or the
-    // run's own steady ripple when that is larger (a PWM loop settles to its wander, not below it).
+    // reference, not the residual PWM ripple after averaging); the settling band is 2 % of the reference,
+    // or the run's own steady ripple when that is larger (a loop settles to its ripple, not below it).
     let ripple = residual.iter().fold(0.0_f64, |m, r| m.max(r.abs()));
     let band = (0.02 * ref_peak).max(ripple);
     let oscillation =
