@@ -31,6 +31,9 @@ enum Command {
         /// Gain margin the largest kp is computed for, dB.
         #[arg(long, default_value_t = 6.0)]
         margin_db: f64,
+        /// With --loop: also draw the Bode plot of every run's inner loop at every stiffness (PNG).
+        #[arg(long, value_name = "FILE.png")]
+        bode: Option<PathBuf>,
     },
     /// Run every controller a scene lists; write traces, summary.json and figures.
     Run {
@@ -105,7 +108,9 @@ fn main() -> ExitCode {
             json,
             loop_analysis: true,
             margin_db,
-        } => cmd::tf::loop_margins(&file, margin_db, json).map(|text| println!("{text}")),
+            bode,
+        } => cmd::tf::loop_margins(&file, margin_db, json, bode.as_deref())
+            .map(|text| println!("{text}")),
         Command::Tf { file, json, .. } => cmd::tf::tf(&file, json).map(|text| println!("{text}")),
         Command::Run {
             scene,

@@ -70,13 +70,28 @@ pub fn tf(path: &Path, json: bool) -> anyhow::Result<String> {
 /// `pneuflex tf <scene> --loop`: each run's inner-loop margins at every stiffness the scene meets, the
 /// largest kp with `margin_db` of gain margin, and (on a pneumatic plant) the limit-cycle onset predicted by
 /// describing functions of the valve and the friction (docs/scenes.md, "Inner-loop margins").
-pub fn loop_margins(path: &Path, margin_db: f64, json: bool) -> anyhow::Result<String> {
+pub fn loop_margins(
+    path: &Path,
+    margin_db: f64,
+    json: bool,
+    bode: Option<&Path>,
+) -> anyhow::Result<String> {
     use pneuflex_scene::loop_analysis::{analyse, limit_cycle_onset};
     anyhow::ensure!(
         margin_db.is_finite() && margin_db >= 0.0,
         "--margin-db: expected a finite number >= 0, got {margin_db}"
     );
     let scene = pneuflex_scene::Scene::load(path)?;
+    // Never write over a file pneuflex did not make: the plot goes beside and is renamed in only if the
+    // name is free.
+    if let Some(b) = bode {
+        anyhow::ensure!(
+            !b.exists(),
+            "--bode {}: the file exists; choose another name (pneuflex does not overwrite it)",
+            b.display()
+        );
+    }
+    let mut analyses = Vec::new();
     let mut out = Vec::new();
     let mut s = String::new();
     for i in 0..scene.runs.len() {
@@ -117,6 +132,17 @@ pub fn loop_margins(path: &Path, margin_db: f64, json: bool) -> anyhow::Result<S
             onsets.push(onset.map(|(k, hz, a)| serde_json::json!({"kp_per_m": k, "frequency_hz": hz, "amplitude_m": a})));
         }
         out.push(serde_json::json!({"analysis": a, "limit_cycle_onsets": onsets}));
+        analyses.push(a);
+    }
+    if let Some(b) = bode {
+        let tmp = b.with_extension(format!("partial-{}.png", std::process::id()));
+        let drawn = pneuflex_viz::write_bode(&tmp, &analyses);
+        if let Err(e) = drawn {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(e.into());
+        }
+        std::fs::rename(&tmp, b).with_context(|| format!("--bode {}", b.display()))?;
+        writeln!(s, "Bode plot: {}", b.display())?;
     }
     if json {
         return Ok(serde_json::to_string_pretty(&out)?);

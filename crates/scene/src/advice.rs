@@ -63,12 +63,45 @@ pub fn fastest_chamber_pole(model: &OneDofModel) -> f64 {
     fastest
 }
 
+/// Smallest small-signal gain margin of an inner loop without a warning, dB (Coulomb friction left out, so
+/// conservative: the proportional-valve Fig. 3 plant limit-cycles from kp = 10.7 /m, where it reads −4 dB).
+pub const MIN_GAIN_MARGIN_DB: f64 = 1.0;
+
+/// Warnings about each run's inner-loop margins at every stiffness the scene meets, on plants the loop
+/// analysis covers (a proportional-valve pneumatic plant, the linear plant); none on the others.
+pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
+    let mut out = Vec::new();
+    for (i, run) in scene.runs.iter().enumerate() {
+        let Ok(a) = crate::loop_analysis::analyse(scene, i, MIN_GAIN_MARGIN_DB) else {
+            return out;
+        };
+        for m in &a.margins {
+            if let Some(gm) = m.gain_margin_db.filter(|&g| g < MIN_GAIN_MARGIN_DB) {
+                out.push(Warning {
+                    key: format!("runs[{i}].inner.kp_per_m"),
+                    message: format!(
+                        "run `{}`: the inner loop's gain margin is {gm:.1} dB at k_e = {} N/m (below {MIN_GAIN_MARGIN_DB} dB): \
+                         it may limit-cycle near {:.1} Hz; kp <= {:.2} /m keeps {MIN_GAIN_MARGIN_DB} dB \
+                         (`pneuflex tf <scene> --loop` for the margins and the predicted onset)",
+                        run.name,
+                        m.stiffness_n_per_m,
+                        m.phase_crossover_hz.unwrap_or(f64::NAN),
+                        m.kp_max_per_m.unwrap_or(f64::NAN)
+                    ),
+                });
+            }
+        }
+    }
+    out
+}
+
 /// Warnings for a validated scene (Err only when its actuator sheet cannot be read; building the plant
 /// reports that with its key anyway, so callers may ignore it).
 pub fn warnings(scene: &Scene) -> Vec<Warning> {
     let mut out = Vec::new();
     let (sheet, h, steps_key, steps_now) = match &scene.plant {
-        PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => return out,
+        PlantSpec::Ideal { .. } => return out,
+        PlantSpec::Linear { .. } => return margin_warnings(scene),
         PlantSpec::Pneumatic {
             actuator, substeps, ..
         } => (
@@ -84,6 +117,7 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
             f64::from(mb.chamber_substeps),
         ),
     };
+    out.extend(margin_warnings(scene));
     let Ok(sheet) = ActuatorSheet::load(&sheet) else {
         return out;
     };

@@ -250,3 +250,15 @@ fn a_stop_request_ends_the_run_at_the_next_tick_and_starts_no_other() {
             .any(|i| i.role == "scene" && i.sha256.len() == 64)
     );
 }
+
+#[test]
+fn gains_past_the_inner_loops_margin_are_warned_about_with_the_kp_that_keeps_it() {
+    let (text, path) = shipped("paper-fig3-proportional.toml");
+    let s = load(&text.replace("kp_per_m = 7.0", "kp_per_m = 12.0"), &path).unwrap();
+    let w = advice::warnings(&s);
+    assert!(
+        w.iter()
+            .any(|w| w.key == "runs[0].inner.kp_per_m" && w.message.contains("may limit-cycle")),
+        "{w:?}"
+    );
+}
