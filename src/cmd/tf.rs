@@ -98,8 +98,8 @@ pub fn loop_margins(
         let a = analyse(&scene, i, margin_db)?;
         writeln!(
             s,
-            "run `{}` (kp = {} /m): inner position loop, broken at the valve command",
-            a.run, a.kp_per_m
+            "run `{}` (kp = {} /m): inner position loop, broken at the valve command; valve: {}",
+            a.run, a.kp_per_m, a.valve_model
         )?;
         let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
         let mut onsets = Vec::new();

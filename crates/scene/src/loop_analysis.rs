@@ -8,7 +8,7 @@
 //! after the output), is u = -C_y(z) x with
 //!     C_y(z) = kp + ki·dt/(z - 1) + kd·α(1 - z⁻¹) / (dt (1 - (1-α) z⁻¹)),  α = dt/(τ_d + dt),
 //! so the loop broken at the valve command is L(z) = C_y(z) · c (zI - Φ)⁻¹ Γ, evaluated on z = e^{jωdt}.
-//! A switching (PWM) valve has no small-signal model this way; those plants report it instead. Coulomb
+//! A switching (PWM) valve is analysed as its average over one PWM period. Coulomb
 //! friction is left out of the linearisation (see [`Linearisable::without_coulomb_friction`]).
 
 use serde::Serialize;
@@ -25,10 +25,14 @@ pub trait Linearisable: Plant {
     fn set_state_vector(&mut self, v: &[f64]);
     /// A perturbation size per state component for the finite differences.
     fn perturbation_scales(&self) -> Vec<f64>;
-    /// Whether the valve switches (PWM): then there is no small-signal model.
+    /// Whether the valve switches (PWM): then the analysis uses its period-averaged model.
     fn switching(&self) -> bool {
         false
     }
+    /// Replaces a switching valve by its average over one PWM period: the spool's duty d = (1 + u)/2 opens
+    /// supply→A and B→exhaust for d of the period and the other paths for 1 − d, i.e. a proportional valve
+    /// open both ways at the centre (underlap 1), lagging by the switching delay plus half a period.
+    fn average_switching(&mut self) {}
     /// Leaves out Coulomb friction: linearised at rest its tanh or stick band is a steep viscous damping
     /// (F_c/v_s, 600 N·s/m on the shipped sheet) that an oscillation of any size never sees — its describing
     /// function falls as 4 F_c/(π ω A) — so a small-signal margin with it would promise far more than the
@@ -71,6 +75,8 @@ pub struct LoopAnalysis {
     pub kp_per_m: f64,
     /// The gain margin the largest kp is computed for, dB.
     pub target_gain_margin_db: f64,
+    /// The valve model the plant was linearised with.
+    pub valve_model: String,
     /// Margins at each stiffness the scene meets (initial, then after each stiffness event).
     pub margins: Vec<Margins>,
 }
@@ -281,6 +287,7 @@ pub fn stiffnesses(scene: &Scene) -> Vec<f64> {
 pub fn analyse(scene: &Scene, index: usize, target_db: f64) -> Result<LoopAnalysis, SceneError> {
     let run = &scene.runs[index];
     let mut margins = Vec::new();
+    let mut valve_model = "as in the scene";
     for k_e in stiffnesses(scene) {
         let env = LinearSpring {
             stiffness_n_per_m: k_e,
@@ -290,12 +297,9 @@ pub fn analyse(scene: &Scene, index: usize, target_db: f64) -> Result<LoopAnalys
             PlantSpec::Pneumatic { .. } => {
                 let mut p = crate::pneumatic::OneDofPneumatic::from_scene(scene, env)?;
                 if p.switching() {
-                    return Err(scene.invalid(
-                        "plant.actuator",
-                        "the valve switches (PWM): the inner loop has no small-signal model; analyse the \
-                         scene with a continuous valve (e.g. pneumatics/paper-actuator-proportional.toml)"
-                            .into(),
-                    ));
+                    p.average_switching();
+                    valve_model = "the on/off valve averaged over its PWM period (duty (1+u)/2, both \
+                                   paths open at the centre, lag = switching delay + half a period)";
                 }
                 at_stiffness(&mut p, scene, run, k_e, target_db)
             }
@@ -318,6 +322,7 @@ pub fn analyse(scene: &Scene, index: usize, target_db: f64) -> Result<LoopAnalys
         run: run.name.clone(),
         kp_per_m: run.inner.kp_per_m,
         target_gain_margin_db: target_db,
+        valve_model: valve_model.into(),
         margins,
     })
 }

@@ -152,6 +152,19 @@ impl crate::loop_analysis::Linearisable for OneDofPneumatic {
             },
         };
     }
+    fn average_switching(&mut self) {
+        let v = &mut self.model.actuator.valve;
+        if let pneuflex_pneumatics::ValveKind::OnOffPwm {
+            pwm_frequency_hz,
+            switching_delay_s,
+        } = v.kind
+        {
+            v.kind = pneuflex_pneumatics::ValveKind::Proportional {
+                response_time_s: switching_delay_s + 0.5 / pwm_frequency_hz,
+            };
+            v.underlap = 1.0;
+        }
+    }
     fn switching(&self) -> bool {
         matches!(
             self.model.actuator.valve.kind,

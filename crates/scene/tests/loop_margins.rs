@@ -82,11 +82,21 @@ fn describing_functions_predict_the_limit_cycle_onset_within_25_percent() {
 }
 
 #[test]
-fn a_pwm_valve_has_no_small_signal_margins_and_says_so() {
+fn a_pwm_valve_is_analysed_as_its_period_average() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3.toml");
     let s = Scene::load(&path).unwrap();
-    let e = analyse(&s, 0, 6.0).unwrap_err().to_string();
-    assert!(e.contains("PWM") && e.contains("plant.actuator"), "{e}");
+    let a = analyse(&s, 0, 6.0).unwrap();
+    assert!(
+        a.valve_model.contains("averaged over its PWM period"),
+        "{}",
+        a.valve_model
+    );
+    for m in &a.margins {
+        assert!(
+            m.gain_margin_db.is_some() && m.kp_max_per_m.is_some(),
+            "{m:?}"
+        );
+    }
 }
 
 #[test]
