@@ -61,7 +61,7 @@ impl Plant for FirstOrderServo {
         self.x_m = self.x_r_m + (self.x_m - self.x_r_m) * (-dt / self.tau_s).exp();
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), String> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), pneuflex::scene::plant::PlantError> {
         match event {
             EventSpec::Stiffness {
                 stiffness_n_per_m, ..
@@ -69,7 +69,9 @@ impl Plant for FirstOrderServo {
                 self.k_n_per_m = *stiffness_n_per_m;
                 Ok(())
             }
-            other => Err(format!("a first-order servo cannot apply {other:?}")),
+            other => Err(pneuflex::scene::plant::PlantError::unsupported(format!(
+                "a first-order servo cannot apply {other:?}"
+            ))),
         }
     }
 

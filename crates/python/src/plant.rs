@@ -22,6 +22,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
+use pneuflex_scene::plant::{PlantError, PlantErrorKind};
 use pneuflex_scene::runner::{compute_windows, lyapunov_summary};
 use pneuflex_scene::schema::{ControllerKind, EventSpec, Limits};
 use pneuflex_scene::{Plant, Scene, build_controller, build_setpoints, simulate, summary};
@@ -209,9 +210,9 @@ impl Plant for PyPlant<'_> {
         }
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), String> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError> {
         if let Some(m) = self.failure_message() {
-            return Err(m);
+            return Err(PlantError::new(PlantErrorKind::External, m));
         }
         let py = self.obj.py();
         let r = to_py(py, event).and_then(|ev| self.obj.call_method1(intern!(py, "apply"), (ev,)));
@@ -219,7 +220,10 @@ impl Plant for PyPlant<'_> {
             Ok(_) => Ok(()),
             Err(e) => {
                 self.fail("apply(event)", e);
-                Err(self.failure_message().unwrap_or_default())
+                Err(PlantError::new(
+                    PlantErrorKind::External,
+                    self.failure_message().unwrap_or_default(),
+                ))
             }
         }
     }
@@ -233,8 +237,10 @@ impl Plant for PyPlant<'_> {
     }
 
     /// The plant's exception, if it raised: the scene loop stops the run as diverged with it.
-    fn check_invariants(&self) -> Result<(), String> {
-        self.failure_message().map_or(Ok(()), Err)
+    fn check_invariants(&self) -> Result<(), PlantError> {
+        self.failure_message().map_or(Ok(()), |m| {
+            Err(PlantError::new(PlantErrorKind::External, m))
+        })
     }
 }
 

@@ -183,7 +183,7 @@ impl Plant for LinearPlant {
         }
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), String> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plant::PlantError> {
         match *event {
             EventSpec::Stiffness {
                 stiffness_n_per_m, ..
@@ -191,10 +191,10 @@ impl Plant for LinearPlant {
                 self.env.stiffness_n_per_m = stiffness_n_per_m;
                 Ok(())
             }
-            _ => Err(format!(
+            _ => Err(crate::plant::PlantError::unsupported(format!(
                 "the linear plant supports only stiffness events, not {}",
                 event.kind()
-            )),
+            ))),
         }
     }
 

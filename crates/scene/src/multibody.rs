@@ -233,8 +233,8 @@ impl MultibodyPlant {
         false
     }
 
-    fn event_error(&self, e: MultibodyError) -> String {
-        format!("{} (URDF {})", e, self.urdf_file.display())
+    fn event_error(&self, e: MultibodyError) -> crate::plant::PlantError {
+        format!("{} (URDF {})", e, self.urdf_file.display()).into()
     }
 }
 
@@ -314,7 +314,7 @@ impl Plant for MultibodyPlant {
         }
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), String> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plant::PlantError> {
         match event {
             EventSpec::Stiffness {
                 stiffness_n_per_m,
@@ -422,7 +422,7 @@ impl Plant for MultibodyPlant {
         })
     }
 
-    fn check_invariants(&self) -> Result<(), String> {
+    fn check_invariants(&self) -> Result<(), crate::plant::PlantError> {
         let el = &self.drive.element;
         crate::plant::chamber_invariants(
             &el.chambers,

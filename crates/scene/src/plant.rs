@@ -5,6 +5,59 @@ use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 
 use crate::schema::EventSpec;
 
+/// What kind of thing went wrong in a plant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlantErrorKind {
+    /// The plant has nothing the event could change (a swap on a 1-DOF plant, an incline on the ideal loop).
+    Unsupported,
+    /// The event's values cannot be applied here (an unknown material, a carriage in motion).
+    Rejected,
+    /// A physical invariant of the state is violated: the run has diverged.
+    Invariant,
+    /// The plant's own machinery failed (an exception in a plant written in Python).
+    External,
+}
+
+/// A plant's error: its kind and a message for people.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{message}")]
+pub struct PlantError {
+    /// What kind of failure.
+    pub kind: PlantErrorKind,
+    /// What happened, with the numbers.
+    pub message: String,
+}
+
+impl PlantError {
+    /// An error of `kind`.
+    pub fn new(kind: PlantErrorKind, message: impl Into<String>) -> Self {
+        Self {
+            kind,
+            message: message.into(),
+        }
+    }
+    /// The plant has nothing the event could change.
+    pub fn unsupported(message: impl Into<String>) -> Self {
+        Self::new(PlantErrorKind::Unsupported, message)
+    }
+    /// A violated physical invariant.
+    pub fn invariant(message: impl Into<String>) -> Self {
+        Self::new(PlantErrorKind::Invariant, message)
+    }
+}
+
+impl From<String> for PlantError {
+    fn from(message: String) -> Self {
+        Self::new(PlantErrorKind::Rejected, message)
+    }
+}
+
+impl From<&str> for PlantError {
+    fn from(message: &str) -> Self {
+        Self::new(PlantErrorKind::Rejected, message)
+    }
+}
+
 /// Something a controller drives: a simulated plant (integrated) or, later, an adapter to the rig.
 pub trait Plant {
     /// Sensor values of the current state (the caller sets `t`).
@@ -15,12 +68,12 @@ pub trait Plant {
     /// Integrates the plant over `dt` seconds with the last command held (zero-order hold).
     fn advance(&mut self, dt: f64);
     /// Applies a scene event; Err explains why this plant cannot.
-    fn apply(&mut self, event: &EventSpec) -> Result<(), String>;
+    fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError>;
     /// Back to the initial state and initial environment.
     fn reset(&mut self);
     /// Checks the physical invariants of the current state (absolute pressures within [0, a margin above
     /// supply], temperatures positive, the piston within its stroke); Err names the variable and its value.
-    fn check_invariants(&self) -> Result<(), String> {
+    fn check_invariants(&self) -> Result<(), PlantError> {
         Ok(())
     }
     /// The plant's own recorded signals (beyond what `sense` returns), declared once.
@@ -220,7 +273,7 @@ impl Plant for IdealLoop {
         self.v = v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), String> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError> {
         match *event {
             EventSpec::Stiffness {
                 stiffness_n_per_m, ..
@@ -228,12 +281,12 @@ impl Plant for IdealLoop {
                 self.env.stiffness_n_per_m = stiffness_n_per_m;
                 Ok(())
             }
-            EventSpec::SwapEnvironment { .. } => Err(
-                "swap_environment needs the multibody plant: the ideal loop has one linear-spring environment".into(),
-            ),
-            EventSpec::Alpha { .. } => {
-                Err("alpha has no effect on the ideal loop (it has no gravity)".into())
-            }
+            EventSpec::SwapEnvironment { .. } => Err(PlantError::unsupported(
+                "swap_environment needs the multibody plant: the ideal loop has one linear-spring environment",
+            )),
+            EventSpec::Alpha { .. } => Err(PlantError::unsupported(
+                "alpha has no effect on the ideal loop (it has no gravity)",
+            )),
         }
     }
 
@@ -265,28 +318,28 @@ pub fn chamber_invariants(
     supply: &pneuflex_pneumatics::Supply,
     x_m: f64,
     stroke_m: f64,
-) -> Result<(), String> {
+) -> Result<(), PlantError> {
     let p_max = PRESSURE_MARGIN * supply.supply_pressure_pa;
     for (name, p) in [("p_a", ch.p_a), ("p_b", ch.p_b)] {
         if !(p > 0.0 && p <= p_max) {
-            return Err(format!(
+            return Err(PlantError::invariant(format!(
                 "chamber pressure {name} = {p:.6e} Pa (absolute) outside (0, {p_max:.3e}] Pa \
                  ({PRESSURE_MARGIN} x supply)"
-            ));
+            )));
         }
     }
     for (name, t) in [("T_a", ch.t_a), ("T_b", ch.t_b)] {
         if !(t > 0.0 && t < 2000.0) {
-            return Err(format!(
+            return Err(PlantError::invariant(format!(
                 "chamber temperature {name} = {t:.6e} K outside (0, 2000) K"
-            ));
+            )));
         }
     }
     let tol = 1e-3 + 0.01 * stroke_m;
     if !(x_m >= -tol && x_m <= stroke_m + tol) {
-        return Err(format!(
+        return Err(PlantError::invariant(format!(
             "piston position x = {x_m:.6e} m outside the stroke [0, {stroke_m}] m (+/- {tol:.4} m)"
-        ));
+        )));
     }
     Ok(())
 }

@@ -208,7 +208,7 @@ impl Plant for OneDofPneumatic {
         }
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), String> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plant::PlantError> {
         match *event {
             EventSpec::Stiffness {
                 stiffness_n_per_m, ..
@@ -216,9 +216,9 @@ impl Plant for OneDofPneumatic {
                 self.env.stiffness_n_per_m = stiffness_n_per_m;
                 Ok(())
             }
-            EventSpec::SwapEnvironment { .. } => Err(
-                "swap_environment needs the multibody plant: the 1-DOF pneumatic plant has one linear-spring environment and no carriage".into(),
-            ),
+            EventSpec::SwapEnvironment { .. } => Err(crate::plant::PlantError::unsupported(
+                "swap_environment needs the multibody plant: the 1-DOF pneumatic plant has one linear-spring environment and no carriage",
+            )),
             EventSpec::Alpha { alpha_deg, .. } => {
                 // eq. (1): G_alpha = m g sin(alpha) from the next step on.
                 self.model.mechanics.alpha_rad = alpha_deg.to_radians();
@@ -227,7 +227,7 @@ impl Plant for OneDofPneumatic {
         }
     }
 
-    fn check_invariants(&self) -> Result<(), String> {
+    fn check_invariants(&self) -> Result<(), crate::plant::PlantError> {
         let a = &self.model.actuator;
         let stroke = a.cylinder.stroke_m;
         crate::plant::chamber_invariants(&self.state.chambers, &a.supply, self.state.x, stroke)?;
@@ -242,10 +242,10 @@ impl Plant for OneDofPneumatic {
         let e = 0.5 * m.moving_mass_kg * self.state.x_dot.powi(2)
             + 0.5 * self.env.stiffness_n_per_m * d * d;
         if e > e_max {
-            return Err(format!(
+            return Err(crate::plant::PlantError::invariant(format!(
                 "mechanical energy {e:.3e} J (flange and environment spring) above the {e_max:.3e} J the supply \
                  can have put in over the stroke: energy grows without a source"
-            ));
+            )));
         }
         Ok(())
     }
@@ -316,7 +316,8 @@ mod tests {
         p.check_invariants().unwrap();
         p.state.x_dot = 1.1 * v_limit;
         let e = p.check_invariants().unwrap_err();
-        assert!(e.contains("energy grows without a source"), "{e}");
+        assert_eq!(e.kind, crate::plant::PlantErrorKind::Invariant);
+        assert!(e.message.contains("energy grows without a source"), "{e}");
     }
 
     #[test]
@@ -344,6 +345,6 @@ mod tests {
         let mut p = plant();
         p.state.chambers.p_b = -1.0;
         let e = p.check_invariants().unwrap_err();
-        assert!(e.starts_with("chamber pressure p_b = -1"), "{e}");
+        assert!(e.message.starts_with("chamber pressure p_b = -1"), "{e}");
     }
 }

@@ -377,7 +377,7 @@ fn simulate_loop(
             let (index, ev) = events[next_event];
             plant
                 .apply(ev)
-                .map_err(|m| scene.invalid(&format!("events[{index}]"), m))?;
+                .map_err(|m| scene.invalid(&format!("events[{index}]"), m.to_string()))?;
             next_event += 1;
         }
         let mut s = plant.sense();
