@@ -31,7 +31,8 @@ mod _native {
 
     #[pymodule_export]
     use crate::scene::{
-        bench_rapier, initial_state, load_scene, loop_signals, run, run_with_summary, summarize,
+        bench_rapier, bench_scene_ticks, initial_state, load_scene, loop_signals, run,
+        run_with_summary, summarize,
     };
 
     #[cfg(feature = "figures")]

@@ -8,7 +8,9 @@ use numpy::{IntoPyArray, PyReadonlyArray1};
 use pneuflex_multibody::{MultibodyConfig, RigWorld};
 use pneuflex_scene::runner::{compute_windows, lyapunov_summary};
 use pneuflex_scene::schema::ControllerKind;
-use pneuflex_scene::{RunResult, Scene, Trace, build_plant, run_scene, summary};
+use pneuflex_scene::{
+    RunResult, Scene, Trace, build_controller, build_plant, build_setpoints, run_scene, summary,
+};
 use pyo3::exceptions::{PyKeyError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyAny, PyDict};
@@ -285,5 +287,61 @@ pub fn bench_rapier<'py>(
     d.set_item("steps_per_s", n_steps as f64 / secs)?;
     d.set_item("x", m.x)?;
     d.set_item("f_e", m.f_e)?;
+    Ok(d)
+}
+
+/// Wall time of the scene runner's control tick without Python in the loop (scripts/bench): run `run` (name
+/// or index) of the scene on a fresh plant, first `settle_s` of ticks untimed (steady contact), then `ticks`
+/// timed ticks of sense → controller update → actuate → advance(dt), the runner's tick without events,
+/// recording or checks (for a multibody scene: the Rapier step(s), the chamber substeps and the controller).
+/// Returns {wall_s, ticks, dt_s, x, f_e} (x and f_e at the end, for a sanity check).
+#[pyfunction]
+#[pyo3(signature = (scene_path, run, ticks = 10000, settle_s = 1.0))]
+pub fn bench_scene_ticks<'py>(
+    py: Python<'py>,
+    scene_path: PathBuf,
+    run: &Bound<'py, PyAny>,
+    ticks: usize,
+    settle_s: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let scene = load(&scene_path)?;
+    let index = crate::controller::run_index(&scene, run)?;
+    let setpoints = build_setpoints(&scene).map_err(errors::scene)?;
+    let mut plant = build_plant(&scene).map_err(errors::scene)?;
+    let mut ctrl = build_controller(&scene, index).map_err(errors::scene)?;
+    let dt = scene.dt_s;
+    let settle = if settle_s > 0.0 {
+        (settle_s / dt).round() as usize
+    } else {
+        0
+    };
+    // The GIL stays held (a scene's plant need not be Send); no Python runs in the loop.
+    let (secs, s) = {
+        let mut t = 0.0;
+        let mut tick = |t: &mut f64| {
+            let mut s = plant.sense();
+            s.t = *t;
+            let cmd = ctrl.update(&s, &setpoints.at(*t), dt);
+            let tel = ctrl.telemetry();
+            plant.actuate(cmd, &tel);
+            plant.advance(dt);
+            *t += dt;
+        };
+        for _ in 0..settle {
+            tick(&mut t);
+        }
+        let t0 = Instant::now();
+        for _ in 0..ticks {
+            tick(&mut t);
+        }
+        let secs = t0.elapsed().as_secs_f64();
+        (secs, plant.sense())
+    };
+    let d = PyDict::new(py);
+    d.set_item("wall_s", secs)?;
+    d.set_item("ticks", ticks)?;
+    d.set_item("dt_s", dt)?;
+    d.set_item("x", s.x)?;
+    d.set_item("f_e", s.f_e)?;
     Ok(d)
 }

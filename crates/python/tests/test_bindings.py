@@ -131,6 +131,18 @@ def run_returns_traces_and_summarize_reproduces_the_runner_metrics():
 
 
 @test
+def bench_scene_ticks_is_the_runners_tick():
+    # scripts/bench times this loop: before the first event it must reproduce the runner's trace bit for bit.
+    for scene_path in (SCENE, str(ROOT / "scenes" / "paper-fig7-wood-to-iron.toml")):
+        traces = pneuflex.run(scene_path)
+        for run in ("impedance", 1):
+            name = run if isinstance(run, str) else list(traces)[run]
+            b = pneuflex.bench_scene_ticks(scene_path, run, ticks=500, settle_s=0.0)
+            assert b["ticks"] == 500 and b["wall_s"] > 0.0, b
+            assert b["x"] == traces[name]["x"][500] and b["f_e"] == traces[name]["f_e"][500], (scene_path, name, b)
+
+
+@test
 def bad_inputs_raise_python_exceptions_naming_the_file():
     missing = str(ROOT / "scenes" / "no-such-scene.toml")
     for f in (pneuflex.load_scene, pneuflex.run, pneuflex.Setpoints):
