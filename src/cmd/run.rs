@@ -70,7 +70,6 @@ fn install_stop_flag() -> anyhow::Result<Arc<AtomicUsize>> {
 /// Runs a scene file and writes its outputs; Err on bad input, on a write failure, when a run diverged
 /// (the outputs are still written, with the run marked diverged in summary.json) or on a signal.
 pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Result<()> {
-    let (quiet, rerun) = (args.quiet, args.rerun.as_deref());
     let scene = Scene::load(scene_path)?;
     let mut limits = Limits::default();
     if let Some(n) = args.max_steps {
@@ -80,17 +79,35 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
         limits.max_trace_bytes = mb.saturating_mul(1 << 20);
     }
     scene.check_budget(&limits)?;
-    for w in pneuflex_scene::advice::warnings(&scene) {
-        let at = pneuflex_files::toml_key_position(&scene.text, &w.key)
-            .map(|p| format!(":{p}"))
-            .unwrap_or_default();
-        eprintln!("warning: {}{at}: {w}", scene_path.display());
-    }
+    // The scene's warnings (the inner-loop margin analysis among them costs as much as a short simulation)
+    // are worked out beside the runs and printed as soon as they are known, before the command ends.
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            for w in pneuflex_scene::advice::warnings(&scene) {
+                let at = pneuflex_files::toml_key_position(&scene.text, &w.key)
+                    .map(|p| format!(":{p}"))
+                    .unwrap_or_default();
+                eprintln!("warning: {}{at}: {w}", scene_path.display());
+            }
+        });
+        run_scene_file(&scene, scene_path, out, args, limits)
+    })
+}
+
+/// [`run`] once the scene is loaded and within its limits.
+fn run_scene_file(
+    scene: &Scene,
+    scene_path: &Path,
+    out: Option<&Path>,
+    args: &RunArgs,
+    limits: Limits,
+) -> anyhow::Result<()> {
+    let (quiet, rerun) = (args.quiet, args.rerun.as_deref());
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(&scene.name));
     // The output directory is checked and staged before anything runs: a bad --out fails at once.
-    let inputs = inputs_of(&scene, scene_path);
+    let inputs = inputs_of(scene, scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let stage = OutputDir::create(&dest, &protect, Recoverable::Regenerable)?;
     if let Some(words) = rerun
@@ -111,7 +128,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
     let mut observer = match rerun {
         Some(words) => Some(pneuflex_rerun::SceneRecorder::new(
             pneuflex_rerun::parse_sink(words)?,
-            &scene,
+            scene,
         )?),
         None => None,
     };
@@ -148,15 +165,20 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
         limits,
         stop: Some(&stop),
     };
+    // Watches nothing: the runs may execute in parallel.
     struct Quiet;
-    impl pneuflex_scene::StepObserver for Quiet {}
+    impl pneuflex_scene::StepObserver for Quiet {
+        fn watches(&self) -> bool {
+            false
+        }
+    }
     #[cfg(feature = "rerun")]
     let results = match observer.as_mut() {
-        Some(obs) => run_scene_with(&scene, &opts, &mut progress, obs)?,
-        None => run_scene_with(&scene, &opts, &mut progress, &mut Quiet)?,
+        Some(obs) => run_scene_with(scene, &opts, &mut progress, obs)?,
+        None => run_scene_with(scene, &opts, &mut progress, &mut Quiet)?,
     };
     #[cfg(not(feature = "rerun"))]
-    let results = run_scene_with(&scene, &opts, &mut progress, &mut Quiet)?;
+    let results = run_scene_with(scene, &opts, &mut progress, &mut Quiet)?;
     bar.finish_and_clear();
     let sim_time = start.elapsed();
 
@@ -175,8 +197,24 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
         }
     }
 
-    write_results(stage.path(), &scene, &results)?;
-    let summary = pneuflex_scene::summary(&scene, &results);
+    let summary = pneuflex_scene::summary(scene, &results);
+    // Traces and summary.json on one side, figures on the other (different files): in parallel. Figures
+    // only for a complete command with a run that did not diverge.
+    let figures = summary.complete && results.iter().any(|r| r.diverged.is_none());
+    let (written, figures) = rayon::join(
+        || write_results(stage.path(), scene, &results),
+        || {
+            figures.then(|| {
+                pneuflex_viz::write_figures(
+                    stage.path(),
+                    scene,
+                    &results,
+                    pneuflex_viz::Format::Png,
+                )
+            })
+        },
+    );
+    written?;
     let manifest = Manifest::new("run", env!("CARGO_PKG_VERSION"), summary.inputs.clone());
     let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
     if !summary.complete {
@@ -204,9 +242,8 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
         }
         .into());
     }
-    if results.iter().any(|r| r.diverged.is_none()) {
-        pneuflex_viz::write_figures(stage.path(), &scene, &results, pneuflex_viz::Format::Png)
-            .context("writing figures")?;
+    if let Some(figures) = figures {
+        figures.context("writing figures")?;
     }
     let dest = stage.commit(manifest)?;
 
@@ -215,7 +252,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
         for w in results.iter().flat_map(|r| &r.warnings) {
             println!("warning: {w}");
         }
-        let claims = pneuflex_scene::claims::check_all(&scene, &results);
+        let claims = pneuflex_scene::claims::check_all(scene, &results);
         if !claims.is_empty() {
             println!("{}", claims_table(&claims));
         }

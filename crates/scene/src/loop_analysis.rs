@@ -192,17 +192,12 @@ fn pid_cy(pid: &pneuflex_control::PidParams, dt: f64, z: Cx) -> Cx {
     Cx(pid.kp_per_m, 0.0).add(integral).add(deriv)
 }
 
-/// Frequency response of L at `freqs` (Hz): (Hz, |L|, arg L rad) with the phase unwrapped.
-fn response(
-    phi: &[Vec<f64>],
-    gamma: &[f64],
-    pid: &pneuflex_control::PidParams,
-    dt: f64,
-    freqs: &[f64],
-) -> Vec<(f64, f64, f64)> {
+/// The plant's part of the loop at `freqs` (Hz): (Hz, z, the first state's response to the command,
+/// e₀ᵀ(zI − Φ)⁻¹Γ); frequencies where zI − Φ is singular are left out. It does not depend on the PID, so
+/// a search over kp computes it once.
+fn plant_response(phi: &[Vec<f64>], gamma: &[f64], dt: f64, freqs: &[f64]) -> Vec<(f64, Cx, Cx)> {
     let n = gamma.len();
     let mut out = Vec::with_capacity(freqs.len());
-    let mut prev: Option<f64> = None;
     for &f in freqs {
         let w = std::f64::consts::TAU * f * dt;
         let z = Cx(w.cos(), w.sin());
@@ -218,7 +213,22 @@ fn response(
             .collect();
         let b = gamma.iter().map(|&g| Cx(g, 0.0)).collect();
         let Some(wv) = solve(a, b) else { continue };
-        let l = pid_cy(pid, dt, z).mul(wv[0]);
+        out.push((f, z, wv[0]));
+    }
+    out
+}
+
+/// Frequency response of L = C_y(z)·P(z) on a [`plant_response`]: (Hz, |L|, arg L rad) with the phase
+/// unwrapped.
+fn loop_response(
+    plant: &[(f64, Cx, Cx)],
+    pid: &pneuflex_control::PidParams,
+    dt: f64,
+) -> Vec<(f64, f64, f64)> {
+    let mut out = Vec::with_capacity(plant.len());
+    let mut prev: Option<f64> = None;
+    for &(f, z, p) in plant {
+        let l = pid_cy(pid, dt, z).mul(p);
         let mut ph = l.arg();
         if let Some(p) = prev {
             while ph - p > std::f64::consts::PI {
@@ -363,8 +373,8 @@ fn at_stiffness<P: Linearisable>(
         p.advance(dt);
     }
     let (phi, gamma) = linearise(p, u, dt);
-    let freqs = frequencies(dt);
-    let resp = response(&phi, &gamma, &run.inner, dt, &freqs);
+    let plant = plant_response(&phi, &gamma, dt, &frequencies(dt));
+    let resp = loop_response(&plant, &run.inner, dt);
     let (gc, pm, pc, gm) = margins_of(&resp);
     // The largest kp with the target gain margin: bisection on kp (ki, kd as in the scene).
     let gm_at = |kp: f64| {
@@ -372,7 +382,7 @@ fn at_stiffness<P: Linearisable>(
             kp_per_m: kp,
             ..run.inner
         };
-        margins_of(&response(&phi, &gamma, &pid, dt, &freqs)).3
+        margins_of(&loop_response(&plant, &pid, dt)).3
     };
     let ok = |kp: f64| gm_at(kp).is_none_or(|g| g >= target_db);
     let kp_max = {
@@ -439,13 +449,14 @@ pub fn limit_cycle_onset<P: Linearisable + Clone>(
             let u_op = settle(&mut p, scene, &pid, k_e);
             let hu = (kp * a_x).clamp(1e-4, 1.0);
             let (phi, gamma) = linearise_secant(&mut p, u_op, hu, dt);
+            let plant_resp = plant_response(&phi, &gamma, dt, &freqs);
             // kp at 0 dB for this linearisation (bisection), and the phase crossover there.
             let gm = |k: f64| {
                 let pid = pneuflex_control::PidParams {
                     kp_per_m: k,
                     ..run.inner
                 };
-                margins_of(&response(&phi, &gamma, &pid, dt, &freqs))
+                margins_of(&loop_response(&plant_resp, &pid, dt))
             };
             let (mut lo, mut hi) = (0.0_f64, 1000.0_f64);
             if gm(hi).3.is_none_or(|g| g >= 0.0) {

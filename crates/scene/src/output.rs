@@ -3,7 +3,7 @@
 //! tool version, its schema version and the SHA-256 of every input file.
 
 use std::fs;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 
 use pneuflex_files::InputDigest;
@@ -188,16 +188,12 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
 
 /// Writes every run's trace and summary.json into `dir` (normally a [`Staging::path`]).
 /// A diverged run's partial trace goes to `trace.diverged.csv`, never to `trace.csv`.
+/// The traces are written in parallel (one file per run); the first error in run order is returned.
 pub fn write_results(dir: &Path, scene: &Scene, results: &[RunResult]) -> Result<(), SceneError> {
-    for r in results {
-        let run_dir = dir.join(&r.name);
-        fs::create_dir_all(&run_dir).map_err(werr(&run_dir))?;
-        let path = run_dir.join(trace_file_name(r));
-        let f = fs::File::create(&path).map_err(werr(&path))?;
-        let mut w = BufWriter::new(f);
-        r.trace.write_csv(&mut w).map_err(werr(&path))?;
-        w.flush().map_err(werr(&path))?;
-    }
+    use rayon::prelude::*;
+    let written: Vec<Result<(), SceneError>> =
+        results.par_iter().map(|r| write_trace(dir, r)).collect();
+    written.into_iter().collect::<Result<(), _>>()?;
     let path = dir.join("summary.json");
     let text =
         serde_json::to_string_pretty(&summary(scene, results)).map_err(|e| SceneError::Write {
@@ -206,4 +202,15 @@ pub fn write_results(dir: &Path, scene: &Scene, results: &[RunResult]) -> Result
         })?;
     fs::write(&path, text + "\n").map_err(werr(&path))?;
     Ok(())
+}
+
+/// Writes `<dir>/<run>/<trace file>`.
+fn write_trace(dir: &Path, r: &RunResult) -> Result<(), SceneError> {
+    let run_dir = dir.join(&r.name);
+    fs::create_dir_all(&run_dir).map_err(werr(&run_dir))?;
+    let path = run_dir.join(trace_file_name(r));
+    let mut f = fs::File::create(&path).map_err(werr(&path))?;
+    // write_csv buffers by itself, in blocks.
+    r.trace.write_csv(&mut f).map_err(werr(&path))?;
+    f.flush().map_err(werr(&path))
 }

@@ -196,12 +196,21 @@ pub trait StepObserver {
     fn on_step(&mut self, _row: &Row, _plant: &dyn Plant) {}
     /// A run ended (its metrics are not computed yet).
     fn end_run(&mut self, _result: &RunResult) {}
+    /// Whether this observer watches anything. One that does not (every method a no-op) lets the runs of
+    /// a scene execute in parallel; one that does sees them one after another, in the scene's order.
+    fn watches(&self) -> bool {
+        true
+    }
 }
 
 /// The observer that watches nothing.
-struct NoObserver;
+pub struct NoObserver;
 
-impl StepObserver for NoObserver {}
+impl StepObserver for NoObserver {
+    fn watches(&self) -> bool {
+        false
+    }
+}
 
 /// Any number of observers watching the same runs (Rerun, a live plot, a progress display …), each
 /// called in order.
@@ -223,6 +232,9 @@ impl StepObserver for Observers<'_> {
         for o in &mut self.0 {
             o.end_run(result);
         }
+    }
+    fn watches(&self) -> bool {
+        self.0.iter().any(|o| o.watches())
     }
 }
 
@@ -256,7 +268,12 @@ pub fn signal_name(signal: usize) -> String {
 }
 
 /// [`run_scene_observed`] with limits and a stop flag. Runs stopped by the flag come back with
-/// `interrupted` set; runs not started are absent.
+/// `interrupted` set; runs not started are absent (the runs started are always the first ones, in order).
+///
+/// When the observer watches nothing ([`StepObserver::watches`]) and there are several runs and cores,
+/// the runs execute in parallel (rayon's pool), each on its own plant from [`build_plant`]; the results
+/// are the same, bit for bit, as one after another. A stop flag then stops every run in progress and no
+/// further run starts.
 pub fn run_scene_with(
     scene: &Scene,
     opts: &RunOptions<'_>,
@@ -266,16 +283,20 @@ pub fn run_scene_with(
     scene.validate()?;
     scene.check_budget(&opts.limits)?;
     let setpoints = build_setpoints(scene)?;
+    let parallel = !observer.watches()
+        && scene.runs.len() > 1
+        && rayon::current_num_threads() > 1
+        // A pool thread must not block on the progress channel below.
+        && rayon::current_thread_index().is_none();
+    if parallel {
+        return run_parallel(scene, opts, &setpoints, progress);
+    }
     let mut plant = build_plant(scene)?;
     let pwm_period = pwm_period_s(scene);
     let n_runs = scene.runs.len();
     let mut out = Vec::with_capacity(n_runs);
-    let stopped = || {
-        opts.stop
-            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed) != 0)
-    };
     for i in 0..n_runs {
-        if stopped() {
+        if stopped(opts) {
             break;
         }
         let mut controller = build_controller(scene, i)?;
@@ -293,16 +314,111 @@ pub fn run_scene_with(
             opts.stop,
         )?;
         observer.end_run(&r);
-        if r.diverged.is_none() && r.interrupted.is_none() {
-            r.windows = compute_windows_with(scene, &r.trace, pwm_period);
-        }
-        if r.controller == ControllerKind::Adaptive {
-            r.lyapunov = lyapunov_summary(scene, &scene.runs[i]);
-        }
-        r.warnings = pinned_parameters(&scene.runs[i], &r.trace);
+        finish_run(scene, i, &mut r, pwm_period);
         out.push(r);
     }
     progress(1.0);
+    Ok(out)
+}
+
+fn stopped(opts: &RunOptions<'_>) -> bool {
+    opts.stop
+        .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed) != 0)
+}
+
+/// A simulated run's metrics, Lyapunov check and warnings.
+fn finish_run(scene: &Scene, i: usize, r: &mut RunResult, pwm_period: Option<f64>) {
+    if r.diverged.is_none() && r.interrupted.is_none() {
+        r.windows = compute_windows_with(scene, &r.trace, pwm_period);
+    }
+    if r.controller == ControllerKind::Adaptive {
+        r.lyapunov = lyapunov_summary(scene, &scene.runs[i]);
+    }
+    r.warnings = pinned_parameters(&scene.runs[i], &r.trace);
+}
+
+/// The runs of a scene on the pool's threads: each worker takes the next run in the scene's order (so the
+/// runs started are a prefix), builds its plant and controller, simulates and computes its metrics. The
+/// calling thread reports progress from what the workers send. The first error in run order is returned.
+fn run_parallel(
+    scene: &Scene,
+    opts: &RunOptions<'_>,
+    setpoints: &control::SetpointSchedule,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Vec<RunResult>, SceneError> {
+    use std::sync::Mutex;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let n_runs = scene.runs.len();
+    let pwm_period = pwm_period_s(scene);
+    let next = AtomicUsize::new(0);
+    let slots: Vec<Mutex<Option<Result<RunResult, SceneError>>>> =
+        (0..n_runs).map(|_| Mutex::new(None)).collect();
+    let workers = n_runs.min(rayon::current_num_threads());
+    let (tx, rx) = std::sync::mpsc::channel::<(usize, f64)>();
+    rayon::in_place_scope(|s| {
+        for _ in 0..workers {
+            let tx = tx.clone();
+            let (next, slots) = (&next, &slots);
+            s.spawn(move |_| {
+                loop {
+                    if stopped(opts) {
+                        break;
+                    }
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= n_runs {
+                        break;
+                    }
+                    let run = || -> Result<RunResult, SceneError> {
+                        let mut plant = build_plant(scene)?;
+                        let mut controller = build_controller(scene, i)?;
+                        // Progress in steps of 1 % of the run (each message wakes the caller).
+                        let mut sent = 0.0;
+                        let mut sub = |f: f64| {
+                            if f - sent >= 0.01 || (f >= 1.0 && sent < 1.0) {
+                                sent = f;
+                                let _ = tx.send((i, f));
+                            }
+                        };
+                        let mut r = simulate_loop(
+                            scene,
+                            i,
+                            plant.as_mut(),
+                            controller.as_mut(),
+                            setpoints,
+                            &mut sub,
+                            &mut NoObserver,
+                            opts.stop,
+                        )?;
+                        finish_run(scene, i, &mut r, pwm_period);
+                        Ok(r)
+                    };
+                    let r = run();
+                    let failed = r.is_err();
+                    *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
+                    if failed {
+                        // Later runs would be discarded: start none.
+                        next.fetch_max(n_runs, Ordering::Relaxed);
+                    }
+                }
+            });
+        }
+        drop(tx);
+        let mut done = vec![0.0; n_runs];
+        let mut total = 0.0;
+        for (i, f) in rx {
+            total += f - done[i];
+            done[i] = f;
+            progress(total / n_runs as f64);
+        }
+    });
+    progress(1.0);
+    let mut out = Vec::with_capacity(n_runs);
+    for slot in slots {
+        match slot.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            Some(r) => out.push(r?),
+            None => break,
+        }
+    }
     Ok(out)
 }
 

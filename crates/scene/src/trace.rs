@@ -8,6 +8,31 @@ use std::io::Write;
 use pneuflex_control::Signal;
 use pneuflex_control::signal::index;
 
+/// A trace that cannot be built from the columns given.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TraceError {
+    /// Columns of different lengths.
+    #[error("column `{column}` has {rows} rows, `{first}` has {expected}")]
+    Length {
+        /// The column that differs.
+        column: String,
+        /// Its rows.
+        rows: usize,
+        /// The first column.
+        first: String,
+        /// Its rows.
+        expected: usize,
+    },
+    /// The loop's columns are not first, in their order.
+    #[error("column {index} must be `{expected}`")]
+    Order {
+        /// Position.
+        index: usize,
+        /// The loop signal expected there.
+        expected: &'static str,
+    },
+}
+
 /// One column of a trace: the declaration of its signal, owned (a trace read back or built from Python
 /// has names that were not declared in Rust).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -106,19 +131,22 @@ impl Trace {
     }
 
     /// A trace from whole columns (all of the same length; the loop's columns first).
-    pub fn from_columns(columns: Vec<(Column, Vec<f64>)>) -> Result<Self, String> {
+    pub fn from_columns(columns: Vec<(Column, Vec<f64>)>) -> Result<Self, TraceError> {
         let n = columns.first().map_or(0, |c| c.1.len());
         if let Some((c, v)) = columns.iter().find(|(_, v)| v.len() != n) {
-            return Err(format!(
-                "column `{}` has {} rows, `{}` has {n}",
-                c.name,
-                v.len(),
-                columns[0].0.name
-            ));
+            return Err(TraceError::Length {
+                column: c.name.clone(),
+                rows: v.len(),
+                first: columns[0].0.name.clone(),
+                expected: n,
+            });
         }
         for (i, s) in pneuflex_control::LOOP_SIGNALS.iter().enumerate() {
             if columns.get(i).map(|c| c.0.name.as_str()) != Some(s.name) {
-                return Err(format!("column {i} must be `{}`", s.name));
+                return Err(TraceError::Order {
+                    index: i,
+                    expected: s.name,
+                });
             }
         }
         let (columns, data) = columns.into_iter().unzip();
@@ -200,27 +228,207 @@ impl Trace {
     }
 
     /// Writes the trace as CSV with a header row of the column names; NaN (a signal the plant does not
-    /// have) is an empty cell; numbers in the shortest form that reads back to the same f64.
+    /// have) is an empty cell; numbers in the shortest form that reads back to the same f64, written as
+    /// Rust's `{}` writes them (never an exponent). Rows are formatted into a buffer and written in blocks
+    /// of about 64 KiB, so `w` need not be buffered.
     pub fn write_csv<W: Write>(&self, w: &mut W) -> std::io::Result<()> {
-        let header: Vec<&str> = self.columns.iter().map(|c| c.name.as_str()).collect();
-        writeln!(w, "{}", header.join(","))?;
-        let mut line = String::with_capacity(16 * self.columns.len());
+        const BLOCK: usize = 1 << 16;
+        let mut buf: Vec<u8> = Vec::with_capacity(BLOCK + 64 * self.columns.len());
+        for (j, c) in self.columns.iter().enumerate() {
+            if j > 0 {
+                buf.push(b',');
+            }
+            buf.extend_from_slice(c.name.as_bytes());
+        }
+        buf.push(b'\n');
+        let mut ryu = ryu::Buffer::new();
         for i in 0..self.len() {
-            line.clear();
             for (j, c) in self.data.iter().enumerate() {
                 if j > 0 {
-                    line.push(',');
+                    buf.push(b',');
                 }
                 let v = c[i];
                 if v.is_finite() {
-                    use std::fmt::Write as _;
-                    let _ = write!(line, "{v}");
+                    push_f64(&mut buf, &mut ryu, v);
                 } else if v.is_infinite() {
-                    line.push_str(if v > 0.0 { "inf" } else { "-inf" });
+                    buf.extend_from_slice(if v > 0.0 { b"inf" } else { b"-inf" });
                 }
             }
-            writeln!(w, "{line}")?;
+            buf.push(b'\n');
+            if buf.len() >= BLOCK {
+                w.write_all(&buf)?;
+                buf.clear();
+            }
         }
-        Ok(())
+        w.write_all(&buf)
+    }
+}
+
+/// Appends a finite `v` exactly as `format!("{v}")` writes it: the shortest digits that read back to the
+/// same f64, in positional notation with no exponent, no trailing `.0` on integers, `-0` for negative zero.
+///
+/// ryu finds the same shortest digits as the standard library and, of those, the closest to `v`, except
+/// when `v` lies exactly halfway between two: ryu then takes the even one, the standard library rounds
+/// up (0.5 + 2⁻¹⁷ = 0.50000762939453125: ryu `…312`, `{}` `…313`). A tie needs the exact decimal expansion
+/// of `v` to have at most 18 significant digits; such values (few significant bits: 0.5, 2.75, and
+/// integers from 2⁵³ up) are written by the standard library, everything else by ryu.
+pub fn push_f64(out: &mut Vec<u8>, ryu: &mut ryu::Buffer, v: f64) {
+    if may_tie(v) {
+        use std::io::Write as _;
+        let _ = write!(out, "{v}");
+        return;
+    }
+    let s = ryu.format_finite(v).as_bytes();
+    if !s.contains(&b'e') {
+        // Positional already (1e-5 <= |v| < 1e16, or 0): as Display, except that an integer ends in `.0`.
+        out.extend_from_slice(s.strip_suffix(b".0").unwrap_or(s));
+        return;
+    }
+    let (neg, s) = match s.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        _ => (false, s),
+    };
+    // ryu writes `de-7` or `d.ddde20` here.
+    let (mant, exp) = match s.iter().position(|&b| b == b'e') {
+        Some(e) => (&s[..e], parse_exp(&s[e + 1..])),
+        None => (s, 0),
+    };
+    let (int, frac) = match mant.iter().position(|&b| b == b'.') {
+        Some(d) => (&mant[..d], &mant[d + 1..]),
+        None => (mant, &[][..]),
+    };
+    if neg {
+        out.push(b'-');
+    }
+    // The significant digits and where the decimal point falls among them.
+    let mut digits = [0u8; 40];
+    let mut n = 0;
+    for &b in int.iter().chain(frac) {
+        digits[n] = b;
+        n += 1;
+    }
+    let mut point = int.len() as i32 + exp;
+    let lead = digits[..n].iter().take_while(|&&b| b == b'0').count();
+    let trail = digits[lead..n]
+        .iter()
+        .rev()
+        .take_while(|&&b| b == b'0')
+        .count();
+    let sig = &digits[lead..n - trail];
+    point -= lead as i32;
+    if sig.is_empty() {
+        out.push(b'0');
+    } else if point <= 0 {
+        out.extend_from_slice(b"0.");
+        out.extend(std::iter::repeat_n(b'0', (-point) as usize));
+        out.extend_from_slice(sig);
+    } else if point as usize >= sig.len() {
+        out.extend_from_slice(sig);
+        out.extend(std::iter::repeat_n(b'0', point as usize - sig.len()));
+    } else {
+        let (a, b) = sig.split_at(point as usize);
+        out.extend_from_slice(a);
+        out.push(b'.');
+        out.extend_from_slice(b);
+    }
+}
+
+/// Whether the exact decimal expansion of `v` (finite) may be short enough (≤ 18 significant digits) for
+/// `v` to lie halfway between two shortest candidates: conservative, it never misses one.
+fn may_tie(v: f64) -> bool {
+    let bits = v.to_bits();
+    let (exp, frac) = ((bits >> 52) & 0x7ff, bits & ((1 << 52) - 1));
+    let (m, e) = if exp == 0 {
+        (frac, -1074)
+    } else {
+        (frac | (1 << 52), exp as i32 - 1075)
+    };
+    if m == 0 {
+        return false; // ±0: no choice of digits
+    }
+    // v = m'·2^e' with m' odd, of b bits.
+    let tz = m.trailing_zeros();
+    let (m, e) = (m >> tz, e + tz as i32);
+    let b = 64 - m.leading_zeros() as i32;
+    if e >= 0 {
+        // An integer: below 2⁵³ its rounding interval holds no other candidate of as few digits.
+        return e + b > 53;
+    }
+    // The expansion ends at 10^e (m'·5^-e is odd) and starts at 10^d, d ≥ floor((e + b − 1)·log10 2):
+    // it has d − e + 1 significant digits. (x·78913) >> 18 is floor(x·log10 2) for |x| ≤ 1650.
+    let d_min = ((e + b - 1) * 78913) >> 18;
+    d_min - e < 18
+}
+
+fn parse_exp(s: &[u8]) -> i32 {
+    let (neg, digits) = match s.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        _ => (false, s),
+    };
+    let e = digits
+        .iter()
+        .fold(0i32, |a, &d| a * 10 + i32::from(d - b'0'));
+    if neg { -e } else { e }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::push_f64;
+
+    fn both(v: f64) {
+        let mut out = Vec::new();
+        push_f64(&mut out, &mut ryu::Buffer::new(), v);
+        assert_eq!(std::str::from_utf8(&out).unwrap(), format!("{v}"), "{v:e}");
+    }
+
+    #[test]
+    fn formats_as_display() {
+        for v in [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            10.0,
+            100.0,
+            0.1,
+            0.001,
+            1e-7,
+            -1.5e-7,
+            1e15,
+            1e16,
+            1.5e16,
+            1e21,
+            123456789.125,
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::MAX,
+            f64::MIN,
+            f64::EPSILON,
+            101325.0,
+            0.5,
+            2.5e-5,
+        ] {
+            both(v);
+        }
+        // Random bit patterns (every magnitude) and random values of a trace's magnitudes.
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        for _ in 0..300_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let v = f64::from_bits(x);
+            if v.is_finite() {
+                both(v);
+            }
+            both((x >> 11) as f64 / (1u64 << 53) as f64 * 2e6 - 1e6);
+            both((x >> 11) as f64 / (1u64 << 53) as f64 * 1e-3);
+            // Few significant bits (the values that can lie halfway between two candidates).
+            let k = (x >> 58) as i32 - 20;
+            both(((x >> 40) | 1) as f64 * 2f64.powi(-(k + 24)));
+            both(((x >> 30) | 1) as f64 * 2f64.powi(-(k + 34)));
+            both(((x >> 50) | 1) as f64 * 2f64.powi(-(k + 14)));
+        }
+        both(0.5 + 2f64.powi(-17));
+        both(1.658_206_780_088_562_3e15);
     }
 }
