@@ -65,6 +65,21 @@ pub const LOOP_SIGNALS: [Signal; 8] = [
     Signal::new("u", "1", "valve", "valve command in [-1, 1]"),
 ];
 
+/// Something that watches the rows of a control loop — a trace, a live viewer, a progress display — in
+/// every loop alike: the simulation's runner and the rig's real-time loop call it with the same columns
+/// (`LOOP_SIGNALS`, then the controller's own) and one row of values per tick.
+pub trait RowObserver {
+    /// A run starts; these are its columns.
+    fn begin(&mut self, _columns: &[Signal]) {}
+    /// One tick's values, in the order of the columns.
+    fn row(&mut self, _values: &[f64]) {}
+    /// The run ended.
+    fn end(&mut self) {}
+}
+
+/// The observer that watches nothing.
+impl RowObserver for () {}
+
 /// Index of each loop signal in a row.
 pub mod index {
     /// Time.

@@ -312,6 +312,38 @@ where
     W: TraceSink,
     K: Clock + ?Sized,
 {
+    run_observed(
+        sup,
+        controller,
+        reference,
+        trace,
+        opts,
+        stop,
+        clock,
+        &mut (),
+    )
+}
+
+/// [`run_with_clock`] with an observer of every row — the same [`pneuflex_control::RowObserver`] the
+/// simulation's runner calls (a live viewer, a progress display): the loop's columns and the controller's,
+/// each tick's values as written to the trace (the command as applied).
+#[allow(clippy::too_many_arguments)]
+pub fn run_observed<R, C, W, K>(
+    sup: &mut Supervisor<R>,
+    controller: &mut C,
+    reference: &mut dyn FnMut(f64) -> Setpoint,
+    trace: &mut TraceWriter<W>,
+    opts: &RunOptions,
+    stop: &AtomicBool,
+    clock: &mut K,
+    observer: &mut dyn pneuflex_control::RowObserver,
+) -> std::io::Result<LoopReport>
+where
+    R: Rig<Sample = SiSample>,
+    C: Controller + ?Sized,
+    W: TraceSink,
+    K: Clock + ?Sized,
+{
     opts.validate()
         .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
     let dt = 1.0 / opts.rate_hz;
@@ -354,6 +386,12 @@ where
     trace.columns(own)?;
     let n_loop = pneuflex_control::LOOP_SIGNALS.len();
     let mut values = vec![0.0; n_loop + own.len()];
+    let columns: Vec<pneuflex_control::Signal> = pneuflex_control::LOOP_SIGNALS
+        .iter()
+        .chain(own)
+        .copied()
+        .collect();
+    observer.begin(&columns);
 
     let start = host(clock);
     let mut prev_start: Option<f64> = None;
@@ -484,6 +522,7 @@ where
         if let Err(e) = written {
             return Err(trace_failed(sup, k, now_s, e));
         }
+        observer.row(&values);
         report.ticks += 1;
         k += 1;
     }
@@ -497,6 +536,7 @@ where
             host_time_s: host(clock),
         });
     }
+    observer.end();
     report.time_reached_s = k as f64 * dt;
     report.period_error = period_err.percentiles();
     report.lateness = lateness.percentiles();

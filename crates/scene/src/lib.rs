@@ -29,7 +29,7 @@ pub use output::{Summary, scene_inputs, summary, write_results};
 pub use plant::{IdealLoop, LinearSpring, Plant, Visual, VisualPose, VisualShape};
 pub use pneumatic::OneDofPneumatic;
 pub use runner::{
-    LyapunovSummary, Observers, RunOptions, RunResult, StepObserver, WindowMetrics,
+    LyapunovSummary, Observers, Rows, RunOptions, RunResult, StepObserver, WindowMetrics,
     build_controller, build_plant, build_setpoints, run_scene, run_scene_observed, run_scene_with,
     signal_name, simulate, simulate_observed,
 };

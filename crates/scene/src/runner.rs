@@ -192,6 +192,9 @@ pub fn run_scene(
 pub trait StepObserver {
     /// A run starts; the plant is at its initial state.
     fn begin_run(&mut self, _run: &crate::schema::RunSpec, _plant: &dyn Plant) {}
+    /// The run's columns as their producers declare them (the loop's, the controller's, the plant's),
+    /// before its first tick.
+    fn columns(&mut self, _columns: &[pneuflex_control::Signal]) {}
     /// One control tick was recorded.
     fn on_step(&mut self, _row: &Row, _plant: &dyn Plant) {}
     /// A run ended (its metrics are not computed yet).
@@ -212,6 +215,22 @@ impl StepObserver for NoObserver {
     }
 }
 
+/// A [`pneuflex_control::RowObserver`] — the row watcher the rig's loop takes too — as a [`StepObserver`]
+/// of the simulation: the same observer watches a simulated run and a run on the real rig.
+pub struct Rows<'a>(pub &'a mut dyn pneuflex_control::RowObserver);
+
+impl StepObserver for Rows<'_> {
+    fn columns(&mut self, columns: &[pneuflex_control::Signal]) {
+        self.0.begin(columns);
+    }
+    fn on_step(&mut self, row: &Row, _plant: &dyn Plant) {
+        self.0.row(row.values);
+    }
+    fn end_run(&mut self, _result: &RunResult) {
+        self.0.end();
+    }
+}
+
 /// Any number of observers watching the same runs (Rerun, a live plot, a progress display …), each
 /// called in order.
 #[derive(Default)]
@@ -221,6 +240,11 @@ impl StepObserver for Observers<'_> {
     fn begin_run(&mut self, run: &crate::schema::RunSpec, plant: &dyn Plant) {
         for o in &mut self.0 {
             o.begin_run(run, plant);
+        }
+    }
+    fn columns(&mut self, columns: &[pneuflex_control::Signal]) {
+        for o in &mut self.0 {
+            o.columns(columns);
         }
     }
     fn on_step(&mut self, row: &Row, plant: &dyn Plant) {
@@ -479,6 +503,13 @@ fn simulate_loop(
     // The row: the loop's signals, then the controller's and the plant's, as each declares them.
     let (c_sig, p_sig) = (controller.signals(), plant.signals());
     let columns = Trace::loop_columns(&[c_sig, p_sig]);
+    let declared: Vec<pneuflex_control::Signal> = pneuflex_control::LOOP_SIGNALS
+        .iter()
+        .chain(c_sig)
+        .chain(p_sig)
+        .copied()
+        .collect();
+    observer.columns(&declared);
     let n_loop = pneuflex_control::LOOP_SIGNALS.len();
     let mut values = vec![0.0; columns.len()];
     let mut trace = Trace::with_capacity(n + 1, columns);

@@ -1,0 +1,100 @@
+//! Issue 12, item 3: one observer trait for every loop. The same `RowObserver` watches a run of the
+//! scene runner (simulation) and a run of the rig's real-time loop (against the emulator, on a simulated
+//! clock): both announce the same declared columns — the loop's, then the controller's (g, p, d for the
+//! adaptive run) — and hand it one row per tick in that order.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use pneuflex::control::{RowObserver, Signal};
+use pneuflex::rig::clock::SimClock;
+use pneuflex::rig::trace::TraceWriter;
+use pneuflex::rig::{RigFile, rtloop, serial, session};
+use pneuflex::scene::{Rows, Scene, run_scene_observed};
+
+#[derive(Default)]
+struct Collect {
+    columns: Vec<&'static str>,
+    rows: Vec<Vec<f64>>,
+    ended: usize,
+}
+
+impl RowObserver for Collect {
+    fn begin(&mut self, columns: &[Signal]) {
+        self.columns = columns.iter().map(|s| s.name).collect();
+        self.rows.clear();
+    }
+    fn row(&mut self, values: &[f64]) {
+        assert_eq!(
+            values.len(),
+            self.columns.len(),
+            "a row has one value per column"
+        );
+        self.rows.push(values.to_vec());
+    }
+    fn end(&mut self) {
+        self.ended += 1;
+    }
+}
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+#[test]
+fn the_same_row_observer_watches_a_simulated_run_and_a_rig_run() {
+    // Simulation: the adaptive run of paper-fig3 on the 1-DOF plant, shortened.
+    let mut scene = Scene::load(&repo("scenes/paper-fig3.toml")).unwrap();
+    scene.duration_s = 0.5;
+    scene.metrics.clear();
+    scene.claims.clear();
+    scene.events.clear();
+    scene.runs.retain(|r| r.name == "adaptive");
+    let mut sim = Collect::default();
+    let res = run_scene_observed(&scene, &mut |_| {}, &mut Rows(&mut sim)).unwrap();
+    assert_eq!(sim.rows.len(), res[0].trace.len());
+    assert_eq!(sim.ended, 1);
+
+    // The rig: the same controller and references on the emulated board, stepped in lockstep.
+    let rig_file = repo("rigs/emulated.toml");
+    let rig = RigFile::load(&rig_file).unwrap();
+    let mut clock = SimClock::new();
+    let (link, _log) = session::lockstep_emulator(&rig, &rig_file, clock.clone()).unwrap();
+    let link = serial::connect_link(link, &rig, &mut clock).unwrap();
+    let mut sup = session::supervised(link, &rig);
+    let mut controller = pneuflex::scene::build_controller(&scene, 0).unwrap();
+    let setpoints = pneuflex::scene::build_setpoints(&scene).unwrap();
+    let mut reference = |t: f64| setpoints.at(t);
+    let mut trace = TraceWriter::new(Vec::new(), rig.rt.trace_flush_every).unwrap();
+    let opts = session::run_options(&rig, 0.5);
+    let stop = AtomicBool::new(false);
+    let mut real = Collect::default();
+    let report = rtloop::run_observed(
+        &mut sup,
+        controller.as_mut(),
+        &mut reference,
+        &mut trace,
+        &opts,
+        &stop,
+        &mut clock,
+        &mut real,
+    )
+    .unwrap();
+    assert_eq!(real.rows.len() as u64, report.ticks);
+    assert_eq!(real.ended, 1);
+
+    // The same columns, declared once: the loop's, then the controller's; the simulated plant adds its
+    // valve spool after them.
+    let loop_and_controller = [
+        "t", "f_ref", "f_e", "x", "x_r", "p_a", "p_b", "u", "g", "p", "d",
+    ];
+    assert_eq!(real.columns, loop_and_controller);
+    assert_eq!(
+        &sim.columns[..loop_and_controller.len()],
+        loop_and_controller
+    );
+    // Both start at t = 0 with the same reference.
+    assert_eq!(real.rows[0][0], 0.0);
+    assert_eq!(sim.rows[0][0], 0.0);
+    assert_eq!(real.rows[0][1], sim.rows[0][1]);
+}
