@@ -71,9 +71,21 @@ pub const MIN_GAIN_MARGIN_DB: f64 = 1.0;
 /// analysis covers (a proportional-valve pneumatic plant, the linear plant); none on the others.
 pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
     let mut out = Vec::new();
+    // Runs with the same inner loop share one analysis (the margins depend on the plant and the PID only).
+    let mut done: Vec<(
+        pneuflex_control::PidParams,
+        crate::loop_analysis::LoopAnalysis,
+    )> = Vec::new();
     for (i, run) in scene.runs.iter().enumerate() {
-        let Ok(a) = crate::loop_analysis::analyse(scene, i, MIN_GAIN_MARGIN_DB) else {
-            return out;
+        let a = match done.iter().find(|(pid, _)| *pid == run.inner) {
+            Some((_, a)) => a.clone(),
+            None => {
+                let Ok(a) = crate::loop_analysis::analyse(scene, i, MIN_GAIN_MARGIN_DB) else {
+                    return out;
+                };
+                done.push((run.inner, a.clone()));
+                a
+            }
         };
         for m in &a.margins {
             if let Some(gm) = m.gain_margin_db.filter(|&g| g < MIN_GAIN_MARGIN_DB) {

@@ -622,7 +622,8 @@ pub fn write_figures(
         .iter()
         .map(|r| *r.trace.t().last().unwrap_or(&0.0))
         .fold(0.0, f64::max);
-    let mut written = Vec::new();
+    // Every figure is built first, then all are drawn in parallel (each into its own file).
+    let mut jobs: Vec<(PathBuf, Plot<'_>)> = Vec::new();
 
     let force = force_plot(
         format!("{}: contact force", scene.name),
@@ -631,9 +632,7 @@ pub fn write_figures(
         &ok,
         period_s,
     );
-    let p = dir.join(format!("force.{}", format.ext()));
-    render(&p, format, &force)?;
-    written.push(p);
+    jobs.push((dir.join(format!("force.{}", format.ext())), force));
 
     let mut position = Plot::new(
         format!(
@@ -676,9 +675,7 @@ pub fn write_figures(
             width: 2,
         });
     }
-    let p = dir.join(format!("position.{}", format.ext()));
-    render(&p, format, &position)?;
-    written.push(p);
+    jobs.push((dir.join(format!("position.{}", format.ext())), position));
 
     for (i, ev) in scene.events.iter().enumerate() {
         let te = ev.t_s();
@@ -705,9 +702,7 @@ pub fn write_figures(
             period_s,
         );
         mark_settling(&mut zoom, &ok, te);
-        let p = dir.join(format!("event-{i}.{}", format.ext()));
-        render(&p, format, &zoom)?;
-        written.push(p);
+        jobs.push((dir.join(format!("event-{i}.{}", format.ext())), zoom));
     }
     // Paper Fig. 7: the force response of every controller around each environment swap, the carriage
     // move shaded.
@@ -733,12 +728,13 @@ pub fn write_figures(
                 period_s,
             );
             fig7.shade = Some((*t_s, t_s + duration_s, format!(" carriage swaps to {to}")));
-            let p = dir.join(format!("fig7-swap-{i}.{}", format.ext()));
-            render(&p, format, &fig7)?;
-            written.push(p);
+            jobs.push((dir.join(format!("fig7-swap-{i}.{}", format.ext())), fig7));
         }
     }
-    Ok(written)
+    use rayon::prelude::*;
+    jobs.par_iter()
+        .map(|(p, plot)| render(p, format, plot).map(|()| p.clone()))
+        .collect()
 }
 
 /// A darker shade of a run's colour, for its reference line drawn over its measured signal.
