@@ -163,6 +163,12 @@ impl<const N: usize> Schedule<N> {
         self.len
     }
 
+    /// Segment `i`: its start time and reference (what a copy of the schedule is rebuilt from with
+    /// [`Schedule::push`], e.g. on the embedded controller).
+    pub fn segment(&self, i: usize) -> Option<(f64, Reference)> {
+        (i < self.len).then(|| (self.starts[i], self.refs[i]))
+    }
+
     /// Whether the schedule has no segments.
     pub fn is_empty(&self) -> bool {
         self.len == 0

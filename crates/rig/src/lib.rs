@@ -14,9 +14,10 @@
 
 pub mod calib;
 pub mod clock;
-pub mod crc;
 pub mod error;
-pub mod protocol;
+// The wire format lives in its own no_std crate, shared with the firmware; these keep its old paths.
+pub use pneuflex_protocol as protocol;
+pub use pneuflex_protocol::crc;
 pub mod rigfile;
 
 pub use error::{ErrorKind, RigError};

@@ -204,8 +204,9 @@ impl<L: Link> SerialRig<L> {
                         }
                         Message::Heartbeat(c) => *heartbeat_echo = Some(c),
                         Message::Fault { code, detail } => *board_fault = Some((code, detail)),
-                        // Host-bound streams never carry these; ignore rather than fail.
-                        Message::Valve(_) | Message::Reset(_) | Message::Config(_) => {}
+                        // An I/O board never sends host-to-board or embedded-controller messages; ignore
+                        // rather than fail.
+                        _ => {}
                     }
                 }
                 DecodeEvent::CrcError | DecodeEvent::Malformed { .. } => {

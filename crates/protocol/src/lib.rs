@@ -3,8 +3,19 @@
 //! Frame: `A5 5A | LEN | SEQ | TYPE | PAYLOAD[LEN] | CRC16 (LE)`, the CRC (CRC-16/CCITT-FALSE) covering
 //! LEN..PAYLOAD. All multi-byte fields are little-endian. The decoder is a streaming, no-panic state machine
 //! that resynchronises on the next start marker after garbage or a bad CRC.
+//!
+//! `no_std` and allocation-free: the host (`crates/rig`, `crates/pil`) and the firmware (`firmware/`) run this
+//! same code, so both ends agree on every byte. [`ctrl`] holds the embedded-controller messages.
+#![cfg_attr(not(test), no_std)]
+
+pub mod crc;
+pub mod ctrl;
 
 use crate::crc::crc16;
+pub use ctrl::{
+    OutputPayload, ParamPayload, ReadyPayload, SafePayload, SegmentPayload, SensorsPayload,
+    StartPayload, TextPayload,
+};
 
 /// First start-of-frame byte.
 pub const SOF0: u8 = 0xA5;
@@ -15,7 +26,7 @@ pub const HEADER_LEN: usize = 5;
 /// Bytes after the payload: the CRC.
 pub const TRAILER_LEN: usize = 2;
 /// Largest payload a frame may carry.
-pub const MAX_PAYLOAD: usize = 48;
+pub const MAX_PAYLOAD: usize = 72;
 /// Largest frame on the wire.
 pub const MAX_FRAME: usize = HEADER_LEN + MAX_PAYLOAD + TRAILER_LEN;
 /// Magic value a Reset message must carry, so that a corrupted frame cannot clear a fault by accident.
@@ -35,6 +46,22 @@ pub mod msg_type {
     pub const RESET: u8 = 0x05;
     /// Host -> board: sample period, board watchdog and safe state.
     pub const CONFIG: u8 = 0x06;
+    /// Host -> embedded controller: one controller parameter (setup).
+    pub const CTRL_PARAM: u8 = 0x10;
+    /// Host -> embedded controller: one reference schedule segment (setup).
+    pub const CTRL_SEGMENT: u8 = 0x11;
+    /// Host -> embedded controller: end of setup, start the controller.
+    pub const CTRL_START: u8 = 0x12;
+    /// Host -> embedded controller: one tick's sensor sample (SI, f64).
+    pub const CTRL_SENSORS: u8 = 0x13;
+    /// Embedded controller -> host: the tick's valve command and telemetry.
+    pub const CTRL_OUTPUT: u8 = 0x14;
+    /// Embedded controller -> host: the answer to Start (setup accepted or why not).
+    pub const CTRL_READY: u8 = 0x15;
+    /// Board -> host: a piece of text (a panic message).
+    pub const TEXT: u8 = 0x16;
+    /// Embedded controller -> host: the valve is in its safe state, why, and when (board clock).
+    pub const SAFE: u8 = 0x17;
 }
 
 /// Sample status bits.
@@ -59,6 +86,10 @@ pub mod fault_code {
     pub const COIL: u8 = 0x03;
     /// Received frames failed CRC past the board's threshold.
     pub const CRC: u8 = 0x04;
+    /// The firmware panicked (detail: the source line, 0 if unknown).
+    pub const PANIC: u8 = 0x05;
+    /// The host commanded the safe state (a Valve frame with a safe mode; the end of a run).
+    pub const HOST_REQUEST: u8 = 0x06;
 }
 
 /// How the valve is driven.
@@ -144,7 +175,7 @@ pub struct ConfigPayload {
 }
 
 /// A decoded protocol message.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Message {
     /// Board -> host sensor sample.
     Sample(SamplePayload),
@@ -163,6 +194,22 @@ pub enum Message {
     Reset(u16),
     /// Board configuration.
     Config(ConfigPayload),
+    /// Embedded-controller setup: one parameter.
+    CtrlParam(ParamPayload),
+    /// Embedded-controller setup: one schedule segment.
+    CtrlSegment(SegmentPayload),
+    /// Embedded-controller setup done: start.
+    CtrlStart(StartPayload),
+    /// One tick's sensors for the embedded controller.
+    CtrlSensors(SensorsPayload),
+    /// The embedded controller's output for a tick.
+    CtrlOutput(OutputPayload),
+    /// The embedded controller's answer to Start.
+    CtrlReady(ReadyPayload),
+    /// Text from the board (a panic message, in pieces).
+    Text(TextPayload),
+    /// The embedded controller is in its safe state.
+    Safe(SafePayload),
 }
 
 /// Payload length of each message type.
@@ -174,12 +221,12 @@ pub fn payload_len(msg_type: u8) -> Option<usize> {
         msg_type::FAULT => Some(3),
         msg_type::RESET => Some(2),
         msg_type::CONFIG => Some(7),
-        _ => None,
+        t => ctrl::payload_len(t),
     }
 }
 
 /// A frame: sequence number and message.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
     /// Sender's sequence number (wraps at 256).
     pub seq: u8,
@@ -188,13 +235,13 @@ pub struct Frame {
 }
 
 /// A bounded little-endian writer: never panics, records overflow.
-struct Writer<'a> {
+pub(crate) struct Writer<'a> {
     buf: &'a mut [u8],
     pos: usize,
 }
 
 impl Writer<'_> {
-    fn put(&mut self, bytes: &[u8]) {
+    pub(crate) fn put(&mut self, bytes: &[u8]) {
         for &b in bytes {
             if let Some(slot) = self.buf.get_mut(self.pos) {
                 *slot = b;
@@ -205,7 +252,7 @@ impl Writer<'_> {
 }
 
 /// A bounded little-endian reader over a payload.
-struct Reader<'a> {
+pub(crate) struct Reader<'a> {
     buf: &'a [u8],
     pos: usize,
 }
@@ -218,20 +265,23 @@ impl Reader<'_> {
         out.copy_from_slice(s);
         Some(out)
     }
-    fn u8(&mut self) -> Option<u8> {
+    pub(crate) fn u8(&mut self) -> Option<u8> {
         self.take::<1>().map(|b| b[0])
     }
-    fn u16(&mut self) -> Option<u16> {
+    pub(crate) fn u16(&mut self) -> Option<u16> {
         self.take().map(u16::from_le_bytes)
     }
-    fn i16(&mut self) -> Option<i16> {
+    pub(crate) fn i16(&mut self) -> Option<i16> {
         self.take().map(i16::from_le_bytes)
     }
-    fn u32(&mut self) -> Option<u32> {
+    pub(crate) fn u32(&mut self) -> Option<u32> {
         self.take().map(u32::from_le_bytes)
     }
-    fn i32(&mut self) -> Option<i32> {
+    pub(crate) fn i32(&mut self) -> Option<i32> {
         self.take().map(i32::from_le_bytes)
+    }
+    pub(crate) fn f64(&mut self) -> Option<f64> {
+        self.take().map(f64::from_le_bytes)
     }
 }
 
@@ -245,6 +295,14 @@ impl Message {
             Message::Fault { .. } => msg_type::FAULT,
             Message::Reset(_) => msg_type::RESET,
             Message::Config(_) => msg_type::CONFIG,
+            Message::CtrlParam(_) => msg_type::CTRL_PARAM,
+            Message::CtrlSegment(_) => msg_type::CTRL_SEGMENT,
+            Message::CtrlStart(_) => msg_type::CTRL_START,
+            Message::CtrlSensors(_) => msg_type::CTRL_SENSORS,
+            Message::CtrlOutput(_) => msg_type::CTRL_OUTPUT,
+            Message::CtrlReady(_) => msg_type::CTRL_READY,
+            Message::Text(_) => msg_type::TEXT,
+            Message::Safe(_) => msg_type::SAFE,
         }
     }
 
@@ -277,6 +335,7 @@ impl Message {
                 w.put(&c.watchdog_ms.to_le_bytes());
                 w.put(&[c.safe_mode.code()]);
             }
+            m => ctrl::write_payload(m, w),
         }
     }
 
@@ -330,7 +389,7 @@ impl Message {
                 watchdog_ms: r.u16()?,
                 safe_mode: ValveMode::from_code(r.u8()?)?,
             }),
-            _ => return None,
+            t => return ctrl::parse_fields(t, &mut r),
         };
         Some(msg)
     }
@@ -354,7 +413,7 @@ pub fn encode(seq: u8, msg: &Message, out: &mut [u8; MAX_FRAME]) -> usize {
 /// Converts a command in [-1, 1] to Q15 (NaN -> 0).
 pub fn to_q15(u: f64) -> i16 {
     let u = if u.is_nan() { 0.0 } else { u.clamp(-1.0, 1.0) };
-    (u * 32767.0).round() as i16
+    libm::round(u * 32767.0) as i16
 }
 
 /// Converts Q15 to [-1, 1] (-32768 saturates to -1).
@@ -363,7 +422,7 @@ pub fn from_q15(q: i16) -> f64 {
 }
 
 /// What the decoder saw in the byte stream.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DecodeEvent {
     /// A valid frame.
     Frame(Frame),
@@ -747,7 +806,7 @@ mod tests {
                 raw_frame(2, msg_type::FAULT, &[0; MAX_PAYLOAD]),
                 msg_type::FAULT,
                 BadLength {
-                    len: 48,
+                    len: MAX_PAYLOAD as u8,
                     expected: 3,
                 },
             ),
@@ -812,8 +871,9 @@ mod tests {
         // The same payloads with their right mode are accepted: the corpus fails for the stated reason only.
         assert!(Message::parse(msg_type::VALVE, &valve(2)).is_some());
         assert!(Message::parse(msg_type::CONFIG, &config(1)).is_some());
-        // A LEN above 48 is no header at all: skipped byte by byte, no malformed event, next frame decodes.
-        let mut wire = raw_frame(1, msg_type::SAMPLE, &[0; 49]);
+        // A LEN above MAX_PAYLOAD is no header at all: skipped byte by byte, no malformed event, next frame
+        // decodes.
+        let mut wire = raw_frame(1, msg_type::SAMPLE, &[0; MAX_PAYLOAD + 1]);
         wire.extend_from_slice(&buf[..n]);
         let (ev, stats) = events(&wire, 5);
         assert_eq!(

@@ -1,0 +1,836 @@
+//! Embedded-controller mode (docs/protocol.md §5): the controller and its reference schedule run on the
+//! board. The host uploads the parameters and the schedule (`CtrlParam`, `CtrlSegment`), starts the
+//! controller (`CtrlStart`, answered by `CtrlReady`), then sends one `CtrlSensors` per tick and receives one
+//! `CtrlOutput` (valve command and telemetry). Values travel as IEEE-754 f64 so that the board computes
+//! with exactly the numbers the host simulation uses.
+//!
+//! The setup's encoding ([`Setup`], parameter ids, segment kinds) is here so that both ends share it.
+
+use pneuflex_control::{
+    AdaptiveParams, AntiWindup, ImpedanceParams, LambdaDSign, PidParams, Reference,
+    SetpointSchedule, Sigma1Sign, VelocitySource,
+};
+
+use crate::crc::crc16_update;
+use crate::{Message, Reader, ValveMode, Writer, msg_type};
+
+/// Embedded-controller status bits (`CtrlOutput.status`).
+pub mod status {
+    /// The valve is in its safe state (the command is not applied).
+    pub const SAFE: u8 = 0x01;
+    /// The safe state is latched by a fault (watchdog, CRC storm); only Reset clears it.
+    pub const LATCHED: u8 = 0x02;
+}
+
+/// One controller parameter: an id ([`param`]) and its value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamPayload {
+    /// Which parameter ([`param`]).
+    pub id: u8,
+    /// Its value; enumerations are small integers.
+    pub value: f64,
+}
+
+/// One reference segment: which signal, which reference shape, its start and up to four numbers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SegmentPayload {
+    /// 0 force f_r (N), 1 desired position x_d (m).
+    pub signal: u8,
+    /// 0 constant (a), 1 step (a initial, b final, c t_step), 2 sine (a bias, b amplitude, c Hz, d phase),
+    /// 3 ramp (a start, b slope).
+    pub kind: u8,
+    /// Start time of the segment, s.
+    pub t_start_s: f64,
+    /// The shape's numbers (unused ones 0).
+    pub v: [f64; 4],
+}
+
+/// End of the setup: the controller kind, the period, the board's watchdog and what was sent.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StartPayload {
+    /// 1 impedance, 2 adaptive impedance.
+    pub controller: u8,
+    /// Control period, s.
+    pub dt_s: f64,
+    /// No valid frame for this long (board clock) → safe state, latched. 0 is refused.
+    pub watchdog_ms: u16,
+    /// The safe state the board applies.
+    pub safe_mode: ValveMode,
+    /// Number of CtrlParam frames the host sent.
+    pub n_params: u8,
+    /// Number of CtrlSegment frames the host sent.
+    pub n_segments: u8,
+    /// CRC-16 of the payloads of those frames in the order sent: a lost or reordered frame is detected.
+    pub setup_crc: u16,
+}
+
+/// One tick's sensors (SI, pressures absolute), as `pneuflex_control::Sensors`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorsPayload {
+    /// Host tick number (echoed in the output).
+    pub tick: u32,
+    /// Time, s.
+    pub t: f64,
+    /// Position, m.
+    pub x: f64,
+    /// Velocity, m/s.
+    pub x_dot: f64,
+    /// Contact force, N.
+    pub f_e: f64,
+    /// Chamber A pressure, Pa.
+    pub p_a: f64,
+    /// Chamber B pressure, Pa.
+    pub p_b: f64,
+}
+
+/// The board's answer to one CtrlSensors.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutputPayload {
+    /// The tick of the sensors this answers.
+    pub tick: u32,
+    /// Valve command u in [-1, 1] as the controller computed it (0 in the safe state).
+    pub u: f64,
+    /// Reference position x_r, m.
+    pub x_r: f64,
+    /// Adaptive g (m), p (m/N), d (s); 0 for impedance.
+    pub g: f64,
+    /// See `g`.
+    pub p: f64,
+    /// See `g`.
+    pub d: f64,
+    /// The board's own setpoint at t: f_r, N.
+    pub f_ref: f64,
+    /// The board's own setpoint at t: x_d, m.
+    pub x_d: f64,
+    /// Board clock when the output was sent, µs.
+    pub board_time_us: u32,
+    /// Duration of the controller update on the board clock, ns (0 when no update ran).
+    pub update_ns: u32,
+    /// [`status`] bits.
+    pub status: u8,
+}
+
+/// The answer to CtrlStart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadyPayload {
+    /// [`ready`] code.
+    pub result: u8,
+    /// For a bad parameter its id, for a bad segment its index.
+    pub detail: u8,
+}
+
+/// Codes of [`ReadyPayload::result`].
+pub mod ready {
+    /// Setup accepted; the controller runs from the next CtrlSensors.
+    pub const OK: u8 = 0;
+    /// Fewer or more CtrlParam / CtrlSegment frames arrived than CtrlStart announces.
+    pub const COUNT: u8 = 1;
+    /// The setup CRC differs.
+    pub const CRC: u8 = 2;
+    /// A parameter is unknown, missing or out of range (detail: its id).
+    pub const PARAM: u8 = 3;
+    /// A segment is invalid or out of order (detail: its index).
+    pub const SEGMENT: u8 = 4;
+    /// Unknown controller kind, bad period, watchdog 0 or a Hold safe mode with the 5/2 valve.
+    pub const START: u8 = 5;
+}
+
+/// Length of a Text payload's text.
+pub const TEXT_LEN: usize = 40;
+
+/// A piece of text (UTF-8 bytes, possibly cut inside a character at a piece boundary).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextPayload {
+    /// Bytes used in `bytes`.
+    pub len: u8,
+    /// The text, zero-padded.
+    pub bytes: [u8; TEXT_LEN],
+}
+
+impl TextPayload {
+    /// The used bytes.
+    pub fn text(&self) -> &[u8] {
+        &self.bytes[..usize::from(self.len).min(TEXT_LEN)]
+    }
+}
+
+/// The board is in its safe state: why and when.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SafePayload {
+    /// `fault_code` (HOST_SILENT, CRC, PANIC, HOST_REQUEST).
+    pub reason: u8,
+    /// The last tick the controller ran.
+    pub last_tick: u32,
+    /// Board clock of the last valid frame, µs.
+    pub last_valid_us: u32,
+    /// Board clock when the safe state was applied, µs.
+    pub safe_at_us: u32,
+    /// CRC errors counted since start.
+    pub crc_errors: u16,
+    /// The safe state applied.
+    pub mode: ValveMode,
+    /// Stack high-water mark so far, bytes (painted-stack scan; 0 if the board cannot tell).
+    pub stack_peak_bytes: u16,
+}
+
+/// Payload lengths of this mode's messages.
+pub(crate) fn payload_len(t: u8) -> Option<usize> {
+    match t {
+        msg_type::CTRL_PARAM => Some(9),
+        msg_type::CTRL_SEGMENT => Some(42),
+        msg_type::CTRL_START => Some(16),
+        msg_type::CTRL_SENSORS => Some(52),
+        msg_type::CTRL_OUTPUT => Some(69),
+        msg_type::CTRL_READY => Some(2),
+        msg_type::TEXT => Some(1 + TEXT_LEN),
+        msg_type::SAFE => Some(18),
+        _ => None,
+    }
+}
+
+pub(crate) fn write_payload(m: &Message, w: &mut Writer<'_>) {
+    let f = |w: &mut Writer<'_>, v: f64| w.put(&v.to_le_bytes());
+    match m {
+        Message::CtrlParam(p) => {
+            w.put(&[p.id]);
+            f(w, p.value);
+        }
+        Message::CtrlSegment(s) => {
+            w.put(&[s.signal, s.kind]);
+            f(w, s.t_start_s);
+            s.v.iter().for_each(|&v| f(w, v));
+        }
+        Message::CtrlStart(s) => {
+            w.put(&[s.controller]);
+            f(w, s.dt_s);
+            w.put(&s.watchdog_ms.to_le_bytes());
+            w.put(&[s.safe_mode.code(), s.n_params, s.n_segments]);
+            w.put(&s.setup_crc.to_le_bytes());
+        }
+        Message::CtrlSensors(s) => {
+            w.put(&s.tick.to_le_bytes());
+            for v in [s.t, s.x, s.x_dot, s.f_e, s.p_a, s.p_b] {
+                f(w, v);
+            }
+        }
+        Message::CtrlOutput(o) => {
+            w.put(&o.tick.to_le_bytes());
+            for v in [o.u, o.x_r, o.g, o.p, o.d, o.f_ref, o.x_d] {
+                f(w, v);
+            }
+            w.put(&o.board_time_us.to_le_bytes());
+            w.put(&o.update_ns.to_le_bytes());
+            w.put(&[o.status]);
+        }
+        Message::CtrlReady(r) => w.put(&[r.result, r.detail]),
+        Message::Text(t) => {
+            w.put(&[t.len]);
+            w.put(&t.bytes);
+        }
+        Message::Safe(s) => {
+            w.put(&[s.reason]);
+            w.put(&s.last_tick.to_le_bytes());
+            w.put(&s.last_valid_us.to_le_bytes());
+            w.put(&s.safe_at_us.to_le_bytes());
+            w.put(&s.crc_errors.to_le_bytes());
+            w.put(&[s.mode.code()]);
+            w.put(&s.stack_peak_bytes.to_le_bytes());
+        }
+        // The I/O-board messages are written in lib.rs.
+        _ => {}
+    }
+}
+
+pub(crate) fn parse_fields(t: u8, r: &mut Reader<'_>) -> Option<Message> {
+    Some(match t {
+        msg_type::CTRL_PARAM => Message::CtrlParam(ParamPayload {
+            id: r.u8()?,
+            value: r.f64()?,
+        }),
+        msg_type::CTRL_SEGMENT => Message::CtrlSegment(SegmentPayload {
+            signal: r.u8()?,
+            kind: r.u8()?,
+            t_start_s: r.f64()?,
+            v: [r.f64()?, r.f64()?, r.f64()?, r.f64()?],
+        }),
+        msg_type::CTRL_START => Message::CtrlStart(StartPayload {
+            controller: r.u8()?,
+            dt_s: r.f64()?,
+            watchdog_ms: r.u16()?,
+            safe_mode: ValveMode::from_code(r.u8()?)?,
+            n_params: r.u8()?,
+            n_segments: r.u8()?,
+            setup_crc: r.u16()?,
+        }),
+        msg_type::CTRL_SENSORS => Message::CtrlSensors(SensorsPayload {
+            tick: r.u32()?,
+            t: r.f64()?,
+            x: r.f64()?,
+            x_dot: r.f64()?,
+            f_e: r.f64()?,
+            p_a: r.f64()?,
+            p_b: r.f64()?,
+        }),
+        msg_type::CTRL_OUTPUT => Message::CtrlOutput(OutputPayload {
+            tick: r.u32()?,
+            u: r.f64()?,
+            x_r: r.f64()?,
+            g: r.f64()?,
+            p: r.f64()?,
+            d: r.f64()?,
+            f_ref: r.f64()?,
+            x_d: r.f64()?,
+            board_time_us: r.u32()?,
+            update_ns: r.u32()?,
+            status: r.u8()?,
+        }),
+        msg_type::CTRL_READY => Message::CtrlReady(ReadyPayload {
+            result: r.u8()?,
+            detail: r.u8()?,
+        }),
+        msg_type::TEXT => {
+            let len = r.u8()?;
+            if usize::from(len) > TEXT_LEN {
+                return None;
+            }
+            let mut bytes = [0u8; TEXT_LEN];
+            for b in bytes.iter_mut() {
+                *b = r.u8()?;
+            }
+            Message::Text(TextPayload { len, bytes })
+        }
+        msg_type::SAFE => Message::Safe(SafePayload {
+            reason: r.u8()?,
+            last_tick: r.u32()?,
+            last_valid_us: r.u32()?,
+            safe_at_us: r.u32()?,
+            crc_errors: r.u16()?,
+            mode: ValveMode::from_code(r.u8()?)?,
+            stack_peak_bytes: r.u16()?,
+        }),
+        _ => return None,
+    })
+}
+
+/// Parameter ids of [`ParamPayload::id`]: the fields of the control crate's parameter structs.
+pub mod param {
+    /// ImpedanceParams: m_d, b_d, k_d.
+    pub const IMPEDANCE: [u8; 3] = [1, 2, 3];
+    /// PidParams: kp, ki, kd, derivative filter, u_min, u_max, anti-windup (0 clamping, 1 back-calculation),
+    /// tracking time (back-calculation only).
+    pub const PID: [u8; 8] = [10, 11, 12, 13, 14, 15, 16, 17];
+    /// AdaptiveParams in declaration order: λp, λd, μ1, μ2, μ3, σ1, σ2, σ3, force unit, position unit,
+    /// λd sign (0 from ė, 1 as printed), σ1 sign (0 leakage, 1 as printed), adapt in contact only (0/1),
+    /// contact threshold, velocity source (0 measured, 1 impedance filter), g_max, p_max, d_max.
+    pub const ADAPTIVE: [u8; 18] = [
+        20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37,
+    ];
+}
+
+/// Which controller the board runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ControllerSetup {
+    /// Impedance filter + PID.
+    Impedance {
+        /// Target impedance.
+        impedance: ImpedanceParams,
+        /// Inner loop.
+        pid: PidParams,
+    },
+    /// Impedance filter + adaptive law + PID.
+    Adaptive {
+        /// Target impedance.
+        impedance: ImpedanceParams,
+        /// Adaptive law.
+        adaptive: AdaptiveParams,
+        /// Inner loop.
+        pid: PidParams,
+    },
+}
+
+/// Most parameters a setup sends.
+pub const MAX_PARAMS: usize = 3 + 8 + 18;
+
+fn flag(b: bool) -> f64 {
+    if b { 1.0 } else { 0.0 }
+}
+
+impl ControllerSetup {
+    /// The wire code of the kind (StartPayload::controller).
+    pub fn code(&self) -> u8 {
+        match self {
+            ControllerSetup::Impedance { .. } => 1,
+            ControllerSetup::Adaptive { .. } => 2,
+        }
+    }
+
+    /// The parameters to send, in order; returns the array and how many are used.
+    pub fn params(&self) -> ([ParamPayload; MAX_PARAMS], usize) {
+        let (imp, pid, ad) = match *self {
+            ControllerSetup::Impedance { impedance, pid } => (impedance, pid, None),
+            ControllerSetup::Adaptive {
+                impedance,
+                adaptive,
+                pid,
+            } => (impedance, pid, Some(adaptive)),
+        };
+        let mut out = [ParamPayload { id: 0, value: 0.0 }; MAX_PARAMS];
+        let mut n = 0;
+        let mut push = |id: u8, value: f64| {
+            out[n] = ParamPayload { id, value };
+            n += 1;
+        };
+        let i = param::IMPEDANCE;
+        push(i[0], imp.m_d_kg);
+        push(i[1], imp.b_d_ns_per_m);
+        push(i[2], imp.k_d_n_per_m);
+        let p = param::PID;
+        push(p[0], pid.kp_per_m);
+        push(p[1], pid.ki_per_m_s);
+        push(p[2], pid.kd_s_per_m);
+        push(p[3], pid.derivative_filter_s);
+        push(p[4], pid.u_min);
+        push(p[5], pid.u_max);
+        match pid.anti_windup {
+            AntiWindup::Clamping => push(p[6], 0.0),
+            AntiWindup::BackCalculation { tracking_time_s } => {
+                push(p[6], 1.0);
+                push(p[7], tracking_time_s);
+            }
+        }
+        if let Some(a) = ad {
+            let ids = param::ADAPTIVE;
+            let values = [
+                a.lambda_p,
+                a.lambda_d,
+                a.mu1,
+                a.mu2,
+                a.mu3,
+                a.sigma1,
+                a.sigma2,
+                a.sigma3,
+                a.force_unit_n,
+                a.position_unit_m,
+                flag(a.lambda_d_sign == LambdaDSign::AsPrinted),
+                flag(a.sigma1_sign == Sigma1Sign::AsPrinted),
+                flag(a.adapt_in_contact_only),
+                a.contact_threshold_n,
+                flag(a.velocity_source == VelocitySource::ImpedanceFilter),
+                a.g_max_m,
+                a.p_max_m_per_n,
+                a.d_max_s,
+            ];
+            for (id, v) in ids.into_iter().zip(values) {
+                push(id, v);
+            }
+        }
+        (out, n)
+    }
+}
+
+/// The segments of a setpoint schedule, force first then position, as sent.
+pub fn segments<const N: usize>(
+    sp: &SetpointSchedule<N>,
+) -> impl Iterator<Item = SegmentPayload> + '_ {
+    let one = |signal: u8, (t_start_s, r): (f64, Reference)| {
+        let (kind, v) = match r {
+            Reference::Constant { value } => (0, [value, 0.0, 0.0, 0.0]),
+            Reference::Step {
+                initial,
+                final_value,
+                t_step_s,
+            } => (1, [initial, final_value, t_step_s, 0.0]),
+            Reference::Sine {
+                bias,
+                amplitude,
+                frequency_hz,
+                phase_rad,
+            } => (2, [bias, amplitude, frequency_hz, phase_rad]),
+            Reference::Ramp { start, slope_per_s } => (3, [start, slope_per_s, 0.0, 0.0]),
+        };
+        SegmentPayload {
+            signal,
+            kind,
+            t_start_s,
+            v,
+        }
+    };
+    (0..sp.force_n.len())
+        .filter_map(|i| sp.force_n.segment(i))
+        .map(move |s| one(0, s))
+        .chain(
+            (0..sp.position_m.len())
+                .filter_map(|i| sp.position_m.segment(i))
+                .map(move |s| one(1, s)),
+        )
+}
+
+impl SegmentPayload {
+    /// The reference this segment describes (None: unknown kind).
+    pub fn reference(&self) -> Option<Reference> {
+        let [a, b, c, d] = self.v;
+        Some(match self.kind {
+            0 => Reference::Constant { value: a },
+            1 => Reference::Step {
+                initial: a,
+                final_value: b,
+                t_step_s: c,
+            },
+            2 => Reference::Sine {
+                bias: a,
+                amplitude: b,
+                frequency_hz: c,
+                phase_rad: d,
+            },
+            3 => Reference::Ramp {
+                start: a,
+                slope_per_s: b,
+            },
+            _ => return None,
+        })
+    }
+}
+
+/// Continues the setup CRC over one setup message's payload (CtrlParam or CtrlSegment; others unchanged).
+pub fn setup_crc_update(crc: u16, m: &Message) -> u16 {
+    let mut buf = [0u8; crate::MAX_PAYLOAD];
+    let mut w = Writer {
+        buf: &mut buf[..],
+        pos: 0,
+    };
+    match m {
+        Message::CtrlParam(_) | Message::CtrlSegment(_) => write_payload(m, &mut w),
+        _ => return crc,
+    }
+    let n = w.pos.min(crate::MAX_PAYLOAD);
+    crc16_update(crc, &buf[..n])
+}
+
+/// The board's side of the setup: collects parameters and segments, then builds the controller's
+/// parameters on Start. Unset parameters keep the control crate's defaults only where the host may omit
+/// them (the tracking time with clamping); every other one must arrive.
+#[derive(Clone, Copy, Debug)]
+pub struct SetupCollector {
+    values: [f64; 38],
+    seen: [bool; 38],
+    /// Segments received, force and position schedules.
+    pub schedule: SetpointSchedule,
+    n_params: u8,
+    n_segments: u8,
+    crc: u16,
+    bad_segment: Option<u8>,
+    bad_param: Option<u8>,
+}
+
+impl Default for SetupCollector {
+    fn default() -> Self {
+        Self {
+            values: [0.0; 38],
+            seen: [false; 38],
+            schedule: SetpointSchedule::default(),
+            n_params: 0,
+            n_segments: 0,
+            crc: crate::crc::CRC16_INIT,
+            bad_segment: None,
+            bad_param: None,
+        }
+    }
+}
+
+impl SetupCollector {
+    /// Takes one setup message (others are ignored).
+    pub fn take(&mut self, m: &Message) {
+        self.crc = setup_crc_update(self.crc, m);
+        match m {
+            Message::CtrlParam(p) => {
+                self.n_params = self.n_params.saturating_add(1);
+                match self.values.get_mut(usize::from(p.id)) {
+                    Some(v) => {
+                        *v = p.value;
+                        self.seen[usize::from(p.id)] = true;
+                    }
+                    None => {
+                        self.bad_param.get_or_insert(p.id);
+                    }
+                }
+            }
+            Message::CtrlSegment(s) => {
+                let i = self.n_segments;
+                self.n_segments = self.n_segments.saturating_add(1);
+                let sched = match s.signal {
+                    0 => Some(&mut self.schedule.force_n),
+                    1 => Some(&mut self.schedule.position_m),
+                    _ => None,
+                };
+                let ok = match (sched, s.reference()) {
+                    (Some(sched), Some(r)) => sched.push(s.t_start_s, r).is_ok(),
+                    _ => false,
+                };
+                if !ok {
+                    self.bad_segment.get_or_insert(i);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Checks the setup against Start and builds the controller's parameters (validated by the control
+    /// crate's constructors on the board).
+    pub fn finish(&self, start: &StartPayload) -> Result<ControllerSetup, ReadyPayload> {
+        let fail = |result, detail| ReadyPayload { result, detail };
+        if start.n_params != self.n_params || start.n_segments != self.n_segments {
+            return Err(fail(ready::COUNT, 0));
+        }
+        if start.setup_crc != self.crc {
+            return Err(fail(ready::CRC, 0));
+        }
+        if let Some(i) = self.bad_segment {
+            return Err(fail(ready::SEGMENT, i));
+        }
+        if let Some(id) = self.bad_param {
+            return Err(fail(ready::PARAM, id));
+        }
+        if !(start.dt_s.is_finite() && start.dt_s > 0.0) || start.watchdog_ms == 0 {
+            return Err(fail(ready::START, 0));
+        }
+        let get = |id: u8| -> Result<f64, ReadyPayload> {
+            let i = usize::from(id);
+            if self.seen[i] {
+                Ok(self.values[i])
+            } else {
+                Err(fail(ready::PARAM, id))
+            }
+        };
+        let choice = |id: u8| -> Result<bool, ReadyPayload> {
+            match get(id)? {
+                v if v == 0.0 => Ok(false),
+                v if v == 1.0 => Ok(true),
+                _ => Err(fail(ready::PARAM, id)),
+            }
+        };
+        let i = param::IMPEDANCE;
+        let impedance = ImpedanceParams {
+            m_d_kg: get(i[0])?,
+            b_d_ns_per_m: get(i[1])?,
+            k_d_n_per_m: get(i[2])?,
+        };
+        let p = param::PID;
+        let pid = PidParams {
+            kp_per_m: get(p[0])?,
+            ki_per_m_s: get(p[1])?,
+            kd_s_per_m: get(p[2])?,
+            derivative_filter_s: get(p[3])?,
+            u_min: get(p[4])?,
+            u_max: get(p[5])?,
+            anti_windup: if choice(p[6])? {
+                AntiWindup::BackCalculation {
+                    tracking_time_s: get(p[7])?,
+                }
+            } else {
+                AntiWindup::Clamping
+            },
+        };
+        match start.controller {
+            1 => Ok(ControllerSetup::Impedance { impedance, pid }),
+            2 => {
+                let a = param::ADAPTIVE;
+                let adaptive = AdaptiveParams {
+                    lambda_p: get(a[0])?,
+                    lambda_d: get(a[1])?,
+                    mu1: get(a[2])?,
+                    mu2: get(a[3])?,
+                    mu3: get(a[4])?,
+                    sigma1: get(a[5])?,
+                    sigma2: get(a[6])?,
+                    sigma3: get(a[7])?,
+                    force_unit_n: get(a[8])?,
+                    position_unit_m: get(a[9])?,
+                    lambda_d_sign: if choice(a[10])? {
+                        LambdaDSign::AsPrinted
+                    } else {
+                        LambdaDSign::FromEdot
+                    },
+                    sigma1_sign: if choice(a[11])? {
+                        Sigma1Sign::AsPrinted
+                    } else {
+                        Sigma1Sign::Leakage
+                    },
+                    adapt_in_contact_only: choice(a[12])?,
+                    contact_threshold_n: get(a[13])?,
+                    velocity_source: if choice(a[14])? {
+                        VelocitySource::ImpedanceFilter
+                    } else {
+                        VelocitySource::Measured
+                    },
+                    g_max_m: get(a[15])?,
+                    p_max_m_per_n: get(a[16])?,
+                    d_max_s: get(a[17])?,
+                };
+                Ok(ControllerSetup::Adaptive {
+                    impedance,
+                    adaptive,
+                    pid,
+                })
+            }
+            _ => Err(fail(ready::START, 0)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Decoder, DecodeEvent, Frame, MAX_FRAME, encode};
+
+    fn round_trip(m: Message) -> Message {
+        let mut buf = [0u8; MAX_FRAME];
+        let n = encode(3, &m, &mut buf);
+        assert_eq!(n, 7 + crate::payload_len(m.type_code()).unwrap());
+        let mut d = Decoder::new();
+        let mut got = None;
+        d.feed(&buf[..n], |e| {
+            if let DecodeEvent::Frame(Frame { msg, .. }) = e {
+                got = Some(msg)
+            }
+        });
+        got.expect("decoded")
+    }
+
+    #[test]
+    fn every_embedded_controller_message_round_trips_bit_for_bit() {
+        let msgs = [
+            Message::CtrlParam(ParamPayload {
+                id: 21,
+                value: 0.1 + 0.2,
+            }),
+            Message::CtrlSegment(SegmentPayload {
+                signal: 0,
+                kind: 2,
+                t_start_s: 3.0,
+                v: [10.0, 2.0, 1.0, -0.0],
+            }),
+            Message::CtrlStart(StartPayload {
+                controller: 2,
+                dt_s: 1e-3,
+                watchdog_ms: 50,
+                safe_mode: ValveMode::SafeVent,
+                n_params: 29,
+                n_segments: 3,
+                setup_crc: 0xBEEF,
+            }),
+            Message::CtrlSensors(SensorsPayload {
+                tick: 7,
+                t: 0.007,
+                x: 1e-300,
+                x_dot: -3.5,
+                f_e: f64::MIN_POSITIVE,
+                p_a: 5e5,
+                p_b: 1.01325e5,
+            }),
+            Message::CtrlOutput(OutputPayload {
+                tick: 7,
+                u: -0.25,
+                x_r: 0.01,
+                g: 1e-9,
+                p: 2e-9,
+                d: -3e-9,
+                f_ref: 10.0,
+                x_d: 0.0,
+                board_time_us: 123,
+                update_ns: 4567,
+                status: status::SAFE,
+            }),
+            Message::CtrlReady(ReadyPayload {
+                result: ready::PARAM,
+                detail: 33,
+            }),
+            Message::Text(TextPayload {
+                len: 5,
+                bytes: *b"panic at tick 500\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0",
+            }),
+            Message::Safe(SafePayload {
+                reason: crate::fault_code::HOST_SILENT,
+                last_tick: 99,
+                last_valid_us: 1000,
+                safe_at_us: 51000,
+                crc_errors: 2,
+                mode: ValveMode::SafeHold,
+                stack_peak_bytes: 2048,
+            }),
+        ];
+        for m in msgs {
+            let back = round_trip(m);
+            // Bit-exact f64 (-0.0 and 0.1 + 0.2 included): compare the encodings.
+            assert_eq!(format!("{back:?}"), format!("{m:?}"));
+            assert_eq!(back, m);
+        }
+    }
+
+    #[test]
+    fn a_setup_rebuilds_the_same_parameters_and_schedule_on_the_board() {
+        let mut adaptive = AdaptiveParams::paper();
+        adaptive.adapt_in_contact_only = true;
+        adaptive.velocity_source = VelocitySource::ImpedanceFilter;
+        adaptive.g_max_m = 0.02;
+        let setup = ControllerSetup::Adaptive {
+            impedance: ImpedanceParams::default(),
+            adaptive,
+            pid: PidParams {
+                anti_windup: AntiWindup::BackCalculation {
+                    tracking_time_s: 0.05,
+                },
+                ..PidParams::default()
+            },
+        };
+        let sp = SetpointSchedule::paper_fig3(0.004).unwrap();
+        let mut board = SetupCollector::default();
+        let mut host_crc = crate::crc::CRC16_INIT;
+        let (params, n) = setup.params();
+        let segs: Vec<_> = segments(&sp).collect();
+        for m in params[..n]
+            .iter()
+            .map(|&p| Message::CtrlParam(p))
+            .chain(segs.iter().map(|&s| Message::CtrlSegment(s)))
+        {
+            host_crc = setup_crc_update(host_crc, &m);
+            board.take(&round_trip(m));
+        }
+        let start = StartPayload {
+            controller: setup.code(),
+            dt_s: 1e-3,
+            watchdog_ms: 50,
+            safe_mode: ValveMode::SafeVent,
+            n_params: n as u8,
+            n_segments: segs.len() as u8,
+            setup_crc: host_crc,
+        };
+        assert_eq!(board.finish(&start), Ok(setup));
+        assert_eq!(board.schedule, sp);
+        // A lost frame is detected by the count, a changed one by the CRC.
+        let lost = StartPayload {
+            n_params: n as u8 - 1,
+            ..start
+        };
+        assert_eq!(board.finish(&lost).unwrap_err().result, ready::COUNT);
+        let changed = StartPayload {
+            setup_crc: host_crc ^ 1,
+            ..start
+        };
+        assert_eq!(board.finish(&changed).unwrap_err().result, ready::CRC);
+        // An impedance start without the adaptive gains needs only the impedance and PID parameters.
+        let imp = SetupCollector::default();
+        assert_eq!(
+            imp.finish(&StartPayload {
+                n_params: 0,
+                n_segments: 0,
+                setup_crc: crate::crc::CRC16_INIT,
+                ..start
+            })
+            .unwrap_err(),
+            ReadyPayload {
+                result: ready::PARAM,
+                detail: 1
+            }
+        );
+    }
+}
