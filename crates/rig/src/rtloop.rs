@@ -253,6 +253,185 @@ impl TimingStats {
     }
 }
 
+/// The real rig around the controller ([`pneuflex_control::tick::run_loop`]): each tick waits for its
+/// deadline on the clock, reads the sensors and writes the valve through the supervisor (which latches
+/// faults and commands the safe state), guards the controller against panics and NaN, streams the row to
+/// the trace and the observer, and keeps the timing statistics. After a fault the loop runs on for
+/// `post_fault_s` with the valve safe, tracing what the rig does.
+struct RigHost<'a, R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> {
+    sup: &'a mut Supervisor<R>,
+    trace: &'a mut TraceWriter<W>,
+    clock: &'a mut K,
+    observer: &'a mut dyn pneuflex_control::RowObserver,
+    stop: &'a AtomicBool,
+    /// Clock reading at the loop's start, and the host time of tick 0, s.
+    t0: f64,
+    start: f64,
+    /// Wall-clock time (UNIX) at t0, s.
+    wall0: f64,
+    dt: f64,
+    n_ticks: u64,
+    post_fault_ticks: u64,
+    /// The last sample (the one before tick 0 included).
+    last: Option<SiSample>,
+    prev_start: Option<f64>,
+    fault_tick: Option<u64>,
+    fault_label: String,
+    /// This tick's host times: its start, deadline, after sensing, after the controller.
+    now_s: f64,
+    deadline: f64,
+    t_sensed: f64,
+    t_updated: f64,
+    period_err: &'a mut TimingStats,
+    lateness: &'a mut TimingStats,
+    io_t: &'a mut TimingStats,
+    ctrl_t: &'a mut TimingStats,
+    report: &'a mut LoopReport,
+}
+
+impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> RigHost<'_, R, W, K> {
+    fn host_time(&self) -> f64 {
+        self.clock.now() - self.t0
+    }
+}
+
+impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_control::tick::LoopHost
+    for RigHost<'_, R, W, K>
+{
+    type Error = std::io::Error;
+
+    fn begin_tick(&mut self, k: u64, _t: f64) -> std::io::Result<pneuflex_control::tick::Flow> {
+        use pneuflex_control::tick::Flow;
+        match self.fault_tick {
+            None if k >= self.n_ticks => return Ok(Flow::Stop),
+            Some(kf) if k > kf + self.post_fault_ticks => return Ok(Flow::Stop),
+            _ => {}
+        }
+        self.deadline = self.start + k as f64 * self.dt;
+        self.clock.wait_until(self.t0 + self.deadline);
+        self.now_s = self.host_time();
+        self.lateness.push(self.now_s - self.deadline);
+        if let Some(p) = self.prev_start {
+            self.period_err.push((self.now_s - p - self.dt).abs());
+        }
+        self.prev_start = Some(self.now_s);
+        if self.stop.load(Ordering::Relaxed) && self.sup.fault().is_none() {
+            self.sup.trip(
+                k,
+                self.now_s,
+                RigError::new(
+                    ErrorKind::Interrupted,
+                    "stopped by a signal (SIGINT/Ctrl-C, SIGTERM or SIGHUP)",
+                ),
+            );
+        }
+        Ok(Flow::Continue)
+    }
+
+    fn sense(&mut self, k: u64, _t: f64) -> Option<Sensors> {
+        match self.sup.sense(k, self.now_s) {
+            Some(s) => self.last = Some(s),
+            None => self.report.ticks_without_sample += 1,
+        }
+        self.t_sensed = self.host_time();
+        self.t_updated = self.t_sensed;
+        self.last.map(|s| s.sensors)
+    }
+
+    fn may_control(&self) -> bool {
+        self.sup.fault().is_none()
+    }
+
+    fn guard_update(
+        &mut self,
+        k: u64,
+        _t: f64,
+        update: &mut dyn FnMut() -> (ValveCommand, Telemetry),
+    ) -> Option<(ValveCommand, Telemetry)> {
+        let out = match catch_unwind(AssertUnwindSafe(update)) {
+            Ok((c, tel)) if c.u.is_finite() => Some((c, tel)),
+            Ok((c, _)) => {
+                self.sup.trip(
+                    k,
+                    self.now_s,
+                    RigError::new(
+                        ErrorKind::NotANumber,
+                        format!("controller output u = {}", c.u),
+                    ),
+                );
+                None
+            }
+            Err(_) => {
+                self.sup.trip(
+                    k,
+                    self.now_s,
+                    RigError::new(ErrorKind::Panic, "the controller panicked"),
+                );
+                None
+            }
+        };
+        self.t_updated = self.host_time();
+        out
+    }
+
+    fn actuate(&mut self, k: u64, _t: f64, command: &ValveCommand, _tel: &Telemetry) -> f64 {
+        let applied = self.sup.actuate(k, self.now_s, *command);
+        let t_done = self.host_time();
+        self.io_t
+            .push((self.t_sensed - self.now_s) + (t_done - self.t_updated));
+        self.ctrl_t.push(self.t_updated - self.t_sensed);
+        if t_done > self.deadline + self.dt {
+            self.report.overruns += 1;
+        }
+        applied.map(|c| c.u).unwrap_or(0.0)
+    }
+
+    fn end_tick(
+        &mut self,
+        k: u64,
+        _t: f64,
+        row: &mut [f64],
+    ) -> std::io::Result<pneuflex_control::tick::Flow> {
+        let wall_time = self.wall0 + self.now_s;
+        let written = match (self.sup.fault(), self.fault_tick) {
+            (Some(f), None) => {
+                self.fault_tick = Some(k);
+                self.fault_label = f.kind.name().to_string();
+                // The first faulty row carries the message, and is made durable at once; its command
+                // reads 0 (the safe state is what the supervisor sent).
+                self.report.fault = Some(f.clone());
+                let msg = format!("{}: {}", f.kind.name(), f.message);
+                row[pneuflex_control::signal::index::U] = 0.0;
+                self.trace
+                    .row(&TraceRow {
+                        values: row,
+                        wall_time,
+                        fault: &msg,
+                    })
+                    .and_then(|()| self.trace.sync())
+            }
+            (fault, _) => {
+                let label = if fault.is_some() {
+                    &self.fault_label[..]
+                } else {
+                    ""
+                };
+                self.trace.row(&TraceRow {
+                    values: row,
+                    wall_time,
+                    fault: label,
+                })
+            }
+        };
+        if let Err(e) = written {
+            return Err(trace_failed(self.sup, k, self.now_s, e));
+        }
+        self.observer.row(row);
+        self.report.ticks += 1;
+        Ok(pneuflex_control::tick::Flow::Continue)
+    }
+}
+
 /// Why a loop ended, for the trace's end marker.
 fn end_reason(fault: Option<&Fault>) -> String {
     match fault {
@@ -384,8 +563,7 @@ where
     // The trace's columns: the loop's signals and the controller's own, as each declares them.
     let own = controller.signals();
     trace.columns(own)?;
-    let n_loop = pneuflex_control::LOOP_SIGNALS.len();
-    let mut values = vec![0.0; n_loop + own.len()];
+    let mut values = vec![0.0; pneuflex_control::LOOP_SIGNALS.len() + own.len()];
     let columns: Vec<pneuflex_control::Signal> = pneuflex_control::LOOP_SIGNALS
         .iter()
         .chain(own)
@@ -394,138 +572,33 @@ where
     observer.begin(&columns);
 
     let start = host(clock);
-    let mut prev_start: Option<f64> = None;
-    let mut fault_tick: Option<u64> = None;
-    let mut k: u64 = 0;
-    let mut fault_label = String::new();
-    loop {
-        if k >= n_ticks && fault_tick.is_none() {
-            break;
-        }
-        if let Some(kf) = fault_tick
-            && k > kf + post_fault_ticks
-        {
-            break;
-        }
-        let deadline = start + k as f64 * dt;
-        clock.wait_until(t0 + deadline);
-        let now_s = host(clock);
-        lateness.push(now_s - deadline);
-        if let Some(p) = prev_start {
-            period_err.push((now_s - p - dt).abs());
-        }
-        prev_start = Some(now_s);
-        let t = k as f64 * dt;
-
-        if stop.load(Ordering::Relaxed) && sup.fault().is_none() {
-            sup.trip(
-                k,
-                now_s,
-                RigError::new(
-                    ErrorKind::Interrupted,
-                    "stopped by a signal (SIGINT/Ctrl-C, SIGTERM or SIGHUP)",
-                ),
-            );
-        }
-
-        // sense
-        match sup.sense(k, now_s) {
-            Some(s) => last = Some(s),
-            None => report.ticks_without_sample += 1,
-        }
-        let t_sensed = host(clock);
-
-        // update
-        let setpoint = reference(t);
-        let mut cmd = ValveCommand::default();
-        let mut telemetry = Telemetry::default();
-        // The controller's own signals read 0 on a tick it did not run (as its telemetry does).
-        values[n_loop..].fill(0.0);
-        if sup.fault().is_none()
-            && let Some(s) = last
-        {
-            let sensors = Sensors { t, ..s.sensors };
-            // The tick body shared with every other loop (pneuflex_control::control_tick); the row's loop
-            // part is rewritten below with the command as applied.
-            match catch_unwind(AssertUnwindSafe(|| {
-                pneuflex_control::control_tick(
-                    &mut *controller,
-                    &sensors,
-                    &setpoint,
-                    dt,
-                    &mut values,
-                )
-            })) {
-                Ok((c, tel)) if c.u.is_finite() => {
-                    cmd = c;
-                    telemetry = tel;
-                }
-                Ok((c, _)) => sup.trip(
-                    k,
-                    now_s,
-                    RigError::new(
-                        ErrorKind::NotANumber,
-                        format!("controller output u = {}", c.u),
-                    ),
-                ),
-                Err(_) => sup.trip(
-                    k,
-                    now_s,
-                    RigError::new(ErrorKind::Panic, "the controller panicked"),
-                ),
-            }
-        }
-        let t_updated = host(clock);
-
-        // actuate
-        let applied = sup.actuate(k, now_s, cmd);
-        let t_done = host(clock);
-        io_t.push((t_sensed - now_s) + (t_done - t_updated));
-        ctrl_t.push(t_updated - t_sensed);
-        if t_done > deadline + dt {
-            report.overruns += 1;
-        }
-
-        // trace
-        let sensors = last.map(|s| s.sensors).unwrap_or_default();
-        let written = match (sup.fault(), fault_tick) {
-            (Some(f), None) => {
-                fault_tick = Some(k);
-                fault_label = f.kind.name().to_string();
-                // The first faulty row carries the message, and is made durable at once.
-                report.fault = Some(f.clone());
-                let msg = format!("{}: {}", f.kind.name(), f.message);
-                fill(&mut values, t, &setpoint, &sensors, &telemetry, 0.0);
-                trace
-                    .row(&TraceRow {
-                        values: &values,
-                        wall_time: wall0 + now_s,
-                        fault: &msg,
-                    })
-                    .and_then(|()| trace.sync())
-            }
-            (fault, _) => {
-                let label = if fault.is_some() {
-                    &fault_label[..]
-                } else {
-                    ""
-                };
-                let u = applied.map(|c| c.u).unwrap_or(0.0);
-                fill(&mut values, t, &setpoint, &sensors, &telemetry, u);
-                trace.row(&TraceRow {
-                    values: &values,
-                    wall_time: wall0 + now_s,
-                    fault: label,
-                })
-            }
-        };
-        if let Err(e) = written {
-            return Err(trace_failed(sup, k, now_s, e));
-        }
-        observer.row(&values);
-        report.ticks += 1;
-        k += 1;
-    }
+    let mut rig = RigHost {
+        sup: &mut *sup,
+        trace: &mut *trace,
+        clock: &mut *clock,
+        observer: &mut *observer,
+        stop,
+        t0,
+        start,
+        wall0,
+        dt,
+        n_ticks,
+        post_fault_ticks,
+        last,
+        prev_start: None,
+        fault_tick: None,
+        fault_label: String::new(),
+        now_s: 0.0,
+        deadline: 0.0,
+        t_sensed: 0.0,
+        t_updated: 0.0,
+        period_err: &mut period_err,
+        lateness: &mut lateness,
+        io_t: &mut io_t,
+        ctrl_t: &mut ctrl_t,
+        report: &mut report,
+    };
+    let k = pneuflex_control::tick::run_loop(&mut rig, controller, reference, dt, &mut values)?;
     if let Err(e) = sup.park(k)
         && report.fault.is_none()
     {
@@ -547,11 +620,6 @@ where
         .finish(&end_reason(report.fault.as_ref()))
         .map_err(|e| trace_failed(sup, k, now, e))?;
     Ok(report)
-}
-
-/// The loop's signals of a tick (the command as applied) through the shared row writer.
-fn fill(values: &mut [f64], t: f64, sp: &Setpoint, s: &Sensors, tel: &Telemetry, u: f64) {
-    pneuflex_control::write_loop_row(values, &Sensors { t, ..*s }, sp, tel, u);
 }
 
 #[cfg(test)]

@@ -499,7 +499,6 @@ fn simulate_loop(
     let mut events: Vec<(usize, &crate::schema::EventSpec)> =
         scene.events.iter().enumerate().collect();
     events.sort_by(|a, b| a.1.t_s().total_cmp(&b.1.t_s()));
-    let mut next_event = 0;
     // The row: the loop's signals, then the controller's and the plant's, as each declares them.
     let (c_sig, p_sig) = (controller.signals(), plant.signals());
     let columns = Trace::loop_columns(&[c_sig, p_sig]);
@@ -510,63 +509,30 @@ fn simulate_loop(
         .copied()
         .collect();
     observer.columns(&declared);
-    let n_loop = pneuflex_control::LOOP_SIGNALS.len();
     let mut values = vec![0.0; columns.len()];
-    let mut trace = Trace::with_capacity(n + 1, columns);
-    let lim = scene.divergence;
-    let report_every = (n / 200).max(1);
-    let mut diverged = None;
-    let mut interrupted = None;
-    for k in 0..=n {
-        let t = k as f64 * dt;
-        // Events apply at the first tick at or after their time (half a tick of tolerance for rounding).
-        while next_event < events.len() && events[next_event].1.t_s() <= t + 0.5 * dt {
-            let (index, ev) = events[next_event];
-            plant
-                .apply(ev)
-                .map_err(|m| scene.invalid(&format!("events[{index}]"), m.to_string()))?;
-            next_event += 1;
-        }
-        let mut s = plant.sense();
-        s.t = t;
-        let sp: Setpoint = setpoints.at(t);
-        let (ctl_row, plant_row) = values.split_at_mut(n_loop + c_sig.len());
-        let (cmd, tel) = pneuflex_control::control_tick(controller, &s, &sp, dt, ctl_row);
-        plant.record(plant_row);
-        trace.push(&values);
-        observer.on_step(
-            &Row {
-                columns: trace.columns(),
-                values: &values,
-            },
-            &*plant,
-        );
-        if let Some(reason) = divergence(t, s.x, s.f_e, tel.x_r, &lim) {
-            diverged = Some(reason);
-            break;
-        }
-        // Physical invariants (chamber pressures, temperatures, the stroke): a finite but impossible
-        // state is a divergence too.
-        if let Err(v) = plant.check_invariants() {
-            diverged = Some(format!("{v} at t = {t:.4} s"));
-            break;
-        }
-        if k == n {
-            break;
-        }
-        if let Some(sig) = stop
-            .map(|f| f.load(std::sync::atomic::Ordering::Relaxed))
-            .filter(|&s| s != 0)
-        {
-            interrupted = Some(format!("{} at t = {t:.4} s", signal_name(sig)));
-            break;
-        }
-        plant.actuate(cmd, &tel);
-        plant.advance(dt);
-        if k % report_every == 0 {
-            progress(k as f64 / n as f64);
-        }
-    }
+    let mut host = SimulationHost {
+        scene,
+        plant,
+        events,
+        next_event: 0,
+        trace: Trace::with_capacity(n + 1, columns),
+        observer,
+        last_step: n as u64,
+        report_every: (n / 200).max(1) as u64,
+        progress,
+        stop,
+        diverged: None,
+        interrupted: None,
+    };
+    let mut reference = |t: f64| -> Setpoint { setpoints.at(t) };
+    pneuflex_control::tick::run_loop(&mut host, controller, &mut reference, dt, &mut values)?;
+    let SimulationHost {
+        trace,
+        diverged,
+        interrupted,
+        progress,
+        ..
+    } = host;
     progress(1.0);
     Ok(RunResult {
         name: run.name.clone(),
@@ -578,6 +544,111 @@ fn simulate_loop(
         interrupted,
         warnings: Vec::new(),
     })
+}
+
+/// A simulated plant around the controller: events at their tick, the trace and the observers at every
+/// tick, the divergence and invariant checks, the integration ([`pneuflex_control::tick::run_loop`]).
+struct SimulationHost<'a> {
+    scene: &'a Scene,
+    plant: &'a mut dyn Plant,
+    /// The scene's events by time, each with its index in the file (for messages).
+    events: Vec<(usize, &'a crate::schema::EventSpec)>,
+    next_event: usize,
+    trace: Trace,
+    observer: &'a mut dyn StepObserver,
+    /// The tick at the run's end (the trace has `last_step + 1` rows).
+    last_step: u64,
+    report_every: u64,
+    progress: &'a mut dyn FnMut(f64),
+    stop: Option<&'a std::sync::atomic::AtomicUsize>,
+    diverged: Option<String>,
+    interrupted: Option<String>,
+}
+
+impl pneuflex_control::tick::LoopHost for SimulationHost<'_> {
+    type Error = SceneError;
+
+    fn begin_tick(&mut self, _k: u64, t: f64) -> Result<pneuflex_control::tick::Flow, SceneError> {
+        // Events apply at the first tick at or after their time (half a tick of tolerance for rounding).
+        let half = 0.5 * self.scene.dt_s;
+        while let Some(&(index, ev)) = self.events.get(self.next_event)
+            && ev.t_s() <= t + half
+        {
+            self.plant.apply(ev).map_err(|m| {
+                self.scene
+                    .invalid(&format!("events[{index}]"), m.to_string())
+            })?;
+            self.next_event += 1;
+        }
+        Ok(pneuflex_control::tick::Flow::Continue)
+    }
+
+    fn sense(&mut self, _k: u64, _t: f64) -> Option<control::Sensors> {
+        Some(self.plant.sense())
+    }
+
+    fn record(&mut self, row: &mut [f64]) {
+        self.plant.record(row);
+    }
+
+    fn actuate(
+        &mut self,
+        _k: u64,
+        _t: f64,
+        command: &control::ValveCommand,
+        telemetry: &control::Telemetry,
+    ) -> f64 {
+        self.plant.actuate(*command, telemetry);
+        command.u
+    }
+
+    fn end_tick(
+        &mut self,
+        k: u64,
+        t: f64,
+        row: &mut [f64],
+    ) -> Result<pneuflex_control::tick::Flow, SceneError> {
+        use pneuflex_control::signal::index;
+        use pneuflex_control::tick::Flow;
+        self.trace.push(row);
+        self.observer.on_step(
+            &Row {
+                columns: self.trace.columns(),
+                values: row,
+            },
+            &*self.plant,
+        );
+        let lim = &self.scene.divergence;
+        if let Some(reason) = divergence(t, row[index::X], row[index::F_E], row[index::X_R], lim) {
+            self.diverged = Some(reason);
+            return Ok(Flow::Stop);
+        }
+        // Physical invariants (chamber pressures, temperatures, the stroke): a finite but impossible
+        // state is a divergence too.
+        if let Err(v) = self.plant.check_invariants() {
+            self.diverged = Some(format!("{v} at t = {t:.4} s"));
+            return Ok(Flow::Stop);
+        }
+        if k == self.last_step {
+            return Ok(Flow::Stop);
+        }
+        if let Some(sig) = self
+            .stop
+            .map(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+            .filter(|&s| s != 0)
+        {
+            self.interrupted = Some(format!("{} at t = {t:.4} s", signal_name(sig)));
+            return Ok(Flow::Stop);
+        }
+        if k % self.report_every == 0 {
+            (self.progress)(k as f64 / self.last_step as f64);
+        }
+        Ok(Flow::Continue)
+    }
+
+    fn advance(&mut self, dt: f64) {
+        self.plant.advance(dt);
+    }
 }
 
 fn divergence(
@@ -659,12 +730,7 @@ pub fn pwm_period_s(scene: &Scene) -> Option<f64> {
         PlantSpec::Pneumatic { actuator, .. } => scene.resolve(actuator),
         PlantSpec::Multibody(mb) => scene.resolve(&mb.actuator),
     };
-    match pneuflex_pneumatics::ActuatorSheet::load(&sheet)
-        .ok()?
-        .valve
-        .valve
-        .kind
-    {
+    match scene.load_sheet(&sheet).ok()?.valve.valve.kind {
         pneuflex_pneumatics::ValveKind::OnOffPwm {
             pwm_frequency_hz, ..
         } => Some(1.0 / pwm_frequency_hz),
