@@ -56,6 +56,40 @@ enum Command {
         #[arg(long, value_name = "MIB")]
         max_trace_mb: Option<u64>,
     },
+    /// Run a scene at every point of a grid or sample of its keys, in parallel: one table of every point's
+    /// metrics per run (sweep.csv), and for two keys a heatmap per run and of adaptive - impedance
+    /// (docs/sweeps.md).
+    Sweep {
+        /// A scene file (scenes/*.toml).
+        scene: PathBuf,
+        /// KEY=SPEC: a key path as the scene's errors spell it (`environment.stiffness_n_per_m`,
+        /// `runs[adaptive].inner.kp_per_m`, `plant.actuator:mechanics.moving_mass_kg`) and its values:
+        /// `a,b,c`, `lin:LO:HI:N`, `log:LO:HI:N`, or sampled `rand:LO:HI`, `lhs:LO:HI`, `rand-log:LO:HI`,
+        /// `lhs-log:LO:HI` (with --samples). Several --set make a grid.
+        #[arg(long = "set", value_name = "KEY=SPEC", required = true)]
+        sets: Vec<String>,
+        /// Output directory (default: out/<scene name>-sweep/), as `run --out`.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Worker threads (default: one per core); the table is the same whatever the number.
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// The metric of the heatmaps, WINDOW.METRIC (default: the first sine window's rms_force_error_n).
+        #[arg(long, value_name = "WINDOW.METRIC")]
+        metric: Option<String>,
+        /// Number of samples of the sampled keys (rand:, lhs:, ...).
+        #[arg(long, value_name = "N")]
+        samples: Option<usize>,
+        /// Seed of the sampled keys.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Also write every point's traces and summary.json (points/point-<i>/).
+        #[arg(long)]
+        traces: bool,
+        /// No progress bar and no summary line.
+        #[arg(long, short)]
+        quiet: bool,
+    },
     /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
     Rig {
         #[command(subcommand)]
@@ -127,6 +161,29 @@ fn main() -> ExitCode {
                 rerun,
                 max_steps,
                 max_trace_mb,
+            },
+        ),
+        Command::Sweep {
+            scene,
+            sets,
+            out,
+            threads,
+            metric,
+            samples,
+            seed,
+            traces,
+            quiet,
+        } => cmd::sweep::sweep(
+            &scene,
+            out.as_deref(),
+            &cmd::sweep::SweepArgs {
+                sets,
+                samples,
+                seed,
+                threads,
+                metric,
+                traces,
+                quiet,
             },
         ),
         Command::Rig {

@@ -1,6 +1,7 @@
 //! One module per subcommand; each returns `anyhow::Result` and leaves printing of errors to `main`.
 pub mod rig;
 pub mod run;
+pub mod sweep;
 pub mod tf;
 
 /// An error that ends the process with a given exit code (128 + signal for an interrupted command).

@@ -36,7 +36,7 @@ pub struct RunArgs {
 }
 
 /// The input files a run must never write over: the scene, and the sheet and URDF it names.
-fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
+pub(super) fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
     let mut v = vec![scene_path.to_path_buf()];
     match &scene.plant {
         PlantSpec::Ideal { .. } => {}

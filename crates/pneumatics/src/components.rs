@@ -102,6 +102,9 @@ fn read(path: &Path) -> Result<String, ComponentError> {
     )?)
 }
 
+/// Texts that stand in for files when a sheet is loaded ([`ActuatorSheet::load_overlaid`]), by path.
+pub type FileOverlay = std::collections::BTreeMap<PathBuf, String>;
+
 /// Line and column of a dotted key in TOML text (of its table when the key is absent).
 fn key_at(text: &str, key: &str) -> Option<Position> {
     pneuflex_files::toml_key_position(text, key)
@@ -811,25 +814,52 @@ pub struct ActuatorSheet {
 impl ActuatorSheet {
     /// Reads an actuator sheet and every component file it names, validating all of them.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ComponentError> {
+        Self::load_overlaid(path, &FileOverlay::new())
+    }
+
+    /// [`ActuatorSheet::load`] with some files' texts given instead of read: a file whose path (the sheet's
+    /// path, or the sheet's folder joined with the component's name as written) is a key of `overlay` is
+    /// parsed from that text (a sweep's edited copy), every other one is read. Errors name the file as if
+    /// it had been read.
+    pub fn load_overlaid(
+        path: impl AsRef<Path>,
+        overlay: &FileOverlay,
+    ) -> Result<Self, ComponentError> {
         let path = path.as_ref();
+        let read = |p: &Path| match overlay.get(p) {
+            Some(t) => Ok(t.clone()),
+            None => read(p),
+        };
         let text = read(path)?;
         let f: ActuatorFile = parse(path, &text)?;
         let c = Check { path, text: &text };
         let dir = path.parent().unwrap_or_else(|| Path::new(""));
         // A component that cannot be read is blamed on the key naming it, too.
         let named = |key: &str, e: ComponentError| c.referenced(key, e);
-        let cylinder = CylinderSheet::load(&dir.join(&f.components.cylinder))
-            .map_err(|e| named("components.cylinder", e))?;
-        let valve = ValveSheet::load(&dir.join(&f.components.valve))
-            .map_err(|e| named("components.valve", e))?;
-        let supply = SupplySheet::load(&dir.join(&f.components.supply))
-            .map_err(|e| named("components.supply", e))?;
+        let cylinder = {
+            let p = dir.join(&f.components.cylinder);
+            read(&p).and_then(|t| CylinderSheet::from_str(&p, &t))
+        }
+        .map_err(|e| named("components.cylinder", e))?;
+        let valve = {
+            let p = dir.join(&f.components.valve);
+            read(&p).and_then(|t| ValveSheet::from_str(&p, &t))
+        }
+        .map_err(|e| named("components.valve", e))?;
+        let supply = {
+            let p = dir.join(&f.components.supply);
+            read(&p).and_then(|t| SupplySheet::from_str(&p, &t))
+        }
+        .map_err(|e| named("components.supply", e))?;
         let sensor =
             |p: &Option<String>, field: &str, want: Quantity| -> Result<_, ComponentError> {
                 match p {
                     None => Ok(None),
                     Some(p) => {
-                        let s = SensorSheet::load(&dir.join(p)).map_err(|e| named(field, e))?;
+                        let file = dir.join(p);
+                        let s = read(&file)
+                            .and_then(|t| SensorSheet::from_str(&file, &t))
+                            .map_err(|e| named(field, e))?;
                         if s.quantity != want {
                             return Err(c.err(
                                 field,

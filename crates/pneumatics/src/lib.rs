@@ -20,8 +20,8 @@ pub use actuator::{
     T_DEFAULT,
 };
 pub use components::{
-    ActuatorSheet, ComponentError, CylinderSheet, Quantity, SensorSheet, SignalKind, SupplySheet,
-    ValveSheet, find_actuator_sheet, load_actuator_sheet,
+    ActuatorSheet, ComponentError, CylinderSheet, FileOverlay, Quantity, SensorSheet, SignalKind,
+    SupplySheet, ValveSheet, find_actuator_sheet, load_actuator_sheet,
 };
 pub use flow::Orifice;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};

@@ -1,7 +1,7 @@
 //! Warnings before a run: legal parameters the integrator cannot resolve. Each names the key to change and
 //! a value that would work; the run still goes ahead (and stops as diverged if the state becomes impossible).
 
-use pneuflex_pneumatics::{ActuatorSheet, ChamberState, OneDofModel};
+use pneuflex_pneumatics::{ChamberState, OneDofModel};
 
 use crate::schema::{EventSpec, PlantSpec, Scene};
 
@@ -130,7 +130,7 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
         ),
     };
     out.extend(margin_warnings(scene));
-    let Ok(sheet) = ActuatorSheet::load(&sheet) else {
+    let Ok(sheet) = scene.load_sheet(&sheet) else {
         return out;
     };
     let model = sheet.model();

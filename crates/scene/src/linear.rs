@@ -5,7 +5,6 @@
 //! evaluated inside each stage.
 
 use pneuflex_control::{Sensors, Signal, Telemetry, ValveCommand};
-use pneuflex_pneumatics::ActuatorSheet;
 
 use crate::error::SceneError;
 use crate::plant::{LinearSpring, Plant};
@@ -95,7 +94,7 @@ impl LinearPlant {
         };
         let model = match actuator {
             Some(a) => {
-                let sheet = ActuatorSheet::load(scene.resolve(a))
+                let sheet = scene.load_sheet(&scene.resolve(a))
                     .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
                 let m = sheet.model();
                 let (_, tf) = m.transfer_function_mid_stroke().map_err(|e| {

@@ -3,7 +3,7 @@
 //! when x <= x_e. The flange feels f_ext = -f_e.
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
-use pneuflex_pneumatics::{ActuatorSheet, ChamberState, OneDofModel, OneDofState};
+use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState};
 
 use crate::error::SceneError;
 use crate::plant::{ActuatorGeometry, LinearSpring, Plant};
@@ -59,7 +59,7 @@ impl OneDofPneumatic {
             });
         };
         let path = scene.resolve(actuator);
-        let sheet = ActuatorSheet::load(&path)
+        let sheet = scene.load_sheet(&path)
             .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
         let mut model = sheet.model();
         if let Some(a) = alpha_deg {

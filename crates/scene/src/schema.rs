@@ -58,6 +58,10 @@ pub struct Scene {
     /// The file's text, to point errors at the line of a key (not a TOML key).
     #[serde(skip)]
     pub text: String,
+    /// Texts that stand in for the actuator sheet's files, by resolved path (a sweep's edited copies of
+    /// sheet values; empty for a scene read from disk). Not a TOML key.
+    #[serde(skip)]
+    pub overlay: pneuflex_pneumatics::FileOverlay,
 }
 
 /// The scene format version this pneuflex reads and writes.
@@ -608,6 +612,15 @@ impl Scene {
     /// Number of control ticks in the run (the trace has one more row: t = 0 .. duration inclusive).
     pub fn n_steps(&self) -> usize {
         (self.duration_s / self.dt_s).round() as usize
+    }
+
+    /// The actuator sheet at `resolved` (a path from [`Scene::resolve`]), with the scene's
+    /// [`Scene::overlay`] texts standing in for the files they name.
+    pub fn load_sheet(
+        &self,
+        resolved: &Path,
+    ) -> Result<pneuflex_pneumatics::ActuatorSheet, pneuflex_pneumatics::ComponentError> {
+        pneuflex_pneumatics::ActuatorSheet::load_overlaid(resolved, &self.overlay)
     }
 
     /// Path of the pneumatic actuator sheet, resolved against the scene's directory.

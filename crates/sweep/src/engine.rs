@@ -1,0 +1,501 @@
+//! The sweep engine: every point's scene, checked before anything runs, then run on a rayon pool; one row
+//! per point and run, in point order whatever the thread count.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use pneuflex_scene::{Limits, PlantSpec, RunResult, Scene, SceneError, WindowKind, WindowMetrics};
+use rayon::prelude::*;
+
+use crate::key::{Base, KeyError, Value};
+use crate::spec::{Points, SetArg, SpecError};
+
+/// Everything that stops a sweep before it runs.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// A `--set` that cannot be read.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// A key that cannot be written into the scene (no such table, run or element).
+    #[error("--set {0}")]
+    Key(KeyError),
+    /// The scene file itself (before any edit) is wrong or unreadable.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A point's scene is rejected by the scene's own parser or validation.
+    #[error("{error}\n  (sweep point {point})")]
+    Point {
+        /// Which point, with every key's value.
+        point: String,
+        /// The scene's error, located in the scene file.
+        error: Box<SceneError>,
+    },
+    /// A point's actuator sheet is rejected by the sheet's own validation.
+    #[error("{error}\n  (sweep point {point})")]
+    Sheet {
+        /// Which point.
+        point: String,
+        /// The sheet's error.
+        error: Box<pneuflex_pneumatics::ComponentError>,
+    },
+    /// Anything else (a thread pool that cannot start, a bad metric name, ...).
+    #[error("{0}")]
+    Other(String),
+}
+
+impl From<KeyError> for SweepError {
+    fn from(e: KeyError) -> Self {
+        SweepError::Key(e)
+    }
+}
+
+/// How a run at a point ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    /// Simulated to the end; every event window settled.
+    Ok,
+    /// Simulated to the end; an event window did not settle.
+    NotSettled,
+    /// Stopped as diverged (its metrics are empty).
+    Diverged,
+    /// Could not be simulated (a plant that cannot be built at this point).
+    Error,
+}
+
+impl Status {
+    /// As written in the table.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::NotSettled => "not_settled",
+            Status::Diverged => "diverged",
+            Status::Error => "error",
+        }
+    }
+}
+
+/// One run at one point: its status and its metrics in column order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunRow {
+    /// Run name.
+    pub run: String,
+    /// `impedance` or `adaptive`.
+    pub controller: String,
+    /// How it ended.
+    pub status: Status,
+    /// Why it diverged or did not settle (empty when ok).
+    pub reason: String,
+    /// Each metric column's value (None: not measured, or diverged).
+    pub metrics: Vec<Option<f64>>,
+}
+
+/// Every run at one point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointResult {
+    /// The point's number.
+    pub index: usize,
+    /// One row per run, in the scene's order.
+    pub runs: Vec<RunRow>,
+}
+
+/// A metric column: window, metric name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MetricColumn {
+    /// Window name.
+    pub window: String,
+    /// Metric (summary.json's name).
+    pub metric: &'static str,
+}
+
+impl MetricColumn {
+    /// `window.metric`, as the table's header writes it.
+    pub fn name(&self) -> String {
+        format!("{}.{}", self.window, self.metric)
+    }
+}
+
+/// The metrics each window kind has, in column order.
+pub fn window_metrics(kind: WindowKind) -> &'static [&'static str] {
+    match kind {
+        WindowKind::Sine => &["rms_force_error_n", "phase_lag_deg", "amplitude_ratio"],
+        WindowKind::Step => &["rms_force_error_n", "steady_state_error_n"],
+        WindowKind::Event => &[
+            "rms_force_error_n",
+            "peak_force_n",
+            "jump_n",
+            "recovery_overshoot_n",
+            "recovery_overshoot_pct",
+            "settling_time_s",
+            "tracking_error_n",
+        ],
+    }
+}
+
+/// A metric of a window's results; a settling time of a run that did not settle is infinite.
+pub fn metric_of(w: &WindowMetrics, metric: &str) -> Option<f64> {
+    let ev = w.event.as_ref();
+    match metric {
+        "rms_force_error_n" => Some(w.rms_force_error_n),
+        "phase_lag_deg" => w.phase_lag_deg,
+        "amplitude_ratio" => w.amplitude_ratio,
+        "steady_state_error_n" => w.steady_state_error_n,
+        "peak_force_n" => ev.map(|e| e.peak_force_n),
+        "jump_n" => ev.map(|e| e.jump_n),
+        "recovery_overshoot_n" => ev.map(|e| e.recovery_overshoot_n),
+        "recovery_overshoot_pct" => ev.map(|e| e.recovery_overshoot_pct),
+        "settling_time_s" => ev.map(|e| e.settling_time_s.unwrap_or(f64::INFINITY)),
+        "tracking_error_n" => ev.map(|e| e.tracking_error_n),
+        _ => None,
+    }
+}
+
+/// A sweep: the scene, its points, and the metric columns of its table.
+#[derive(Debug)]
+pub struct Sweep {
+    /// The scene file.
+    pub scene_path: PathBuf,
+    /// The scene as the file has it (validated).
+    pub base_scene: Scene,
+    /// The points.
+    pub points: Points,
+    /// The metric columns (from the scene's windows).
+    pub columns: Vec<MetricColumn>,
+    /// The `--set` specs as written (`KEY=SPEC`), for the record.
+    pub specs: Vec<String>,
+    /// Seed of the sampled keys.
+    pub seed: u64,
+    base: Base,
+}
+
+fn quote(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// A number as the table writes it: the shortest text that reads back as the same f64 (`inf`, `NaN`).
+pub fn fmt_f64(x: f64) -> String {
+    format!("{x}")
+}
+
+impl Sweep {
+    /// Reads the scene, expands the points and checks every point's scene (and sheet) before anything
+    /// runs: the first bad point's error is returned, located in the file, with the point.
+    pub fn new(
+        scene_path: &Path,
+        sets: &[SetArg],
+        samples: Option<usize>,
+        seed: u64,
+    ) -> Result<Sweep, SweepError> {
+        let base_scene = Scene::load(scene_path)?;
+        let base = Base::load(scene_path)?;
+        let points = crate::spec::points(sets, samples, seed)?;
+        let columns = base_scene
+            .metrics
+            .iter()
+            .flat_map(|w| {
+                window_metrics(w.kind).iter().map(|m| MetricColumn {
+                    window: w.name.clone(),
+                    metric: m,
+                })
+            })
+            .collect();
+        let sweep = Sweep {
+            scene_path: scene_path.to_path_buf(),
+            base_scene,
+            points,
+            columns,
+            specs: sets
+                .iter()
+                .map(|s| format!("{}={}", s.key.text, s.spec_text))
+                .collect(),
+            seed,
+            base,
+        };
+        // Structural key errors are the same at every point: the first point says them once.
+        sweep.scene_at(0)?;
+        let first_bad = (1..sweep.len())
+            .into_par_iter()
+            .map(|i| sweep.scene_at(i).err())
+            .find_first(Option::is_some)
+            .flatten();
+        if let Some(e) = first_bad {
+            return Err(e);
+        }
+        Ok(sweep)
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.values.len()
+    }
+
+    /// Whether the sweep has no points (never, once built).
+    pub fn is_empty(&self) -> bool {
+        self.points.values.is_empty()
+    }
+
+    /// `#i of n: key = value, ...`.
+    pub fn describe(&self, i: usize) -> String {
+        let kv: Vec<String> = self
+            .points
+            .keys
+            .iter()
+            .zip(&self.points.values[i])
+            .map(|(k, v)| format!("{} = {v}", k.text))
+            .collect();
+        format!("#{i} of {}: {}", self.len(), kv.join(", "))
+    }
+
+    /// The scene of point `i`, parsed and validated by the scene's own code, with the sheet's edited
+    /// files as its overlay (and the sheet loaded once, to check it).
+    pub fn scene_at(&self, i: usize) -> Result<Scene, SweepError> {
+        let edits: Vec<(&crate::key::KeyPath, &Value)> = self
+            .points
+            .keys
+            .iter()
+            .zip(&self.points.values[i])
+            .collect();
+        let edited = self.base.edit(&edits)?;
+        let located = |e: SceneError| -> SweepError {
+            // Positions of the file as the user wrote it (an added key moves later lines of the copy).
+            let e = match e {
+                SceneError::Invalid {
+                    file, key, message, ..
+                } => SceneError::Invalid {
+                    at: pneuflex_files::toml_key_position(&self.base.scene.text, &key),
+                    file,
+                    key,
+                    message,
+                },
+                SceneError::Parse {
+                    file,
+                    key,
+                    message,
+                    at,
+                } if !key.is_empty() => SceneError::Parse {
+                    at: pneuflex_files::toml_key_position(&self.base.scene.text, &key).or(at),
+                    file,
+                    key,
+                    message,
+                },
+                other => other,
+            };
+            SweepError::Point {
+                point: self.describe(i),
+                error: Box::new(e),
+            }
+        };
+        let mut scene =
+            Scene::from_toml_str(&edited.scene_text, &self.scene_path, &self.base.base_dir)
+                .map_err(located)?;
+        // Errors and summaries point at the file as written.
+        scene.text = self.base.scene.text.clone();
+        scene.overlay = edited.overlay;
+        if !scene.overlay.is_empty() {
+            let sheet = match &scene.plant {
+                PlantSpec::Pneumatic { actuator, .. } => Some(scene.resolve(actuator)),
+                PlantSpec::Multibody(mb) => Some(scene.resolve(&mb.actuator)),
+                PlantSpec::Linear { actuator, .. } => actuator.as_ref().map(|a| scene.resolve(a)),
+                PlantSpec::Ideal { .. } => None,
+            };
+            let Some(sheet) = sheet else {
+                return Err(SweepError::Other(format!(
+                    "sweep point {}: the plant of this scene has no actuator sheet",
+                    self.describe(i)
+                )));
+            };
+            scene.load_sheet(&sheet).map_err(|e| SweepError::Sheet {
+                point: self.describe(i),
+                error: Box::new(e),
+            })?;
+        }
+        scene.check_budget(&Limits::default()).map_err(located)?;
+        Ok(scene)
+    }
+
+    /// Runs point `i` (every run of its scene, one after another on this thread); `traces` writes its
+    /// traces and summary.json into `traces/point-<i>/`.
+    pub fn run_point(&self, i: usize, traces: Option<&Path>) -> PointResult {
+        let fail = |why: String| PointResult {
+            index: i,
+            runs: self
+                .base_scene
+                .runs
+                .iter()
+                .map(|r| RunRow {
+                    run: r.name.clone(),
+                    controller: r.controller.name().into(),
+                    status: Status::Error,
+                    reason: why.clone(),
+                    metrics: vec![None; self.columns.len()],
+                })
+                .collect(),
+        };
+        let scene = match self.scene_at(i) {
+            Ok(s) => s,
+            Err(e) => return fail(e.to_string()),
+        };
+        let results = match pneuflex_scene::run_scene(&scene, &mut |_| {}) {
+            Ok(r) => r,
+            Err(e) => return fail(e.to_string()),
+        };
+        if let Some(dir) = traces {
+            let d = dir.join(format!("point-{i:0w$}", w = digits(self.len())));
+            if let Err(e) = std::fs::create_dir_all(&d)
+                .map_err(|e| e.to_string())
+                .and_then(|()| {
+                    pneuflex_scene::write_results(&d, &scene, &results).map_err(|e| e.to_string())
+                })
+            {
+                return fail(format!("writing traces: {e}"));
+            }
+        }
+        PointResult {
+            index: i,
+            runs: results.iter().map(|r| self.row_of(r)).collect(),
+        }
+    }
+
+    fn row_of(&self, r: &RunResult) -> RunRow {
+        let unsettled: Vec<String> = r
+            .windows
+            .iter()
+            .filter_map(|w| {
+                let e = w.event.as_ref()?;
+                (!e.settled).then(|| {
+                    format!(
+                        "{}: {}",
+                        w.name,
+                        e.not_settled.as_deref().unwrap_or("not settled")
+                    )
+                })
+            })
+            .collect();
+        let (status, reason) = match (&r.diverged, unsettled.is_empty()) {
+            (Some(why), _) => (Status::Diverged, why.clone()),
+            (None, false) => (Status::NotSettled, unsettled.join("; ")),
+            (None, true) => (Status::Ok, String::new()),
+        };
+        let metrics = self
+            .columns
+            .iter()
+            .map(|c| {
+                if r.diverged.is_some() {
+                    return None;
+                }
+                r.window(&c.window).and_then(|w| metric_of(w, c.metric))
+            })
+            .collect();
+        RunRow {
+            run: r.name.clone(),
+            controller: r.controller.name().into(),
+            status,
+            reason,
+            metrics,
+        }
+    }
+
+    /// Runs the points `indices` on a pool of `threads` threads (0: one per core); `tick` is called after
+    /// each point. The results are in the order of `indices`.
+    pub fn run(
+        &self,
+        indices: &[usize],
+        threads: usize,
+        traces: Option<&Path>,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<Vec<PointResult>, SweepError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
+        Ok(pool.install(|| {
+            indices
+                .par_iter()
+                .map(|&i| {
+                    let r = self.run_point(i, traces);
+                    tick();
+                    r
+                })
+                .collect()
+        }))
+    }
+
+    /// The table's header line (with its newline).
+    pub fn header(&self) -> String {
+        let mut cols: Vec<String> = vec!["point".into()];
+        cols.extend(self.points.keys.iter().map(|k| quote(&k.text)));
+        cols.extend(["run", "controller", "status", "reason"].map(String::from));
+        cols.extend(self.columns.iter().map(|c| quote(&c.name())));
+        cols.join(",") + "\n"
+    }
+
+    /// The table's lines of one point (one per run).
+    pub fn rows(&self, p: &PointResult) -> String {
+        let mut s = String::new();
+        let keys: Vec<String> = self.points.values[p.index]
+            .iter()
+            .map(|v| quote(&v.to_string()))
+            .collect();
+        for r in &p.runs {
+            let _ = write!(
+                s,
+                "{},{},{},{},{},{}",
+                p.index,
+                keys.join(","),
+                quote(&r.run),
+                r.controller,
+                r.status.as_str(),
+                quote(&r.reason)
+            );
+            for m in &r.metrics {
+                s.push(',');
+                if let Some(x) = m {
+                    s.push_str(&fmt_f64(*x));
+                }
+            }
+            s.push('\n');
+        }
+        s
+    }
+
+    /// The whole table (header and every point's rows).
+    pub fn table(&self, results: &[PointResult]) -> String {
+        let mut s = self.header();
+        for p in results {
+            s.push_str(&self.rows(p));
+        }
+        s
+    }
+
+    /// The index of a metric column by its `window.metric` name; the error lists them.
+    pub fn metric_index(&self, name: &str) -> Result<usize, SweepError> {
+        self.columns
+            .iter()
+            .position(|c| c.name() == name)
+            .ok_or_else(|| {
+                let known: Vec<String> = self.columns.iter().map(MetricColumn::name).collect();
+                SweepError::Other(format!(
+                    "--metric {name}: no such metric column; the scene's are {}",
+                    known.join(", ")
+                ))
+            })
+    }
+
+    /// The default heatmap metric: the first sine window's RMS error, else the first column.
+    pub fn default_metric(&self) -> Option<String> {
+        let sine = self
+            .base_scene
+            .metrics
+            .iter()
+            .find(|w| w.kind == WindowKind::Sine)
+            .map(|w| format!("{}.rms_force_error_n", w.name));
+        sine.or_else(|| self.columns.first().map(MetricColumn::name))
+    }
+}
+
+fn digits(n: usize) -> usize {
+    n.saturating_sub(1).max(1).to_string().len()
+}

@@ -1,0 +1,160 @@
+//! A sweep's files: `sweep.csv` (every point's keys and every metric per run), `sweep.json` (what was
+//! swept), and for a grid of two keys a heatmap per run of one metric and of adaptive − impedance.
+
+use std::path::{Path, PathBuf};
+
+use crate::engine::{PointResult, Status, Sweep, SweepError};
+use crate::key::Value;
+
+/// A grid value as an axis label: four significant digits.
+pub fn tick(v: &Value) -> String {
+    match v {
+        Value::Float(x) if x.is_finite() && *x != 0.0 => {
+            let r: f64 = format!("{x:.3e}").parse().unwrap_or(*x);
+            format!("{r}")
+        }
+        other => other.to_string(),
+    }
+}
+
+/// What `sweep.json` records: enough to run the same sweep again.
+#[derive(serde::Serialize)]
+struct Record<'a> {
+    tool: &'static str,
+    version: &'static str,
+    command: &'static str,
+    scene: String,
+    sets: &'a [String],
+    seed: u64,
+    points: usize,
+    runs: Vec<&'a str>,
+    metric_columns: Vec<String>,
+    table: &'static str,
+    heatmaps: Vec<String>,
+}
+
+/// Every figure's file name (relative) and its cells, for a two-key grid.
+fn heatmap_cells(
+    sweep: &Sweep,
+    results: &[PointResult],
+    metric: usize,
+) -> Vec<(String, String, Vec<Option<f64>>, bool)> {
+    let Some(grid) = &sweep.points.grid else {
+        return Vec::new();
+    };
+    if grid.len() != 2 {
+        return Vec::new();
+    }
+    let (nx, ny) = (grid[0].len(), grid[1].len());
+    let name = sweep.columns[metric].name();
+    let value = |p: &PointResult, run: usize| -> Option<f64> {
+        let r = p.runs.get(run)?;
+        match r.status {
+            Status::Diverged | Status::Error => None,
+            Status::Ok | Status::NotSettled => r.metrics[metric].or(Some(f64::NAN)),
+        }
+    };
+    // Point index = x * ny + y (the first key varies slowest); cells row by row from the bottom.
+    let cells = |f: &dyn Fn(&PointResult) -> Option<f64>| -> Vec<Option<f64>> {
+        let mut c = vec![None; nx * ny];
+        for p in results {
+            let (x, y) = (p.index / ny, p.index % ny);
+            c[y * nx + x] = f(p);
+        }
+        c
+    };
+    let mut out = Vec::new();
+    for (k, run) in sweep.base_scene.runs.iter().enumerate() {
+        out.push((
+            format!("heatmap-{}-{name}.png", run.name),
+            format!("{} ({}): {name}", run.name, run.controller.name()),
+            cells(&|p| value(p, k)),
+            false,
+        ));
+    }
+    let find = |kind: &str| {
+        sweep
+            .base_scene
+            .runs
+            .iter()
+            .position(|r| r.controller.name() == kind)
+    };
+    if let (Some(a), Some(i)) = (find("adaptive"), find("impedance")) {
+        let (an, inn) = (
+            &sweep.base_scene.runs[a].name,
+            &sweep.base_scene.runs[i].name,
+        );
+        out.push((
+            format!("heatmap-{an}-minus-{inn}-{name}.png"),
+            format!("{an} − {inn}: {name} (< 0: {an} lower)"),
+            cells(&|p| Some(value(p, a)? - value(p, i)?)),
+            true,
+        ));
+    }
+    out
+}
+
+/// Writes the table, the record and (for a two-key grid) the heatmaps of `metric` into `dir`; returns the
+/// files written, relative to `dir`.
+pub fn write(
+    dir: &Path,
+    sweep: &Sweep,
+    results: &[PointResult],
+    metric: &str,
+) -> Result<Vec<PathBuf>, SweepError> {
+    let io = |p: &Path, e: std::io::Error| {
+        SweepError::Other(format!("{}: cannot write: {e}", p.display()))
+    };
+    let metric_i = sweep.metric_index(metric)?;
+    let csv = dir.join("sweep.csv");
+    std::fs::write(&csv, sweep.table(results)).map_err(|e| io(&csv, e))?;
+    let maps = heatmap_cells(sweep, results, metric_i);
+    let mut files = vec![PathBuf::from("sweep.csv")];
+    if let Some(grid) = sweep.points.grid.as_ref().filter(|g| g.len() == 2) {
+        let xt: Vec<String> = grid[0].iter().map(tick).collect();
+        let yt: Vec<String> = grid[1].iter().map(tick).collect();
+        for (file, title, cells, diverging) in &maps {
+            let path = dir.join(file);
+            pneuflex_viz::write_heatmap(
+                &path,
+                &pneuflex_viz::Heatmap {
+                    title,
+                    x_label: &sweep.points.keys[0].text,
+                    x_ticks: &xt,
+                    y_label: &sweep.points.keys[1].text,
+                    y_ticks: &yt,
+                    cells,
+                    value_label: &sweep.columns[metric_i].name(),
+                    diverging: *diverging,
+                },
+            )
+            .map_err(|e| SweepError::Other(e.to_string()))?;
+            files.push(PathBuf::from(file));
+        }
+    }
+    let record = Record {
+        tool: "pneuflex",
+        version: env!("CARGO_PKG_VERSION"),
+        command: "sweep",
+        scene: sweep.scene_path.display().to_string(),
+        sets: &sweep.specs,
+        seed: sweep.seed,
+        points: sweep.len(),
+        runs: sweep
+            .base_scene
+            .runs
+            .iter()
+            .map(|r| r.name.as_str())
+            .collect(),
+        metric_columns: sweep.columns.iter().map(|c| c.name()).collect(),
+        table: "sweep.csv: one row per point and run; status ok | not_settled | diverged | error \
+                (a diverged run's metrics are empty; a settling time that never came is inf)",
+        heatmaps: maps.iter().map(|m| m.0.clone()).collect(),
+    };
+    let json = dir.join("sweep.json");
+    let text =
+        serde_json::to_string_pretty(&record).map_err(|e| SweepError::Other(e.to_string()))?;
+    std::fs::write(&json, text + "\n").map_err(|e| io(&json, e))?;
+    files.push(PathBuf::from("sweep.json"));
+    Ok(files)
+}

@@ -1,0 +1,125 @@
+//! `pneuflex sweep <scene> --set KEY=SPEC ... [--out DIR]`: the scene at every point of a grid or sample of
+//! its keys, in parallel; one table of every point's metrics per run, and heatmaps for two keys. The
+//! engine is `pneuflex_sweep`; this wires arguments, the progress bar and the output directory.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use pneuflex_files::OutputDir;
+use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_sweep::{SetArg, Status, Sweep};
+
+/// Options of `sweep`.
+#[derive(Clone, Debug, Default)]
+pub struct SweepArgs {
+    /// `--set KEY=SPEC`, in order.
+    pub sets: Vec<String>,
+    /// `--samples N` for sampled keys.
+    pub samples: Option<usize>,
+    /// `--seed S` for sampled keys.
+    pub seed: u64,
+    /// `--threads N` (0: one per core).
+    pub threads: usize,
+    /// `--metric WINDOW.METRIC` for the heatmaps.
+    pub metric: Option<String>,
+    /// `--traces`: every point's traces and summary.json.
+    pub traces: bool,
+    /// No progress bar and no summary line.
+    pub quiet: bool,
+}
+
+/// A progress bar over `n` items that appears when the work lasts more than a moment.
+pub fn bar(n: u64, what: &str, quiet: bool) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(
+        Some(n),
+        if quiet {
+            ProgressDrawTarget::hidden()
+        } else {
+            ProgressDrawTarget::stderr()
+        },
+    );
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {msg} [{bar:40}] {pos}/{len} ({elapsed}, eta {eta}, {per_sec})",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// Runs the sweep and writes its directory.
+pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow::Result<()> {
+    let sets = args
+        .sets
+        .iter()
+        .map(|s| SetArg::parse(s))
+        .collect::<Result<Vec<_>, _>>()?;
+    let checking = Instant::now();
+    // Every point's scene is parsed and validated here, before anything runs.
+    let sweep = Sweep::new(scene_path, &sets, args.samples, args.seed)?;
+    let checked_s = checking.elapsed().as_secs_f64();
+    let metric = match &args.metric {
+        Some(m) => m.clone(),
+        None => sweep
+            .default_metric()
+            .context("the scene has no metric windows: nothing to tabulate")?,
+    };
+    sweep.metric_index(&metric)?;
+    let scene = &sweep.base_scene;
+    let dest = out
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new("out").join(format!("{}-sweep", scene.name)));
+    let inputs = super::run::inputs_of(scene, scene_path);
+    let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let stage = OutputDir::create(&dest, &protect, Recoverable::Regenerable)?;
+    let traces = args.traces.then(|| stage.path().join("points"));
+
+    let n = sweep.len();
+    let bar = bar(n as u64, &format!("sweeping {}", scene.name), args.quiet);
+    let start = Instant::now();
+    let indices: Vec<usize> = (0..n).collect();
+    let results = sweep.run(&indices, args.threads, traces.as_deref(), &|| bar.inc(1))?;
+    bar.finish_and_clear();
+    let run_s = start.elapsed().as_secs_f64();
+
+    pneuflex_sweep::output::write(stage.path(), &sweep, &results, &metric)?;
+    let manifest = Manifest::new(
+        "sweep",
+        env!("CARGO_PKG_VERSION"),
+        pneuflex_scene::scene_inputs(scene),
+    );
+    let dest = stage.commit(manifest)?;
+    if !args.quiet {
+        let mut counts = [0usize; 4];
+        for r in results.iter().flat_map(|p| &p.runs) {
+            counts[match r.status {
+                Status::Ok => 0,
+                Status::NotSettled => 1,
+                Status::Diverged => 2,
+                Status::Error => 3,
+            }] += 1;
+        }
+        let threads = if args.threads == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            args.threads
+        };
+        println!(
+            "{}: {n} point(s) x {} run(s) on {threads} thread(s) in {run_s:.2} s ({:.1} scene-runs/s; points checked in {checked_s:.2} s): \
+             {} ok, {} not settled, {} diverged, {} error; table in {}",
+            scene.name,
+            scene.runs.len(),
+            (n * scene.runs.len()) as f64 / run_s.max(1e-9),
+            counts[0],
+            counts[1],
+            counts[2],
+            counts[3],
+            dest.join("sweep.csv").display()
+        );
+    }
+    Ok(())
+}
