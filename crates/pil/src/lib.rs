@@ -1,0 +1,219 @@
+//! Processor-in-the-loop (PIL): a scene run's controller executes in the firmware on an emulated Cortex-M4F
+//! (QEMU `mps2-an386`, [`qemu`]), the scene's plant on the host, in lockstep: the scene runner calls
+//! [`FirmwareController::update`] once per tick, which sends the tick's sensors over the emulated UART and
+//! waits for the board's valve command. The same run is simulated on the host, and the two traces are
+//! compared tick by tick ([`Comparison`]). docs/firmware.md.
+
+pub mod controller;
+pub mod link;
+pub mod qemu;
+
+use std::path::Path;
+
+use pneuflex_scene::runner::{compute_windows_with, lyapunov_summary, pinned_parameters, pwm_period_s};
+use pneuflex_scene::{RunResult, Scene, build_controller, build_plant, build_setpoints, run_scene};
+
+pub use controller::{Cost, FirmwareController};
+pub use link::{Link, LinkStats};
+pub use pneuflex_protocol::ctrl::SafePayload;
+
+/// Why a PIL run could not be done.
+#[derive(Debug, thiserror::Error)]
+pub enum PilError {
+    /// QEMU is missing (the message says how to install it).
+    #[error("{0}")]
+    NoQemu(String),
+    /// The firmware image is missing, or the firmware went safe or panicked during the run.
+    #[error("firmware: {0}")]
+    Firmware(String),
+    /// The link failed (QEMU exited, no answer, write error).
+    #[error("link: {0}")]
+    Link(String),
+    /// The board refused the setup, or the run cannot be set up.
+    #[error("setup: {0}")]
+    Setup(String),
+    /// The scene.
+    #[error(transparent)]
+    Scene(#[from] pneuflex_scene::SceneError),
+}
+
+/// The board's watchdog in a PIL run, ms of virtual time. Generous: the host computes the plant between
+/// two ticks while the board's clock runs on (one virtual ns per emulated instruction); a real board with a
+/// real-time host would use a few control periods.
+pub const PIL_WATCHDOG_MS: u16 = 2000;
+
+/// Tolerance for "the same command": |Δu| ≤ 1e-9 (the firmware and the host compute in IEEE-754 f64 with
+/// the same code; a difference shows where they do not).
+pub const U_TOLERANCE: f64 = 1e-9;
+
+/// Tick-by-tick comparison of the firmware's run with the host's simulation of the same run.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Comparison {
+    /// Ticks compared (the shorter trace).
+    pub ticks: usize,
+    /// Ticks in the firmware run and in the host run.
+    pub ticks_firmware: usize,
+    /// See `ticks_firmware`.
+    pub ticks_host: usize,
+    /// max |u_firmware - u_host|.
+    pub max_abs_du: f64,
+    /// max |f_e,firmware - f_e,host|, N.
+    pub max_abs_dfe_n: f64,
+    /// max |x_r,firmware - x_r,host|, m.
+    pub max_abs_dxr_m: f64,
+    /// First tick where |Δu| > [`U_TOLERANCE`] (None: never).
+    pub first_divergent_tick: Option<usize>,
+    /// Ticks whose every recorded value is bit-identical in both traces.
+    pub bit_identical_ticks: usize,
+    /// Ticks where the board's own setpoint differed from the host's.
+    pub setpoint_mismatches: u64,
+    /// Per metric window: RMS force error of the firmware and the host run, N.
+    pub rms_force_error_n: Vec<(String, Option<f64>, Option<f64>)>,
+    /// Whether every metric of summary.json is equal in both runs.
+    pub metrics_equal: bool,
+}
+
+/// The outcome of one PIL run.
+pub struct PilRun {
+    /// The run with the controller on the board (trace, metrics).
+    pub firmware: RunResult,
+    /// The same run simulated on the host.
+    pub host: RunResult,
+    /// The two compared.
+    pub comparison: Comparison,
+    /// Link counters.
+    pub link: LinkStats,
+    /// The controller update's cost on the board.
+    pub cost: Cost,
+    /// The board's report when the host parked the valve at the end (stack high-water mark).
+    pub end: SafePayload,
+}
+
+/// Runs run `index` of `scene` with its controller in the firmware `elf` on the emulated board, then the same
+/// run on the host, and compares them. A link or firmware error is an Err (no half result).
+pub fn run_pil(
+    scene: &Scene,
+    index: usize,
+    elf: &Path,
+    progress: &mut dyn FnMut(f64),
+) -> Result<PilRun, PilError> {
+    let run = scene
+        .runs
+        .get(index)
+        .ok_or_else(|| PilError::Setup(format!("no run {index}")))?;
+    let setup = controller::setup_of(run)?;
+    let setpoints = build_setpoints(scene)?;
+    // The host controller of the same kind declares the recorded signals (g, p, d for adaptive).
+    let signals = build_controller(scene, index)?.signals();
+
+    let (mut board, stdin, stdout) = qemu::Board::start(elf)?;
+    let mut link = Link::new(stdin, stdout);
+    controller::start(&mut link, &setup, &setpoints, scene.dt_s, PIL_WATCHDOG_MS)?;
+    let mut fw = FirmwareController::new(link, signals);
+    let mut plant = build_plant(scene)?;
+    let mut firmware = pneuflex_scene::simulate(
+        scene,
+        index,
+        plant.as_mut(),
+        &mut fw,
+        &setpoints,
+        progress,
+    )?;
+    if let Some(e) = fw.error.take() {
+        let exited = board.exited().map(|s| format!(" (QEMU: {s})")).unwrap_or_default();
+        return Err(match e {
+            PilError::Link(m) => PilError::Link(format!("{m}{exited}")),
+            e => e,
+        });
+    }
+    let end = fw.finish()?;
+    drop(board);
+    let pwm = pwm_period_s(scene);
+    if firmware.diverged.is_none() {
+        firmware.windows = compute_windows_with(scene, &firmware.trace, pwm);
+    }
+    if firmware.is_adaptive() {
+        firmware.lyapunov = lyapunov_summary(scene, run);
+    }
+    firmware.warnings = pinned_parameters(run, &firmware.trace);
+
+    let host = host_run(scene, index)?;
+    let comparison = compare(&firmware, &host, fw.setpoint_mismatches.0);
+    Ok(PilRun {
+        firmware,
+        host,
+        comparison,
+        link: fw.link().stats(),
+        cost: fw.cost(),
+        end,
+    })
+}
+
+/// The scene reduced to run `index` (what the outputs of a PIL run describe). Its claims compare runs with
+/// each other, so they go too.
+pub fn single_run_scene(scene: &Scene, index: usize) -> Scene {
+    let mut s = scene.clone();
+    s.runs = vec![scene.runs[index].clone()];
+    s.claims.clear();
+    s
+}
+
+fn host_run(scene: &Scene, index: usize) -> Result<RunResult, PilError> {
+    let one = single_run_scene(scene, index);
+    let mut r = run_scene(&one, &mut |_| {})?;
+    r.pop()
+        .ok_or_else(|| PilError::Setup("the host simulation returned no run".into()))
+}
+
+/// Compares two runs of the same scene tick by tick.
+pub fn compare(fw: &RunResult, host: &RunResult, setpoint_mismatches: u64) -> Comparison {
+    let col = |r: &RunResult, n: &str| r.trace.column(n).map(<[f64]>::to_vec).unwrap_or_default();
+    let (u1, u2) = (col(fw, "u"), col(host, "u"));
+    let (f1, f2) = (col(fw, "f_e"), col(host, "f_e"));
+    let (x1, x2) = (col(fw, "x_r"), col(host, "x_r"));
+    let ticks = fw.trace.len().min(host.trace.len());
+    let max_abs = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| {
+                let d = (x - y).abs();
+                if d.is_nan() { f64::INFINITY } else { d }
+            })
+            .fold(0.0_f64, f64::max)
+    };
+    let first_divergent_tick = u1
+        .iter()
+        .zip(&u2)
+        .position(|(a, b)| !((a - b).abs() <= U_TOLERANCE));
+    let names: Vec<String> = fw.trace.columns().iter().map(|c| c.name.to_string()).collect();
+    let bit_identical_ticks = (0..ticks)
+        .filter(|&k| {
+            names.iter().all(|n| {
+                let a = fw.trace.column(n).map(|c| c[k].to_bits());
+                let b = host.trace.column(n).map(|c| c[k].to_bits());
+                a == b
+            })
+        })
+        .count();
+    let rms_force_error_n = fw
+        .windows
+        .iter()
+        .map(|w| {
+            let h = host.window(&w.name).map(|h| h.rms_force_error_n);
+            (w.name.clone(), Some(w.rms_force_error_n), h)
+        })
+        .collect();
+    Comparison {
+        ticks,
+        ticks_firmware: fw.trace.len(),
+        ticks_host: host.trace.len(),
+        max_abs_du: max_abs(&u1, &u2),
+        max_abs_dfe_n: max_abs(&f1, &f2),
+        max_abs_dxr_m: max_abs(&x1, &x2),
+        first_divergent_tick,
+        bit_identical_ticks,
+        setpoint_mismatches,
+        rms_force_error_n,
+        metrics_equal: fw.windows == host.windows && fw.diverged == host.diverged,
+    }
+}

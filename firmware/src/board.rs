@@ -1,0 +1,199 @@
+//! The mps2-an386 board as QEMU models it (ARM AN386, Cortex-M4 with FPU): UART0, a 25 MHz timer as the
+//! board clock, the FPGA LED register as the supply dump-valve pin, and the coil PWM outputs.
+//! Everything board-specific is in this file; a port to another MCU replaces it (docs/firmware.md).
+
+use core::ptr::{read_volatile, write_volatile};
+use core::sync::atomic::{AtomicU16, Ordering};
+
+use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
+use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+
+/// CMSDK APB UART0 (AN386 memory map): DATA, STATE (bit 0 TX full, bit 1 RX full), CTRL (bit 0 TX enable,
+/// bit 1 RX enable), BAUDDIV.
+const UART0: usize = 0x4000_4000;
+const UART_DATA: usize = UART0;
+const UART_STATE: usize = UART0 + 0x04;
+const UART_CTRL: usize = UART0 + 0x08;
+const UART_INT: usize = UART0 + 0x0C;
+const UART_BAUDDIV: usize = UART0 + 0x10;
+
+/// CMSDK APB TIMER0: CTRL (bit 0 enable), VALUE (counts down at the 25 MHz peripheral clock), RELOAD.
+const TIMER0: usize = 0x4000_0000;
+const TIMER_CTRL: usize = TIMER0;
+const TIMER_VALUE: usize = TIMER0 + 0x04;
+const TIMER_RELOAD: usize = TIMER0 + 0x08;
+/// The peripheral clock of the AN386 image: 25 MHz, one count = 40 ns.
+const NS_PER_COUNT: u64 = 40;
+
+/// CMSDK APB TIMER1: the watchdog's deadline (its interrupt wakes `wait`).
+const TIMER1: usize = 0x4000_1000;
+
+/// Arms TIMER1 to interrupt `ns` from now (and every `ns` after).
+pub fn arm_deadline(ns: u64) {
+    let counts = (ns / NS_PER_COUNT).clamp(1, u64::from(u32::MAX)) as u32;
+    wr(TIMER1, 0);
+    wr(TIMER1 + 0x08, counts);
+    wr(TIMER1 + 0x04, counts);
+    wr(TIMER1 + 0x0C, 1);
+    wr(TIMER1, 0b1001);
+}
+
+/// Sleeps until a byte arrives or a deadline passes. Interrupts stay masked (PRIMASK): a pending one ends
+/// WFI without a handler. Sleeping, rather than polling the UART, lets QEMU's I/O thread deliver bytes at
+/// once (a polling guest starves it: 400 µs a byte measured) and is what a real board does.
+pub fn wait(uart: &Uart) {
+    // SAFETY: NVIC registers (ICPR0), architecturally at this address on every Cortex-M.
+    const NVIC_ICPR0: usize = 0xE000_E280;
+    wr(UART_INT, 0b11);
+    wr(TIMER1 + 0x0C, 1);
+    wr(NVIC_ICPR0, u32::MAX);
+    if rd(UART_STATE) & 0b10 == 0 {
+        let _ = uart;
+        cortex_m::asm::wfi();
+    }
+}
+
+/// Enables the board's interrupts in the NVIC (masked by PRIMASK: they only wake WFI).
+pub fn enable_wakeups() {
+    cortex_m::interrupt::disable();
+    // NVIC_ISER0: external interrupts 0-31 (UART0 RX and TIMER1 among them on the AN386).
+    wr(0xE000_E100, u32::MAX);
+}
+
+/// FPGA IO LED register (AN386: FPGAIO at 0x4002_8000, LED0 bit 0): drives the supply dump valve here.
+const FPGAIO_LED: usize = 0x4002_8000;
+
+fn rd(addr: usize) -> u32 {
+    // SAFETY: `addr` is one of the board's memory-mapped registers above, 4-byte aligned.
+    unsafe { read_volatile(addr as *const u32) }
+}
+
+fn wr(addr: usize, v: u32) {
+    // SAFETY: as in `rd`.
+    unsafe { write_volatile(addr as *mut u32, v) }
+}
+
+/// UART0 at 8N1 (the baud rate is the emulator's business; BAUDDIV ≥ 16 is what the CMSDK UART requires).
+pub struct Uart;
+
+impl Uart {
+    /// Enables transmit and receive, and the receive interrupt (it only wakes `wait`; no handler runs).
+    pub fn init() -> Self {
+        wr(UART_BAUDDIV, 16);
+        wr(UART_CTRL, 0b1011);
+        Uart
+    }
+
+    /// One received byte, if there is one (the UART holds a single byte; QEMU holds the rest back).
+    pub fn read(&mut self) -> Option<u8> {
+        (rd(UART_STATE) & 0b10 != 0).then(|| rd(UART_DATA) as u8)
+    }
+
+    /// Sends bytes, waiting while the transmit register is full.
+    pub fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            while rd(UART_STATE) & 0b01 != 0 {}
+            wr(UART_DATA, u32::from(b));
+        }
+    }
+}
+
+/// The board clock: TIMER0 free-running from 0xFFFF_FFFF, extended to 64 bits in software (it wraps every
+/// 172 s; the main loop reads it far more often). Under `qemu -icount` it runs on virtual time.
+pub struct Clock {
+    last: u32,
+    high: u64,
+}
+
+impl Clock {
+    /// Starts the timer.
+    pub fn init() -> Self {
+        wr(TIMER_CTRL, 0);
+        wr(TIMER_RELOAD, u32::MAX);
+        wr(TIMER_VALUE, u32::MAX);
+        wr(TIMER_CTRL, 1);
+        Clock {
+            last: 0,
+            high: 0,
+        }
+    }
+
+    /// Nanoseconds since `init`, 40 ns resolution.
+    pub fn now_ns(&mut self) -> u64 {
+        let up = u32::MAX - rd(TIMER_VALUE);
+        if up < self.last {
+            self.high += 1 << 32;
+        }
+        self.last = up;
+        (self.high + u64::from(up)) * NS_PER_COUNT
+    }
+}
+
+/// Coil duty registers. The AN386 image has no PWM peripheral, so the duty is kept in a word a debugger or
+/// the panic handler can reach; on an STM32F4 this is a timer's capture/compare register (TIMx_CCRy).
+static COIL_DUTY: [AtomicU16; 2] = [AtomicU16::new(0), AtomicU16::new(0)];
+/// Full duty of a coil output (a 10 kHz PWM from a 100 MHz timer clock would have 10 000).
+pub const COIL_MAX_DUTY: u16 = 10_000;
+
+/// One coil's PWM output (0 = coil A, 1 = coil B).
+pub struct Coil(pub usize);
+
+impl PwmErrorType for Coil {
+    type Error = core::convert::Infallible;
+}
+
+impl SetDutyCycle for Coil {
+    fn max_duty_cycle(&self) -> u16 {
+        COIL_MAX_DUTY
+    }
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
+        COIL_DUTY[self.0].store(duty.min(COIL_MAX_DUTY), Ordering::SeqCst);
+        Ok(())
+    }
+}
+
+/// The supply dump valve: energised (high) = supply connected.
+pub struct DumpValve;
+
+impl PinErrorType for DumpValve {
+    type Error = core::convert::Infallible;
+}
+
+impl OutputPin for DumpValve {
+    fn set_low(&mut self) -> Result<(), Self::Error> {
+        wr(FPGAIO_LED, rd(FPGAIO_LED) & !1);
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Self::Error> {
+        wr(FPGAIO_LED, rd(FPGAIO_LED) | 1);
+        Ok(())
+    }
+}
+
+/// The safe state written straight to the outputs, without the driver object: for the panic handler.
+/// `vent`: coils off and the dump valve de-energised; hold: coils off, supply kept.
+pub fn force_safe(vent: bool) {
+    for c in &COIL_DUTY {
+        c.store(0, Ordering::SeqCst);
+    }
+    if vent {
+        wr(FPGAIO_LED, rd(FPGAIO_LED) & !1);
+    }
+}
+
+/// Stack bytes used so far: the distance from the stack top down to the lowest word no longer holding
+/// cortex-m-rt's paint value.
+pub fn stack_peak_bytes() -> u32 {
+    unsafe extern "C" {
+        static _stack_end: u32;
+        static _stack_start: u32;
+    }
+    let lo = &raw const _stack_end as usize;
+    let hi = &raw const _stack_start as usize;
+    let mut a = lo;
+    // SAFETY: every word between the linker symbols _stack_end and _stack_start is RAM.
+    while a < hi && unsafe { read_volatile(a as *const u32) } == 0xCCCC_CCCC {
+        a += 4;
+    }
+    (hi - a) as u32
+}
