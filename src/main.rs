@@ -111,6 +111,22 @@ enum RigCommand {
         #[arg(long)]
         duration: Option<f64>,
     },
+    /// Processor-in-the-loop: a scene's controllers in the firmware on an emulated Cortex-M4F (QEMU
+    /// mps2-an386), the plant simulated in lockstep, compared tick by tick with the host (docs/firmware.md).
+    Pil {
+        /// Scene file (scenes/*.toml).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Name of the scene's run (default: every run).
+        #[arg(long)]
+        run: Option<String>,
+        /// Firmware ELF (default: firmware/target/thumbv7em-none-eabihf/release/pneuflex-firmware).
+        #[arg(long)]
+        firmware: Option<PathBuf>,
+        /// Output directory (default: out/pil/<scene name>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Run one of a scene's controllers on a rig, real or emulated, with the safety supervisor.
     Run {
         /// Serial port of the I/O board (default: the rig file's link.port).
@@ -137,6 +153,15 @@ enum RigCommand {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Rig {
+            action:
+                RigCommand::Pil {
+                    scene,
+                    run,
+                    firmware,
+                    out,
+                },
+        } => cmd::pil::pil(&scene, run.as_deref(), firmware.as_deref(), out.as_deref()),
         Command::Tf {
             file,
             json,

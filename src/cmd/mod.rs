@@ -1,4 +1,5 @@
 //! One module per subcommand; each returns `anyhow::Result` and leaves printing of errors to `main`.
+pub mod pil;
 pub mod rig;
 pub mod run;
 pub mod sweep;

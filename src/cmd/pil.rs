@@ -1,0 +1,173 @@
+//! `pneuflex rig pil --scene S [--run NAME] [--firmware ELF] [--out DIR]`: processor-in-the-loop. Each run's
+//! controller executes in the firmware on an emulated Cortex-M4F (QEMU mps2-an386), the scene's plant on the
+//! host in lockstep; the same run is simulated on the host and the two are compared tick by tick. Writes the
+//! runs' traces, summary.json and figures as `run` does, plus comparison.json and comparison.md. Exits
+//! non-zero if a valve command differs from the host's by more than 1e-9 or a metric differs.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use pneuflex_files::OutputDir;
+use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_pil::{PilRun, U_TOLERANCE};
+use pneuflex_scene::{Scene, write_results};
+
+/// Where the firmware image is looked for when --firmware is not given: beside the current directory (a
+/// checkout), then relative to this executable (target/<profile>/pneuflex in a checkout).
+fn default_firmware() -> PathBuf {
+    let rel = Path::new("firmware/target/thumbv7em-none-eabihf/release/pneuflex-firmware");
+    if rel.is_file() {
+        return rel.to_path_buf();
+    }
+    std::env::current_exe()
+        .ok()
+        .and_then(|exe| Some(exe.parent()?.parent()?.parent()?.join(rel)))
+        .filter(|p| p.is_file())
+        .unwrap_or_else(|| rel.to_path_buf())
+}
+
+/// Runs the command.
+pub fn pil(
+    scene_path: &Path,
+    run: Option<&str>,
+    firmware: Option<&Path>,
+    out: Option<&Path>,
+) -> anyhow::Result<()> {
+    let scene = Scene::load(scene_path)?;
+    let indices: Vec<usize> = match run {
+        Some(name) => vec![scene.run_index(name)?],
+        None => (0..scene.runs.len()).collect(),
+    };
+    let elf = firmware.map_or_else(default_firmware, Path::to_path_buf);
+    // Missing QEMU or firmware: said before any output directory is made.
+    pneuflex_pil::qemu::qemu_binary()?;
+    if !elf.is_file() {
+        bail!(
+            "firmware {}: not found; build it with `cargo build --release` in firmware/ (docs/firmware.md), \
+             or pass --firmware",
+            elf.display()
+        );
+    }
+    let dest = out
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new("out/pil").join(&scene.name));
+    let stage = OutputDir::create(&dest, &[scene_path, &elf], Recoverable::Regenerable)?;
+
+    let mut runs: Vec<PilRun> = Vec::new();
+    for &i in &indices {
+        eprintln!("{}: run `{}` on the emulated board ...", scene.name, scene.runs[i].name);
+        let r = pneuflex_pil::run_pil(&scene, i, &elf, &mut |_| {})
+            .with_context(|| format!("run `{}`", scene.runs[i].name))?;
+        runs.push(r);
+    }
+    // The outputs describe the runs done, as `run` writes them.
+    let mut done = scene.clone();
+    done.runs = indices.iter().map(|&i| scene.runs[i].clone()).collect();
+    done.claims.clear();
+    let results: Vec<_> = runs.iter().map(|r| r.firmware.clone()).collect();
+    write_results(stage.path(), &done, &results)?;
+    if results.iter().any(|r| r.diverged.is_none()) {
+        pneuflex_viz::write_figures(stage.path(), &done, &results, pneuflex_viz::Format::Png)
+            .context("writing figures")?;
+    }
+    let report = comparison_json(&done, &runs);
+    let json = serde_json::to_string_pretty(&report).context("comparison.json")?;
+    std::fs::write(stage.path().join("comparison.json"), json + "\n")
+        .context("writing comparison.json")?;
+    let table = comparison_table(&done, &runs);
+    std::fs::write(stage.path().join("comparison.md"), &table)
+        .context("writing comparison.md")?;
+    let summary = pneuflex_scene::summary(&done, &results);
+    let dest = stage.commit(Manifest::new(
+        "rig pil",
+        env!("CARGO_PKG_VERSION"),
+        summary.inputs.clone(),
+    ))?;
+    println!("{table}");
+    println!("outputs in {}", dest.display());
+    let bad: Vec<String> = done
+        .runs
+        .iter()
+        .zip(&runs)
+        .filter_map(|(spec, r)| {
+            let c = &r.comparison;
+            if let Some(k) = c.first_divergent_tick {
+                Some(format!(
+                    "run `{}`: the firmware's valve command differs from the host's by more than {U_TOLERANCE:e} \
+                     from tick {k} (max |du| = {:e})",
+                    spec.name, c.max_abs_du
+                ))
+            } else if !c.metrics_equal || c.ticks_firmware != c.ticks_host {
+                Some(format!("run `{}`: the metrics differ from the host's", spec.name))
+            } else {
+                r.firmware
+                    .diverged
+                    .as_ref()
+                    .map(|why| format!("run `{}` diverged: {why}", spec.name))
+            }
+        })
+        .collect();
+    if !bad.is_empty() {
+        bail!("{} (see {})", bad.join("; "), dest.join("comparison.md").display());
+    }
+    Ok(())
+}
+
+fn comparison_json(scene: &Scene, runs: &[PilRun]) -> serde_json::Value {
+    let per_run: Vec<serde_json::Value> = scene
+        .runs
+        .iter()
+        .zip(runs)
+        .map(|(spec, r)| {
+            serde_json::json!({
+                "run": spec.name,
+                "comparison": r.comparison,
+                "link": r.link,
+                "update_cost_ns": r.cost,
+                "stack_peak_bytes": r.end.stack_peak_bytes,
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "scene": scene.name,
+        "board": "QEMU mps2-an386 (Cortex-M4F), -icount shift=0: 1 instruction = 1 virtual ns",
+        "u_tolerance": U_TOLERANCE,
+        "runs": per_run,
+    })
+}
+
+/// The comparison as a Markdown table, one row per run.
+fn comparison_table(scene: &Scene, runs: &[PilRun]) -> String {
+    let mut s = format!(
+        "# {} on the emulated board vs the host simulation\n\n\
+         | run | ticks | bit-identical ticks | max abs du | max abs dfe (N) | first tick abs du > 1e-9 | \
+         metrics equal | update on board, mean (min-max) ns | stack peak (B) | frames in/out, CRC errors, gaps |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
+        scene.name
+    );
+    for (spec, r) in scene.runs.iter().zip(runs) {
+        let c = &r.comparison;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:e} | {:e} | {} | {} | {:.0} ({}-{}) | {} | {}/{}, {}, {} |",
+            spec.name,
+            c.ticks,
+            c.bit_identical_ticks,
+            c.max_abs_du,
+            c.max_abs_dfe_n,
+            c.first_divergent_tick
+                .map_or("none".to_string(), |k| k.to_string()),
+            if c.metrics_equal { "yes" } else { "NO" },
+            r.cost.mean_ns,
+            r.cost.min_ns,
+            r.cost.max_ns,
+            r.end.stack_peak_bytes,
+            r.link.frames_in,
+            r.link.frames_out,
+            r.link.crc_errors,
+            r.link.seq_gaps,
+        );
+    }
+    s
+}
