@@ -16,6 +16,7 @@ use pneuflex::scene::{Rows, Scene, run_scene_observed};
 struct Collect {
     columns: Vec<&'static str>,
     rows: Vec<Vec<f64>>,
+    events: Vec<(f64, String)>,
     ended: usize,
 }
 
@@ -31,6 +32,9 @@ impl RowObserver for Collect {
             "a row has one value per column"
         );
         self.rows.push(values.to_vec());
+    }
+    fn event(&mut self, t_s: f64, text: &str) {
+        self.events.push((t_s, text.to_owned()));
     }
     fn end(&mut self) {
         self.ended += 1;
@@ -84,11 +88,31 @@ fn the_same_row_observer_watches_a_simulated_run_and_a_rig_run() {
     assert_eq!(real.ended, 1);
 
     // The same columns, declared once: the loop's, then the controller's; the simulated plant adds its
-    // valve spool after them.
+    // valve spool after them, the rig its link's quality.
     let loop_and_controller = [
         "t", "f_ref", "f_e", "x", "x_r", "p_a", "p_b", "u", "g", "p", "d",
     ];
-    assert_eq!(real.columns, loop_and_controller);
+    assert_eq!(
+        &real.columns[..loop_and_controller.len()],
+        loop_and_controller
+    );
+    assert_eq!(
+        &real.columns[loop_and_controller.len()..],
+        ["frames", "crc_errors", "seq_gaps", "period_error"]
+    );
+    // The link counted every sample the loop read (one per tick at the board's rate), with no CRC
+    // error and no gap on the clean lockstep link.
+    let last = real.rows.last().unwrap();
+    let n = loop_and_controller.len();
+    assert!(
+        last[n] >= report.ticks as f64 - report.ticks_without_sample as f64,
+        "{last:?}"
+    );
+    assert_eq!((last[n + 1], last[n + 2]), (0.0, 0.0));
+    // The trace holds the loop's and the controller's columns only.
+    let text = String::from_utf8(trace.get_mut().clone()).unwrap();
+    let header = pneuflex::rig::trace::header_line(&text).unwrap();
+    assert!(!header.contains("crc_errors"), "{header}");
     assert_eq!(
         &sim.columns[..loop_and_controller.len()],
         loop_and_controller
@@ -97,4 +121,48 @@ fn the_same_row_observer_watches_a_simulated_run_and_a_rig_run() {
     assert_eq!(real.rows[0][0], 0.0);
     assert_eq!(sim.rows[0][0], 0.0);
     assert_eq!(real.rows[0][1], sim.rows[0][1]);
+}
+
+/// A rig fault reaches the observers as an event (the live view's event log) at the tick it latched, and
+/// the rows go on with the valve safe.
+#[test]
+fn a_rig_fault_is_an_event_for_the_observers() {
+    let scene = Scene::load(&repo("scenes/paper-fig3.toml")).unwrap();
+    let rig_file = repo("rigs/emulated.toml");
+    let rig = RigFile::load(&rig_file).unwrap();
+    let mut clock = SimClock::new();
+    let (link, _log) = session::lockstep_emulator(&rig, &rig_file, clock.clone()).unwrap();
+    let link = serial::connect_link(link, &rig, &mut clock).unwrap();
+    let mut sup = session::supervised(link, &rig);
+    let mut controller = pneuflex::scene::build_controller(&scene, 0).unwrap();
+    let setpoints = pneuflex::scene::build_setpoints(&scene).unwrap();
+    let mut reference = |t: f64| setpoints.at(t);
+    let mut trace = TraceWriter::new(Vec::new(), rig.rt.trace_flush_every).unwrap();
+    let opts = session::run_options(&rig, 0.5);
+    // A signal before the first tick.
+    let stop = AtomicBool::new(true);
+    let mut seen = Collect::default();
+    let report = rtloop::run_observed(
+        &mut sup,
+        controller.as_mut(),
+        &mut reference,
+        &mut trace,
+        &opts,
+        &stop,
+        &mut clock,
+        &mut seen,
+    )
+    .unwrap();
+    let fault = report.fault.expect("the signal latches a fault");
+    assert_eq!(fault.tick, 0);
+    assert_eq!(seen.events.len(), 1, "{:?}", seen.events);
+    let (t, text) = &seen.events[0];
+    assert_eq!(*t, 0.0);
+    assert!(
+        text.contains("fault at tick 0") && text.contains("safe state"),
+        "{text}"
+    );
+    // The loop ran on for post_fault_s with the valve safe, and every row reached the observer.
+    assert_eq!(seen.rows.len() as u64, report.ticks);
+    assert!(report.ticks > 1);
 }

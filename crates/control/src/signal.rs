@@ -73,6 +73,8 @@ pub trait RowObserver {
     fn begin(&mut self, _columns: &[Signal]) {}
     /// One tick's values, in the order of the columns.
     fn row(&mut self, _values: &[f64]) {}
+    /// Something happened at `t_s` that a reader of the run should see (a fault, an event), in a sentence.
+    fn event(&mut self, _t_s: f64, _text: &str) {}
     /// The run ended.
     fn end(&mut self) {}
 }

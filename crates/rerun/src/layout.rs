@@ -38,6 +38,9 @@ pub struct Layout {
     pub hidden_in_3d: Vec<String>,
     /// Where the 3D view's camera starts (world frame); None: the viewer's own choice.
     pub eye: Option<Eye>,
+    /// Whether there is a 3D view (false for a recording with nothing in the world, e.g. a rig run's
+    /// signals: then the side plots take the top row).
+    pub world_view: bool,
 }
 
 /// A camera of the 3D view: where it is and what it looks at (world frame, m; z up).
@@ -97,6 +100,7 @@ impl Layout {
             stacked,
             hidden_in_3d: Vec::new(),
             eye: None,
+            world_view: true,
         }
     }
 }
@@ -154,15 +158,22 @@ fn build(clock: Clock, layout: &Layout) -> (Blueprint, EntityPath) {
         ContainerLike::View(v) => v.blueprint_path(),
         _ => unreachable!("a view converts to ContainerLike::View"),
     };
-    let mut top: Vec<ContainerLike> = vec![rig];
-    if !layout.side.is_empty() {
-        top.push(Vertical::new(plots(&layout.side)).into());
-    }
-    let top = Horizontal::new(top).with_column_shares(if layout.side.is_empty() {
-        vec![1.0]
+    let top: ContainerLike = if layout.world_view {
+        let mut top: Vec<ContainerLike> = vec![rig];
+        if !layout.side.is_empty() {
+            top.push(Vertical::new(plots(&layout.side)).into());
+        }
+        Horizontal::new(top)
+            .with_column_shares(if layout.side.is_empty() {
+                vec![1.0]
+            } else {
+                vec![3.0, 2.0]
+            })
+            .into()
     } else {
-        vec![3.0, 2.0]
-    });
+        // No world to draw: the side plots side by side.
+        Horizontal::new(plots(&layout.side)).into()
+    };
     let mut bottom = plots(&layout.bottom);
     if !layout.stacked.is_empty() {
         bottom.push(Vertical::new(plots(&layout.stacked)).into());
@@ -172,7 +183,7 @@ fn build(clock: Clock, layout: &Layout) -> (Blueprint, EntityPath) {
     // The event log gets more room: its lines are sentences.
     let shares: Vec<f32> = (0..n).map(|i| if i + 1 == n { 1.6 } else { 1.0 }).collect();
     let bottom = Horizontal::new(bottom).with_column_shares(shares);
-    let bp = Blueprint::new(Vertical::new([top.into(), bottom.into()]).with_row_shares([3.0, 2.0]))
+    let bp = Blueprint::new(Vertical::new([top, bottom.into()]).with_row_shares([3.0, 2.0]))
         .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Collapsed))
         .with_selection_panel(SelectionPanel::new().with_state(PanelState::Collapsed))
         .with_time_panel(

@@ -482,7 +482,7 @@ impl Drawing {
 
 /// How the signals of a run are logged: each column's path and scale to its display unit, and the
 /// PWM-period averages.
-struct SignalLog {
+pub(crate) struct SignalLog {
     /// Per column (in the row's order): entity path and the factor from SI to the display unit; None for
     /// time and for a signal the plant does not have.
     columns: Vec<Option<(String, f64)>>,
@@ -551,7 +551,7 @@ impl PeriodMean {
 
 impl SignalLog {
     /// Registers every column of the run (name with its display unit, colour) and the averages.
-    fn register(
+    pub(crate) fn register(
         rec: &mut RunRecorder,
         columns: &[Column],
         shown: &[bool],
@@ -597,7 +597,17 @@ impl SignalLog {
     }
 
     fn log(&mut self, rec: &mut RunRecorder, row: &Row) -> Result<(), RerunError> {
-        let t = row.t();
+        self.log_at(rec, 0.0, row)
+    }
+
+    /// [`SignalLog::log`] on a timeline that starts at `t0_s` (the wall clock at a rig run's start).
+    pub(crate) fn log_at(
+        &mut self,
+        rec: &mut RunRecorder,
+        t0_s: f64,
+        row: &Row,
+    ) -> Result<(), RerunError> {
+        let t = t0_s + row.t();
         for (col, &v) in self.columns.iter().zip(row.values) {
             if let Some((path, scale)) = col
                 && v.is_finite()
@@ -617,7 +627,7 @@ impl SignalLog {
     }
 
     /// Logs the means of the last half period (at the end of a run).
-    fn flush(&mut self, rec: &mut RunRecorder) -> Result<(), RerunError> {
+    pub(crate) fn flush(&mut self, rec: &mut RunRecorder) -> Result<(), RerunError> {
         for m in &mut self.averages {
             let scale = self.columns[m.column].as_ref().map_or(1.0, |c| c.1);
             self.ready.clear();

@@ -266,3 +266,85 @@ fn invalid_shapes_and_options_are_rejected() {
     assert!(matches!(err, RerunError::BadOption { .. }), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A rig run's rows as `rig run --rerun` hands them over: the loop's signals, the adaptive controller's,
+/// the link's quality.
+#[test]
+fn a_row_observer_shows_a_rig_run_on_the_wall_clock_with_the_runs_paths_and_the_link() {
+    use pneuflex_control::{LOOP_SIGNALS, RowObserver, Signal};
+    use pneuflex_rerun::RowRecorder;
+    let dir = temp_dir("rows");
+    let file = dir.join("rig.rrd");
+    let own = [
+        Signal {
+            name: "g",
+            unit: "m",
+            group: "adaptive",
+            description: "g",
+        },
+        Signal {
+            name: "crc_errors",
+            unit: "1",
+            group: "link",
+            description: "frames dropped for a bad CRC",
+        },
+        Signal {
+            name: "period_error",
+            unit: "s",
+            group: "timing",
+            description: "period error",
+        },
+    ];
+    let columns: Vec<Signal> = LOOP_SIGNALS.iter().chain(&own).copied().collect();
+    let mut rec = RowRecorder::new(
+        Sink::Save(file.clone()),
+        "rig/test/adaptive",
+        Clock::Wall,
+        1e-3,
+        None,
+    )
+    .unwrap();
+    let before = pneuflex_rerun::wall_clock_s();
+    rec.begin(&columns);
+    let n = 250;
+    for k in 0..n {
+        let mut row = vec![0.0; columns.len()];
+        row[0] = k as f64 * 1e-3;
+        row[2] = 10.0;
+        row[columns.len() - 2] = (k / 100) as f64;
+        // A tick without a value (NaN) is not drawn.
+        row[columns.len() - 1] = if k == 7 { f64::NAN } else { 2e-5 };
+        rec.row(&row);
+    }
+    rec.event(
+        0.2,
+        "fault at tick 200: link lost; the valve is in its safe state",
+    );
+    rec.end();
+    assert_eq!(rec.finish().unwrap(), n);
+    let back = read_back(&file);
+    assert!(back.has_active_blueprint(), "the layout is sent and active");
+    assert_eq!(back.rows(&format!("/{}", paths::F_E), "wall_time"), n);
+    assert_eq!(back.rows(&format!("/{}", paths::F_E), "sim_time"), 0);
+    assert_eq!(back.rows("/signals/link/crc_errors", "wall_time"), n);
+    assert_eq!(
+        back.rows("/signals/timing/period_error", "wall_time"),
+        n - 1
+    );
+    assert_eq!(back.rows("/signals/adaptive/g", "wall_time"), n);
+    assert_eq!(back.rows(&format!("/{}", paths::EVENTS), "wall_time"), 1);
+    // The timeline is the wall clock at the run's start plus the tick time.
+    assert!(pneuflex_rerun::wall_clock_s() >= before);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_row_observer_refuses_a_save_path_in_a_missing_directory_before_the_run() {
+    let dir = temp_dir("rows-missing");
+    let file = dir.join("no/such/dir/rig.rrd");
+    let err = pneuflex_rerun::RowRecorder::new(Sink::Save(file), "rig", Clock::Wall, 1e-3, None)
+        .err()
+        .expect("must fail");
+    assert!(err.to_string().contains("no/such/dir"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -15,7 +15,7 @@ use pneuflex_files::output::{
 use crate::clock::Clock;
 use crate::error::ErrorKind;
 use crate::rigfile::RigFile;
-use crate::rtloop::{LoopReport, check_duration, run_with_clock};
+use crate::rtloop::{LoopReport, check_duration};
 use crate::serial::{Link, SerialRig};
 use crate::session;
 use crate::trace::TraceWriter;
@@ -87,6 +87,41 @@ where
     C: Controller + ?Sized,
     K: Clock + ?Sized,
 {
+    record_observed(
+        rig,
+        connect,
+        out_dir,
+        inputs,
+        controller,
+        reference,
+        duration_s,
+        stop,
+        clock,
+        &mut (),
+    )
+}
+
+/// [`record`] with an observer of every row (a live Rerun view): the loop's signals, the controller's and
+/// the link's quality ([`crate::serial::LINK_SIGNALS`]), and the fault as an event.
+#[allow(clippy::too_many_arguments)]
+pub fn record_observed<L, E, C, K>(
+    rig: &RigFile,
+    connect: impl FnOnce() -> Result<SerialRig<L>, E>,
+    out_dir: &Path,
+    inputs: &[(&Path, &str)],
+    controller: &mut C,
+    reference: &mut dyn FnMut(f64) -> Setpoint,
+    duration_s: f64,
+    stop: &AtomicBool,
+    clock: &mut K,
+    observer: &mut dyn pneuflex_control::RowObserver,
+) -> Result<Recording, RecordError>
+where
+    L: Link,
+    E: std::fmt::Display,
+    C: Controller + ?Sized,
+    K: Clock + ?Sized,
+{
     check_duration(duration_s).map_err(RecordError::Duration)?;
     let digests = inputs
         .iter()
@@ -123,8 +158,8 @@ where
         Err(e) => return Err(kept(out, e.to_string())),
     };
     let opts = session::run_options(rig, duration_s);
-    let result = run_with_clock(
-        &mut sup, controller, reference, &mut trace, &opts, stop, clock,
+    let result = crate::rtloop::run_observed(
+        &mut sup, controller, reference, &mut trace, &opts, stop, clock, observer,
     );
     // The valve is parked safe (again) before anything else happens to the files.
     drop(sup);

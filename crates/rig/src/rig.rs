@@ -51,6 +51,11 @@ pub trait Rig {
 
     /// Clears faults latched below this layer (and on the board).
     fn reset(&mut self) -> Result<(), RigError>;
+
+    /// The link's counters (frames, CRC errors, sequence gaps), for a rig behind a serial link.
+    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+        None
+    }
 }
 
 impl<R: Rig + ?Sized> Rig for &mut R {
@@ -66,6 +71,9 @@ impl<R: Rig + ?Sized> Rig for &mut R {
     }
     fn reset(&mut self) -> Result<(), RigError> {
         (**self).reset()
+    }
+    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+        (**self).link_stats()
     }
 }
 
@@ -112,6 +120,10 @@ impl<R: Rig<Sample = RawSample>> Watchdog<R> {
 
 impl<R: Rig<Sample = RawSample>> Rig for Watchdog<R> {
     type Sample = RawSample;
+
+    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+        self.inner.link_stats()
+    }
 
     fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
         let got = self.inner.read(now_s)?;
@@ -230,6 +242,10 @@ impl<R: Rig<Sample = RawSample>> Calibrated<R> {
 impl<R: Rig<Sample = RawSample>> Rig for Calibrated<R> {
     type Sample = SiSample;
 
+    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+        self.inner.link_stats()
+    }
+
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {
         Ok(self.inner.read(now_s)?.map(|s| self.convert(&s)))
     }
@@ -320,6 +336,10 @@ impl<R: Rig<Sample = SiSample>> Limited<R> {
 
 impl<R: Rig<Sample = SiSample>> Rig for Limited<R> {
     type Sample = SiSample;
+
+    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+        self.inner.link_stats()
+    }
 
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {
         match self.inner.read(now_s)? {

@@ -275,6 +275,10 @@ struct RigHost<'a, R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> {
     /// The last sample (the one before tick 0 included).
     last: Option<SiSample>,
     prev_start: Option<f64>,
+    /// This tick's |start − last start − dt|, s.
+    period_error: f64,
+    /// Values of a row that go to the trace (the rest, the link's quality, only to observers).
+    n_trace: usize,
     fault_tick: Option<u64>,
     fault_label: String,
     /// This tick's host times: its start, deadline, after sensing, after the controller.
@@ -312,7 +316,8 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
         self.now_s = self.host_time();
         self.lateness.push(self.now_s - self.deadline);
         if let Some(p) = self.prev_start {
-            self.period_err.push((self.now_s - p - self.dt).abs());
+            self.period_error = (self.now_s - p - self.dt).abs();
+            self.period_err.push(self.period_error);
         }
         self.prev_start = Some(self.now_s);
         if self.stop.load(Ordering::Relaxed) && self.sup.fault().is_none() {
@@ -340,6 +345,15 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
 
     fn may_control(&self) -> bool {
         self.sup.fault().is_none()
+    }
+
+    fn record(&mut self, row: &mut [f64]) {
+        if let (Some(l), [frames, crc, gaps, period, ..]) = (self.sup.rig().link_stats(), row) {
+            *frames = l.decoder.frames as f64;
+            *crc = l.decoder.crc_errors as f64;
+            *gaps = l.seq_gaps as f64;
+            *period = self.period_error;
+        }
     }
 
     fn guard_update(
@@ -402,9 +416,13 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
                 self.report.fault = Some(f.clone());
                 let msg = format!("{}: {}", f.kind.name(), f.message);
                 row[pneuflex_control::signal::index::U] = 0.0;
+                self.observer.event(
+                    row[pneuflex_control::signal::index::T],
+                    &format!("fault at tick {k}: {msg}; the valve is in its safe state"),
+                );
                 self.trace
                     .row(&TraceRow {
-                        values: row,
+                        values: &row[..self.n_trace],
                         wall_time,
                         fault: &msg,
                     })
@@ -417,7 +435,7 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
                     ""
                 };
                 self.trace.row(&TraceRow {
-                    values: row,
+                    values: &row[..self.n_trace],
                     wall_time,
                     fault: label,
                 })
@@ -563,10 +581,17 @@ where
     // The trace's columns: the loop's signals and the controller's own, as each declares them.
     let own = controller.signals();
     trace.columns(own)?;
-    let mut values = vec![0.0; pneuflex_control::LOOP_SIGNALS.len() + own.len()];
+    // Observers also see the link's quality, when the rig is behind a serial link (not in the trace).
+    let n_trace = pneuflex_control::LOOP_SIGNALS.len() + own.len();
+    let link: &[pneuflex_control::Signal] = match sup.rig().link_stats() {
+        Some(_) => &crate::serial::LINK_SIGNALS,
+        None => &[],
+    };
+    let mut values = vec![0.0; n_trace + link.len()];
     let columns: Vec<pneuflex_control::Signal> = pneuflex_control::LOOP_SIGNALS
         .iter()
         .chain(own)
+        .chain(link)
         .copied()
         .collect();
     observer.begin(&columns);
@@ -586,6 +611,8 @@ where
         post_fault_ticks,
         last,
         prev_start: None,
+        period_error: 0.0,
+        n_trace,
         fault_tick: None,
         fault_label: String::new(),
         now_s: 0.0,

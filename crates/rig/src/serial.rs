@@ -84,6 +84,35 @@ pub enum ConnectError {
     },
 }
 
+/// The link quality a rig run shows its observers beside the loop's signals (a live Rerun view; not in
+/// trace.csv), declared once: counters since the run's start, and the tick's period error.
+pub const LINK_SIGNALS: [pneuflex_control::Signal; 4] = [
+    pneuflex_control::Signal {
+        name: "frames",
+        unit: "1",
+        group: "link",
+        description: "valid frames received since the start",
+    },
+    pneuflex_control::Signal {
+        name: "crc_errors",
+        unit: "1",
+        group: "link",
+        description: "frames dropped for a bad CRC since the start",
+    },
+    pneuflex_control::Signal {
+        name: "seq_gaps",
+        unit: "1",
+        group: "link",
+        description: "samples missing by their sequence numbers since the start",
+    },
+    pneuflex_control::Signal {
+        name: "period_error",
+        unit: "s",
+        group: "timing",
+        description: "|this tick's start - the last tick's start - dt|",
+    },
+];
+
 /// Link-quality counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LinkStats {
@@ -291,6 +320,10 @@ impl<L: Link> SerialRig<L> {
 
 impl<L: Link> Rig for SerialRig<L> {
     type Sample = RawSample;
+
+    fn link_stats(&self) -> Option<LinkStats> {
+        Some(self.stats())
+    }
 
     fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
         self.pump(now_s)?;

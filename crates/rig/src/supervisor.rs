@@ -50,6 +50,11 @@ impl<R: Rig> Supervisor<R> {
         self.later_errors
     }
 
+    /// The supervised rig, read-only.
+    pub fn rig(&self) -> &R {
+        &self.rig
+    }
+
     /// The supervised rig.
     pub fn rig_mut(&mut self) -> &mut R {
         &mut self.rig

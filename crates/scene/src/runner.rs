@@ -640,7 +640,7 @@ impl pneuflex_control::tick::LoopHost for SimulationHost<'_> {
             self.interrupted = Some(format!("{} at t = {t:.4} s", signal_name(sig)));
             return Ok(Flow::Stop);
         }
-        if k % self.report_every == 0 {
+        if k.is_multiple_of(self.report_every) {
             (self.progress)(k as f64 / self.last_step as f64);
         }
         Ok(Flow::Continue)
