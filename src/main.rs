@@ -147,6 +147,11 @@ enum RigCommand {
         /// Output directory for trace.csv (default: out/rig/<scene>/<run>/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Show the run live in Rerun on the wall-clock timeline, with the same entity paths as `run`
+        /// plus the link's quality: `save <file.rrd>`, `spawn` (start a viewer) or `connect <url>`.
+        /// Needs the `rerun` feature.
+        #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
+        rerun: Option<Vec<String>>,
     },
 }
 
@@ -228,6 +233,7 @@ fn main() -> ExitCode {
                     run,
                     duration,
                     out,
+                    rerun,
                 },
         } => cmd::rig::run_scene(
             &rig,
@@ -236,6 +242,7 @@ fn main() -> ExitCode {
             run.as_deref(),
             duration,
             out.as_deref(),
+            rerun.as_deref(),
         ),
     };
     match result {

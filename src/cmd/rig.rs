@@ -70,6 +70,7 @@ pub fn run(
     reference: &mut dyn FnMut(f64) -> Setpoint,
     duration_s: f64,
     out_dir: &Path,
+    observer: &mut dyn pneuflex_control::RowObserver,
 ) -> anyhow::Result<LoopReport> {
     check_duration(duration_s).map_err(|e| anyhow!("--duration: {}", e.message))?;
     let rig = RigFile::load(rig_file)?;
@@ -85,7 +86,7 @@ pub fn run(
         out_dir.display()
     );
     let mut clock = WallClock::new(Duration::from_micros(rig.rt.spin_us));
-    let rec = record::record(
+    let rec = record::record_observed(
         &rig,
         || serial::connect(&rig, rig_file, port),
         out_dir,
@@ -95,6 +96,7 @@ pub fn run(
         duration_s,
         &stop,
         &mut clock,
+        observer,
     )?;
     for r in &rec.recovered {
         eprintln!(
@@ -134,6 +136,7 @@ pub fn run_scene(
     run_name: Option<&str>,
     duration_s: Option<f64>,
     out: Option<&Path>,
+    rerun: Option<&[String]>,
 ) -> anyhow::Result<()> {
     if let Some(d) = duration_s {
         check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
@@ -164,7 +167,34 @@ pub fn run_scene(
             d
         }
     };
-    run(
+    // The live view: the same entity paths as `run`, on the wall clock; checked before the rig is touched.
+    #[cfg(feature = "rerun")]
+    let mut live = match rerun {
+        Some(words) => Some(pneuflex_rerun::RowRecorder::new(
+            pneuflex_rerun::parse_sink(words)?,
+            &format!("rig/{}/{}", scene.name, scene.runs[index].name),
+            pneuflex_rerun::Clock::Wall,
+            scene.dt_s,
+            pneuflex_scene::runner::pwm_period_s(&scene),
+        )?),
+        None => None,
+    };
+    #[cfg(not(feature = "rerun"))]
+    if let Some(words) = rerun {
+        bail!(
+            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
+             `cargo run --release --features rerun -- rig run ...` (docs/rerun.md)",
+            words.join(" ")
+        );
+    }
+    #[cfg(feature = "rerun")]
+    let observer: &mut dyn pneuflex_control::RowObserver = match live.as_mut() {
+        Some(l) => l,
+        None => &mut (),
+    };
+    #[cfg(not(feature = "rerun"))]
+    let observer: &mut dyn pneuflex_control::RowObserver = &mut ();
+    let result = run(
         rig_file,
         port,
         Some(scene_path),
@@ -172,6 +202,15 @@ pub fn run_scene(
         &mut reference,
         duration,
         &out_dir,
+        observer,
     )
-    .map(|_| ())
+    .map(|_| ());
+    #[cfg(feature = "rerun")]
+    if let Some(l) = live {
+        match l.finish() {
+            Ok(rows) => eprintln!("rerun: {rows} ticks logged"),
+            Err(e) => eprintln!("warning: the Rerun view is incomplete: {e}"),
+        }
+    }
+    result
 }
