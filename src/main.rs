@@ -90,6 +90,48 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Find the gains that minimise the worst case, over a list of environments, of a weighted sum of a
+    /// run's RMS error, phase lag and recovery overshoot (CMA-ES, in parallel, with a budget and a seed);
+    /// writes the tuned scene, convergence.png and report.md (docs/sweeps.md).
+    Tune {
+        /// A scene file (scenes/*.toml).
+        scene: PathBuf,
+        /// KEY=[LO,HI]: a scene key the search moves within the box, e.g. `runs[adaptive].inner.kp_per_m=[2,20]`.
+        #[arg(long = "free", value_name = "KEY=[LO,HI]", required = true)]
+        free: Vec<String>,
+        /// KEY=V1,V2,...: the environments (a list or lin:/log: range; several --over make a grid); the
+        /// objective is the worst case over them. Default: the scene's own environment.
+        #[arg(long = "over", value_name = "KEY=SPEC")]
+        over: Vec<String>,
+        /// The run whose metrics are the objective (default: the first adaptive run, else the first).
+        #[arg(long)]
+        run: Option<String>,
+        /// WINDOW.METRIC=WEIGHT terms of J_e, replacing the default (every sine window's rms_force_error_n
+        /// x 1 and phase_lag_deg x 0.1, every event window's recovery_overshoot_pct x 0.05).
+        #[arg(long = "term", value_name = "WINDOW.METRIC=WEIGHT")]
+        terms: Vec<String>,
+        /// Largest number of candidates evaluated (each over every environment).
+        #[arg(long, default_value_t = 200)]
+        budget: usize,
+        /// Seed of CMA-ES: the same seed and inputs give the same result, whatever the thread count.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// CMA-ES population per generation (default 4 + 3 ln n).
+        #[arg(long)]
+        population: Option<usize>,
+        /// CMA-ES initial step, as a fraction of each box.
+        #[arg(long, default_value_t = 0.3)]
+        sigma0: f64,
+        /// Worker threads (default: one per core).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Output directory (default: out/<scene name>-tune/), as `run --out`.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress bar and no summary.
+        #[arg(long, short)]
+        quiet: bool,
+    },
     /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
     Rig {
         #[command(subcommand)]
@@ -213,6 +255,37 @@ fn main() -> ExitCode {
                 threads,
                 metric,
                 traces,
+                quiet,
+            },
+        ),
+        Command::Tune {
+            scene,
+            free,
+            over,
+            run,
+            terms,
+            budget,
+            seed,
+            population,
+            sigma0,
+            threads,
+            out,
+            quiet,
+        } => cmd::tune::tune(
+            &scene,
+            out.as_deref(),
+            &cmd::tune::TuneArgs {
+                free,
+                over,
+                run,
+                terms,
+                options: pneuflex_sweep::tune::TuneOptions {
+                    budget,
+                    seed,
+                    population,
+                    sigma0,
+                    threads,
+                },
                 quiet,
             },
         ),

@@ -3,6 +3,7 @@ pub mod pil;
 pub mod rig;
 pub mod run;
 pub mod sweep;
+pub mod tune;
 pub mod tf;
 
 /// An error that ends the process with a given exit code (128 + signal for an interrupted command).

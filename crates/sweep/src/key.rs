@@ -470,6 +470,38 @@ fn element(
     }
 }
 
+/// The value at `segs` below `item` (the first element for `[*]`), if there is one.
+fn get_in_item<'a>(item: &'a Item, segs: &[Seg]) -> Option<&'a Item> {
+    let Some((seg, rest)) = segs.split_first() else {
+        return Some(item);
+    };
+    match (item, seg) {
+        (_, Seg::Key(k)) => get_in_item(item.as_table_like()?.get(k)?, rest),
+        (Item::ArrayOfTables(a), _) => {
+            let i = *element(a.iter().map(name_of_table), seg, "")
+                .ok()?
+                .first()?;
+            let t = a.get(i)?;
+            match rest.split_first() {
+                None => None,
+                Some((Seg::Key(k), more)) => get_in_item(t.get(k)?, more),
+                Some(_) => None,
+            }
+        }
+        (Item::Value(TValue::Array(a)), _) => {
+            let i = *element(inline_names(a), seg, "").ok()?.first()?;
+            let v = a.get(i)?;
+            match (v, rest.split_first()) {
+                (TValue::InlineTable(t), Some((Seg::Key(k), more))) => {
+                    get_in_item(t.get_key_value(k)?.1, more)
+                }
+                _ => None,
+            }
+        }
+        _ => None,
+    }
+}
+
 /// The scene's text and its actuator sheet's files, with the edits of one point applied.
 #[derive(Clone, Debug)]
 pub struct Edited {
@@ -502,6 +534,19 @@ impl Base {
             scene: EditableFile::new(path, &text)?,
             base_dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
         })
+    }
+
+    /// The number at a scene key (not a sheet key), as the file has it; None when absent or not a number.
+    pub fn number(&self, key: &KeyPath) -> Option<f64> {
+        if !key.in_scene() {
+            return None;
+        }
+        let item = get_in_item(self.scene.doc.as_item(), &key.parts[0])?;
+        match item {
+            Item::Value(TValue::Float(f)) => Some(*f.value()),
+            Item::Value(TValue::Integer(i)) => Some(*i.value() as f64),
+            _ => None,
+        }
     }
 
     /// The scene text and sheet overlay with every `(key, value)` written in order.

@@ -10,6 +10,8 @@ pub mod engine;
 pub mod key;
 pub mod output;
 pub mod spec;
+pub mod tune;
+pub mod tune_output;
 
 pub use engine::{MetricColumn, PointResult, RunRow, Status, Sweep, SweepError};
 pub use key::{KeyPath, Value};

@@ -1,0 +1,620 @@
+//! `pneuflex tune`: gains that minimise the worst case, over a list of environments, of a weighted sum of a
+//! run's metrics, found by CMA-ES (the `cmaes` crate) in a box, with a budget and a seed.
+//!
+//! The objective of a candidate is `J = max over environments e of J_e`, with
+//! `J_e = Σ_terms weight · |metric|` of the tuned run in environment e (default terms: every sine window's RMS
+//! force error (1 /N) and phase lag (0.1 /deg), every event window's recovery overshoot (0.05 /%)), and
+//! `J_e = ∞` when the run diverged or an event window did not settle. For the optimiser's ranking an infinite
+//! candidate is ordered after every finite one, by the number of environments that failed, then by the finite
+//! part that could be measured: CMA-ES needs an order, not a value.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use cmaes::{CMAESOptions, DVector};
+use pneuflex_scene::{Scene, WindowKind};
+use rayon::prelude::*;
+
+use crate::engine::{SweepError, metric_of};
+use crate::key::{Base, KeyPath, Value};
+use crate::spec::{Points, SetArg, Spec};
+
+/// A `--free KEY=[LO,HI]`: a key the optimiser moves within a box.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FreeArg {
+    /// The key.
+    pub key: KeyPath,
+    /// Lower bound.
+    pub lo: f64,
+    /// Upper bound.
+    pub hi: f64,
+}
+
+impl FreeArg {
+    /// Parses `KEY=[LO,HI]` (or `KEY=LO:HI`).
+    pub fn parse(arg: &str) -> Result<FreeArg, SweepError> {
+        let bad = |m: &str| SweepError::Other(format!("--free {arg}: {m}"));
+        let (key, range) = arg
+            .split_once('=')
+            .ok_or_else(|| bad("expected KEY=[LO,HI]"))?;
+        let key = KeyPath::parse(key).map_err(SweepError::Key)?;
+        let r = range.trim();
+        let inner = r
+            .strip_prefix('[')
+            .and_then(|r| r.strip_suffix(']'))
+            .unwrap_or(r);
+        let parts: Vec<&str> = inner.split([',', ':']).collect();
+        if parts.len() != 2 {
+            return Err(bad("expected KEY=[LO,HI]"));
+        }
+        let num = |s: &str| -> Result<f64, SweepError> {
+            s.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| bad(&format!("`{s}` is not a finite number")))
+        };
+        let (lo, hi) = (num(parts[0])?, num(parts[1])?);
+        if hi <= lo {
+            return Err(bad(&format!("needs LO < HI, got {lo} and {hi}")));
+        }
+        Ok(FreeArg { key, lo, hi })
+    }
+}
+
+/// One term of the objective: `weight · |WINDOW.METRIC|`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Term {
+    /// Metric window name.
+    pub window: String,
+    /// Metric name (summary.json's).
+    pub metric: String,
+    /// Weight, per unit of the metric.
+    pub weight: f64,
+}
+
+impl Term {
+    /// Parses `WINDOW.METRIC=WEIGHT`.
+    pub fn parse(arg: &str) -> Result<Term, SweepError> {
+        let bad = |m: &str| SweepError::Other(format!("--term {arg}: {m}"));
+        let (name, w) = arg
+            .split_once('=')
+            .ok_or_else(|| bad("expected WINDOW.METRIC=WEIGHT"))?;
+        let (window, metric) = name
+            .trim()
+            .split_once('.')
+            .ok_or_else(|| bad("expected WINDOW.METRIC=WEIGHT"))?;
+        let weight: f64 = w
+            .trim()
+            .parse()
+            .ok()
+            .filter(|x: &f64| x.is_finite() && *x >= 0.0)
+            .ok_or_else(|| bad("the weight must be a number >= 0"))?;
+        Ok(Term {
+            window: window.into(),
+            metric: metric.into(),
+            weight,
+        })
+    }
+
+    /// `WINDOW.METRIC`.
+    pub fn name(&self) -> String {
+        format!("{}.{}", self.window, self.metric)
+    }
+}
+
+/// The default terms for a scene: every sine window's RMS error (1 /N) and phase lag (0.1 /deg), every
+/// event window's recovery overshoot (0.05 /%).
+pub fn default_terms(scene: &Scene) -> Vec<Term> {
+    let mut out = Vec::new();
+    for w in &scene.metrics {
+        let mut add = |m: &str, weight: f64| {
+            out.push(Term {
+                window: w.name.clone(),
+                metric: m.into(),
+                weight,
+            })
+        };
+        match w.kind {
+            WindowKind::Sine => {
+                add("rms_force_error_n", 1.0);
+                add("phase_lag_deg", 0.1);
+            }
+            WindowKind::Event => add("recovery_overshoot_pct", 0.05),
+            WindowKind::Step => {}
+        }
+    }
+    out
+}
+
+/// How the search runs (the run, the terms, the keys and the environments are the [`Tuner`]'s).
+#[derive(Clone, Debug)]
+pub struct TuneOptions {
+    /// Largest number of candidates evaluated (each over every environment).
+    pub budget: usize,
+    /// Seed of CMA-ES.
+    pub seed: u64,
+    /// CMA-ES population (default 4 + 3 ln n).
+    pub population: Option<usize>,
+    /// Initial step, as a fraction of each box (default 0.3).
+    pub sigma0: f64,
+    /// Worker threads (0: one per core).
+    pub threads: usize,
+}
+
+impl Default for TuneOptions {
+    fn default() -> Self {
+        Self {
+            budget: 200,
+            seed: 0,
+            population: None,
+            sigma0: 0.3,
+            threads: 0,
+        }
+    }
+}
+
+/// One environment's evaluation of one run: J_e and its terms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvEval {
+    /// J_e (∞ when diverged or not settled).
+    pub j: f64,
+    /// Each term's metric value (before weighting; None when not measured).
+    pub terms: Vec<Option<f64>>,
+    /// `ok`, `not_settled: ...` or `diverged: ...`.
+    pub status: String,
+}
+
+/// A candidate's evaluation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    /// The free keys' values.
+    pub x: Vec<f64>,
+    /// The worst case over the environments (∞ when any is).
+    pub j: f64,
+    /// The value the optimiser ranks (finite).
+    pub rank: f64,
+    /// Per environment.
+    pub envs: Vec<EnvEval>,
+}
+
+/// One evaluated candidate of the search.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HistoryRow {
+    /// Generation (from 1).
+    pub generation: usize,
+    /// The evaluation.
+    pub eval: Evaluation,
+}
+
+/// A tuning problem: the scene, the free keys, the environments, the objective.
+#[derive(Debug)]
+pub struct Tuner {
+    /// The scene file.
+    pub scene_path: PathBuf,
+    /// The scene as written.
+    pub base_scene: Scene,
+    /// The free keys and their boxes.
+    pub free: Vec<FreeArg>,
+    /// The environments (the `--over` keys' grid).
+    pub envs: Points,
+    /// The `--over` arguments as written.
+    pub over_specs: Vec<String>,
+    /// The tuned run's index in the scene.
+    pub run: usize,
+    /// The objective's terms.
+    pub terms: Vec<Term>,
+    /// The free keys' values in the scene as written (the box's middle where the file has none), clamped
+    /// into the box.
+    pub initial: Vec<f64>,
+    base: Base,
+}
+
+fn fold(y: f64) -> f64 {
+    // A triangle wave: R -> [0, 1], continuous, the identity on [0, 1] (reflection at the bounds).
+    let t = y.rem_euclid(2.0);
+    if t > 1.0 { 2.0 - t } else { t }
+}
+
+impl Tuner {
+    /// Reads the scene, the free keys, the environments and the terms, and checks the scene at the box's
+    /// corners and at the initial values in every environment before anything runs.
+    pub fn new(
+        scene_path: &Path,
+        free: Vec<FreeArg>,
+        over: &[SetArg],
+        run: Option<&str>,
+        terms: Vec<Term>,
+    ) -> Result<Tuner, SweepError> {
+        let base_scene = Scene::load(scene_path)?;
+        let base = Base::load(scene_path)?;
+        if free.is_empty() {
+            return Err(SweepError::Other(
+                "nothing to tune: give at least one --free KEY=[LO,HI]".into(),
+            ));
+        }
+        for s in over {
+            if !matches!(s.spec, Spec::List(_)) {
+                return Err(SweepError::Other(format!(
+                    "--over {}={}: a list or a range (the environments), not a sample",
+                    s.key.text, s.spec_text
+                )));
+            }
+        }
+        let envs = if over.is_empty() {
+            Points {
+                keys: Vec::new(),
+                values: vec![Vec::new()],
+                grid: None,
+            }
+        } else {
+            crate::spec::points(over, None, 0)?
+        };
+        let run = match run {
+            Some(name) => base_scene.run_index(name)?,
+            None => base_scene
+                .runs
+                .iter()
+                .position(|r| r.controller == pneuflex_scene::ControllerKind::Adaptive)
+                .unwrap_or(0),
+        };
+        let terms = if terms.is_empty() {
+            default_terms(&base_scene)
+        } else {
+            terms
+        };
+        if terms.is_empty() {
+            return Err(SweepError::Other(
+                "the scene has no sine or event window: give the objective's terms with --term WINDOW.METRIC=WEIGHT"
+                    .into(),
+            ));
+        }
+        for t in &terms {
+            let Some(w) = base_scene.metrics.iter().find(|w| w.name == t.window) else {
+                let names: Vec<&str> = base_scene.metrics.iter().map(|w| w.name.as_str()).collect();
+                return Err(SweepError::Other(format!(
+                    "--term {}: no metric window {:?}, the scene has {names:?}",
+                    t.name(),
+                    t.window
+                )));
+            };
+            let known = crate::engine::window_metrics(w.kind);
+            if !known.contains(&t.metric.as_str()) {
+                return Err(SweepError::Other(format!(
+                    "--term {}: a {:?} window has {known:?}",
+                    t.name(),
+                    w.kind
+                )));
+            }
+        }
+        let initial = free
+            .iter()
+            .map(|f| {
+                base.number(&f.key)
+                    .unwrap_or(0.5 * (f.lo + f.hi))
+                    .clamp(f.lo, f.hi)
+            })
+            .collect();
+        let tuner = Tuner {
+            scene_path: scene_path.to_path_buf(),
+            base_scene,
+            free,
+            envs,
+            over_specs: over
+                .iter()
+                .map(|s| format!("{}={}", s.key.text, s.spec_text))
+                .collect(),
+            run,
+            terms,
+            initial,
+            base,
+        };
+        let lo: Vec<f64> = tuner.free.iter().map(|f| f.lo).collect();
+        let hi: Vec<f64> = tuner.free.iter().map(|f| f.hi).collect();
+        for x in [&tuner.initial, &lo, &hi] {
+            for e in 0..tuner.envs.values.len() {
+                tuner.scene(x, e, true)?;
+            }
+        }
+        Ok(tuner)
+    }
+
+    /// `key = value, ...` of environment `e`.
+    pub fn describe_env(&self, e: usize) -> String {
+        if self.envs.keys.is_empty() {
+            return "the scene's environment".into();
+        }
+        self.envs
+            .keys
+            .iter()
+            .zip(&self.envs.values[e])
+            .map(|(k, v)| format!("{} = {v}", k.text))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The scene with the free keys at `x` in environment `e`; `only_run` keeps just the tuned run.
+    pub fn scene(&self, x: &[f64], e: usize, only_run: bool) -> Result<Scene, SweepError> {
+        let xv: Vec<Value> = x.iter().map(|v| Value::Float(*v)).collect();
+        let mut edits: Vec<(&KeyPath, &Value)> =
+            self.free.iter().map(|f| &f.key).zip(&xv).collect();
+        edits.extend(self.envs.keys.iter().zip(&self.envs.values[e]));
+        let edited = self.base.edit(&edits)?;
+        let point = || {
+            let kv: Vec<String> = self
+                .free
+                .iter()
+                .zip(x)
+                .map(|(f, v)| format!("{} = {v}", f.key.text))
+                .collect();
+            format!("{} in {}", kv.join(", "), self.describe_env(e))
+        };
+        let mut scene =
+            Scene::from_toml_str(&edited.scene_text, &self.scene_path, &self.base.base_dir)
+                .map_err(|err| SweepError::Point {
+                    point: point(),
+                    error: Box::new(err),
+                })?;
+        scene.text = self.base.scene.text.clone();
+        scene.overlay = edited.overlay;
+        if !scene.overlay.is_empty() {
+            let sheet = match &scene.plant {
+                pneuflex_scene::PlantSpec::Pneumatic { actuator, .. } => scene.resolve(actuator),
+                pneuflex_scene::PlantSpec::Multibody(mb) => scene.resolve(&mb.actuator),
+                _ => {
+                    return Err(SweepError::Other(format!(
+                        "{}: this plant has no actuator sheet",
+                        point()
+                    )));
+                }
+            };
+            scene.load_sheet(&sheet).map_err(|err| SweepError::Sheet {
+                point: point(),
+                error: Box::new(err),
+            })?;
+        }
+        if only_run {
+            let keep = scene.runs[self.run].clone();
+            scene.runs = vec![keep];
+            scene.claims.clear();
+        }
+        Ok(scene)
+    }
+
+    /// J_e and its terms for one run's result.
+    fn env_eval(&self, r: &pneuflex_scene::RunResult) -> EnvEval {
+        let terms: Vec<Option<f64>> = self
+            .terms
+            .iter()
+            .map(|t| {
+                if r.diverged.is_some() {
+                    return None;
+                }
+                r.window(&t.window).and_then(|w| metric_of(w, &t.metric))
+            })
+            .collect();
+        let unsettled: Vec<String> = r
+            .windows
+            .iter()
+            .filter_map(|w| {
+                let ev = w.event.as_ref()?;
+                (!ev.settled).then(|| {
+                    format!(
+                        "{}: {}",
+                        w.name,
+                        ev.not_settled.as_deref().unwrap_or("not settled")
+                    )
+                })
+            })
+            .collect();
+        let finite: f64 = self
+            .terms
+            .iter()
+            .zip(&terms)
+            .map(|(t, v)| match v {
+                Some(v) if v.is_finite() => t.weight * v.abs(),
+                _ => 0.0,
+            })
+            .sum();
+        let (j, status) = match (&r.diverged, unsettled.is_empty()) {
+            (Some(why), _) => (f64::INFINITY, format!("diverged: {why}")),
+            (None, false) => (
+                f64::INFINITY,
+                format!("not_settled: {}", unsettled.join("; ")),
+            ),
+            (None, true) => {
+                let missing = terms.iter().any(|v| v.is_none_or(|v| !v.is_finite()));
+                if missing {
+                    (f64::INFINITY, "a term could not be measured".into())
+                } else {
+                    (finite, "ok".into())
+                }
+            }
+        };
+        EnvEval { j, terms, status }
+    }
+
+    /// Evaluates the tuned run at `x` in every environment (in parallel).
+    pub fn evaluate(&self, x: &[f64]) -> Evaluation {
+        let envs: Vec<EnvEval> = (0..self.envs.values.len())
+            .into_par_iter()
+            .map(|e| {
+                let fail = |why: String| EnvEval {
+                    j: f64::INFINITY,
+                    terms: vec![None; self.terms.len()],
+                    status: format!("error: {why}"),
+                };
+                let scene = match self.scene(x, e, true) {
+                    Ok(s) => s,
+                    Err(err) => return fail(err.to_string()),
+                };
+                match pneuflex_scene::run_scene(&scene, &mut |_| {}) {
+                    Ok(r) => self.env_eval(&r[0]),
+                    Err(err) => fail(err.to_string()),
+                }
+            })
+            .collect();
+        let j = envs.iter().map(|e| e.j).fold(f64::NEG_INFINITY, f64::max);
+        let failed = envs.iter().filter(|e| !e.j.is_finite()).count();
+        let rank = if failed == 0 {
+            j
+        } else {
+            // After every finite candidate: by the number of failed environments, then by what was measured.
+            let part: f64 = envs
+                .iter()
+                .map(|e| {
+                    self.terms
+                        .iter()
+                        .zip(&e.terms)
+                        .map(|(t, v)| match v {
+                            Some(v) if v.is_finite() => t.weight * v.abs(),
+                            _ => 0.0,
+                        })
+                        .sum::<f64>()
+                })
+                .fold(0.0, f64::max);
+            1e12 * failed as f64 + part.min(1e11)
+        };
+        Evaluation {
+            x: x.to_vec(),
+            j,
+            rank,
+            envs,
+        }
+    }
+
+    /// Every run of the scene at `x` in every environment: `[env][run]` evaluations (for the report).
+    pub fn evaluate_all_runs(&self, x: &[f64]) -> Vec<Vec<EnvEval>> {
+        (0..self.envs.values.len())
+            .into_par_iter()
+            .map(|e| {
+                let n = self.base_scene.runs.len();
+                let fail = |why: String| {
+                    vec![
+                        EnvEval {
+                            j: f64::INFINITY,
+                            terms: vec![None; self.terms.len()],
+                            status: format!("error: {why}"),
+                        };
+                        n
+                    ]
+                };
+                let scene = match self.scene(x, e, false) {
+                    Ok(s) => s,
+                    Err(err) => return fail(err.to_string()),
+                };
+                match pneuflex_scene::run_scene(&scene, &mut |_| {}) {
+                    Ok(r) => r.iter().map(|r| self.env_eval(r)).collect(),
+                    Err(err) => fail(err.to_string()),
+                }
+            })
+            .collect()
+    }
+
+    /// Box coordinates in [0, 1] of the free keys' values.
+    fn to_unit(&self, x: &[f64]) -> Vec<f64> {
+        self.free
+            .iter()
+            .zip(x)
+            .map(|(f, v)| (v - f.lo) / (f.hi - f.lo))
+            .collect()
+    }
+
+    /// The free keys' values of an optimiser point (folded into the box).
+    pub fn from_search(&self, y: &[f64]) -> Vec<f64> {
+        self.free
+            .iter()
+            .zip(y)
+            .map(|(f, v)| f.lo + fold(*v) * (f.hi - f.lo))
+            .collect()
+    }
+
+    /// Runs CMA-ES: every candidate evaluated (in parallel) over every environment; `tick` after each
+    /// candidate. Returns every evaluation in generation order (within a generation, ordered by rank and
+    /// values: the same whatever the thread count).
+    pub fn search(
+        &self,
+        opts: &TuneOptions,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<Vec<HistoryRow>, SweepError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(opts.threads)
+            .build()
+            .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
+        let generation_rows: Mutex<Vec<Evaluation>> = Mutex::new(Vec::new());
+        let objective = |y: &DVector<f64>| -> f64 {
+            let x = self.from_search(y.as_slice());
+            let ev = self.evaluate(&x);
+            let rank = ev.rank;
+            generation_rows
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(ev);
+            tick();
+            rank
+        };
+        let mut options = CMAESOptions::new(self.to_unit(&self.initial), opts.sigma0)
+            .max_function_evals(opts.budget.max(1))
+            .seed(opts.seed)
+            // A flat objective (every candidate failing alike) must not end the search before the budget.
+            .tol_fun(0.0)
+            .tol_fun_hist(0.0);
+        if let Some(p) = opts.population {
+            options = options.population_size(p.max(2));
+        }
+        let mut cma = options
+            .build(objective)
+            .map_err(|e| SweepError::Other(format!("CMA-ES: {e:?}")))?;
+        let mut history = Vec::new();
+        let mut generation = 0;
+        loop {
+            generation += 1;
+            let done = pool.install(|| cma.next_parallel());
+            let mut rows =
+                std::mem::take(&mut *generation_rows.lock().unwrap_or_else(|e| e.into_inner()));
+            rows.sort_by(|a, b| {
+                a.rank.total_cmp(&b.rank).then_with(|| {
+                    a.x.iter()
+                        .zip(&b.x)
+                        .map(|(p, q)| p.total_cmp(q))
+                        .find(|o| o.is_ne())
+                        .unwrap_or(std::cmp::Ordering::Equal)
+                })
+            });
+            history.extend(rows.into_iter().map(|eval| HistoryRow { generation, eval }));
+            if done.is_some() || history.len() >= opts.budget {
+                break;
+            }
+        }
+        Ok(history)
+    }
+
+    /// The scene's text with the free keys at `x` (the environments as the file has them) and a comment at
+    /// the top saying how they were found.
+    pub fn tuned_text(&self, x: &[f64], comment: &str) -> Result<String, SweepError> {
+        let xv: Vec<Value> = x.iter().map(|v| Value::Float(*v)).collect();
+        let edits: Vec<(&KeyPath, &Value)> = self.free.iter().map(|f| &f.key).zip(&xv).collect();
+        if self.free.iter().any(|f| !f.key.in_scene()) {
+            return Err(SweepError::Other(
+                "a tuned actuator-sheet value cannot be written into the scene: tune scene keys, or copy the sheet"
+                    .into(),
+            ));
+        }
+        let edited = self.base.edit(&edits)?;
+        let mut head = String::new();
+        for line in comment.lines() {
+            head.push_str("# ");
+            head.push_str(line);
+            head.push('\n');
+        }
+        Ok(head + &edited.scene_text)
+    }
+}
+
+/// Four significant digits (the tuned scene's values: readable, and the report evaluates them as written).
+pub fn round4(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    format!("{x:.3e}").parse().unwrap_or(x)
+}

@@ -1,0 +1,263 @@
+//! A tune's files: the tuned scene (a copy with the new values and a comment saying how they were found),
+//! `convergence.png`, `report.md` (the objective per environment before and after, every run's terms),
+//! `history.csv` (every candidate) and `tune.json`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::engine::{SweepError, fmt_f64};
+use crate::tune::{EnvEval, Evaluation, HistoryRow, TuneOptions, Tuner, round4};
+
+/// What a tune found: before and after, in numbers.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TuneSummary {
+    /// The free keys.
+    pub keys: Vec<String>,
+    /// Their values in the scene as written (clamped into the box).
+    pub before: Vec<f64>,
+    /// Their tuned values (four significant digits, as written into the tuned scene).
+    pub after: Vec<f64>,
+    /// Worst-case objective before (∞ is written as null in JSON).
+    pub j_before: f64,
+    /// Worst-case objective after.
+    pub j_after: f64,
+    /// Candidates evaluated.
+    pub evaluations: usize,
+    /// CMA-ES generations.
+    pub generations: usize,
+    /// The tuned scene's file name.
+    pub tuned_scene: String,
+}
+
+fn j_text(j: f64) -> String {
+    if j.is_finite() {
+        format!("{j:.4}")
+    } else {
+        "∞".into()
+    }
+}
+
+fn v_text(v: Option<f64>) -> String {
+    match v {
+        Some(x) if x.is_finite() => format!("{x:.4}"),
+        Some(_) => "∞".into(),
+        None => "–".into(),
+    }
+}
+
+/// The best evaluation of the search (lowest rank; the first such in history order).
+pub fn best(history: &[HistoryRow]) -> Option<&Evaluation> {
+    history
+        .iter()
+        .map(|h| &h.eval)
+        .reduce(|a, b| if b.rank < a.rank { b } else { a })
+}
+
+/// Writes the outputs of a finished search into `dir`; `command` is the command line (for the comment).
+pub fn write(
+    dir: &Path,
+    tuner: &Tuner,
+    opts: &TuneOptions,
+    history: &[HistoryRow],
+    command: &str,
+) -> Result<TuneSummary, SweepError> {
+    let io = |p: &Path, e: std::io::Error| {
+        SweepError::Other(format!("{}: cannot write: {e}", p.display()))
+    };
+    let best =
+        best(history).ok_or_else(|| SweepError::Other("no candidate was evaluated".into()))?;
+    let after: Vec<f64> = best.x.iter().map(|v| round4(*v)).collect();
+    let before = tuner.initial.clone();
+    // Before and after as the files have them: every run, every environment.
+    let all_before = tuner.evaluate_all_runs(&before);
+    let all_after = tuner.evaluate_all_runs(&after);
+    let worst = |all: &[Vec<EnvEval>]| {
+        all.iter()
+            .map(|e| e[tuner.run].j)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    let (j_before, j_after) = (worst(&all_before), worst(&all_after));
+    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let generations = history.last().map_or(0, |h| h.generation);
+    let population = opts
+        .population
+        .unwrap_or(4 + (3.0 * (tuner.free.len() as f64).ln()).floor() as usize);
+    let terms_text: Vec<String> = tuner
+        .terms
+        .iter()
+        .map(|t| format!("{} × |{}|", t.weight, t.name()))
+        .collect();
+    let objective = format!(
+        "J = max over the environments of J_e, J_e = {} of run `{run_name}`; J_e = ∞ when the run diverged or an event window did not settle",
+        terms_text.join(" + ")
+    );
+
+    // The tuned scene.
+    let stem = tuner
+        .scene_path
+        .file_stem()
+        .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+    let tuned_name = format!("{stem}-tuned.toml");
+    let mut comment = String::new();
+    let _ = writeln!(comment, "Tuned by `{command}`:");
+    let _ = writeln!(
+        comment,
+        "CMA-ES (cmaes crate), seed {}, population {population}, {} candidates in {generations} generations.",
+        opts.seed,
+        history.len()
+    );
+    let _ = writeln!(comment, "Objective: {objective}.");
+    if !tuner.envs.keys.is_empty() {
+        let _ = writeln!(comment, "Environments: {}.", tuner.over_specs.join(", "));
+    }
+    for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(&after)) {
+        let _ = writeln!(
+            comment,
+            "{} in [{}, {}]: {} -> {}",
+            f.key.text, f.lo, f.hi, b, a
+        );
+    }
+    let _ = writeln!(
+        comment,
+        "Worst-case J: {} -> {} (report.md beside this file: per environment, every run).",
+        j_text(j_before),
+        j_text(j_after)
+    );
+    let text = tuner.tuned_text(&after, &comment)?;
+    let tuned_path = dir.join(&tuned_name);
+    std::fs::write(&tuned_path, text).map_err(|e| io(&tuned_path, e))?;
+
+    // History.
+    let mut csv = String::from("evaluation,generation");
+    for f in &tuner.free {
+        csv.push(',');
+        csv.push_str(&f.key.text.replace(',', ";"));
+    }
+    csv.push_str(",j,rank");
+    for e in 0..tuner.envs.values.len() {
+        let _ = write!(csv, ",j_env{e}");
+    }
+    csv.push('\n');
+    let mut best_so_far = f64::INFINITY;
+    let mut candidates = Vec::new();
+    let mut best_line = Vec::new();
+    for (i, h) in history.iter().enumerate() {
+        let _ = write!(csv, "{},{}", i + 1, h.generation);
+        for v in &h.eval.x {
+            let _ = write!(csv, ",{}", fmt_f64(*v));
+        }
+        let _ = write!(csv, ",{},{}", fmt_f64(h.eval.j), fmt_f64(h.eval.rank));
+        for e in &h.eval.envs {
+            let _ = write!(csv, ",{}", fmt_f64(e.j));
+        }
+        csv.push('\n');
+        candidates.push(((i + 1) as f64, h.eval.j));
+        best_so_far = best_so_far.min(h.eval.j);
+        best_line.push(((i + 1) as f64, best_so_far));
+    }
+    let hist_path = dir.join("history.csv");
+    std::fs::write(&hist_path, csv).map_err(|e| io(&hist_path, e))?;
+    let conv = dir.join("convergence.png");
+    let mut files = vec![PathBuf::from(&tuned_name), PathBuf::from("history.csv")];
+    match pneuflex_viz::write_convergence(
+        &conv,
+        &format!(
+            "tune {}: run `{run_name}`, worst case over the environments",
+            tuner.base_scene.name
+        ),
+        "J (worst case)",
+        &candidates,
+        &best_line,
+    ) {
+        Ok(()) => files.push(PathBuf::from("convergence.png")),
+        // Every candidate infinite: nothing to draw; the report says so.
+        Err(pneuflex_viz::VizError::Empty) => {}
+        Err(e) => return Err(SweepError::Other(e.to_string())),
+    }
+
+    // The report.
+    let mut r = String::new();
+    let _ = writeln!(r, "# pneuflex tune: {}\n", tuner.base_scene.name);
+    let _ = writeln!(r, "Command: `{command}`\n");
+    let _ = writeln!(r, "Objective: {objective}.\n");
+    let _ = writeln!(
+        r,
+        "Search: CMA-ES (cmaes crate), seed {}, population {population}, budget {}, {} candidates in {generations} generations, each over {} environment(s).\n",
+        opts.seed,
+        opts.budget,
+        history.len(),
+        tuner.envs.values.len()
+    );
+    let _ = writeln!(r, "| key | box | before | after |\n|---|---|---|---|");
+    for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(&after)) {
+        let _ = writeln!(r, "| `{}` | [{}, {}] | {b} | {a} |", f.key.text, f.lo, f.hi);
+    }
+    let _ = writeln!(
+        r,
+        "\nWorst-case J of `{run_name}`: **{} → {}**.\n",
+        j_text(j_before),
+        j_text(j_after)
+    );
+    let _ = writeln!(r, "## J_e of `{run_name}` per environment\n");
+    let _ = writeln!(
+        r,
+        "| environment | J_e before | J_e after | after: status |\n|---|---|---|---|"
+    );
+    for e in 0..tuner.envs.values.len() {
+        let _ = writeln!(
+            r,
+            "| {} | {} | {} | {} |",
+            tuner.describe_env(e),
+            j_text(all_before[e][tuner.run].j),
+            j_text(all_after[e][tuner.run].j),
+            all_after[e][tuner.run].status
+        );
+    }
+    let _ = writeln!(r, "\n## Every run's terms, before → after\n");
+    let mut head = String::from("| environment | run | J_e |");
+    let mut rule = String::from("|---|---|---|");
+    for t in &tuner.terms {
+        let _ = write!(head, " {} |", t.name());
+        rule.push_str("---|");
+    }
+    let _ = writeln!(r, "{head}\n{rule}");
+    for e in 0..tuner.envs.values.len() {
+        for (k, run) in tuner.base_scene.runs.iter().enumerate() {
+            let (b, a) = (&all_before[e][k], &all_after[e][k]);
+            let mut line = format!(
+                "| {} | {} | {} → {} |",
+                tuner.describe_env(e),
+                run.name,
+                j_text(b.j),
+                j_text(a.j)
+            );
+            for (tb, ta) in b.terms.iter().zip(&a.terms) {
+                let _ = write!(line, " {} → {} |", v_text(*tb), v_text(*ta));
+            }
+            let _ = writeln!(r, "{line}");
+        }
+    }
+    let _ = writeln!(
+        r,
+        "\nThe free keys apply to the scene as the tuned file has them; runs whose keys are not free keep their values (their change, if any, comes from shared keys)."
+    );
+    let rep = dir.join("report.md");
+    std::fs::write(&rep, r).map_err(|e| io(&rep, e))?;
+    files.push(PathBuf::from("report.md"));
+
+    let summary = TuneSummary {
+        keys: tuner.free.iter().map(|f| f.key.text.clone()).collect(),
+        before,
+        after,
+        j_before,
+        j_after,
+        evaluations: history.len(),
+        generations,
+        tuned_scene: tuned_name,
+    };
+    let json = dir.join("tune.json");
+    let text =
+        serde_json::to_string_pretty(&summary).map_err(|e| SweepError::Other(e.to_string()))?;
+    std::fs::write(&json, text + "\n").map_err(|e| io(&json, e))?;
+    Ok(summary)
+}
