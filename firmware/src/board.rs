@@ -112,10 +112,7 @@ impl Clock {
         wr(TIMER_RELOAD, u32::MAX);
         wr(TIMER_VALUE, u32::MAX);
         wr(TIMER_CTRL, 1);
-        Clock {
-            last: 0,
-            high: 0,
-        }
+        Clock { last: 0, high: 0 }
     }
 
     /// Nanoseconds since `init`, 40 ns resolution.

@@ -157,7 +157,11 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
             last_valid_us: now_us,
             safe_at_us: now_us,
             crc_errors: 0,
-            mode: if vent { ValveMode::SafeVent } else { ValveMode::SafeHold },
+            mode: if vent {
+                ValveMode::SafeVent
+            } else {
+                ValveMode::SafeHold
+            },
             stack_peak_bytes: board::stack_peak_bytes().min(u32::from(u16::MAX)) as u16,
         }),
     );

@@ -8,8 +8,8 @@ use pneuflex_control::{
     AdaptiveImpedanceController, Controller, ImpedanceController, Sensors, SetpointSchedule,
 };
 use pneuflex_protocol::ctrl::{
-    ControllerSetup, OutputPayload, ReadyPayload, SafePayload, SetupCollector, StartPayload,
-    ready, status,
+    ControllerSetup, OutputPayload, ReadyPayload, SafePayload, SetupCollector, StartPayload, ready,
+    status,
 };
 use pneuflex_protocol::{DecodeEvent, Message, RESET_MAGIC, ValveMode, fault_code};
 use pneuflex_valve_driver::{SafeMode, ValveDriver};
@@ -20,6 +20,8 @@ pub const BAD_FRAMES_MAX: usize = 8;
 pub const BAD_FRAME_WINDOW_NS: u64 = 100_000_000;
 
 /// The controller the host set up.
+// No heap to box the larger one in: the session lives in main's frame (stack peak reported in Safe).
+#[allow(clippy::large_enum_variant)]
 enum Running {
     Impedance(ImpedanceController),
     Adaptive(AdaptiveImpedanceController),
@@ -304,8 +306,8 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
         }
         self.bad_frames[self.bad_count] = now_ns;
         self.bad_count += 1;
-        let storm = self.bad_count > BAD_FRAMES_MAX
-            && now_ns - self.bad_frames[0] <= BAD_FRAME_WINDOW_NS;
+        let storm =
+            self.bad_count > BAD_FRAMES_MAX && now_ns - self.bad_frames[0] <= BAD_FRAME_WINDOW_NS;
         if storm && matches!(self.state, State::Run) {
             self.go_safe(fault_code::CRC, true, now_ns, send);
         }

@@ -56,7 +56,10 @@ pub fn pil(
 
     let mut runs: Vec<PilRun> = Vec::new();
     for &i in &indices {
-        eprintln!("{}: run `{}` on the emulated board ...", scene.name, scene.runs[i].name);
+        eprintln!(
+            "{}: run `{}` on the emulated board ...",
+            scene.name, scene.runs[i].name
+        );
         let r = pneuflex_pil::run_pil(&scene, i, &elf, &mut |_| {})
             .with_context(|| format!("run `{}`", scene.runs[i].name))?;
         runs.push(r);
@@ -76,8 +79,7 @@ pub fn pil(
     std::fs::write(stage.path().join("comparison.json"), json + "\n")
         .context("writing comparison.json")?;
     let table = comparison_table(&done, &runs);
-    std::fs::write(stage.path().join("comparison.md"), &table)
-        .context("writing comparison.md")?;
+    std::fs::write(stage.path().join("comparison.md"), &table).context("writing comparison.md")?;
     let summary = pneuflex_scene::summary(&done, &results);
     let dest = stage.commit(Manifest::new(
         "rig pil",
@@ -109,7 +111,11 @@ pub fn pil(
         })
         .collect();
     if !bad.is_empty() {
-        bail!("{} (see {})", bad.join("; "), dest.join("comparison.md").display());
+        bail!(
+            "{} (see {})",
+            bad.join("; "),
+            dest.join("comparison.md").display()
+        );
     }
     Ok(())
 }

@@ -4,7 +4,7 @@
 //! simulation's own.
 
 use pneuflex_control::{
-    Controller, SetpointSchedule, Sensors, Setpoint, Signal, Telemetry, ValveCommand,
+    Controller, Sensors, Setpoint, SetpointSchedule, Signal, Telemetry, ValveCommand,
 };
 use pneuflex_protocol::ctrl::{
     ControllerSetup, OutputPayload, SafePayload, SensorsPayload, StartPayload, ready,
@@ -196,7 +196,9 @@ impl FirmwareController {
                             o.tick, o.status
                         )));
                     }
-                    if (o.f_ref.to_bits(), o.x_d.to_bits()) != (sp.f_ref.to_bits(), sp.x_d.to_bits()) {
+                    if (o.f_ref.to_bits(), o.x_d.to_bits())
+                        != (sp.f_ref.to_bits(), sp.x_d.to_bits())
+                    {
                         self.setpoint_mismatches.0 += 1;
                         self.setpoint_mismatches.1.get_or_insert(o.tick);
                     }
@@ -234,7 +236,11 @@ impl Controller for FirmwareController {
                         ..Telemetry::default()
                     };
                     let c = &mut self.cost;
-                    c.min_ns = if c.updates == 0 { o.update_ns } else { c.min_ns.min(o.update_ns) };
+                    c.min_ns = if c.updates == 0 {
+                        o.update_ns
+                    } else {
+                        c.min_ns.min(o.update_ns)
+                    };
                     c.max_ns = c.max_ns.max(o.update_ns);
                     c.updates += 1;
                     self.sum_ns += f64::from(o.update_ns);

@@ -10,7 +10,9 @@ pub mod qemu;
 
 use std::path::Path;
 
-use pneuflex_scene::runner::{compute_windows_with, lyapunov_summary, pinned_parameters, pwm_period_s};
+use pneuflex_scene::runner::{
+    compute_windows_with, lyapunov_summary, pinned_parameters, pwm_period_s,
+};
 use pneuflex_scene::{RunResult, Scene, build_controller, build_plant, build_setpoints, run_scene};
 
 pub use controller::{Cost, FirmwareController};
@@ -111,16 +113,13 @@ pub fn run_pil(
     controller::start(&mut link, &setup, &setpoints, scene.dt_s, PIL_WATCHDOG_MS)?;
     let mut fw = FirmwareController::new(link, signals);
     let mut plant = build_plant(scene)?;
-    let mut firmware = pneuflex_scene::simulate(
-        scene,
-        index,
-        plant.as_mut(),
-        &mut fw,
-        &setpoints,
-        progress,
-    )?;
+    let mut firmware =
+        pneuflex_scene::simulate(scene, index, plant.as_mut(), &mut fw, &setpoints, progress)?;
     if let Some(e) = fw.error.take() {
-        let exited = board.exited().map(|s| format!(" (QEMU: {s})")).unwrap_or_default();
+        let exited = board
+            .exited()
+            .map(|s| format!(" (QEMU: {s})"))
+            .unwrap_or_default();
         return Err(match e {
             PilError::Link(m) => PilError::Link(format!("{m}{exited}")),
             e => e,
@@ -181,11 +180,16 @@ pub fn compare(fw: &RunResult, host: &RunResult, setpoint_mismatches: u64) -> Co
             })
             .fold(0.0_f64, f64::max)
     };
-    let first_divergent_tick = u1
+    let first_divergent_tick = u1.iter().zip(&u2).position(|(a, b)| {
+        let d = (a - b).abs();
+        d.is_nan() || d > U_TOLERANCE
+    });
+    let names: Vec<String> = fw
+        .trace
+        .columns()
         .iter()
-        .zip(&u2)
-        .position(|(a, b)| !((a - b).abs() <= U_TOLERANCE));
-    let names: Vec<String> = fw.trace.columns().iter().map(|c| c.name.to_string()).collect();
+        .map(|c| c.name.to_string())
+        .collect();
     let bit_identical_ticks = (0..ticks)
         .filter(|&k| {
             names.iter().all(|n| {

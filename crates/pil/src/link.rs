@@ -123,7 +123,9 @@ impl Link {
                 return Ok(f);
             }
             if self.closed {
-                return Err(PilError::Link("the board closed the link (QEMU exited)".into()));
+                return Err(PilError::Link(
+                    "the board closed the link (QEMU exited)".into(),
+                ));
             }
             let left = deadline.saturating_duration_since(Instant::now());
             match self.rx.recv_timeout(left) {

@@ -28,7 +28,9 @@ pub fn qemu_binary() -> Result<PathBuf, PilError> {
         .map(|d| d.join("qemu-system-arm"))
         .find(|p| p.is_file())
         .ok_or_else(|| {
-            PilError::NoQemu(format!("qemu-system-arm is not on the PATH; {INSTALL_HINT}"))
+            PilError::NoQemu(format!(
+                "qemu-system-arm is not on the PATH; {INSTALL_HINT}"
+            ))
         })
 }
 

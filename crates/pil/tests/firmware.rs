@@ -77,12 +77,31 @@ fn pil(scene: &str) {
             r.link
         );
         assert_eq!(c.ticks_firmware, c.ticks_host, "{}: same length", run.name);
-        assert_eq!(c.first_divergent_tick, None, "{}: |du| <= 1e-9 at every tick", run.name);
+        assert_eq!(
+            c.first_divergent_tick, None,
+            "{}: |du| <= 1e-9 at every tick",
+            run.name
+        );
         assert!(c.max_abs_du <= 1e-9, "{}", run.name);
-        assert_eq!(c.setpoint_mismatches, 0, "{}: the board's schedule is the host's", run.name);
-        assert!(c.metrics_equal, "{}: metrics {:?}", run.name, c.rms_force_error_n);
-        assert_eq!((r.link.crc_errors, r.link.seq_gaps, r.link.malformed), (0, 0, 0));
-        assert_eq!(r.end.reason, fault_code::HOST_REQUEST, "parked by the host at the end");
+        assert_eq!(
+            c.setpoint_mismatches, 0,
+            "{}: the board's schedule is the host's",
+            run.name
+        );
+        assert!(
+            c.metrics_equal,
+            "{}: metrics {:?}",
+            run.name, c.rms_force_error_n
+        );
+        assert_eq!(
+            (r.link.crc_errors, r.link.seq_gaps, r.link.malformed),
+            (0, 0, 0)
+        );
+        assert_eq!(
+            r.end.reason,
+            fault_code::HOST_REQUEST,
+            "parked by the host at the end"
+        );
         assert!(r.cost.updates as usize == c.ticks && r.cost.min_ns > 0);
     }
 }
@@ -163,7 +182,9 @@ fn assert_latched(link: &mut Link, tick: u32) {
     link.send(&Message::Reset(RESET_MAGIC)).unwrap();
     link.send(&sensors(tick + 1)).unwrap();
     match link.recv().unwrap().msg {
-        Message::CtrlOutput(o) => assert_eq!(o.status, status::SAFE, "reset: still safe, not latched"),
+        Message::CtrlOutput(o) => {
+            assert_eq!(o.status, status::SAFE, "reset: still safe, not latched")
+        }
         m => panic!("expected a safe output, got {m:?}"),
     }
 }
@@ -178,11 +199,16 @@ fn host_silence_puts_the_valve_safe_within_the_watchdog_period_in_virtual_time_l
     assert_eq!(safe.reason, fault_code::HOST_SILENT);
     assert_eq!(safe.last_tick, 99);
     let waited_us = safe.safe_at_us - safe.last_valid_us;
-    eprintln!("watchdog {WATCHDOG_MS} ms: safe {waited_us} us (virtual) after the last valid frame");
+    eprintln!(
+        "watchdog {WATCHDOG_MS} ms: safe {waited_us} us (virtual) after the last valid frame"
+    );
     // The board's timer ends its sleep at the deadline; QEMU wakes the sleeping CPU a little later
     // (195 µs measured): never before the period, within 1 % after it.
     let period = u32::from(WATCHDOG_MS) * 1000;
-    assert!((period..=period + 1000).contains(&waited_us), "{waited_us} us");
+    assert!(
+        (period..=period + 1000).contains(&waited_us),
+        "{waited_us} us"
+    );
     assert_latched(&mut link, 100);
 }
 
@@ -202,7 +228,11 @@ fn a_storm_of_corrupted_frames_puts_the_valve_safe_before_the_watchdog() {
     link.send_raw(&storm).unwrap();
     let (safe, _) = await_safe(&mut link).expect("safe state");
     assert_eq!(safe.reason, fault_code::CRC, "bad frames, not the watchdog");
-    assert!(safe.crc_errors >= 9, "{} CRC errors counted", safe.crc_errors);
+    assert!(
+        safe.crc_errors >= 9,
+        "{} CRC errors counted",
+        safe.crc_errors
+    );
     assert!(
         safe.safe_at_us - safe.last_valid_us < u32::from(WATCHDOG_MS) * 1000,
         "before the watchdog"

@@ -602,10 +602,13 @@ impl SetupCollector {
             }
         };
         let choice = |id: u8| -> Result<bool, ReadyPayload> {
-            match get(id)? {
-                v if v == 0.0 => Ok(false),
-                v if v == 1.0 => Ok(true),
-                _ => Err(fail(ready::PARAM, id)),
+            let v = get(id)?;
+            if v == 0.0 {
+                Ok(false)
+            } else if v == 1.0 {
+                Ok(true)
+            } else {
+                Err(fail(ready::PARAM, id))
             }
         };
         let i = param::IMPEDANCE;
@@ -680,7 +683,7 @@ impl SetupCollector {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Decoder, DecodeEvent, Frame, MAX_FRAME, encode};
+    use crate::{DecodeEvent, Decoder, Frame, MAX_FRAME, encode};
 
     fn round_trip(m: Message) -> Message {
         let mut buf = [0u8; MAX_FRAME];
