@@ -60,30 +60,7 @@ fn the_same_row_observer_watches_a_simulated_run_and_a_rig_run() {
     assert_eq!(sim.ended, 1);
 
     // The rig: the same controller and references on the emulated board, stepped in lockstep.
-    let rig_file = repo("rigs/emulated.toml");
-    let rig = RigFile::load(&rig_file).unwrap();
-    let mut clock = SimClock::new();
-    let (link, _log) = session::lockstep_emulator(&rig, &rig_file, clock.clone()).unwrap();
-    let link = serial::connect_link(link, &rig, &mut clock).unwrap();
-    let mut sup = session::supervised(link, &rig);
-    let mut controller = pneuflex::scene::build_controller(&scene, 0).unwrap();
-    let setpoints = pneuflex::scene::build_setpoints(&scene).unwrap();
-    let mut reference = |t: f64| setpoints.at(t);
-    let mut trace = TraceWriter::new(Vec::new(), rig.rt.trace_flush_every).unwrap();
-    let opts = session::run_options(&rig, 0.5);
-    let stop = AtomicBool::new(false);
-    let mut real = Collect::default();
-    let report = rtloop::run_observed(
-        &mut sup,
-        controller.as_mut(),
-        &mut reference,
-        &mut trace,
-        &opts,
-        &stop,
-        &mut clock,
-        &mut real,
-    )
-    .unwrap();
+    let (real, report, mut trace) = lockstep_rig_run(&scene, false);
     assert_eq!(real.rows.len() as u64, report.ticks);
     assert_eq!(real.ended, 1);
 
@@ -128,31 +105,8 @@ fn the_same_row_observer_watches_a_simulated_run_and_a_rig_run() {
 #[test]
 fn a_rig_fault_is_an_event_for_the_observers() {
     let scene = Scene::load(&repo("scenes/paper-fig3.toml")).unwrap();
-    let rig_file = repo("rigs/emulated.toml");
-    let rig = RigFile::load(&rig_file).unwrap();
-    let mut clock = SimClock::new();
-    let (link, _log) = session::lockstep_emulator(&rig, &rig_file, clock.clone()).unwrap();
-    let link = serial::connect_link(link, &rig, &mut clock).unwrap();
-    let mut sup = session::supervised(link, &rig);
-    let mut controller = pneuflex::scene::build_controller(&scene, 0).unwrap();
-    let setpoints = pneuflex::scene::build_setpoints(&scene).unwrap();
-    let mut reference = |t: f64| setpoints.at(t);
-    let mut trace = TraceWriter::new(Vec::new(), rig.rt.trace_flush_every).unwrap();
-    let opts = session::run_options(&rig, 0.5);
     // A signal before the first tick.
-    let stop = AtomicBool::new(true);
-    let mut seen = Collect::default();
-    let report = rtloop::run_observed(
-        &mut sup,
-        controller.as_mut(),
-        &mut reference,
-        &mut trace,
-        &opts,
-        &stop,
-        &mut clock,
-        &mut seen,
-    )
-    .unwrap();
+    let (seen, report, _) = lockstep_rig_run(&scene, true);
     let fault = report.fault.expect("the signal latches a fault");
     assert_eq!(fault.tick, 0);
     assert_eq!(seen.events.len(), 1, "{:?}", seen.events);
@@ -165,4 +119,37 @@ fn a_rig_fault_is_an_event_for_the_observers() {
     // The loop ran on for post_fault_s with the valve safe, and every row reached the observer.
     assert_eq!(seen.rows.len() as u64, report.ticks);
     assert!(report.ticks > 1);
+}
+
+/// The scene's first run for 0.5 s on the emulated board stepped in lockstep, watched by a [`Collect`];
+/// `stopped`: a signal arrived before the first tick.
+fn lockstep_rig_run(
+    scene: &Scene,
+    stopped: bool,
+) -> (Collect, rtloop::LoopReport, TraceWriter<Vec<u8>>) {
+    let rig_file = repo("rigs/emulated.toml");
+    let rig = RigFile::load(&rig_file).unwrap();
+    let mut clock = SimClock::new();
+    let (link, _log) = session::lockstep_emulator(&rig, &rig_file, clock.clone()).unwrap();
+    let link = serial::connect_link(link, &rig, &mut clock).unwrap();
+    let mut sup = session::supervised(link, &rig);
+    let mut controller = pneuflex::scene::build_controller(scene, 0).unwrap();
+    let setpoints = pneuflex::scene::build_setpoints(scene).unwrap();
+    let mut reference = |t: f64| setpoints.at(t);
+    let mut trace = TraceWriter::new(Vec::new(), rig.rt.trace_flush_every).unwrap();
+    let opts = session::run_options(&rig, 0.5);
+    let stop = AtomicBool::new(stopped);
+    let mut seen = Collect::default();
+    let report = rtloop::run_observed(
+        &mut sup,
+        controller.as_mut(),
+        &mut reference,
+        &mut trace,
+        &opts,
+        &stop,
+        &mut clock,
+        &mut seen,
+    )
+    .unwrap();
+    (seen, report, trace)
 }
