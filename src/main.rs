@@ -168,6 +168,10 @@ enum RigCommand {
         /// Output directory (default: out/pil/<scene name>/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Log each run live to Rerun on the simulated timeline: `save <file.rrd>` (one file per run),
+        /// `spawn` or `connect <url>`. Needs the `rerun` feature.
+        #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
+        rerun: Option<Vec<String>>,
     },
     /// Run one of a scene's controllers on a rig, real or emulated, with the safety supervisor.
     Run {
@@ -207,8 +211,15 @@ fn main() -> ExitCode {
                     run,
                     firmware,
                     out,
+                    rerun,
                 },
-        } => cmd::pil::pil(&scene, run.as_deref(), firmware.as_deref(), out.as_deref()),
+        } => cmd::pil::pil(
+            &scene,
+            run.as_deref(),
+            firmware.as_deref(),
+            out.as_deref(),
+            rerun.as_deref(),
+        ),
         Command::Tf {
             file,
             json,

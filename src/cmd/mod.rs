@@ -1,5 +1,6 @@
 //! One module per subcommand; each returns `anyhow::Result` and leaves printing of errors to `main`.
 pub mod pil;
+pub mod identify;
 pub mod rig;
 pub mod run;
 pub mod sweep;

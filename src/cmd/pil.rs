@@ -27,12 +27,13 @@ fn default_firmware() -> PathBuf {
         .unwrap_or_else(|| rel.to_path_buf())
 }
 
-/// Runs the command.
+/// Runs the command; `rerun` is `--rerun save PATH | spawn | connect URL` (the `rerun` feature).
 pub fn pil(
     scene_path: &Path,
     run: Option<&str>,
     firmware: Option<&Path>,
     out: Option<&Path>,
+    rerun: Option<&[String]>,
 ) -> anyhow::Result<()> {
     let scene = Scene::load(scene_path)?;
     let indices: Vec<usize> = match run {
@@ -49,6 +50,18 @@ pub fn pil(
             elf.display()
         );
     }
+    // The live view: each run's rows on the simulated timeline with `run`'s entity paths, plus the link's
+    // quality and the board's update cost; one recording per run. Checked before anything runs.
+    #[cfg(feature = "rerun")]
+    let sink = rerun.map(pneuflex_rerun::parse_sink).transpose()?;
+    #[cfg(not(feature = "rerun"))]
+    if let Some(words) = rerun {
+        bail!(
+            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
+             `cargo run --release --features rerun -- rig pil ...` (docs/rerun.md)",
+            words.join(" ")
+        );
+    }
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out/pil").join(&scene.name));
@@ -60,8 +73,32 @@ pub fn pil(
             "{}: run `{}` on the emulated board ...",
             scene.name, scene.runs[i].name
         );
-        let r = pneuflex_pil::run_pil(&scene, i, &elf, &mut |_| {})
-            .with_context(|| format!("run `{}`", scene.runs[i].name))?;
+        let name = &scene.runs[i].name;
+        #[cfg(feature = "rerun")]
+        let mut live = match &sink {
+            Some(sink) => Some(pneuflex_rerun::RowRecorder::new(
+                pneuflex_rerun::sink_for_run(sink, name, indices.len()),
+                &format!("pil/{}/{name}", scene.name),
+                pneuflex_rerun::Clock::Sim,
+                scene.dt_s,
+                pneuflex_scene::runner::pwm_period_s(&scene),
+            )?),
+            None => None,
+        };
+        #[cfg(feature = "rerun")]
+        let observer: &mut dyn pneuflex_control::RowObserver = match live.as_mut() {
+            Some(l) => l,
+            None => &mut (),
+        };
+        #[cfg(not(feature = "rerun"))]
+        let observer: &mut dyn pneuflex_control::RowObserver = &mut ();
+        let r = pneuflex_pil::run_pil_observed(&scene, i, &elf, &mut |_| {}, observer)
+            .with_context(|| format!("run `{name}`"))?;
+        #[cfg(feature = "rerun")]
+        if let Some(l) = live {
+            let rows = l.finish()?;
+            eprintln!("rerun: {rows} ticks of `{name}` logged");
+        }
         runs.push(r);
     }
     // The outputs describe the runs done, as `run` writes them.

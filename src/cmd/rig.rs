@@ -14,11 +14,21 @@ use pneuflex_rig::{RigFile, serial, session};
 /// `pneuflex rig emulate <rig.toml> [--port <tty>] [--duration <s>]`: runs the rig file's emulated plant in
 /// real time behind a new pseudo-terminal (its path is printed) or on a given serial port, until Ctrl-C or
 /// `duration_s`. Faults listed in the rig file's `[emulator].faults` are injected.
-pub fn emulate(rig_file: &Path, port: Option<&str>, duration_s: Option<f64>) -> anyhow::Result<()> {
+pub fn emulate(
+    rig_file: &Path,
+    port: Option<&str>,
+    duration_s: Option<f64>,
+    hidden: &Hidden,
+) -> anyhow::Result<()> {
     if let Some(d) = duration_s {
         check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
     }
-    let rig = RigFile::load(rig_file)?;
+    let mut rig = RigFile::load(rig_file)?;
+    if let Some(truth) = &hidden.truth {
+        session::hide_truth(&mut rig, rig_file, truth, hidden.seed, hidden.delay_s)?;
+    } else if hidden.seed.is_some() || hidden.delay_s.is_some() {
+        bail!("--seed and --delay apply to a hidden truth: give --truth <actuator-sheet.toml>");
+    }
     let handle = match port {
         Some(p) => session::spawn_port_emulator(&rig, rig_file, p)?,
         None => session::spawn_pty_emulator(&rig, rig_file)?,
@@ -53,6 +63,18 @@ pub fn emulate(rig_file: &Path, port: Option<&str>, duration_s: Option<f64>) -> 
         log.ended.map(|e| format!(" ({e})")).unwrap_or_default()
     );
     Ok(())
+}
+
+/// What `rig emulate --truth` hides from the host: the plant's actuator sheet, the noise seed and a
+/// transport delay (docs/identification.md).
+#[derive(Clone, Debug, Default)]
+pub struct Hidden {
+    /// Actuator sheet the plant runs instead of the rig file's `emulator.actuator`.
+    pub truth: Option<std::path::PathBuf>,
+    /// Sensor-noise seed instead of `emulator.seed`.
+    pub seed: Option<u64>,
+    /// Transport delay of valve commands, s.
+    pub delay_s: Option<f64>,
 }
 
 /// `pneuflex rig run --rig <rig.toml> [--port <tty>] --scene <scene.toml> [--out DIR]`: runs `controller`
@@ -213,4 +235,78 @@ pub fn run_scene(
         }
     }
     result
+}
+
+/// The options of `pneuflex rig excite`.
+#[derive(Clone, Debug)]
+pub struct ExciteArgs {
+    /// `prbs`, `chirp` or `steps`.
+    pub signal: String,
+    /// Amplitude, command units.
+    pub amplitude: f64,
+    /// Length, s.
+    pub duration_s: f64,
+    /// Centring position, m.
+    pub centre_m: f64,
+    /// Centring gain, 1/m.
+    pub centring_per_m: f64,
+    /// Command bias.
+    pub bias: f64,
+    /// PRBS bit / step hold time, s.
+    pub hold_s: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// `pneuflex rig excite`: an identification experiment (pneuflex_identify::excite) on the rig, through the
+/// same supervised loop and trace as `rig run`.
+pub fn excite(
+    rig_file: &Path,
+    port: Option<&str>,
+    a: &ExciteArgs,
+    out: Option<&Path>,
+) -> anyhow::Result<()> {
+    use pneuflex_identify::excite::{Excitation, Exciter, Signal};
+    let signal = match a.signal.as_str() {
+        "prbs" => Signal::Prbs {
+            bit_s: a.hold_s,
+            seed: a.seed,
+        },
+        "steps" => Signal::Steps {
+            hold_s: a.hold_s,
+            seed: a.seed,
+        },
+        "chirp" => Signal::Chirp {
+            f0_hz: 0.2,
+            f1_hz: 10.0,
+            duration_s: a.duration_s,
+        },
+        other => bail!("--signal: `{other}`: expected prbs, chirp or steps"),
+    };
+    let excitation = Excitation {
+        signal,
+        amplitude: a.amplitude,
+        bias: a.bias,
+        centre_m: a.centre_m,
+        centring_per_m: a.centring_per_m,
+        ramp_s: 1.0_f64.min(0.25 * a.duration_s),
+    };
+    excitation.validate().map_err(|e| anyhow!(e))?;
+    let mut controller = Exciter::new(excitation);
+    let mut reference = |_t: f64| Setpoint::default();
+    let out_dir = match out {
+        Some(d) => d.to_path_buf(),
+        None => Path::new("out").join("rig").join("excite").join(&a.signal),
+    };
+    run(
+        rig_file,
+        port,
+        None,
+        &mut controller,
+        &mut reference,
+        a.duration_s,
+        &out_dir,
+        &mut (),
+    )
+    .map(|_| ())
 }

@@ -12,8 +12,12 @@ use pneuflex_protocol::ctrl::{
 };
 use pneuflex_protocol::{Message, ValveMode, ValvePayload, crc::CRC16_INIT, fault_code};
 
+use std::cell::Cell;
+use std::rc::Rc;
+
 use crate::PilError;
 use crate::link::Link;
+use crate::observe::Live;
 
 /// Per-update cost on the board clock (virtual ns under `-icount shift=0` = instructions).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -54,6 +58,7 @@ pub struct FirmwareController {
     cost: Cost,
     /// Each tick's output as received.
     pub outputs: Vec<OutputPayload>,
+    live: Rc<Cell<Live>>,
 }
 
 /// The setup a scene run describes.
@@ -145,7 +150,13 @@ impl FirmwareController {
             sum_ns: 0.0,
             cost: Cost::default(),
             outputs: Vec::new(),
+            live: Rc::default(),
         }
+    }
+
+    /// The link counters and the last update's cost after each tick, for observers ([`crate::observe`]).
+    pub fn live(&self) -> Rc<Cell<Live>> {
+        self.live.clone()
     }
 
     /// The per-update cost so far.
@@ -245,6 +256,10 @@ impl Controller for FirmwareController {
                     c.updates += 1;
                     self.sum_ns += f64::from(o.update_ns);
                     self.outputs.push(o);
+                    self.live.set(Live {
+                        link: self.link.stats(),
+                        update_ns: o.update_ns,
+                    });
                     self.tick = self.tick.wrapping_add(1);
                     // The command as the board sent it: no clamping or rounding on the host.
                     return ValveCommand { u: o.u };

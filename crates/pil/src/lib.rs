@@ -6,6 +6,7 @@
 
 pub mod controller;
 pub mod link;
+pub mod observe;
 pub mod qemu;
 
 use std::path::Path;
@@ -13,7 +14,9 @@ use std::path::Path;
 use pneuflex_scene::runner::{
     compute_windows_with, lyapunov_summary, pinned_parameters, pwm_period_s,
 };
-use pneuflex_scene::{RunResult, Scene, build_controller, build_plant, build_setpoints, run_scene};
+use pneuflex_scene::{
+    RunResult, Scene, StepObserver, build_controller, build_plant, build_setpoints, run_scene,
+};
 
 pub use controller::{Cost, FirmwareController};
 pub use link::{Link, LinkStats};
@@ -99,6 +102,18 @@ pub fn run_pil(
     elf: &Path,
     progress: &mut dyn FnMut(f64),
 ) -> Result<PilRun, PilError> {
+    run_pil_observed(scene, index, elf, progress, &mut ())
+}
+
+/// [`run_pil`] with an observer of the firmware run's rows, which also get the link's quality and the
+/// board's update cost ([`observe::PIL_SIGNALS`]); the observer sees the run tick by tick as it happens.
+pub fn run_pil_observed(
+    scene: &Scene,
+    index: usize,
+    elf: &Path,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn pneuflex_control::RowObserver,
+) -> Result<PilRun, PilError> {
     let run = scene
         .runs
         .get(index)
@@ -113,8 +128,19 @@ pub fn run_pil(
     controller::start(&mut link, &setup, &setpoints, scene.dt_s, PIL_WATCHDOG_MS)?;
     let mut fw = FirmwareController::new(link, signals);
     let mut plant = build_plant(scene)?;
-    let mut firmware =
-        pneuflex_scene::simulate(scene, index, plant.as_mut(), &mut fw, &setpoints, progress)?;
+    let live = fw.live();
+    let mut rows = observe::LinkRows::new(observer, live);
+    let mut firmware = pneuflex_scene::simulate_observed(
+        scene,
+        index,
+        plant.as_mut(),
+        &mut fw,
+        &setpoints,
+        progress,
+        &mut rows,
+    )?;
+    // simulate_observed leaves the run's end to its caller (run_scene_with calls it).
+    rows.end_run(&firmware);
     if let Some(e) = fw.error.take() {
         let exited = board
             .exited()

@@ -289,6 +289,7 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
             supply_lost: false,
             pending: Vec::with_capacity(8),
             finished: false,
+            delay_line: VecDeque::new(),
         }
     }
 }
@@ -322,6 +323,8 @@ pub struct Board<P: EmulatedPlant, L: Link> {
     supply_lost: bool,
     pending: Vec<Message>,
     finished: bool,
+    /// Run commands on their way to the valve (`transport_delay_s`, whole sample periods).
+    delay_line: VecDeque<ValveDrive>,
 }
 
 impl<P: EmulatedPlant, L: Link> Board<P, L> {
@@ -460,6 +463,24 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
             ValveMode::Run => ValveDrive::Run(from_q15(self.duty_q15)),
             ValveMode::SafeVent => ValveDrive::Vent,
             ValveMode::SafeHold => ValveDrive::Hold,
+        };
+        // Transport delay: a run command reaches the valve `transport_delay_s` later (until the first one
+        // arrives the valve keeps its power-up state, vented). A safe state is the board's own: at once.
+        let delay_periods = (self.cfg.transport_delay_s / self.period_s).round() as usize;
+        let drive = match drive {
+            ValveDrive::Run(_) if delay_periods > 0 && self.run_start_s.is_some() => {
+                self.delay_line.push_back(drive);
+                if self.delay_line.len() > delay_periods {
+                    self.delay_line.pop_front().unwrap_or(ValveDrive::Vent)
+                } else {
+                    ValveDrive::Vent
+                }
+            }
+            ValveDrive::Run(_) => drive,
+            _ => {
+                self.delay_line.clear();
+                drive
+            }
         };
         let t_now = t.unwrap_or(0.0);
         if self.run_start_s.is_some() {

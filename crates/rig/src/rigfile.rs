@@ -384,6 +384,10 @@ pub struct EmulatorConfig {
     pub seed: u64,
     /// Supply pressure, Pa absolute.
     pub supply_pa: f64,
+    /// Transport delay between a valve command reaching the board and the valve applying it, s (rounded to
+    /// whole sample periods; 0 = applied in the period it arrives). Models a slow fieldbus or driver.
+    #[serde(default)]
+    pub transport_delay_s: f64,
     /// The environment spring.
     pub environment: EnvironmentConfig,
     /// Faults to inject.
@@ -839,6 +843,13 @@ impl RigFile {
             }
             c.finite("emulator.x0_m", e.x0_m)?;
             c.positive("emulator.supply_pa", e.supply_pa)?;
+            c.within(
+                "emulator.transport_delay_s",
+                e.transport_delay_s,
+                0.0,
+                1.0,
+                "s",
+            )?;
             c.finite("emulator.environment.x_e_m", e.environment.x_e_m)?;
             c.positive(
                 "emulator.environment.k_e_n_per_m",

@@ -78,6 +78,52 @@ pub fn emulated_plant(rig: &RigFile, file: &Path) -> Result<PneumaticPlant, RigF
     Ok(PneumaticPlant::new(model, e.x0_m, e.supply_pa))
 }
 
+/// Hides a truth in the emulator of `rig` (`pneuflex rig emulate --truth`): its plant runs the actuator sheet
+/// `sheet` (validated here; errors name the sheet and the key) with the sheet's supply pressure (a rig
+/// measures its supply, so the host may know it), `seed` for the sensor noise and `transport_delay_s`
+/// between a command reaching the board and the valve applying it. The host is told none of it.
+pub fn hide_truth(
+    rig: &mut RigFile,
+    file: &Path,
+    sheet: &Path,
+    seed: Option<u64>,
+    transport_delay_s: Option<f64>,
+) -> Result<(), RigFileError> {
+    let truth = ActuatorSheet::load(sheet).map_err(|err| RigFileError::Invalid {
+        file: file.to_path_buf(),
+        at: None,
+        key: "emulator.actuator (--truth)".into(),
+        message: err.to_string(),
+    })?;
+    let Some(e) = rig.emulator.as_mut() else {
+        return Err(RigFileError::Invalid {
+            file: file.to_path_buf(),
+            at: None,
+            key: "emulator".into(),
+            message: "missing: `pneuflex rig emulate --truth` needs an [emulator] table".into(),
+        });
+    };
+    // An absolute path: `RigFile::resolve_path` joins it to the rig file's folder unchanged.
+    let abs = std::path::absolute(sheet).unwrap_or_else(|_| sheet.to_path_buf());
+    e.actuator = Some(abs);
+    e.supply_pa = truth.supply.supply.supply_pressure_pa;
+    if let Some(s) = seed {
+        e.seed = s;
+    }
+    if let Some(d) = transport_delay_s {
+        if !(d.is_finite() && (0.0..=1.0).contains(&d)) {
+            return Err(RigFileError::Invalid {
+                file: file.to_path_buf(),
+                at: None,
+                key: "emulator.transport_delay_s (--delay)".into(),
+                message: format!("expected 0..=1 s, got {d}"),
+            });
+        }
+        e.transport_delay_s = d;
+    }
+    Ok(())
+}
+
 /// Starts the emulator of `rig` behind a new pseudo-terminal; the handle carries the path to open.
 pub fn spawn_pty_emulator(rig: &RigFile, file: &Path) -> Result<EmulatorHandle, RigError> {
     let plant =

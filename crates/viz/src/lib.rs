@@ -7,6 +7,8 @@
 //! its per-pixel-column first/min/max/last before drawing ([`decimate`]), so the picture is the same and the
 //! cost does not grow with the length of the trace.
 
+pub mod overlay;
+
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

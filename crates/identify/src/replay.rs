@@ -1,0 +1,256 @@
+//! Replaying a log through the 1-DOF model: the logged valve command and contact force drive
+//! `pneuflex_pneumatics::OneDofModel` (eqs. 1-11), segment by segment.
+//!
+//! Segment-wise fitting (a simple form of multiple shooting): the log is cut into segments of
+//! `segment_s`; each starts from the measured position and pressures (the first from a velocity fitted
+//! to the measured positions), so a long log cannot drift away however wrong the start values
+//! are. Temperatures (not measured), the velocity (see [`ReplayOptions::carry_velocity`]) and the valve's
+//! PWM clock carry over from the previous segment's end.
+//! The first `settle_s` of each segment, where the start's measurement noise dies out, is not compared.
+//!
+//! Timing (docs/identification.md): row k's command acts from row k to row k+1, as on the rig, where the
+//! board applies the command of tick k during the next sample period.
+
+use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState, ValveState};
+
+use crate::log::Log;
+use crate::params::Offsets;
+
+/// How a log is replayed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReplayOptions {
+    /// Segment length, s.
+    pub segment_s: f64,
+    /// Start of each segment not compared, s.
+    pub settle_s: f64,
+    /// Integration steps per log period (RK4, the valve's edges located exactly).
+    pub substeps: usize,
+    /// Half-width of the position fit that gives a segment's start velocity, samples.
+    pub velocity_half_window: usize,
+    /// Start a segment with the velocity the previous one ended with (not the fit of the measured position):
+    /// under PWM the acceleration jumps at every spool edge, so a local polynomial through quantised
+    /// positions misses the velocity by tens of mm/s, while the replay's own velocity is as good as the fit.
+    pub carry_velocity: bool,
+}
+
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        Self {
+            segment_s: 0.1,
+            settle_s: 0.015,
+            substeps: 10,
+            velocity_half_window: 3,
+            carry_velocity: true,
+        }
+    }
+}
+
+/// A log prepared for replay: its segments and their start velocities.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// The log.
+    pub log: Log,
+    /// Segments as row ranges `[start, end]` (the end row is the next segment's start).
+    pub segments: Vec<(usize, usize)>,
+    /// Velocity at each segment's start, m/s.
+    pub v0: Vec<f64>,
+    /// Position at each segment's start, m: the same local fit's value (a third of the reading's noise).
+    pub x0: Vec<f64>,
+    /// Rows the fit compares (after each segment's settling), in order.
+    pub compared: Vec<usize>,
+    /// Held-out rows compared for validation only.
+    pub validation: Vec<usize>,
+    /// First row of the held-out part.
+    pub fit_end: usize,
+}
+
+/// The simulated signals of a replay, one per row.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Prediction {
+    /// Position, m.
+    pub x: Vec<f64>,
+    /// Chamber A pressure, Pa.
+    pub p_a: Vec<f64>,
+    /// Chamber B pressure, Pa.
+    pub p_b: Vec<f64>,
+}
+
+impl Prepared {
+    /// Cuts `log` into segments (see the module doc); rows from `fit_end` on are held out for validation
+    /// (a segment boundary lies at `fit_end`; `fit_end = len - 1` holds nothing out).
+    pub fn new(log: Log, o: &ReplayOptions, fit_end: usize) -> Self {
+        let n = log.len();
+        let fit_end = fit_end.clamp(1, n - 1);
+        let dt = log.dt().max(1e-9);
+        let per = ((o.segment_s / dt).round() as usize).max(2);
+        let settle = (o.settle_s / dt).round() as usize;
+        let mut segments = Vec::new();
+        for (a, b) in [(0, fit_end), (fit_end, n - 1)] {
+            let mut s = a;
+            while s < b {
+                let mut e = (s + per).min(b);
+                // A short tail joins the previous segment.
+                if b - e < per / 4 {
+                    e = b;
+                }
+                segments.push((s, e));
+                s = e;
+            }
+        }
+        let fits: Vec<[f64; 2]> = segments
+            .iter()
+            .map(|&(s, _)| local_fit(&log.t, &log.x, s, o.velocity_half_window))
+            .collect();
+        let v0 = fits.iter().map(|f| f[1]).collect();
+        let x0 = fits.iter().map(|f| f[0]).collect();
+        let rows = |lo: usize, hi: usize| -> Vec<usize> {
+            segments
+                .iter()
+                .filter(|&&(s, e)| s >= lo && e <= hi)
+                .flat_map(|&(s, e)| (s + 1 + settle).min(e + 1)..=e)
+                .collect()
+        };
+        let compared = rows(0, fit_end);
+        let validation = rows(fit_end, n - 1);
+        Self {
+            log,
+            segments,
+            v0,
+            x0,
+            compared,
+            validation,
+            fit_end,
+        }
+    }
+
+    /// Compared fit rows per segment of the fit part, in the order of `compared` (the clusters of the
+    /// interval estimate: errors of a segment's start state are shared by its rows).
+    pub fn fit_clusters(&self) -> Vec<usize> {
+        self.segments
+            .iter()
+            .filter(|&&(_, e)| e <= self.fit_end)
+            .map(|&(s, e)| {
+                self.compared
+                    .iter()
+                    .filter(|&&k| k > s && k <= e)
+                    .count()
+            })
+            .filter(|&n| n > 0)
+            .collect()
+    }
+
+    /// Replays the log through `model` with sensor offsets `off` (measured = true + offset), up to row
+    /// `upto` (the segments starting before it; rows after it stay NaN).
+    pub fn replay(
+        &self,
+        model: &OneDofModel,
+        off: &Offsets,
+        o: &ReplayOptions,
+        upto: usize,
+    ) -> Prediction {
+        let l = &self.log;
+        let n = l.len();
+        let mut out = Prediction {
+            x: vec![f64::NAN; n],
+            p_a: vec![f64::NAN; n],
+            p_b: vec![f64::NAN; n],
+        };
+        let t_gas = model.actuator.supply.atmosphere_temperature_k;
+        let (mut t_a, mut t_b) = (t_gas, t_gas);
+        let mut valve = ValveState::default();
+        let mut v_end = None;
+        let sub = o.substeps.max(1);
+        for (seg, &(s, e)) in self.segments.iter().enumerate() {
+            if s >= upto {
+                break;
+            }
+            let mut st = OneDofState {
+                t: l.t[s],
+                x: self.x0[seg] - off.x,
+                // The previous segment's velocity when there is one (see `ReplayOptions::carry_velocity`).
+                x_dot: match v_end {
+                    Some(v) if o.carry_velocity => v,
+                    _ => self.v0[seg],
+                },
+                chambers: ChamberState {
+                    p_a: l.p_a[s] - off.p_a,
+                    p_b: l.p_b[s] - off.p_b,
+                    t_a,
+                    t_b,
+                },
+                valve,
+            };
+            out.x[s] = st.x + off.x;
+            out.p_a[s] = st.chambers.p_a + off.p_a;
+            out.p_b[s] = st.chambers.p_b + off.p_b;
+            for k in s..e {
+                let h = (l.t[k + 1] - l.t[k]) / sub as f64;
+                let t_end = l.t[k + 1];
+                for i in 0..sub {
+                    // The contact force varies with the position inside the period: interpolated.
+                    let w = (i as f64 + 0.5) / sub as f64;
+                    let f_e = l.f_e[k] + w * (l.f_e[k + 1] - l.f_e[k]);
+                    model.step(&mut st, l.u[k], -f_e, h);
+                }
+                // No drift of the model's clock against the log's.
+                st.t = t_end;
+                out.x[k + 1] = st.x + off.x;
+                out.p_a[k + 1] = st.chambers.p_a + off.p_a;
+                out.p_b[k + 1] = st.chambers.p_b + off.p_b;
+            }
+            t_a = st.chambers.t_a;
+            t_b = st.chambers.t_b;
+            valve = st.valve;
+            v_end = Some(st.x_dot);
+        }
+        out
+    }
+}
+
+/// Value and slope at row `c` of a least-squares quadratic through rows `[c - w, c + w]` (clipped to the
+/// log). A quadratic, not a line: under PWM the piston oscillates at the carrier frequency, and a line over a
+/// good part of a period would average the velocity away.
+fn local_fit(t: &[f64], y: &[f64], c: usize, w: usize) -> [f64; 2] {
+    let a = c.saturating_sub(w);
+    let b = (c + w).min(t.len() - 1);
+    if b - a < 2 {
+        let v = if b > a { (y[b] - y[a]) / (t[b] - t[a]) } else { 0.0 };
+        return [y[c], v];
+    }
+    // Normal equations of y = c0 + c1 s + c2 s^2 in s = t - t[c]; the slope at c is c1.
+    let mut m = [[0.0f64; 3]; 3];
+    let mut r = [0.0f64; 3];
+    for i in a..=b {
+        let s = t[i] - t[c];
+        let p = [1.0, s, s * s];
+        for (j, pj) in p.iter().enumerate() {
+            for (k, pk) in p.iter().enumerate() {
+                m[j][k] += pj * pk;
+            }
+            r[j] += pj * y[i];
+        }
+    }
+    solve3(m, r).map_or([y[c], 0.0], |k| [k[0], k[1]])
+}
+
+/// Solves a 3x3 linear system by Cramer's rule; `None` when singular.
+fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |m: &[[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(&m);
+    if d.abs() < 1e-300 {
+        return None;
+    }
+    let mut out = [0.0; 3];
+    for (j, o) in out.iter_mut().enumerate() {
+        let mut mj = m;
+        for i in 0..3 {
+            mj[i][j] = r[i];
+        }
+        *o = det(&mj) / d;
+    }
+    Some(out)
+}

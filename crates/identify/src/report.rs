@@ -1,0 +1,269 @@
+//! The identification report: warnings for what the data cannot identify, `report.json`, `report.md` and
+//! the validation overlay `validation.png`.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use pneuflex_viz::overlay::{Panel, Series, write_overlay};
+
+use crate::IdentifyError;
+use crate::fit::FitResult;
+use crate::params::Key;
+use crate::replay::Prediction;
+
+/// An interval wider than this (half-width relative to the value, ±10 %) counts as poorly identified.
+pub const WIDE_INTERVAL: f64 = 0.1;
+/// A correlation above this (absolute) counts as not separable.
+pub const HIGH_CORRELATION: f64 = 0.95;
+
+/// Warnings for parameters the data cannot identify, each naming the experiment that would.
+pub fn warnings(fit: &FitResult, keys: &[Key]) -> Vec<String> {
+    let mut w = Vec::new();
+    for (e, k) in fit.estimates.iter().zip(keys) {
+        if !e.std_error.is_finite() {
+            w.push(format!(
+                "{}: not identifiable from these logs (they carry no information on it: the fit did not \
+                 move it and its interval is unbounded); identify it with {}",
+                e.key,
+                k.experiment()
+            ));
+        } else if e.rel_half_width > WIDE_INTERVAL {
+            w.push(format!(
+                "{}: poorly identified (95 % interval +-{:.0} % of the value); identify it with {}",
+                e.key,
+                100.0 * e.rel_half_width,
+                k.experiment()
+            ));
+        }
+        if e.at_bound {
+            w.push(format!(
+                "{}: fitted value {} is on a bound [{}, {}]: widen --bounds, or the model misses \
+                 something the data show",
+                e.key, e.value, e.bounds[0], e.bounds[1]
+            ));
+        }
+    }
+    for a in 0..keys.len() {
+        for b in a + 1..keys.len() {
+            let r = fit.correlation[a][b];
+            if r.abs() > HIGH_CORRELATION {
+                w.push(format!(
+                    "{} and {} are correlated (r = {r:.3}): these logs determine a combination of the two, \
+                     not each; add {} (for {}) or fix one of them",
+                    keys[a].name(),
+                    keys[b].name(),
+                    keys[a].experiment(),
+                    keys[a].name()
+                ));
+            }
+        }
+    }
+    w
+}
+
+/// The whole report as JSON-serialisable data.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Report {
+    /// The logs: path, SHA-256, rows used for fitting and validation, and notes.
+    pub logs: Vec<LogEntry>,
+    /// The actuator sheet started from.
+    pub sheet: String,
+    /// The fit.
+    pub fit: FitResult,
+    /// Validation pressure RMS as % of the supply pressure (p_a, p_b).
+    pub validation_pressure_pct_supply: [f64; 2],
+    /// Warnings.
+    pub warnings: Vec<String>,
+    /// Wall time of the fit, s (for information only).
+    pub fit_seconds: f64,
+}
+
+/// One log in the report.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LogEntry {
+    /// The path as given.
+    pub path: String,
+    /// SHA-256 of its bytes.
+    pub sha256: String,
+    /// Rows read.
+    pub rows: usize,
+    /// Rows compared in the fit.
+    pub fit_rows: usize,
+    /// Rows compared in the validation.
+    pub validation_rows: usize,
+    /// Why rows were dropped or the trace is suspicious.
+    pub note: Option<String>,
+}
+
+fn g(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else if v.abs() >= 1e4 || v.abs() < 1e-2 {
+        format!("{v:.4e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+/// The report as Markdown.
+pub fn markdown(r: &Report) -> String {
+    let mut s = String::new();
+    let f = &r.fit;
+    let _ = writeln!(s, "# Identification report\n");
+    let _ = writeln!(s, "Sheet: `{}`\n", r.sheet);
+    let _ = writeln!(s, "| log | sha256 | rows | fit rows | validation rows | note |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    for l in &r.logs {
+        let _ = writeln!(
+            s,
+            "| `{}` | `{}` | {} | {} | {} | {} |",
+            l.path,
+            l.sha256,
+            l.rows,
+            l.fit_rows,
+            l.validation_rows,
+            l.note.as_deref().unwrap_or("")
+        );
+    }
+    let _ = writeln!(s, "\n## Estimates (95 % intervals from the Jacobian)\n");
+    let _ = writeln!(s, "| key | start | fitted | 95 % interval | +- % | bounds |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    for e in &f.estimates {
+        let _ = writeln!(
+            s,
+            "| `{}` | {} | {} | [{}, {}] | {:.2} | [{}, {}] |",
+            e.key,
+            g(e.start),
+            g(e.value),
+            g(e.ci95[0]),
+            g(e.ci95[1]),
+            100.0 * e.rel_half_width,
+            g(e.bounds[0]),
+            g(e.bounds[1])
+        );
+    }
+    let _ = writeln!(s, "\n## Correlation matrix\n");
+    let _ = write!(s, "| |");
+    for i in 0..f.estimates.len() {
+        let _ = write!(s, " {} |", i + 1);
+    }
+    let _ = write!(s, "\n|---|");
+    for _ in &f.estimates {
+        let _ = write!(s, "---|");
+    }
+    let _ = writeln!(s);
+    for (i, row) in f.correlation.iter().enumerate() {
+        let _ = write!(s, "| {} `{}` |", i + 1, f.estimates[i].key);
+        for v in row {
+            let _ = write!(s, " {v:.3} |");
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s, "\n## Residual RMS per signal\n");
+    let _ = writeln!(s, "| | p_a [kPa] | p_b [kPa] | x [mm] |");
+    let _ = writeln!(s, "|---|---|---|---|");
+    for (name, v) in [
+        ("start values, fit rows", f.rms_start),
+        ("fitted, fit rows", f.rms_fit),
+        ("fitted, held-out validation rows", f.rms_validation),
+    ] {
+        let _ = writeln!(
+            s,
+            "| {name} | {:.3} | {:.3} | {:.4} |",
+            v[0] * 1e-3,
+            v[1] * 1e-3,
+            v[2] * 1e3
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nValidation pressure RMS: {:.3} % (p_a), {:.3} % (p_b) of the supply pressure. {} rows fitted; \
+         weighted residual variance {:.3}; LM: {}; {} replays of the logs; fit took {:.1} s.",
+        r.validation_pressure_pct_supply[0],
+        r.validation_pressure_pct_supply[1],
+        f.rows,
+        f.residual_variance,
+        f.termination.join(", "),
+        f.evaluations,
+        r.fit_seconds
+    );
+    let _ = writeln!(s, "\n## Warnings\n");
+    if r.warnings.is_empty() {
+        let _ = writeln!(s, "None: every free parameter is identified by these logs.");
+    }
+    for w in &r.warnings {
+        let _ = writeln!(s, "- {w}");
+    }
+    s
+}
+
+/// Draws the held-out rows of one log: measured against simulated p_a, p_b and x.
+pub fn validation_png(
+    path: &Path,
+    log: &crate::log::Log,
+    pred: &Prediction,
+    rows: &[usize],
+) -> Result<(), IdentifyError> {
+    if rows.is_empty() {
+        return Ok(());
+    }
+    let (a, b) = (rows[0], rows[rows.len() - 1] + 1);
+    let t = &log.t[a..b];
+    let kpa = |v: &[f64]| v.iter().map(|p| p * 1e-3).collect::<Vec<f64>>();
+    let mm = |v: &[f64]| v.iter().map(|p| p * 1e3).collect::<Vec<f64>>();
+    // Rows inside a segment's settling time are not compared: drawn as gaps in the simulation.
+    let mut keep = vec![false; b - a];
+    for &k in rows {
+        keep[k - a] = true;
+    }
+    let gap = |v: Vec<f64>| -> Vec<f64> {
+        v.into_iter()
+            .zip(&keep)
+            .map(|(x, &k)| if k { x } else { f64::NAN })
+            .collect()
+    };
+    let (ma, sa) = (kpa(&log.p_a[a..b]), gap(kpa(&pred.p_a[a..b])));
+    let (mb, sb) = (kpa(&log.p_b[a..b]), gap(kpa(&pred.p_b[a..b])));
+    let (mx, sx) = (mm(&log.x[a..b]), gap(mm(&pred.x[a..b])));
+    fn panel<'a>(title: &str, unit: &str, t: &'a [f64], m: &'a [f64], s: &'a [f64]) -> Panel<'a> {
+        Panel {
+            title: title.into(),
+            y_desc: unit.into(),
+            series: vec![
+                Series {
+                    label: "measured".into(),
+                    t,
+                    y: m,
+                },
+                Series {
+                    label: "fitted model".into(),
+                    t,
+                    y: s,
+                },
+            ],
+        }
+    }
+    let name = log
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    write_overlay(
+        path,
+        &[
+            panel(
+                &format!("held-out validation of {name}: chamber A pressure"),
+                "p_a [kPa abs]",
+                t,
+                &ma,
+                &sa,
+            ),
+            panel("chamber B pressure", "p_b [kPa abs]", t, &mb, &sb),
+            panel("position", "x [mm]", t, &mx, &sx),
+        ],
+    )
+    .map_err(|e| IdentifyError::Output {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}

@@ -1,0 +1,291 @@
+//! `pneuflex identify` as a library call: read and check the inputs, fit, report, write the outputs.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_files::{InputDigest, OutputDir};
+use pneuflex_pneumatics::{ActuatorSheet, OneDofModel};
+
+use crate::IdentifyError;
+use crate::fit::{FitOptions, Free, fit};
+use crate::log::read_log;
+use crate::params::{ALL, Key, Offsets};
+use crate::replay::Prepared;
+use crate::report::{LogEntry, Report, markdown, validation_png, warnings};
+
+/// What to identify from what.
+#[derive(Clone, Debug)]
+pub struct Request {
+    /// The logs (rig traces).
+    pub logs: Vec<PathBuf>,
+    /// The actuator sheet to start from.
+    pub actuator: PathBuf,
+    /// Free keys, as given (`--free`, comma-separated entries allowed).
+    pub free: Vec<String>,
+    /// Bounds, as given: `KEY=[lo,hi]`.
+    pub bounds: Vec<String>,
+    /// Fraction of each log held out at its end for validation (0 = none).
+    pub validation_fraction: f64,
+    /// Fit settings.
+    pub options: FitOptions,
+}
+
+/// The result of [`identify`].
+#[derive(Clone, Debug)]
+pub struct Identified {
+    /// The sheet started from.
+    pub sheet: ActuatorSheet,
+    /// The free keys, in order.
+    pub keys: Vec<Key>,
+    /// The logs, prepared.
+    pub data: Vec<Prepared>,
+    /// The report.
+    pub report: Report,
+    /// The fitted model.
+    pub model: OneDofModel,
+    /// The fitted sensor offsets.
+    pub offsets: Offsets,
+}
+
+fn key_err(option: &'static str, key: &str, message: String) -> IdentifyError {
+    IdentifyError::Key {
+        option,
+        key: key.to_string(),
+        message,
+    }
+}
+
+/// The free keys of `--free` entries (each may hold several, comma-separated).
+pub fn parse_free(entries: &[String], model: &OneDofModel) -> Result<Vec<Key>, IdentifyError> {
+    let mut keys = Vec::new();
+    for name in entries.iter().flat_map(|e| e.split(',')).map(str::trim) {
+        if name.is_empty() {
+            continue;
+        }
+        let k = Key::parse(name).ok_or_else(|| {
+            key_err(
+                "--free",
+                name,
+                format!(
+                    "no such parameter; the keys are {}",
+                    ALL.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })?;
+        k.applies(model).map_err(|m| key_err("--free", name, m))?;
+        if keys.contains(&k) {
+            return Err(key_err("--free", name, "given twice".into()));
+        }
+        keys.push(k);
+    }
+    if keys.is_empty() {
+        return Err(key_err("--free", "", "no parameter to fit".into()));
+    }
+    Ok(keys)
+}
+
+/// The free parameters with their start values and bounds (defaults, or `--bounds KEY=[lo,hi]`).
+pub fn parse_bounds(
+    keys: &[Key],
+    bounds: &[String],
+    model: &OneDofModel,
+) -> Result<Vec<Free>, IdentifyError> {
+    let off = Offsets::default();
+    let mut free: Vec<Free> = keys
+        .iter()
+        .map(|&k| {
+            let start = k.get(model, &off);
+            let (lo, hi) = k.default_bounds(start, model);
+            Free { key: k, start, lo, hi }
+        })
+        .collect();
+    for b in bounds {
+        let (name, range) = b.split_once('=').ok_or_else(|| {
+            key_err("--bounds", b, "expected KEY=[lo,hi]".into())
+        })?;
+        let k = Key::parse(name)
+            .ok_or_else(|| key_err("--bounds", name, "no such parameter".into()))?;
+        let f = free
+            .iter_mut()
+            .find(|f| f.key == k)
+            .ok_or_else(|| key_err("--bounds", name, "not a --free parameter".into()))?;
+        let inner = range.trim().trim_start_matches('[').trim_end_matches(']');
+        let nums: Vec<Result<f64, _>> = inner.split(',').map(|s| s.trim().parse::<f64>()).collect();
+        let (lo, hi) = match nums.as_slice() {
+            [Ok(lo), Ok(hi)] if lo.is_finite() && hi.is_finite() => (*lo, *hi),
+            _ => {
+                return Err(key_err(
+                    "--bounds",
+                    name,
+                    format!("`{range}` is not [lo,hi] with two finite numbers"),
+                ));
+            }
+        };
+        if lo >= hi {
+            return Err(key_err(
+                "--bounds",
+                name,
+                format!("lower bound {lo} must be below the upper bound {hi}"),
+            ));
+        }
+        if !(lo..=hi).contains(&f.start) {
+            return Err(key_err(
+                "--bounds",
+                name,
+                format!(
+                    "[{lo}, {hi}] excludes the start value {} (from the sheet)",
+                    f.start
+                ),
+            ));
+        }
+        f.lo = lo;
+        f.hi = hi;
+    }
+    Ok(free)
+}
+
+/// Reads the inputs, fits, and builds the report (nothing is written).
+pub fn identify(req: &Request) -> Result<Identified, IdentifyError> {
+    let sheet = ActuatorSheet::load(&req.actuator)?;
+    let base = sheet.model();
+    let keys = parse_free(&req.free, &base)?;
+    let free = parse_bounds(&keys, &req.bounds, &base)?;
+    if !(0.0..0.9).contains(&req.validation_fraction) {
+        return Err(IdentifyError::Fit(format!(
+            "--validation: the held-out fraction must be in [0, 0.9), got {}",
+            req.validation_fraction
+        )));
+    }
+    if req.logs.is_empty() {
+        return Err(IdentifyError::Fit("no --log given".into()));
+    }
+    let mut data = Vec::new();
+    for p in &req.logs {
+        let log = read_log(p)?;
+        let n = log.len();
+        let fit_end = ((1.0 - req.validation_fraction) * (n - 1) as f64).round() as usize;
+        data.push(Prepared::new(log, &req.options.replay, fit_end));
+    }
+    let t0 = Instant::now();
+    let result = fit(&base, &free, &data, &req.options)?;
+    let fit_seconds = t0.elapsed().as_secs_f64();
+    let mut model = base;
+    let mut offsets = Offsets::default();
+    for (k, e) in keys.iter().zip(&result.estimates) {
+        k.set(&mut model, &mut offsets, e.value);
+    }
+    let supply = base.actuator.supply.supply_pressure_pa;
+    let warnings = warnings(&result, &keys);
+    let report = Report {
+        logs: data
+            .iter()
+            .map(|d| LogEntry {
+                path: d.log.path.display().to_string(),
+                sha256: d.log.sha256.clone(),
+                rows: d.log.len(),
+                fit_rows: d.compared.len(),
+                validation_rows: d.validation.len(),
+                note: d.log.note.clone(),
+            })
+            .collect(),
+        sheet: req.actuator.display().to_string(),
+        validation_pressure_pct_supply: [
+            100.0 * result.rms_validation[0] / supply,
+            100.0 * result.rms_validation[1] / supply,
+        ],
+        fit: result,
+        warnings,
+        fit_seconds,
+    };
+    Ok(Identified {
+        sheet,
+        keys,
+        data,
+        report,
+        model,
+        offsets,
+    })
+}
+
+/// Writes the fitted sheet set, `report.json`, `report.md` and `validation-<i>.png` into `out` (staged
+/// beside it and renamed into place: `pneuflex_files::OutputDir`). Returns the fitted actuator sheet.
+pub fn write_outputs(id: &Identified, req: &Request, out: &Path) -> Result<PathBuf, IdentifyError> {
+    let oerr = |e: pneuflex_files::OutputError| IdentifyError::Output {
+        file: out.to_path_buf(),
+        message: e.to_string(),
+    };
+    let mut protect: Vec<&Path> = req.logs.iter().filter_map(|p| p.parent()).collect();
+    if let Some(d) = req.actuator.parent() {
+        protect.push(d);
+    }
+    let stage = OutputDir::create(out, &protect, Recoverable::Regenerable).map_err(oerr)?;
+    let dir = stage.path().to_path_buf();
+    let f = &id.report.fit;
+    let mut header = String::from("Fitted by `pneuflex identify` from the logs:\n");
+    for l in &id.report.logs {
+        header += &format!("  {} sha256 {}\n", l.path, l.sha256);
+    }
+    header += &format!(
+        "started from {}; free: {}\n",
+        req.actuator.display(),
+        id.keys.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
+    );
+    header += &format!(
+        "fit quality: residual RMS p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm on {} rows; held-out validation \
+         p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm (report.md)\n",
+        f.rms_fit[0],
+        f.rms_fit[1],
+        f.rms_fit[2] * 1e3,
+        f.rows,
+        f.rms_validation[0],
+        f.rms_validation[1],
+        f.rms_validation[2] * 1e3
+    );
+    for e in &f.estimates {
+        header += &format!(
+            "  {} = {:e}, 95 % interval [{:e}, {:e}]\n",
+            e.key, e.value, e.ci95[0], e.ci95[1]
+        );
+    }
+    if !id.report.warnings.is_empty() {
+        header += &format!("{} warning(s): see report.md\n", id.report.warnings.len());
+    }
+    let values: Vec<(Key, f64)> = id
+        .keys
+        .iter()
+        .zip(&f.estimates)
+        .map(|(k, e)| (*k, e.value))
+        .collect();
+    let sheet = crate::sheet::write_sheets(&id.sheet, &values, &dir, &header)?;
+    let werr = |file: PathBuf, e: String| IdentifyError::Output { file, message: e };
+    let json = serde_json::to_string_pretty(&id.report)
+        .map_err(|e| werr(dir.join("report.json"), e.to_string()))?;
+    std::fs::write(dir.join("report.json"), json)
+        .map_err(|e| werr(dir.join("report.json"), e.to_string()))?;
+    std::fs::write(dir.join("report.md"), markdown(&id.report))
+        .map_err(|e| werr(dir.join("report.md"), e.to_string()))?;
+    for (i, d) in id.data.iter().enumerate() {
+        if d.validation.is_empty() {
+            continue;
+        }
+        let pred = d.replay(&id.model, &id.offsets, &req.options.replay, d.log.len());
+        validation_png(
+            &dir.join(format!("validation-{}.png", i + 1)),
+            &d.log,
+            &pred,
+            &d.validation,
+        )?;
+    }
+    let mut inputs = Vec::new();
+    for p in &req.logs {
+        inputs.push(InputDigest::of_file(p, "log").map_err(|e| werr(p.clone(), e.to_string()))?);
+    }
+    inputs.push(
+        InputDigest::of_file(&req.actuator, "actuator")
+            .map_err(|e| werr(req.actuator.clone(), e.to_string()))?,
+    );
+    let manifest = Manifest::new("identify", env!("CARGO_PKG_VERSION"), inputs);
+    let dest = stage.commit(manifest).map_err(oerr)?;
+    Ok(dest.join(sheet.file_name().unwrap_or_default()))
+}

@@ -1,0 +1,108 @@
+//! Writing sheets with new values: copies of the actuator sheet and its component sheets, the chosen keys
+//! replaced in place (comments and layout kept, `toml_edit`), the components named by their new file
+//! names, a comment on top saying where the values came from. The result has the same schema and is
+//! loaded back (`ActuatorSheet::load`) before it counts as written.
+
+use std::path::{Path, PathBuf};
+
+use pneuflex_pneumatics::ActuatorSheet;
+use toml_edit::{DocumentMut, value};
+
+use crate::IdentifyError;
+use crate::params::Key;
+
+/// The `[components]` keys of an actuator sheet.
+const COMPONENTS: [&str; 5] = [
+    "cylinder",
+    "valve",
+    "supply",
+    "pressure_sensor",
+    "position_sensor",
+];
+
+fn read(path: &Path) -> Result<String, IdentifyError> {
+    pneuflex_files::read_text(path, pneuflex_files::InputKind::Sheet)
+        .map_err(|e| IdentifyError::Input(e.to_string()))
+}
+
+fn parse(path: &Path, text: &str) -> Result<DocumentMut, IdentifyError> {
+    text.parse::<DocumentMut>().map_err(|e| IdentifyError::Output {
+        file: path.to_path_buf(),
+        message: format!("cannot edit: {e}"),
+    })
+}
+
+fn write(path: &Path, text: &str) -> Result<(), IdentifyError> {
+    std::fs::write(path, text).map_err(|e| IdentifyError::Output {
+        file: path.to_path_buf(),
+        message: format!("cannot write: {e}"),
+    })
+}
+
+/// Writes the sheet set of `src` into the existing directory `dir` with `values` (sensor offsets are left
+/// out: they are not sheet keys) and `header` (each line becomes a `#` comment) on top of the actuator
+/// sheet. Returns the new actuator sheet's path.
+pub fn write_sheets(
+    src: &ActuatorSheet,
+    values: &[(Key, f64)],
+    dir: &Path,
+    header: &str,
+) -> Result<PathBuf, IdentifyError> {
+    let src_dir = src.path.parent().unwrap_or_else(|| Path::new(""));
+    let text = read(&src.path)?;
+    let mut doc = parse(&src.path, &text)?;
+    let mut used_names: Vec<String> = Vec::new();
+    let act_name = src
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "actuator.toml".into());
+    used_names.push(act_name.clone());
+    for comp in COMPONENTS {
+        let Some(rel) = doc
+            .get("components")
+            .and_then(|c| c.get(comp))
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+        else {
+            continue;
+        };
+        let from = src_dir.join(&rel);
+        let ctext = read(&from)?;
+        let mut cdoc = parse(&from, &ctext)?;
+        for &(k, v) in values {
+            if k.file() == Some(comp) {
+                let (table, key) = k.name().split_once('.').unwrap_or(("", k.name()));
+                cdoc[table][key] = value(v);
+            }
+        }
+        let mut name = Path::new(&rel)
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| format!("{comp}.toml"));
+        if used_names.contains(&name) {
+            name = format!("{comp}-{name}");
+        }
+        used_names.push(name.clone());
+        write(&dir.join(&name), &cdoc.to_string())?;
+        doc["components"][comp] = value(name);
+    }
+    for &(k, v) in values {
+        if k.file() == Some("actuator") {
+            let (table, key) = k.name().split_once('.').unwrap_or(("", k.name()));
+            doc[table][key] = value(v);
+        }
+    }
+    let mut out = String::new();
+    for line in header.lines() {
+        out.push_str("# ");
+        out.push_str(line);
+        out.push('\n');
+    }
+    out.push_str(&doc.to_string());
+    let dest = dir.join(&act_name);
+    write(&dest, &out)?;
+    // Same schema: it must load.
+    ActuatorSheet::load(&dest)?;
+    Ok(dest)
+}

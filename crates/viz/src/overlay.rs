@@ -1,0 +1,102 @@
+//! Overlays of measured and simulated signals, one panel per signal stacked vertically (the validation
+//! figure of `pneuflex identify`). Every series is decimated per pixel column ([`super::decimate`]).
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::{FAMILY, PALETTE, VizError, decimate, ensure_font};
+
+/// One line: its label, times (s) and values; non-finite values are gaps.
+#[derive(Clone, Debug)]
+pub struct Series<'a> {
+    /// Legend text.
+    pub label: String,
+    /// Times, s, ascending.
+    pub t: &'a [f64],
+    /// Values.
+    pub y: &'a [f64],
+}
+
+/// One panel: a title, the y-axis description and its lines (the first in the palette's first colour, ...).
+#[derive(Clone, Debug)]
+pub struct Panel<'a> {
+    /// Title above the panel.
+    pub title: String,
+    /// Y-axis description with unit.
+    pub y_desc: String,
+    /// The lines.
+    pub series: Vec<Series<'a>>,
+}
+
+/// Writes `panels` stacked vertically into a PNG at `path` (1200 px wide, 300 px per panel).
+pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), VizError> {
+    ensure_font()?;
+    if panels.is_empty() || panels.iter().all(|p| p.series.is_empty()) {
+        return Err(VizError::Empty);
+    }
+    let draw = || -> Result<(), String> {
+        let height = 300 * panels.len() as u32;
+        let root = BitMapBackend::new(path, (1200, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let areas = root.split_evenly((panels.len(), 1));
+        for (area, panel) in areas.iter().zip(panels) {
+            let finite = |v: &&f64| v.is_finite();
+            let (t0, t1) = panel
+                .series
+                .iter()
+                .flat_map(|s| s.t.iter().filter(finite))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            let (y0, y1) = panel
+                .series
+                .iter()
+                .flat_map(|s| s.y.iter().filter(finite))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            if !(t0.is_finite() && t1 > t0 && y0.is_finite() && y1.is_finite()) {
+                continue;
+            }
+            let pad = ((y1 - y0) * 0.05).max(1e-12 * y1.abs().max(1.0));
+            let mut chart = ChartBuilder::on(area)
+                .caption(&panel.title, (FAMILY, 20))
+                .margin(10)
+                .x_label_area_size(35)
+                .y_label_area_size(80)
+                .build_cartesian_2d(t0..t1, (y0 - pad)..(y1 + pad))
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc("t [s]")
+                .y_desc(panel.y_desc.as_str())
+                .label_style((FAMILY, 14))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for (i, s) in panel.series.iter().enumerate() {
+                let color = PALETTE[i % PALETTE.len()];
+                let pts = decimate(s.t, s.y, t0, t1, 1200);
+                chart
+                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                    .map_err(|e| e.to_string())?
+                    .label(s.label.clone())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font((FAMILY, 14))
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
+        root.present().map_err(|e| e.to_string())
+    };
+    draw().map_err(|message| VizError::Draw {
+        path: path.to_path_buf(),
+        message,
+    })
+}
