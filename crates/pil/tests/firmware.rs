@@ -15,8 +15,8 @@ use std::time::Duration;
 
 use pneuflex_pil::controller::{await_safe, setup_of, start};
 use pneuflex_pil::{Link, qemu};
-use pneuflex_protocol::ctrl::{SensorsPayload, status};
-use pneuflex_protocol::{MAX_FRAME, Message, RESET_MAGIC, encode, fault_code};
+use pneuflex_protocol::ctrl::{SensorsPayload, StartPayload, ready, status};
+use pneuflex_protocol::{MAX_FRAME, Message, RESET_MAGIC, ValveMode, encode, fault_code};
 use pneuflex_scene::{Scene, build_setpoints};
 
 fn root() -> PathBuf {
@@ -179,6 +179,21 @@ fn assert_latched(link: &mut Link, tick: u32) {
         }
         m => panic!("expected a safe output, got {m:?}"),
     }
+    // A new Start does not clear a latched fault.
+    link.send(&Message::CtrlStart(StartPayload {
+        controller: 1,
+        dt_s: 1e-3,
+        watchdog_ms: WATCHDOG_MS,
+        safe_mode: ValveMode::SafeVent,
+        n_params: 0,
+        n_segments: 0,
+        setup_crc: 0xFFFF,
+    }))
+    .unwrap();
+    match link.recv().unwrap().msg {
+        Message::CtrlReady(r) => assert_eq!(r.result, ready::START, "Start refused while latched"),
+        m => panic!("expected Ready, got {m:?}"),
+    }
     link.send(&Message::Reset(RESET_MAGIC)).unwrap();
     link.send(&sensors(tick + 1)).unwrap();
     match link.recv().unwrap().msg {
@@ -228,6 +243,11 @@ fn a_storm_of_corrupted_frames_puts_the_valve_safe_before_the_watchdog() {
     link.send_raw(&storm).unwrap();
     let (safe, _) = await_safe(&mut link).expect("safe state");
     assert_eq!(safe.reason, fault_code::CRC, "bad frames, not the watchdog");
+    eprintln!(
+        "storm: safe after {} CRC errors, {} us after the last valid frame",
+        safe.crc_errors,
+        safe.safe_at_us - safe.last_valid_us
+    );
     assert!(
         safe.crc_errors >= 9,
         "{} CRC errors counted",
