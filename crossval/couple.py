@@ -129,13 +129,16 @@ def prepare(
     scene = pneuflex.load_scene(scene_path)
     spec = spec_from_scene(scene_path, substeps, face_mass_kg, face_damping)
     if scene["plant"]["kind"] == "multibody":
-        # `mb_refine` MuJoCo steps per Rapier physics step; the chamber substep (physics_dt / chamber_substeps)
-        # stays the scene's, so the valve and chambers are integrated with the same step on both sides.
+        # `mb_refine` MuJoCo steps per Rapier physics step or per control tick, whichever is shorter (a
+        # physics step may span several ticks: MuJoCo's step does not follow it); the chamber substep
+        # (min(physics_dt, dt) / chamber_substeps, as in crates/scene) stays the scene's, so the valve and
+        # chambers are integrated with the same step on both sides.
         chamber = int(scene["plant"]["chamber_substeps"])
         if mb_refine < 1 or chamber % mb_refine != 0:
             raise ValueError(f"mb_refine = {mb_refine} must divide plant.chamber_substeps = {chamber}")
-        spec.timestep_s /= mb_refine
-        steps = max(1, round(float(scene["dt_s"]) / float(scene["plant"]["physics_dt_s"]))) * mb_refine
+        dt = float(scene["dt_s"])
+        spec.timestep_s = min(float(scene["plant"]["physics_dt_s"]), dt) / mb_refine
+        steps = round(dt / spec.timestep_s)
         return Coupled(scene_path, scene, spec, mjcf.build_mjcf(spec), steps, chamber // mb_refine, "multibody")
     return Coupled(scene_path, scene, spec, mjcf.build_mjcf(spec), substeps)
 

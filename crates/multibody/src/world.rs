@@ -556,6 +556,11 @@ impl RigWorld {
                     other_g
                 };
                 rig.world.colliders[h].set_collision_groups(g);
+                // Never paired: out of the broad phase altogether (the shape casts of `first_touch` above
+                // and the viewers' geometry do not need it enabled; colliders carry no mass).
+                if g == other_g {
+                    rig.world.colliders[h].set_enabled(false);
+                }
             }
         }
         let min_xe = materials
@@ -574,8 +579,8 @@ impl RigWorld {
             ip.static_contact_softness = SpringCoefficients::new(1.0e6, 1.0);
             ip.warmstart_joints = true;
             ip.max_ccd_substeps = 0;
-            // Recycled (stale) contact points survived the carriage slide and pushed across a gap: always
-            // recompute contacts; the rig has one or two pairs, so this costs little.
+            // Recycled (stale) contact points survived the carriage slide and pushed across a gap: off while
+            // the carriage moves, on while it rests (set before every step in `step_with_force`).
             ip.contact_recycling = false;
         }
 
@@ -700,6 +705,10 @@ impl RigWorld {
                 c.add_force(-f, true);
             }
         }
+        // Contact points are recycled from the last step only while the carriage rests: the pair then moves
+        // by µm per step and recomputing its manifold is wasted work (~9 % of the tick); while the
+        // carriage moves, stale points survived its slide and pushed across a 1 cm gap, so never then.
+        self.rig.world.integration_parameters.contact_recycling = self.motion.is_none();
         self.advance_carriage(self.time_s + dt);
         self.rig.world.step();
         if std::mem::take(&mut self.settle_faces) {

@@ -124,7 +124,7 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
         ),
         PlantSpec::Multibody(mb) => (
             scene.resolve(&mb.actuator),
-            mb.physics_dt_s / f64::from(mb.chamber_substeps),
+            mb.chamber_substep_s(scene.dt_s),
             "plant.chamber_substeps",
             f64::from(mb.chamber_substeps),
         ),

@@ -1,10 +1,22 @@
 //! The multibody plant: the rig of `pneuflex-multibody` (URDF -> Rapier world, compliant wood and iron
 //! faces on a kinematic carriage) driven by the pneumatic force element of the actuator sheet.
 //!
-//! One control tick of `dt_s` is a whole number of Rapier steps of `physics_dt_s`; the valve command is
-//! held over the tick (zero-order hold) and the chambers are integrated `chamber_substeps` times per
-//! physics step. Mechanics (mass, K_v, stroke) come from the URDF; the pneumatics and the Coulomb
-//! friction law from the actuator sheet (the URDF has only viscous joint damping).
+//! Either one control tick of `dt_s` is a whole number of Rapier steps of `physics_dt_s`, or one Rapier
+//! step spans a whole number n of control ticks (`physics_dt_s = n dt_s`). The valve command is held over
+//! the tick (zero-order hold); the chambers are integrated `chamber_substeps` times per physics step or
+//! per tick, whichever is shorter, so the chambers and the controller always run at the tick.
+//!
+//! A physics step of n ticks (docs/scenes.md, "Physics step longer than the tick"): the chambers see the
+//! flange of the last physics step (x_s, v_s at t_s) moving on at its velocity,
+//!     x(t) = x_s + v_s (t - t_s),  x'(t) = v_s   (held at a stop it would cross, at rest),   (S1)
+//! exactly what the force element assumes inside one physics step (one tick per step is the same
+//! computation, bit for bit); the sensors read (S1) at the tick and the load cell's last value (the mean
+//! contact force of the last physics step, held). After the n-th tick Rapier steps over n dt_s with the
+//! mean of the n ticks' force, so the impulse it applies is the chambers' impulse over the step,
+//!     F_step = (1/n) sum_j F_j,  F_j = the tick's substep-averaged piston force minus friction.   (S2)
+//! Events fall on physics steps (validated at load).
+//! Mechanics (mass, K_v, stroke) come from the URDF; the pneumatics and the Coulomb friction law from
+//! the actuator sheet (the URDF has only viscous joint damping).
 
 use std::path::PathBuf;
 
@@ -50,8 +62,17 @@ pub struct MultibodyPlant {
     drive0: FlangeDrive,
     drive: FlangeDrive,
     steps_per_tick: u32,
+    /// Control ticks per physics step (1, or n when `physics_dt_s = n dt_s`).
+    ticks_per_step: u32,
+    /// Ticks of the physics step in progress already integrated (0 .. ticks_per_step).
+    tick_in_step: u32,
+    /// Sum of those ticks' forces on the flange, N (eq. (S2)).
+    force_sum_n: f64,
     flange_mass_kg: f64,
+    /// The last physics step's sensor reading.
     last: Measurements,
+    /// What the sensors read now: `last`, or (S1) between physics steps.
+    sensed: Measurements,
 }
 
 impl std::fmt::Debug for MultibodyPlant {
@@ -161,8 +182,12 @@ impl MultibodyPlant {
             drive0: drive.clone(),
             drive,
             steps_per_tick: mb.steps_per_tick(scene.dt_s),
+            ticks_per_step: mb.ticks_per_step(scene.dt_s),
+            tick_in_step: 0,
+            force_sum_n: 0.0,
             flange_mass_kg,
             last,
+            sensed: last,
         })
     }
 
@@ -181,9 +206,14 @@ impl MultibodyPlant {
         &self.config
     }
 
-    /// Physics steps per control tick.
+    /// Physics steps per control tick (1 when a physics step spans several ticks).
     pub fn steps_per_tick(&self) -> u32 {
         self.steps_per_tick
+    }
+
+    /// Control ticks per physics step (1 when a tick holds one or more physics steps).
+    pub fn ticks_per_step(&self) -> u32 {
+        self.ticks_per_step
     }
 
     /// Flange mass from the URDF, kg.
@@ -200,9 +230,9 @@ impl MultibodyPlant {
             .map_or(0.0, |j| j.dynamics.as_ref().map_or(0.0, |d| d.damping))
     }
 
-    /// The last load-cell and flange reading.
+    /// The last load-cell and flange reading (between physics steps: eq. (S1) and the held load cell).
     pub fn measurements(&self) -> Measurements {
-        self.last
+        self.sensed
     }
 
     /// What a link is to the experiment, from the configuration's link roles: the flange link, the
@@ -231,6 +261,20 @@ impl MultibodyPlant {
             }
         }
         false
+    }
+
+    /// The flange `tau` seconds after the last physics step, eq. (S1), held at its stops: an
+    /// extrapolation that leaves [0, stroke] stops at the end it crosses, at rest (the joint limit holds
+    /// the flange there); a stop Rapier's own step has overshot stays where Rapier put it.
+    fn between_steps(&self, tau: f64) -> (f64, f64) {
+        let (x_s, v_s) = self.world.flange_state();
+        let x = x_s + v_s * tau;
+        let (lo, hi) = (x_s.min(0.0), x_s.max(self.world.stroke()));
+        if x < lo || x > hi {
+            (x.clamp(lo, hi), 0.0)
+        } else {
+            (x, v_s)
+        }
     }
 
     fn event_error(&self, e: MultibodyError) -> crate::plant::PlantError {
@@ -295,9 +339,9 @@ impl Plant for MultibodyPlant {
         let (p_a, p_b) = self.drive.element.pressures();
         Sensors {
             t: 0.0,
-            x: self.last.x,
-            x_dot: self.last.x_dot,
-            f_e: self.last.f_e,
+            x: self.sensed.x,
+            x_dot: self.sensed.x_dot,
+            f_e: self.sensed.f_e,
             p_a,
             p_b,
         }
@@ -307,10 +351,34 @@ impl Plant for MultibodyPlant {
         self.drive.element.set_command(command.u);
     }
 
-    fn advance(&mut self, _dt: f64) {
-        // dt_s = steps_per_tick · physics_dt_s (validated at load).
-        for _ in 0..self.steps_per_tick {
-            self.last = self.world.step(&mut self.drive);
+    fn advance(&mut self, dt: f64) {
+        if self.ticks_per_step == 1 {
+            // dt_s = steps_per_tick · physics_dt_s (validated at load).
+            for _ in 0..self.steps_per_tick {
+                self.last = self.world.step(&mut self.drive);
+            }
+            self.sensed = self.last;
+            return;
+        }
+        // physics_dt_s = n dt_s: this tick's chambers along (S1), Rapier after the n-th tick with (S2).
+        let j = f64::from(self.tick_in_step);
+        let (x_j, v_j) = self.between_steps(j * dt);
+        self.force_sum_n += self.drive.force(x_j, v_j, dt);
+        self.tick_in_step += 1;
+        if self.tick_in_step == self.ticks_per_step {
+            let f = self.force_sum_n / f64::from(self.ticks_per_step);
+            self.last = self.world.step_with_force(f);
+            self.sensed = self.last;
+            self.tick_in_step = 0;
+            self.force_sum_n = 0.0;
+        } else {
+            let (x, x_dot) = self.between_steps((j + 1.0) * dt);
+            self.sensed = Measurements {
+                t_s: self.last.t_s + (j + 1.0) * dt,
+                x,
+                x_dot,
+                ..self.last
+            };
         }
     }
 
@@ -427,7 +495,7 @@ impl Plant for MultibodyPlant {
         crate::plant::chamber_invariants(
             &el.chambers,
             &el.actuator.supply,
-            self.last.x,
+            self.sensed.x,
             self.world.stroke(),
         )
     }
@@ -437,6 +505,7 @@ impl Plant for MultibodyPlant {
         match RigWorld::from_robot(&self.urdf_file, &self.robot, &self.config) {
             Ok(w) => {
                 self.last = w.measurements();
+                self.sensed = self.last;
                 self.world = w;
             }
             Err(e) => unreachable!(
@@ -445,6 +514,8 @@ impl Plant for MultibodyPlant {
             ),
         }
         self.drive = self.drive0.clone();
+        self.tick_in_step = 0;
+        self.force_sum_n = 0.0;
     }
 }
 

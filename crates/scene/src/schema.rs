@@ -184,12 +184,14 @@ pub struct MultibodySpec {
     pub urdf: PathBuf,
     /// Actuator sheet (TOML) of the pneumatic force element, relative to the scene file.
     pub actuator: PathBuf,
-    /// Rapier physics step, s; the control period `dt_s` must be a whole number of physics steps.
+    /// Rapier physics step, s: `dt_s` is a whole number of physics steps, or a physics step is a whole
+    /// number of control periods (the chambers and the controller still run at `dt_s`).
     pub physics_dt_s: f64,
     /// Rapier solver iterations per physics step.
     #[serde(default = "default_solver_iterations")]
     pub solver_iterations: usize,
-    /// Chamber (valve + thermodynamics) substeps per physics step.
+    /// Chamber (valve + thermodynamics) substeps per physics step, or per control period when a
+    /// physics step spans several.
     #[serde(default = "default_chamber_substeps")]
     pub chamber_substeps: u32,
     /// Incline of the actuator axis below horizontal, degrees. Absent: the actuator sheet's value.
@@ -217,9 +219,21 @@ impl MultibodySpec {
         }
     }
 
-    /// Physics steps per control period `dt_s` (rounded; validation requires a whole number).
+    /// Physics steps per control period `dt_s` (rounded; validation requires a whole number; 1 when a
+    /// physics step spans several control periods).
     pub fn steps_per_tick(&self, dt_s: f64) -> u32 {
         (dt_s / self.physics_dt_s).round().max(1.0) as u32
+    }
+
+    /// Control periods per physics step (rounded; validation requires a whole number; 1 when a control
+    /// period holds one or more physics steps).
+    pub fn ticks_per_step(&self, dt_s: f64) -> u32 {
+        (self.physics_dt_s / dt_s).round().max(1.0) as u32
+    }
+
+    /// The chamber substep, s: `chamber_substeps` per physics step or per control period, the shorter.
+    pub fn chamber_substep_s(&self, dt_s: f64) -> f64 {
+        self.physics_dt_s.min(dt_s) / f64::from(self.chamber_substeps)
     }
 }
 
@@ -651,9 +665,7 @@ impl Scene {
             PlantSpec::Pneumatic { substeps, .. } | PlantSpec::Linear { substeps, .. } => {
                 f64::from(*substeps)
             }
-            PlantSpec::Multibody(mb) => {
-                (self.dt_s / mb.physics_dt_s).round().max(1.0) * f64::from(mb.chamber_substeps)
-            }
+            PlantSpec::Multibody(mb) => self.dt_s / mb.chamber_substep_s(self.dt_s),
         };
         // Rows are ticks + 1; 11 columns of f64 for adaptive runs, 8 otherwise.
         let row_bytes: f64 = self
@@ -1116,15 +1128,38 @@ impl Scene {
             return Err(v.err("plant.actuator", "must name an actuator sheet".into()));
         }
         v.positive("plant.physics_dt_s", mb.physics_dt_s)?;
+        let whole = |r: f64| r >= 1.0 - 1e-9 && (r - r.round()).abs() <= 1e-6 * r.max(1.0);
         let ratio = self.dt_s / mb.physics_dt_s;
-        if ratio < 1.0 - 1e-9 || (ratio - ratio.round()).abs() > 1e-6 * ratio.max(1.0) {
+        let inverse = mb.physics_dt_s / self.dt_s;
+        if !whole(ratio) && !whole(inverse) {
             return Err(v.err(
                 "plant.physics_dt_s",
                 format!(
-                    "dt_s ({}) must be a whole number (>= 1) of physics steps, got dt_s / physics_dt_s = {ratio}",
+                    "must divide dt_s ({}) or be a whole multiple of it, got physics_dt_s / dt_s = {inverse}",
                     self.dt_s
                 ),
             ));
+        }
+        if inverse.round() > 1000.0 {
+            return Err(v.err(
+                "plant.physics_dt_s",
+                format!("must be at most 1000 dt_s, got {inverse} dt_s"),
+            ));
+        }
+        // A physics step of several ticks: an event changes the rig between physics steps only.
+        if inverse.round() > 1.0 {
+            for (i, e) in self.events.iter().enumerate() {
+                let k = e.t_s() / mb.physics_dt_s;
+                if (k - k.round()).abs() > 1e-6 * k.abs().max(1.0) {
+                    return Err(v.err(
+                        &format!("events[{i}].t_s"),
+                        format!(
+                            "must be a whole number of physics steps (plant.physics_dt_s = {} s) when a physics step spans several control periods, got t_s / physics_dt_s = {k}",
+                            mb.physics_dt_s
+                        ),
+                    ));
+                }
+            }
         }
         if mb.solver_iterations == 0 || mb.solver_iterations > 1000 {
             return Err(v.err(

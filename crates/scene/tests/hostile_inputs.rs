@@ -99,7 +99,7 @@ fn a_scene_that_is_a_directory_or_a_fifo_is_a_clear_error_not_a_hang() {
 fn runs_beyond_the_step_and_memory_limits_are_refused_with_the_number_and_the_flag() {
     let (text, path) = shipped("paper-fig7-wood-to-iron.toml");
     let s = load(
-        &text.replacen("physics_dt_s = 0.001", "physics_dt_s = 1e-12", 1),
+        &text.replacen("physics_dt_s = 0.002", "physics_dt_s = 1e-12", 1),
         &path,
     )
     .unwrap();

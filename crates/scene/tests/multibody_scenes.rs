@@ -124,10 +124,10 @@ fn a_missing_mount_joint_names_the_urdf_and_the_joint() {
 
 #[test]
 fn a_control_period_that_is_not_whole_physics_steps_is_rejected() {
-    let msg = scene_err(&fig7_text().replace("physics_dt_s = 0.001", "physics_dt_s = 0.0003"));
+    let msg = scene_err(&fig7_text().replace("physics_dt_s = 0.002", "physics_dt_s = 0.0003"));
     assert!(
         msg.starts_with(
-            "scenes/x.toml:17:16: plant.physics_dt_s: dt_s (0.001) must be a whole number"
+            "scenes/x.toml:17:16: plant.physics_dt_s: must divide dt_s (0.001) or be a whole multiple of it"
         ),
         "{msg}"
     );

@@ -132,8 +132,9 @@ fn wood_to_iron_claims_of_fig7() {
     let (res, claims) = run("paper-fig7-wood-to-iron.toml");
     bounded(&res, 60.0);
     // With the PWM edges located inside the step (issue 13 item 1) the impact peaks are a tie that
-    // impedance wins by 0.06 N (45.270 vs 45.210 N; before: 45.15 vs 47.67 N, set by where in the PWM
-    // cycle the flange met the iron face), and adaptive settles faster (1.26 vs 2.33 s).
+    // impedance wins by 0.3 N (45.34 vs 45.07 N with the 2 ms physics step; 45.27 vs 44.84 N at 1 ms; before
+    // issue 13: 45.15 vs 47.67 N, set by where in the PWM cycle the flange met the iron face), and adaptive
+    // settles faster (1.28 vs 2.37 s; 1.26 vs 2.33 s at 1 ms).
     verdicts(
         &claims,
         &[
