@@ -12,6 +12,7 @@ mod errors;
 mod model;
 mod plant;
 mod scene;
+mod sweep;
 
 use pyo3::prelude::*;
 
@@ -34,6 +35,9 @@ mod _native {
         bench_rapier, bench_scene_ticks, initial_state, load_scene, loop_signals, run,
         run_with_summary, summarize,
     };
+
+    #[pymodule_export]
+    use crate::sweep::{sweep_plan, sweep_rows, tune_evaluate, tune_run};
 
     #[cfg(feature = "figures")]
     #[pymodule_export]

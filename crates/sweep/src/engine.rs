@@ -189,6 +189,28 @@ impl Sweep {
         samples: Option<usize>,
         seed: u64,
     ) -> Result<Sweep, SweepError> {
+        let sweep = Self::new_unchecked(scene_path, sets, samples, seed)?;
+        // Structural key errors are the same at every point: the first point says them once.
+        sweep.scene_at(0)?;
+        let first_bad = (1..sweep.len())
+            .into_par_iter()
+            .map(|i| sweep.scene_at(i).err())
+            .find_first(Option::is_some)
+            .flatten();
+        if let Some(e) = first_bad {
+            return Err(e);
+        }
+        Ok(sweep)
+    }
+
+    /// [`Sweep::new`] without checking every point (a worker that runs a chunk of a sweep its caller has
+    /// checked: each point's scene is still built, and refused, by [`Sweep::run_point`]).
+    pub fn new_unchecked(
+        scene_path: &Path,
+        sets: &[SetArg],
+        samples: Option<usize>,
+        seed: u64,
+    ) -> Result<Sweep, SweepError> {
         let base_scene = Scene::load(scene_path)?;
         let base = Base::load(scene_path)?;
         let points = crate::spec::points(sets, samples, seed)?;
@@ -214,16 +236,6 @@ impl Sweep {
             seed,
             base,
         };
-        // Structural key errors are the same at every point: the first point says them once.
-        sweep.scene_at(0)?;
-        let first_bad = (1..sweep.len())
-            .into_par_iter()
-            .map(|i| sweep.scene_at(i).err())
-            .find_first(Option::is_some)
-            .flatten();
-        if let Some(e) = first_bad {
-            return Err(e);
-        }
         Ok(sweep)
     }
 

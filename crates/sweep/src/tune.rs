@@ -537,6 +537,17 @@ impl Tuner {
         opts: &TuneOptions,
         tick: &(dyn Fn() + Sync),
     ) -> Result<Vec<HistoryRow>, SweepError> {
+        self.search_with(opts, tick, &|x| self.evaluate(x))
+    }
+
+    /// [`Tuner::search`] with the candidates evaluated by `evaluate` (e.g. on a Ray cluster: it must return
+    /// what [`Tuner::evaluate`] would).
+    pub fn search_with(
+        &self,
+        opts: &TuneOptions,
+        tick: &(dyn Fn() + Sync),
+        evaluate: &(dyn Fn(&[f64]) -> Evaluation + Sync),
+    ) -> Result<Vec<HistoryRow>, SweepError> {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)
             .build()
@@ -544,7 +555,7 @@ impl Tuner {
         let generation_rows: Mutex<Vec<Evaluation>> = Mutex::new(Vec::new());
         let objective = |y: &DVector<f64>| -> f64 {
             let x = self.from_search(y.as_slice());
-            let ev = self.evaluate(&x);
+            let ev = evaluate(&x);
             let rank = ev.rank;
             generation_rows
                 .lock()
@@ -608,6 +619,70 @@ impl Tuner {
             head.push('\n');
         }
         Ok(head + &edited.scene_text)
+    }
+}
+
+impl Evaluation {
+    /// A text form that reads back exactly ([`Evaluation::decode`]): numbers as their shortest round-trip
+    /// text (`inf` included), one line per environment. For evaluations made elsewhere (a Ray worker).
+    pub fn encode(&self) -> String {
+        let num = |x: f64| format!("{x}");
+        let mut s = format!(
+            "{}\t{}\t{}\n",
+            self.x.iter().map(|v| num(*v)).collect::<Vec<_>>().join(","),
+            num(self.j),
+            num(self.rank)
+        );
+        for e in &self.envs {
+            let terms: Vec<String> = e.terms.iter().map(|t| t.map_or("-".into(), num)).collect();
+            s.push_str(&format!(
+                "{}\t{}\t{}\n",
+                num(e.j),
+                terms.join(","),
+                e.status.replace(['\t', '\n'], " ")
+            ));
+        }
+        s
+    }
+
+    /// Reads [`Evaluation::encode`]'s text.
+    pub fn decode(text: &str) -> Option<Evaluation> {
+        let mut lines = text.lines();
+        let head: Vec<&str> = lines.next()?.split('\t').collect();
+        let nums = |s: &str| -> Option<Vec<f64>> {
+            if s.is_empty() {
+                return Some(Vec::new());
+            }
+            s.split(',').map(|v| v.parse().ok()).collect()
+        };
+        let (x, j, rank) = (
+            nums(head.first()?)?,
+            head.get(1)?.parse().ok()?,
+            head.get(2)?.parse().ok()?,
+        );
+        let mut envs = Vec::new();
+        for line in lines {
+            let f: Vec<&str> = line.splitn(3, '\t').collect();
+            let terms = if f.get(1)?.is_empty() {
+                Vec::new()
+            } else {
+                f[1].split(',')
+                    .map(|t| {
+                        if t == "-" {
+                            Some(None)
+                        } else {
+                            t.parse().ok().map(Some)
+                        }
+                    })
+                    .collect::<Option<Vec<_>>>()?
+            };
+            envs.push(EnvEval {
+                j: f.first()?.parse().ok()?,
+                terms,
+                status: f.get(2)?.to_string(),
+            });
+        }
+        Some(Evaluation { x, j, rank, envs })
     }
 }
 

@@ -20,9 +20,14 @@ The classes and functions come from the Rust crates through the native module ``
   p_b)``, ``actuate(u, x_r)``, ``advance(dt)``; MuJoCo in crossval/). ``loop_signals()``: the loop's recorded
   signals [(name, unit, group)]; ``Controller.signals`` / ``Controller.record()``: the controller's own.
 
+- ``sweep(scene, sets, samples=None, seed=0, executor="local")`` -> sweep.csv's table;
+  ``tune(scene, free, over, out=...)`` -> tune.json as a dict; executors ``"local"`` / ``LocalExecutor(threads)``
+  (the Rust pool) or ``"ray"`` / ``RayExecutor(chunk_size)`` (Ray tasks; the same table). See ``pneuflex.sweeps``.
+
 SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError`` for unreadable files,
 ``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key.
 """
 
 from ._native import *  # noqa: F401,F403
 from ._native import PneuflexError, __version__  # noqa: F401
+from .sweeps import LocalExecutor, RayExecutor, sweep, tune  # noqa: F401,E402

@@ -1,0 +1,196 @@
+//! Sweeps and tuning from Python (`pneuflex.sweep`, `pneuflex.tune` in python/pneuflex/sweeps.py): the Rust
+//! engine of `crates/sweep`, split so that an executor can run chunks of points (or candidates) elsewhere —
+//! a Ray task calls `sweep_rows` / `tune_evaluate` on its share — and gather them into the same table (or
+//! search) as the local thread pool.
+
+use std::path::PathBuf;
+
+use pneuflex_sweep::tune::{Evaluation, FreeArg, Term, TuneOptions, Tuner};
+use pneuflex_sweep::{SetArg, Sweep, SweepError};
+use pyo3::prelude::*;
+
+use crate::errors;
+
+fn err(e: SweepError) -> PyErr {
+    match e {
+        SweepError::Scene(s) => errors::scene(s),
+        other => errors::other(other),
+    }
+}
+
+fn sets(specs: &[String]) -> PyResult<Vec<SetArg>> {
+    specs
+        .iter()
+        .map(|s| SetArg::parse(s).map_err(|e| err(e.into())))
+        .collect()
+}
+
+/// Checks every point of a sweep (the scene's own validation, before anything runs) and returns
+/// `(number of points, the table's header line)`.
+#[pyfunction]
+#[pyo3(signature = (scene_path, sets, samples=None, seed=0))]
+pub fn sweep_plan(
+    py: Python<'_>,
+    scene_path: PathBuf,
+    sets: Vec<String>,
+    samples: Option<usize>,
+    seed: u64,
+) -> PyResult<(usize, String)> {
+    let s = self::sets(&sets)?;
+    let sweep = py
+        .detach(|| Sweep::new(&scene_path, &s, samples, seed))
+        .map_err(err)?;
+    Ok((sweep.len(), sweep.header()))
+}
+
+/// Runs the points `indices` of a sweep on `threads` threads (0: one per core) with the GIL released and
+/// returns their table rows (sweep.csv's lines, in the order of `indices`).
+#[pyfunction]
+#[pyo3(signature = (scene_path, sets, indices, samples=None, seed=0, threads=0))]
+pub fn sweep_rows(
+    py: Python<'_>,
+    scene_path: PathBuf,
+    sets: Vec<String>,
+    indices: Vec<usize>,
+    samples: Option<usize>,
+    seed: u64,
+    threads: usize,
+) -> PyResult<String> {
+    let s = self::sets(&sets)?;
+    py.detach(|| -> Result<String, SweepError> {
+        let sweep = Sweep::new_unchecked(&scene_path, &s, samples, seed)?;
+        if let Some(i) = indices.iter().find(|&&i| i >= sweep.len()) {
+            return Err(SweepError::Other(format!(
+                "point {i}: the sweep has {} points",
+                sweep.len()
+            )));
+        }
+        let results = sweep.run(&indices, threads, None, &|| {})?;
+        Ok(results.iter().map(|p| sweep.rows(p)).collect())
+    })
+    .map_err(err)
+}
+
+fn tuner(
+    scene_path: &std::path::Path,
+    free: &[String],
+    over: &[String],
+    run: Option<&str>,
+    terms: &[String],
+) -> Result<Tuner, SweepError> {
+    let free = free
+        .iter()
+        .map(|s| FreeArg::parse(s))
+        .collect::<Result<Vec<_>, _>>()?;
+    let over = over
+        .iter()
+        .map(|s| SetArg::parse(s).map_err(SweepError::from))
+        .collect::<Result<Vec<_>, _>>()?;
+    let terms = terms
+        .iter()
+        .map(|s| Term::parse(s))
+        .collect::<Result<Vec<_>, _>>()?;
+    Tuner::new(scene_path, free, &over, run, terms)
+}
+
+/// One candidate of a tune, evaluated here: its text form (`Evaluation::encode`), for a remote executor.
+#[pyfunction]
+#[pyo3(signature = (scene_path, free, over, x, run=None, terms=Vec::new()))]
+pub fn tune_evaluate(
+    py: Python<'_>,
+    scene_path: PathBuf,
+    free: Vec<String>,
+    over: Vec<String>,
+    x: Vec<f64>,
+    run: Option<String>,
+    terms: Vec<String>,
+) -> PyResult<String> {
+    py.detach(|| -> Result<String, SweepError> {
+        let t = tuner(&scene_path, &free, &over, run.as_deref(), &terms)?;
+        if x.len() != t.free.len() {
+            return Err(SweepError::Other(format!(
+                "{} values for {} free keys",
+                x.len(),
+                t.free.len()
+            )));
+        }
+        Ok(t.evaluate(&x).encode())
+    })
+    .map_err(err)
+}
+
+/// Runs a tune and writes its outputs into `out` (the tuned scene, report.md, convergence.png,
+/// history.csv, tune.json). `evaluate`, when given, is called with each candidate's values and returns
+/// `tune_evaluate`'s text (a remote executor); otherwise the candidates run on the Rust pool. Returns
+/// tune.json's content as a JSON string.
+#[pyfunction]
+#[pyo3(signature = (scene_path, free, over, out, run=None, terms=Vec::new(), budget=200, seed=0, population=None, sigma0=0.3, threads=0, evaluate=None, command=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn tune_run(
+    py: Python<'_>,
+    scene_path: PathBuf,
+    free: Vec<String>,
+    over: Vec<String>,
+    out: PathBuf,
+    run: Option<String>,
+    terms: Vec<String>,
+    budget: usize,
+    seed: u64,
+    population: Option<usize>,
+    sigma0: f64,
+    threads: usize,
+    evaluate: Option<Py<PyAny>>,
+    command: Option<String>,
+) -> PyResult<String> {
+    let t = py
+        .detach(|| tuner(&scene_path, &free, &over, run.as_deref(), &terms))
+        .map_err(err)?;
+    let opts = TuneOptions {
+        budget,
+        seed,
+        population,
+        sigma0,
+        threads,
+    };
+    let failed = std::sync::Mutex::new(None::<String>);
+    let history = py
+        .detach(|| match &evaluate {
+            None => t.search(&opts, &|| {}),
+            Some(f) => t.search_with(&opts, &|| {}, &|x: &[f64]| {
+                let text = Python::attach(|py| -> PyResult<String> {
+                    f.call1(py, (x.to_vec(),))?.extract::<String>(py)
+                });
+                match text.map(|s| Evaluation::decode(&s)) {
+                    Ok(Some(ev)) => ev,
+                    other => {
+                        let why = match other {
+                            Err(e) => e.to_string(),
+                            _ => "the executor's answer is not an evaluation".into(),
+                        };
+                        failed
+                            .lock()
+                            .unwrap_or_else(|e| e.into_inner())
+                            .get_or_insert(why);
+                        Evaluation {
+                            x: x.to_vec(),
+                            j: f64::INFINITY,
+                            rank: 1e15,
+                            envs: Vec::new(),
+                        }
+                    }
+                }
+            }),
+        })
+        .map_err(err)?;
+    if let Some(why) = failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(errors::other(format!(
+            "a candidate's evaluation failed: {why}"
+        )));
+    }
+    std::fs::create_dir_all(&out).map_err(|e| errors::other(format!("{}: {e}", out.display())))?;
+    let command = command.unwrap_or_else(|| format!("pneuflex.tune({})", scene_path.display()));
+    let summary = py
+        .detach(|| pneuflex_sweep::tune_output::write(&out, &t, &opts, &history, &command))
+        .map_err(err)?;
+    serde_json::to_string(&summary).map_err(errors::other)
+}
