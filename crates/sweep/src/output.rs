@@ -49,9 +49,12 @@ fn heatmap_cells(
     let name = sweep.columns[metric].name();
     let value = |p: &PointResult, run: usize| -> Option<f64> {
         let r = p.runs.get(run)?;
+        // A run that never settled (a limit cycle, an end stop, lost contact) is drawn as not working
+        // (grey, a circle) whatever the metric: its number would describe a run that does not work.
         match r.status {
             Status::Diverged | Status::Error => None,
-            Status::Ok | Status::NotSettled => r.metrics[metric].or(Some(f64::NAN)),
+            Status::NotSettled => Some(f64::INFINITY),
+            Status::Ok => r.metrics[metric].or(Some(f64::NAN)),
         }
     };
     // Point index = x * ny + y (the first key varies slowest); cells row by row from the bottom.
