@@ -132,6 +132,49 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Fit actuator-sheet parameters to rig logs (docs/identification.md): replay the logged valve command
+    /// through the 1-DOF model, Levenberg-Marquardt, 95 % intervals, report, fitted sheet.
+    Identify {
+        /// Rig traces (trace.csv of `rig run` / `rig excite`); repeat for several logs.
+        #[arg(long = "log", required = true)]
+        logs: Vec<PathBuf>,
+        /// The actuator sheet to start from (pneumatics/*.toml).
+        #[arg(long)]
+        actuator: PathBuf,
+        /// Parameters to fit, comma-separated dotted keys (valve.sonic_conductance_m3_per_s_pa, ...).
+        #[arg(long, required = true)]
+        free: Vec<String>,
+        /// Bounds of a free parameter, KEY=[lo,hi]; repeat for several.
+        #[arg(long)]
+        bounds: Vec<String>,
+        /// Output directory (default: out/identify/<folder of the first log>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Fraction of each log held out at its end for validation.
+        #[arg(long, default_value_t = 0.2)]
+        validation: f64,
+        /// Segment length of the replay, s (each segment restarts from the measured state).
+        #[arg(long, default_value_t = 0.1)]
+        segment: f64,
+        /// Start of each segment left out of the comparison, s.
+        #[arg(long, default_value_t = 0.015)]
+        settle: f64,
+    },
+    /// Write a hidden truth for identification tests: the sheet with KEYS each moved 20-40 % (seeded).
+    Perturb {
+        /// The actuator sheet to perturb.
+        #[arg(long)]
+        actuator: PathBuf,
+        /// Keys to perturb, comma-separated.
+        #[arg(long, required = true)]
+        keys: Vec<String>,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// New directory for the sheets and truth.json.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
     Rig {
         #[command(subcommand)]
@@ -152,6 +195,15 @@ enum RigCommand {
         /// Stop after this many seconds (default: until Ctrl-C).
         #[arg(long)]
         duration: Option<f64>,
+        /// Hide a truth: the plant runs this actuator sheet (and its supply), which the host does not know.
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        /// Sensor-noise seed (with --truth; default: the rig file's emulator.seed).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Transport delay of valve commands in seconds, whole sample periods (with --truth).
+        #[arg(long)]
+        delay: Option<f64>,
     },
     /// Processor-in-the-loop: a scene's controllers in the firmware on an emulated Cortex-M4F (QEMU
     /// mps2-an386), the plant simulated in lockstep, compared tick by tick with the host (docs/firmware.md).
@@ -172,6 +224,47 @@ enum RigCommand {
         /// `spawn` or `connect <url>`. Needs the `rerun` feature.
         #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
         rerun: Option<Vec<String>>,
+    },
+    /// Excite the valve for identification (docs/identification.md): a PRBS, chirp or steps plus a weak
+    /// centring term, under the supervisor's limits, logged like `rig run`.
+    Excite {
+        /// Serial port of the I/O board (default: the rig file's link.port).
+        #[arg(long)]
+        port: Option<String>,
+        /// Rig file (rigs/*.toml).
+        #[arg(long, default_value = "rigs/emulated.toml")]
+        rig: PathBuf,
+        /// prbs, chirp or steps.
+        #[arg(long, default_value = "steps")]
+        signal: String,
+        /// Amplitude of the signal, command units (0-1).
+        #[arg(long, default_value_t = 0.05)]
+        amplitude: f64,
+        /// Length, s.
+        #[arg(long, default_value_t = 10.0)]
+        duration: f64,
+        /// Centre position the centring term holds, m.
+        #[arg(long, default_value_t = 0.025)]
+        centre: f64,
+        /// Centring gain, 1/m (0: none, the piston walks into a stop or rests on the block).
+        #[arg(long, default_value_t = 15.0)]
+        centring: f64,
+        /// Command bias.
+        #[arg(long, default_value_t = 0.0)]
+        bias: f64,
+        /// PRBS bit / step hold time, s (chirp: ignored).
+        #[arg(long, default_value_t = 0.15)]
+        hold: f64,
+        /// Seed of the PRBS / step levels.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output directory for trace.csv (default: out/rig/excite/<signal>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Instead of --port: the rig file's emulator in lockstep with a simulated clock (not real time),
+        /// hiding this actuator sheet; --seed also seeds its sensor noise. For CI and worked examples.
+        #[arg(long, conflicts_with = "port")]
+        lockstep_truth: Option<PathBuf>,
     },
     /// Run one of a scene's controllers on a rig, real or emulated, with the safety supervisor.
     Run {
@@ -306,8 +399,77 @@ fn main() -> ExitCode {
                     rig,
                     port,
                     duration,
+                    truth,
+                    seed,
+                    delay,
                 },
-        } => cmd::rig::emulate(&rig, port.as_deref(), duration),
+        } => cmd::rig::emulate(
+            &rig,
+            port.as_deref(),
+            duration,
+            &cmd::rig::Hidden {
+                truth,
+                seed,
+                delay_s: delay,
+            },
+        ),
+        Command::Identify {
+            logs,
+            actuator,
+            free,
+            bounds,
+            out,
+            validation,
+            segment,
+            settle,
+        } => cmd::identify::identify(
+            logs,
+            &actuator,
+            free,
+            bounds,
+            out.as_deref(),
+            validation,
+            segment,
+            settle,
+        ),
+        Command::Perturb {
+            actuator,
+            keys,
+            seed,
+            out,
+        } => cmd::identify::perturb(&actuator, &keys, seed, &out),
+        Command::Rig {
+            action:
+                RigCommand::Excite {
+                    port,
+                    rig,
+                    signal,
+                    amplitude,
+                    duration,
+                    centre,
+                    centring,
+                    bias,
+                    hold,
+                    seed,
+                    out,
+                    lockstep_truth,
+                },
+        } => cmd::rig::excite(
+            &rig,
+            port.as_deref(),
+            &cmd::rig::ExciteArgs {
+                signal,
+                amplitude,
+                duration_s: duration,
+                centre_m: centre,
+                centring_per_m: centring,
+                bias,
+                hold_s: hold,
+                seed,
+                lockstep_truth,
+            },
+            out.as_deref(),
+        ),
         Command::Rig {
             action:
                 RigCommand::Run {

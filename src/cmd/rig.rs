@@ -256,6 +256,9 @@ pub struct ExciteArgs {
     pub hold_s: f64,
     /// Seed.
     pub seed: u64,
+    /// Instead of a port: the rig file's emulator in lockstep with a simulated clock (not real time, no
+    /// pty), hiding this actuator sheet, sensor noise seeded with `seed` (for CI and worked examples).
+    pub lockstep_truth: Option<std::path::PathBuf>,
 }
 
 /// `pneuflex rig excite`: an identification experiment (pneuflex_identify::excite) on the rig, through the
@@ -298,15 +301,49 @@ pub fn excite(
         Some(d) => d.to_path_buf(),
         None => Path::new("out").join("rig").join("excite").join(&a.signal),
     };
-    run(
-        rig_file,
-        port,
-        None,
+    let Some(truth) = &a.lockstep_truth else {
+        return run(
+            rig_file,
+            port,
+            None,
+            &mut controller,
+            &mut reference,
+            a.duration_s,
+            &out_dir,
+            &mut (),
+        )
+        .map(|_| ());
+    };
+    // Lockstep: the board steps once per loop tick on a simulated clock (as crates/rig's tests run it).
+    check_duration(a.duration_s).map_err(|e| anyhow!("--duration: {}", e.message))?;
+    let mut rig = RigFile::load(rig_file)?;
+    session::hide_truth(&mut rig, rig_file, truth, Some(a.seed), None)?;
+    let mut clock = pneuflex_rig::clock::SimClock::new();
+    let (link, _log) = session::lockstep_emulator(&rig, rig_file, clock.clone())?;
+    let mut link_clock = clock.clone();
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let rec = record::record(
+        &rig,
+        || serial::connect_link(link, &rig, &mut link_clock),
+        &out_dir,
+        &[(rig_file, "rig")],
         &mut controller,
         &mut reference,
         a.duration_s,
-        &out_dir,
-        &mut (),
-    )
-    .map(|_| ())
+        &stop,
+        &mut clock,
+    )?;
+    println!("{}", rec.report);
+    let trace = rec.dir.join("trace.csv");
+    if let Some(f) = &rec.report.fault {
+        bail!(
+            "run ended on a fault: {}: {} (tick {}); trace: {}",
+            f.kind,
+            f.message,
+            f.tick,
+            trace.display()
+        );
+    }
+    println!("trace: {}", trace.display());
+    Ok(())
 }

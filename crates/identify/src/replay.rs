@@ -2,10 +2,10 @@
 //! `pneuflex_pneumatics::OneDofModel` (eqs. 1-11), segment by segment.
 //!
 //! Segment-wise fitting (a simple form of multiple shooting): the log is cut into segments of
-//! `segment_s`; each starts from the measured position and pressures (the first from a velocity fitted
-//! to the measured positions), so a long log cannot drift away however wrong the start values
-//! are. Temperatures (not measured), the velocity (see [`ReplayOptions::carry_velocity`]) and the valve's
-//! PWM clock carry over from the previous segment's end.
+//! `segment_s`; each starts from the measured position (the first also from the measured pressures and a
+//! velocity fitted to the measured positions), so a long log cannot drift away however wrong the start values
+//! are. Pressures (see [`ReplayOptions::reset_pressures`]), temperatures (not measured), the velocity (see
+//! [`ReplayOptions::carry_velocity`]) and the valve's PWM clock carry over from the previous segment's end.
 //! The first `settle_s` of each segment, where the start's measurement noise dies out, is not compared.
 //!
 //! Timing (docs/identification.md): row k's command acts from row k to row k+1, as on the rig, where the
@@ -15,6 +15,9 @@ use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState, ValveState};
 
 use crate::log::Log;
 use crate::params::Offsets;
+
+/// Segments after the one following an end-stop impact that are not compared either.
+const SETTLE_AFTER_IMPACT: usize = 2;
 
 /// How a log is replayed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,6 +34,19 @@ pub struct ReplayOptions {
     /// under PWM the acceleration jumps at every spool edge, so a local polynomial through quantised
     /// positions misses the velocity by tens of mm/s, while the replay's own velocity is as good as the fit.
     pub carry_velocity: bool,
+    /// The stroke (m), when known: segments in which the measured position moves into or out of the band
+    /// of `stop_band_m` at either end stop are not compared. The end stops are inelastic (the velocity is
+    /// cut at the impact): whether a replay reaches a stop inside an integration step or just misses it
+    /// flips with the last digit of a parameter, which makes the residuals jump and the Jacobian (and the
+    /// intervals) meaningless there. Segments resting on a stop throughout are kept.
+    pub stroke_m: Option<f64>,
+    /// Width of the end-stop band, m.
+    pub stop_band_m: f64,
+    /// Restart each segment from the measured pressures too (else only the first segment, and after an
+    /// impact): the chamber pressures are stable under the valve's flows, unlike the position, and a restart
+    /// from a noisy reading biases the fit (errors in the variables: the start error decays at a rate that
+    /// depends on C and the volumes).
+    pub reset_pressures: bool,
 }
 
 impl Default for ReplayOptions {
@@ -41,6 +57,9 @@ impl Default for ReplayOptions {
             substeps: 10,
             velocity_half_window: 3,
             carry_velocity: true,
+            stroke_m: None,
+            stop_band_m: 5e-4,
+            reset_pressures: true,
         }
     }
 }
@@ -56,6 +75,9 @@ pub struct Prepared {
     pub v0: Vec<f64>,
     /// Position at each segment's start, m: the same local fit's value (a third of the reading's noise).
     pub x0: Vec<f64>,
+    /// Segments that follow an end-stop impact (see [`ReplayOptions::stroke_m`]): they start from the
+    /// fitted velocity, not the previous segment's, so that the impact's discontinuity does not carry over.
+    pub after_impact: Vec<bool>,
     /// Rows the fit compares (after each segment's settling), in order.
     pub compared: Vec<usize>,
     /// Held-out rows compared for validation only.
@@ -103,10 +125,32 @@ impl Prepared {
             .collect();
         let v0 = fits.iter().map(|f| f[1]).collect();
         let x0 = fits.iter().map(|f| f[0]).collect();
+        let near_stop = |x: f64| {
+            o.stroke_m
+                .is_some_and(|l| x < o.stop_band_m || x > l - o.stop_band_m)
+        };
+        let impact = |s: usize, e: usize| {
+            let n = (s..=e).filter(|&k| near_stop(log.x[k])).count();
+            n > 0 && n < e - s + 1
+        };
+        let after_impact: Vec<bool> = (0..segments.len())
+            .map(|i| i > 0 && impact(segments[i - 1].0, segments[i - 1].1))
+            .collect();
+        // Not compared: impact segments, and the `SETTLE_AFTER_IMPACT + 1` after each (the first starts from
+        // the fitted velocity, whose error under PWM needs ~0.2 s to die out, damping time m / K_v and the
+        // pneumatic stiffness's).
+        let skip: Vec<bool> = (0..segments.len())
+            .map(|i| {
+                impact(segments[i].0, segments[i].1)
+                    || (i.saturating_sub(SETTLE_AFTER_IMPACT)..=i).any(|j| after_impact[j])
+            })
+            .collect();
         let rows = |lo: usize, hi: usize| -> Vec<usize> {
             segments
                 .iter()
-                .filter(|&&(s, e)| s >= lo && e <= hi)
+                .enumerate()
+                .filter(|&(i, &(s, e))| s >= lo && e <= hi && !skip[i])
+                .map(|(_, se)| se)
                 .flat_map(|&(s, e)| (s + 1 + settle).min(e + 1)..=e)
                 .collect()
         };
@@ -117,6 +161,7 @@ impl Prepared {
             segments,
             v0,
             x0,
+            after_impact,
             compared,
             validation,
             fit_end,
@@ -157,6 +202,7 @@ impl Prepared {
         };
         let t_gas = model.actuator.supply.atmosphere_temperature_k;
         let (mut t_a, mut t_b) = (t_gas, t_gas);
+        let mut p_end: Option<(f64, f64)> = None;
         let mut valve = ValveState::default();
         let mut v_end = None;
         let sub = o.substeps.max(1);
@@ -169,14 +215,15 @@ impl Prepared {
                 x: self.x0[seg] - off.x,
                 // The previous segment's velocity when there is one (see `ReplayOptions::carry_velocity`).
                 x_dot: match v_end {
-                    Some(v) if o.carry_velocity => v,
+                    Some(v) if o.carry_velocity && !self.after_impact[seg] => v,
                     _ => self.v0[seg],
                 },
-                chambers: ChamberState {
-                    p_a: l.p_a[s] - off.p_a,
-                    p_b: l.p_b[s] - off.p_b,
-                    t_a,
-                    t_b,
+                chambers: {
+                    let (p_a, p_b) = match p_end {
+                        Some(p) if !o.reset_pressures && !self.after_impact[seg] => p,
+                        _ => (l.p_a[s] - off.p_a, l.p_b[s] - off.p_b),
+                    };
+                    ChamberState { p_a, p_b, t_a, t_b }
                 },
                 valve,
             };
@@ -202,6 +249,7 @@ impl Prepared {
             t_b = st.chambers.t_b;
             valve = st.valve;
             v_end = Some(st.x_dot);
+            p_end = Some((st.chambers.p_a, st.chambers.p_b));
         }
         out
     }

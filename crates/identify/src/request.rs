@@ -46,6 +46,8 @@ pub struct Identified {
     pub model: OneDofModel,
     /// The fitted sensor offsets.
     pub offsets: Offsets,
+    /// The fit settings used (the request's, with the sheet's stroke).
+    pub options: FitOptions,
 }
 
 fn key_err(option: &'static str, key: &str, message: String) -> IdentifyError {
@@ -160,15 +162,17 @@ pub fn identify(req: &Request) -> Result<Identified, IdentifyError> {
     if req.logs.is_empty() {
         return Err(IdentifyError::Fit("no --log given".into()));
     }
+    let mut options = req.options;
+    options.replay.stroke_m = Some(base.actuator.cylinder.stroke_m);
     let mut data = Vec::new();
     for p in &req.logs {
         let log = read_log(p)?;
         let n = log.len();
         let fit_end = ((1.0 - req.validation_fraction) * (n - 1) as f64).round() as usize;
-        data.push(Prepared::new(log, &req.options.replay, fit_end));
+        data.push(Prepared::new(log, &options.replay, fit_end));
     }
     let t0 = Instant::now();
-    let result = fit(&base, &free, &data, &req.options)?;
+    let result = fit(&base, &free, &data, &options)?;
     let fit_seconds = t0.elapsed().as_secs_f64();
     let mut model = base;
     let mut offsets = Offsets::default();
@@ -205,6 +209,7 @@ pub fn identify(req: &Request) -> Result<Identified, IdentifyError> {
         report,
         model,
         offsets,
+        options,
     })
 }
 
@@ -269,7 +274,7 @@ pub fn write_outputs(id: &Identified, req: &Request, out: &Path) -> Result<PathB
         if d.validation.is_empty() {
             continue;
         }
-        let pred = d.replay(&id.model, &id.offsets, &req.options.replay, d.log.len());
+        let pred = d.replay(&id.model, &id.offsets, &id.options.replay, d.log.len());
         validation_png(
             &dir.join(format!("validation-{}.png", i + 1)),
             &d.log,
