@@ -74,9 +74,10 @@ enum Command {
         /// Worker threads (default: one per core); the table is the same whatever the number.
         #[arg(long, default_value_t = 0)]
         threads: usize,
-        /// The metric of the heatmaps, WINDOW.METRIC (default: the first sine window's rms_force_error_n).
+        /// The metric of the heatmaps, WINDOW.METRIC (default: the first sine window's rms_force_error_n);
+        /// repeat for heatmaps of several metrics.
         #[arg(long, value_name = "WINDOW.METRIC")]
-        metric: Option<String>,
+        metric: Vec<String>,
         /// Number of samples of the sampled keys (rand:, lhs:, ...).
         #[arg(long, value_name = "N")]
         samples: Option<usize>,

@@ -22,8 +22,8 @@ pub struct SweepArgs {
     pub seed: u64,
     /// `--threads N` (0: one per core).
     pub threads: usize,
-    /// `--metric WINDOW.METRIC` for the heatmaps.
-    pub metric: Option<String>,
+    /// `--metric WINDOW.METRIC` for the heatmaps (several: a set of heatmaps each).
+    pub metric: Vec<String>,
     /// `--traces`: every point's traces and summary.json.
     pub traces: bool,
     /// No progress bar and no summary line.
@@ -62,13 +62,18 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     // Every point's scene is parsed and validated here, before anything runs.
     let sweep = Sweep::new(scene_path, &sets, args.samples, args.seed)?;
     let checked_s = checking.elapsed().as_secs_f64();
-    let metric = match &args.metric {
-        Some(m) => m.clone(),
-        None => sweep
-            .default_metric()
-            .context("the scene has no metric windows: nothing to tabulate")?,
+    let metrics = if args.metric.is_empty() {
+        vec![
+            sweep
+                .default_metric()
+                .context("the scene has no metric windows: nothing to tabulate")?,
+        ]
+    } else {
+        args.metric.clone()
     };
-    sweep.metric_index(&metric)?;
+    for m in &metrics {
+        sweep.metric_index(m)?;
+    }
     let scene = &sweep.base_scene;
     let dest = out
         .map(PathBuf::from)
@@ -86,7 +91,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     bar.finish_and_clear();
     let run_s = start.elapsed().as_secs_f64();
 
-    pneuflex_sweep::output::write(stage.path(), &sweep, &results, &metric)?;
+    pneuflex_sweep::output::write(stage.path(), &sweep, &results, &metrics)?;
     let manifest = Manifest::new(
         "sweep",
         env!("CARGO_PKG_VERSION"),

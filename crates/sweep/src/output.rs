@@ -34,18 +34,14 @@ struct Record<'a> {
 }
 
 /// Every figure's file name (relative) and its cells, for a two-key grid.
-fn heatmap_cells(
-    sweep: &Sweep,
-    results: &[PointResult],
-    metric: usize,
-) -> Vec<(String, String, Vec<Option<f64>>, bool)> {
+fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<Map> {
     let Some(grid) = &sweep.points.grid else {
         return Vec::new();
     };
     if grid.len() != 2 {
         return Vec::new();
     }
-    let (nx, ny) = (grid[0].len(), grid[1].len());
+    let (nx, ny) = (grid[0].1.len(), grid[1].1.len());
     let name = sweep.columns[metric].name();
     let value = |p: &PointResult, run: usize| -> Option<f64> {
         let r = p.runs.get(run)?;
@@ -97,34 +93,53 @@ fn heatmap_cells(
     out
 }
 
-/// Writes the table, the record and (for a two-key grid) the heatmaps of `metric` into `dir`; returns the
-/// files written, relative to `dir`.
+/// Writes the table, the record and (for a two-key grid) the heatmaps of each of `metrics` into `dir`;
+/// returns the files written, relative to `dir`.
 pub fn write(
     dir: &Path,
     sweep: &Sweep,
     results: &[PointResult],
-    metric: &str,
+    metrics: &[String],
 ) -> Result<Vec<PathBuf>, SweepError> {
     let io = |p: &Path, e: std::io::Error| {
         SweepError::Other(format!("{}: cannot write: {e}", p.display()))
     };
-    let metric_i = sweep.metric_index(metric)?;
     let csv = dir.join("sweep.csv");
     std::fs::write(&csv, sweep.table(results)).map_err(|e| io(&csv, e))?;
-    let maps = heatmap_cells(sweep, results, metric_i);
     let mut files = vec![PathBuf::from("sweep.csv")];
+    let mut all_maps = Vec::new();
+    for metric in metrics {
+        let metric_i = sweep.metric_index(metric)?;
+        let maps = heatmap_cells(sweep, results, metric_i);
+        write_maps(dir, sweep, &maps, metric_i, &mut files)?;
+        all_maps.extend(maps.into_iter().map(|m| m.0));
+    }
+    write_record(dir, sweep, all_maps)?;
+    files.push(PathBuf::from("sweep.json"));
+    Ok(files)
+}
+
+type Map = (String, String, Vec<Option<f64>>, bool);
+
+fn write_maps(
+    dir: &Path,
+    sweep: &Sweep,
+    maps: &[Map],
+    metric_i: usize,
+    files: &mut Vec<PathBuf>,
+) -> Result<(), SweepError> {
     if let Some(grid) = sweep.points.grid.as_ref().filter(|g| g.len() == 2) {
-        let xt: Vec<String> = grid[0].iter().map(tick).collect();
-        let yt: Vec<String> = grid[1].iter().map(tick).collect();
-        for (file, title, cells, diverging) in &maps {
+        let xt: Vec<String> = grid[0].1.iter().map(tick).collect();
+        let yt: Vec<String> = grid[1].1.iter().map(tick).collect();
+        for (file, title, cells, diverging) in maps {
             let path = dir.join(file);
             pneuflex_viz::write_heatmap(
                 &path,
                 &pneuflex_viz::Heatmap {
                     title,
-                    x_label: &sweep.points.keys[0].text,
+                    x_label: &sweep.points.keys[grid[0].0].text,
                     x_ticks: &xt,
-                    y_label: &sweep.points.keys[1].text,
+                    y_label: &sweep.points.keys[grid[1].0].text,
                     y_ticks: &yt,
                     cells,
                     value_label: &sweep.columns[metric_i].name(),
@@ -135,6 +150,13 @@ pub fn write(
             files.push(PathBuf::from(file));
         }
     }
+    Ok(())
+}
+
+fn write_record(dir: &Path, sweep: &Sweep, heatmaps: Vec<String>) -> Result<(), SweepError> {
+    let io = |p: &Path, e: std::io::Error| {
+        SweepError::Other(format!("{}: cannot write: {e}", p.display()))
+    };
     let record = Record {
         tool: "pneuflex",
         version: env!("CARGO_PKG_VERSION"),
@@ -152,12 +174,11 @@ pub fn write(
         metric_columns: sweep.columns.iter().map(|c| c.name()).collect(),
         table: "sweep.csv: one row per point and run; status ok | not_settled | diverged | error \
                 (a diverged run's metrics are empty; a settling time that never came is inf)",
-        heatmaps: maps.iter().map(|m| m.0.clone()).collect(),
+        heatmaps,
     };
     let json = dir.join("sweep.json");
     let text =
         serde_json::to_string_pretty(&record).map_err(|e| SweepError::Other(e.to_string()))?;
     std::fs::write(&json, text + "\n").map_err(|e| io(&json, e))?;
-    files.push(PathBuf::from("sweep.json"));
-    Ok(files)
+    Ok(())
 }

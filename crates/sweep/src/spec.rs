@@ -1,6 +1,6 @@
 //! What a `--set KEY=SPEC` sweeps over, and the points of a sweep.
 //!
-//! SPEC is a list `a,b,c`, a range `lin:LO:HI:N` or `log:LO:HI:N` (N values, both ends included), or a
+//! SPEC is `@KEY*F` (not an axis: another swept key's value times F at every point), a list `a,b,c`, a range `lin:LO:HI:N` or `log:LO:HI:N` (N values, both ends included), or a
 //! sample `rand:LO:HI`, `rand-log:LO:HI`, `lhs:LO:HI`, `lhs-log:LO:HI` (uniform random, or a Latin
 //! hypercube, in the value or in its logarithm). The lists and ranges make a grid; the sampled keys share
 //! `samples` points (one Latin hypercube over all of them), crossed with the grid. Points are numbered in
@@ -24,6 +24,14 @@ pub enum Spec {
         log: bool,
         /// Latin hypercube (else independent uniform draws).
         lhs: bool,
+    },
+    /// Not an axis: at every point, another swept key's value times a factor (`@KEY*F`, e.g. the stiffness
+    /// after an event at twice the initial one).
+    Follow {
+        /// The key followed, as written.
+        key: String,
+        /// The factor.
+        factor: f64,
     },
 }
 
@@ -99,6 +107,26 @@ impl SetArg {
         let spec_text = spec_text.trim().to_string();
         if spec_text.is_empty() {
             return Err(bad("empty SPEC".into()));
+        }
+        if let Some(rest) = spec_text.strip_prefix('@') {
+            let (k, f) = match rest.rsplit_once('*') {
+                Some((k, f)) => (k.trim(), Some(f.trim())),
+                None => (rest.trim(), None),
+            };
+            let factor = match f {
+                Some(f) => number(arg, "the factor", f)?,
+                None => 1.0,
+            };
+            KeyPath::parse(k).map_err(|e| bad(e.message))?;
+            let spec = Spec::Follow {
+                key: k.to_string(),
+                factor,
+            };
+            return Ok(SetArg {
+                key,
+                spec_text,
+                spec,
+            });
         }
         let words: Vec<&str> = spec_text.split(':').collect();
         let spec = match words[0] {
@@ -219,8 +247,9 @@ pub struct Points {
     pub keys: Vec<KeyPath>,
     /// One row per point: the value of each key.
     pub values: Vec<Vec<Value>>,
-    /// The grid's axes (key index, its values) when every key is a list or range (no samples).
-    pub grid: Option<Vec<Vec<Value>>>,
+    /// The grid's axes (the key's index among `keys`, its values), first varying slowest, when no key is
+    /// sampled; keys that follow another (`@KEY`) are not axes.
+    pub grid: Option<Vec<(usize, Vec<Value>)>>,
 }
 
 /// Expands the `--set`s into points; `samples` and `seed` serve the sampled keys.
@@ -302,13 +331,39 @@ pub fn points(sets: &[SetArg], samples: Option<usize>, seed: u64) -> Result<Poin
         match s.spec {
             Spec::List(_) => axes.push(Axis::List(i)),
             Spec::Sample { .. } if sampled.first() == Some(&i) => axes.push(Axis::Samples),
-            Spec::Sample { .. } => {}
+            Spec::Sample { .. } | Spec::Follow { .. } => {}
         }
+    }
+    // Followers: the key they follow (an axis key, listed or sampled) and the factor.
+    let mut follows: Vec<(usize, usize, f64)> = Vec::new();
+    for (i, s) in sets.iter().enumerate() {
+        if let Spec::Follow { key, factor } = &s.spec {
+            let arg = format!("{}={}", s.key.text, s.spec_text);
+            let Some(j) = sets.iter().position(|o| &o.key.text == key) else {
+                return Err(SpecError {
+                    arg,
+                    message: format!("follows `{key}`, which is not swept (give it its own --set)"),
+                });
+            };
+            if matches!(sets[j].spec, Spec::Follow { .. }) {
+                return Err(SpecError {
+                    arg,
+                    message: format!("follows `{key}`, which follows another key itself"),
+                });
+            }
+            follows.push((i, j, *factor));
+        }
+    }
+    if axes.is_empty() {
+        return Err(SpecError {
+            arg: String::new(),
+            message: "every --set follows another key: nothing to sweep".into(),
+        });
     }
     let len = |a: &Axis| match a {
         Axis::List(i) => match &sets[*i].spec {
             Spec::List(v) => v.len(),
-            Spec::Sample { .. } => unreachable!(),
+            _ => unreachable!(),
         },
         Axis::Samples => n_samples,
     };
@@ -338,6 +393,24 @@ pub fn points(sets: &[SetArg], samples: Option<usize>, seed: u64) -> Result<Poin
                 }
             }
         }
+        for &(i, j, factor) in &follows {
+            row[i] = match &row[j] {
+                Value::Int(v) if factor == 1.0 => Value::Int(*v),
+                v => match v.as_f64() {
+                    Some(x) => Value::Float(x * factor),
+                    None if factor == 1.0 => v.clone(),
+                    None => {
+                        return Err(SpecError {
+                            arg: format!("{}={}", sets[i].key.text, sets[i].spec_text),
+                            message: format!(
+                                "`{}` = {v} is not a number to multiply",
+                                sets[j].key.text
+                            ),
+                        });
+                    }
+                },
+            };
+        }
         values.push(row);
         // Odometer: the last axis varies fastest.
         for a in (0..axes.len()).rev() {
@@ -350,9 +423,10 @@ pub fn points(sets: &[SetArg], samples: Option<usize>, seed: u64) -> Result<Poin
     }
     let grid = sampled.is_empty().then(|| {
         sets.iter()
-            .map(|s| match &s.spec {
-                Spec::List(v) => v.clone(),
-                Spec::Sample { .. } => unreachable!(),
+            .enumerate()
+            .filter_map(|(i, s)| match &s.spec {
+                Spec::List(v) => Some((i, v.clone())),
+                _ => None,
             })
             .collect()
     });

@@ -234,7 +234,7 @@ impl Tuner {
             ));
         }
         for s in over {
-            if !matches!(s.spec, Spec::List(_)) {
+            if matches!(s.spec, Spec::Sample { .. }) {
                 return Err(SweepError::Other(format!(
                     "--over {}={}: a list or a range (the environments), not a sample",
                     s.key.text, s.spec_text

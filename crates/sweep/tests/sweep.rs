@@ -284,3 +284,36 @@ fn samples_are_deterministic_and_inside_their_bounds() {
         assert!((20.0..80.0).contains(&b));
     }
 }
+
+#[test]
+fn a_key_can_follow_another() {
+    // Fig. 3's doubling at every stiffness: the event's stiffness is twice the initial one at every point.
+    let s = sweep(
+        &repo("scenes/paper-fig3-ideal.toml"),
+        &[
+            "environment.stiffness_n_per_m=350,700",
+            "events[0].stiffness_n_per_m=@environment.stiffness_n_per_m*2",
+            "runs[*].inner.kp_per_m=100,200",
+        ],
+    )
+    .unwrap();
+    assert_eq!(s.len(), 4);
+    let follow: Vec<f64> = s
+        .points
+        .values
+        .iter()
+        .map(|v| v[1].as_f64().unwrap())
+        .collect();
+    assert_eq!(follow, [700.0, 700.0, 1400.0, 1400.0]);
+    // The grid's axes are the two swept keys, not the follower.
+    let grid = s.points.grid.as_ref().unwrap();
+    assert_eq!(grid.iter().map(|g| g.0).collect::<Vec<_>>(), [0, 2]);
+    let e = match SetArg::parse("events[0].stiffness_n_per_m=@nothing.swept") {
+        Ok(a) => match Sweep::new(&repo("scenes/paper-fig3-ideal.toml"), &[a], None, 0) {
+            Ok(_) => panic!("a follower of nothing must be refused"),
+            Err(e) => e.to_string(),
+        },
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("not swept"), "{e}");
+}
