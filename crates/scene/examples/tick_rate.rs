@@ -23,7 +23,9 @@ fn main() {
         .position(|r| r.name == args[2])
         .unwrap_or_else(|| panic!("no run {:?}", args[2]));
     let ticks: usize = args[3].parse().expect("TICKS: a whole number");
-    let settle_s: f64 = args.get(4).map_or(1.0, |s| s.parse().expect("SETTLE_S: seconds"));
+    let settle_s: f64 = args
+        .get(4)
+        .map_or(1.0, |s| s.parse().expect("SETTLE_S: seconds"));
     let setpoints = build_setpoints(&scene).unwrap_or_else(|e| panic!("{e}"));
     let mut plant = build_plant(&scene).unwrap_or_else(|e| panic!("{e}"));
     let mut ctrl = build_controller(&scene, run).unwrap_or_else(|e| panic!("{e}"));
@@ -48,5 +50,9 @@ fn main() {
         sum += tick(&mut t);
     }
     let secs = t0.elapsed().as_secs_f64();
-    println!("us_per_tick {:.4} mean_f_e {:.4}", secs / ticks as f64 * 1e6, sum / ticks as f64);
+    println!(
+        "us_per_tick {:.4} mean_f_e {:.4}",
+        secs / ticks as f64 * 1e6,
+        sum / ticks as f64
+    );
 }

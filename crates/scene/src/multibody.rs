@@ -102,7 +102,8 @@ impl MultibodyPlant {
             return Err(plant_err(scene, "not a multibody plant".into()));
         };
         let sheet_path = scene.resolve(&mb.actuator);
-        let sheet = scene.load_sheet(&sheet_path)
+        let sheet = scene
+            .load_sheet(&sheet_path)
             .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
         let urdf_file = scene.resolve(&mb.urdf);
         let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf_file)

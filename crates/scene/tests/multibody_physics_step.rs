@@ -27,7 +27,10 @@ fn fig7(physics_dt_s: f64, extra: &str) -> Scene {
 
 fn scene_err(physics_dt_s: &str, extra_toml: &str) -> String {
     let text = fig7_text();
-    let line = text.lines().find(|l| l.starts_with("physics_dt_s")).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("physics_dt_s"))
+        .unwrap();
     let text = text.replace(line, &format!("physics_dt_s = {physics_dt_s}")) + extra_toml;
     let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
     match Scene::from_toml_str(&text, Path::new("scenes/x.toml"), &base) {
@@ -69,13 +72,29 @@ fn a_physics_step_of_two_ticks_regulates_the_steady_force_of_one_tick() {
             let fb = window(b, b.trace.f_e(), t0, t1);
             let (ma, mb) = (mean(&fa), mean(&fb));
             // The reference: 10 N (the adaptive run holds -0.14 N off on iron at either step).
-            assert!((ma - 10.0).abs() < 0.2 && (mb - 10.0).abs() < 0.2, "{}: {ma} {mb}", a.name);
-            assert!((mb - ma).abs() < 0.01 * ma, "{} {t0}-{t1} s: mean {ma} vs {mb}", a.name);
+            assert!(
+                (ma - 10.0).abs() < 0.2 && (mb - 10.0).abs() < 0.2,
+                "{}: {ma} {mb}",
+                a.name
+            );
+            assert!(
+                (mb - ma).abs() < 0.01 * ma,
+                "{} {t0}-{t1} s: mean {ma} vs {mb}",
+                a.name
+            );
             let (pa, pb) = (pwm_mean(&fa), pwm_mean(&fb));
-            let rms = (pa.iter().zip(&pb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>()
+            let rms = (pa
+                .iter()
+                .zip(&pb)
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum::<f64>()
                 / pa.len() as f64)
                 .sqrt();
-            assert!(rms < 0.1, "{} {t0}-{t1} s: PWM-mean RMS difference {rms} N", a.name);
+            assert!(
+                rms < 0.1,
+                "{} {t0}-{t1} s: PWM-mean RMS difference {rms} N",
+                a.name
+            );
         }
     }
 }
@@ -97,13 +116,19 @@ fn the_chambers_follow_every_tick_whatever_the_physics_step() {
             plant.actuate(ValveCommand { u }, &tel);
             plant.advance(scene.dt_s);
             let s = plant.sense();
-            assert!(s.x.abs() < 1e-6 && s.x_dot.abs() < 1e-6, "n = {n}, tick {k}: {s:?}");
+            assert!(
+                s.x.abs() < 1e-6 && s.x_dot.abs() < 1e-6,
+                "n = {n}, tick {k}: {s:?}"
+            );
             p.push((s.p_a, s.p_b));
         }
         traces.push(p);
     }
     let moved = traces[0].first() != traces[0].last();
-    assert!(moved, "the pressures must change for the comparison to mean anything");
+    assert!(
+        moved,
+        "the pressures must change for the comparison to mean anything"
+    );
     for other in &traces[1..] {
         for (k, (a, b)) in traces[0].iter().zip(other).enumerate() {
             assert!(
