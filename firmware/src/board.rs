@@ -3,7 +3,7 @@
 //! Everything board-specific is in this file; a port to another MCU replaces it (docs/firmware.md).
 
 use core::ptr::{read_volatile, write_volatile};
-use core::sync::atomic::{AtomicU16, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU8, AtomicU16, AtomicUsize, Ordering};
 
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
@@ -25,7 +25,7 @@ const TIMER_RELOAD: usize = TIMER0 + 0x08;
 /// The peripheral clock of the AN386 image: 25 MHz, one count = 40 ns.
 const NS_PER_COUNT: u64 = 40;
 
-/// CMSDK APB TIMER1: the watchdog's deadline (its interrupt wakes `wait`).
+/// CMSDK APB TIMER1: the watchdog's deadline (its interrupt sets [`DEADLINE`]).
 const TIMER1: usize = 0x4000_1000;
 
 /// Arms TIMER1 to interrupt `ns` from now (and every `ns` after).
@@ -38,26 +38,75 @@ pub fn arm_deadline(ns: u64) {
     wr(TIMER1, 0b1001);
 }
 
-/// Sleeps until a byte arrives or a deadline passes. Interrupts stay masked (PRIMASK): a pending one ends
-/// WFI without a handler. Sleeping, rather than polling the UART, lets QEMU's I/O thread deliver bytes at
-/// once (a polling guest starves it: 400 µs a byte measured) and is what a real board does.
-pub fn wait(uart: &Uart) {
-    // SAFETY: NVIC registers (ICPR0), architecturally at this address on every Cortex-M.
-    const NVIC_ICPR0: usize = 0xE000_E280;
-    wr(UART_INT, 0b11);
-    wr(TIMER1 + 0x0C, 1);
-    wr(NVIC_ICPR0, u32::MAX);
-    if rd(UART_STATE) & 0b10 == 0 {
-        let _ = uart;
-        cortex_m::asm::wfi();
+/// Bytes received by the interrupt handler, not yet taken by the main loop (single producer, single consumer).
+static RX: [AtomicU8; 256] = [const { AtomicU8::new(0) }; 256];
+static RX_HEAD: AtomicUsize = AtomicUsize::new(0);
+static RX_TAIL: AtomicUsize = AtomicUsize::new(0);
+/// Set by TIMER1's interrupt: the watchdog deadline passed.
+static DEADLINE: AtomicBool = AtomicBool::new(false);
+
+/// Enables UART0's receive interrupt and TIMER1's, in the NVIC too (AN386: UART0 RX is IRQ 0, TIMER1 IRQ 9;
+/// [`on_interrupt`] does not depend on the numbers).
+pub fn enable_interrupts() {
+    // NVIC_ISER0: external interrupts 0-31.
+    wr(0xE000_E100, u32::MAX);
+    // SAFETY: the handlers only touch the atomics above and the UART/TIMER1 registers.
+    unsafe { cortex_m::interrupt::enable() };
+}
+
+/// Set while the ring is full: the receive interrupt is off and the UART keeps its byte, so QEMU holds the
+/// rest back (the flow control a one-byte UART gives for free).
+static RX_PAUSED: AtomicBool = AtomicBool::new(false);
+
+/// Moves received bytes into the ring; pauses reception when the ring is full.
+fn drain_uart() {
+    while rd(UART_STATE) & 0b10 != 0 {
+        let head = RX_HEAD.load(Ordering::Relaxed);
+        if head.wrapping_sub(RX_TAIL.load(Ordering::Acquire)) >= RX.len() {
+            wr(UART_CTRL, 0b0011);
+            RX_PAUSED.store(true, Ordering::Release);
+            return;
+        }
+        RX[head % RX.len()].store(rd(UART_DATA) as u8, Ordering::Relaxed);
+        RX_HEAD.store(head.wrapping_add(1), Ordering::Release);
     }
 }
 
-/// Enables the board's interrupts in the NVIC (masked by PRIMASK: they only wake WFI).
-pub fn enable_wakeups() {
-    cortex_m::interrupt::disable();
-    // NVIC_ISER0: external interrupts 0-31 (UART0 RX and TIMER1 among them on the AN386).
-    wr(0xE000_E100, u32::MAX);
+/// Every external interrupt: received bytes go into the ring, TIMER1's deadline sets its flag.
+pub fn on_interrupt() {
+    wr(UART_INT, 0b11);
+    drain_uart();
+    if rd(TIMER1 + 0x0C) & 1 != 0 {
+        wr(TIMER1 + 0x0C, 1);
+        DEADLINE.store(true, Ordering::Release);
+    }
+}
+
+/// Waits for a received byte or the deadline, spinning on RAM only. Under QEMU -icount the spin advances the
+/// board clock by one ns an instruction, so a deadline fires at an exact instruction count; and it touches no
+/// device register, which would take QEMU's I/O lock on every read and starve the thread that delivers the
+/// bytes (400 µs a byte measured when polling the UART's status register).
+pub fn wait() -> Option<u8> {
+    loop {
+        let tail = RX_TAIL.load(Ordering::Relaxed);
+        if RX_HEAD.load(Ordering::Acquire) != tail {
+            let b = RX[tail % RX.len()].load(Ordering::Relaxed);
+            RX_TAIL.store(tail.wrapping_add(1), Ordering::Release);
+            if RX_PAUSED.load(Ordering::Acquire) {
+                // Room again: take the byte the UART kept, and let it interrupt again.
+                cortex_m::interrupt::free(|_| {
+                    RX_PAUSED.store(false, Ordering::Release);
+                    wr(UART_CTRL, 0b1011);
+                    drain_uart();
+                });
+            }
+            return Some(b);
+        }
+        if DEADLINE.swap(false, Ordering::AcqRel) {
+            return None;
+        }
+        core::hint::spin_loop();
+    }
 }
 
 /// FPGA IO LED register (AN386: FPGAIO at 0x4002_8000, LED0 bit 0): drives the supply dump valve here.
@@ -77,16 +126,11 @@ fn wr(addr: usize, v: u32) {
 pub struct Uart;
 
 impl Uart {
-    /// Enables transmit and receive, and the receive interrupt (it only wakes `wait`; no handler runs).
+    /// Enables transmit and receive, and the receive interrupt (bytes arrive through [`on_interrupt`]).
     pub fn init() -> Self {
         wr(UART_BAUDDIV, 16);
         wr(UART_CTRL, 0b1011);
         Uart
-    }
-
-    /// One received byte, if there is one (the UART holds a single byte; QEMU holds the rest back).
-    pub fn read(&mut self) -> Option<u8> {
-        (rd(UART_STATE) & 0b10 != 0).then(|| rd(UART_DATA) as u8)
     }
 
     /// Sends bytes, waiting while the transmit register is full.

@@ -13,7 +13,7 @@ mod session;
 use core::fmt::Write as _;
 use core::sync::atomic::{AtomicBool, AtomicU8, AtomicU32, Ordering};
 
-use cortex_m_rt::entry;
+use cortex_m_rt::{entry, exception};
 use pneuflex_protocol::ctrl::{SafePayload, TEXT_LEN, TextPayload};
 use pneuflex_protocol::{Decoder, MAX_FRAME, Message, ValveMode, encode, fault_code};
 use pneuflex_valve_driver::{SafeMode, ValveDriver, ValveType};
@@ -39,7 +39,6 @@ fn send(uart: &mut Uart, m: &Message) {
 fn main() -> ! {
     let mut uart = Uart::init();
     let mut clock = Clock::init();
-    board::enable_wakeups();
     // The paper's valve (5/2 single solenoid), safe = vent until the host says otherwise.
     let valve = match ValveDriver::new(
         Coil(0),
@@ -53,21 +52,15 @@ fn main() -> ! {
     };
     let mut session = Session::new(valve, board::stack_peak_bytes);
     let mut decoder = Decoder::new();
+    board::enable_interrupts();
     loop {
+        // A byte, or None when the watchdog's deadline passed.
+        let byte = board::wait();
         let now = clock.now_ns();
+        NOW_US.store((now / 1000) as u32, Ordering::Relaxed);
         session.poll(now, &mut |m| send(&mut uart, m));
-        if let Some(deadline) = session.take_deadline() {
-            board::arm_deadline(deadline);
-        }
-        let Some(b) = uart.read() else {
-            board::wait(&uart);
-            continue;
-        };
-        {
-            let now = clock.now_ns();
-            NOW_US.store((now / 1000) as u32, Ordering::Relaxed);
+        if let Some(b) = byte {
             // Answers are queued while the decoder holds the session's input, then sent.
-            let mut out: [Option<Message>; 2] = [None, None];
             let mut events = [None; 4];
             let mut n_ev = 0;
             decoder.feed(&[b], |ev| {
@@ -77,6 +70,7 @@ fn main() -> ! {
                 }
             });
             for ev in events.into_iter().flatten() {
+                let mut out: [Option<Message>; 2] = [None, None];
                 let mut k = 0;
                 let mut clk = || clock.now_ns();
                 session.on_event(ev, now, &mut clk, &mut |m: &Message| {
@@ -89,10 +83,19 @@ fn main() -> ! {
                     send(&mut uart, &m);
                 }
             }
-            VENTS.store(session.vents(), Ordering::Relaxed);
-            LAST_TICK.store(session.last_tick(), Ordering::Relaxed);
         }
+        if let Some(at) = session.take_deadline() {
+            board::arm_deadline(at.saturating_sub(clock.now_ns()));
+        }
+        VENTS.store(session.vents(), Ordering::Relaxed);
+        LAST_TICK.store(session.last_tick(), Ordering::Relaxed);
     }
+}
+
+/// Every external interrupt (UART0 receive, TIMER1): cortex-m-rt's default handler.
+#[exception]
+unsafe fn DefaultHandler(_irqn: i16) {
+    board::on_interrupt();
 }
 
 /// A fixed buffer for the panic message (no allocation in a panic handler).

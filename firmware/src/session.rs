@@ -5,7 +5,8 @@
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 use pneuflex_control::{
-    AdaptiveImpedanceController, Controller, ImpedanceController, Sensors, SetpointSchedule,
+    AdaptiveImpedanceController, Controller, ImpedanceController, Sensors, Setpoint,
+    SetpointSchedule,
 };
 use pneuflex_protocol::ctrl::{
     ControllerSetup, OutputPayload, ReadyPayload, SafePayload, SetupCollector, StartPayload, ready,
@@ -93,8 +94,8 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
         }
     }
 
-    /// A new watchdog period to wait for, ns from now, once per valid frame while running: the board
-    /// arms a timer so that its sleep ends when the watchdog is due.
+    /// When the watchdog is next due (board clock, ns), once per valid frame while running: the board arms
+    /// a timer for it.
     pub fn take_deadline(&mut self) -> Option<u64> {
         self.deadline.take()
     }
@@ -223,7 +224,7 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
         }
         if matches!(self.state, State::Run) {
             // One timer count (40 ns) past the period, so that the check above sees it expired.
-            self.deadline = Some(self.watchdog_ns + 40);
+            self.deadline = Some(self.last_valid_ns + self.watchdog_ns + 40);
         }
     }
 
@@ -265,7 +266,19 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
             _ => SafeMode::Vent,
         };
         match built {
-            Ok(c) if s.safe_mode.is_safe() => {
+            Ok(mut c) if s.safe_mode.is_safe() => {
+                // Warm-up: the first update computes and caches the period's exact ZOH and leakage factors
+                // (a 3x3 matrix exponential, ~90 000 instructions); reset() restores the initial state and
+                // keeps the caches, so no control tick pays for them.
+                // The sample is "in contact" (f_e above any contact threshold) so that the adaptive law's
+                // path runs too, not only its hold.
+                let ctl = c.controller();
+                let contact = Sensors {
+                    f_e: 1e6,
+                    ..Sensors::default()
+                };
+                ctl.update(&contact, &Setpoint::default(), s.dt_s);
+                ctl.reset();
                 self.controller = Some(c);
                 self.schedule = self.setup.schedule;
                 self.dt_s = s.dt_s;

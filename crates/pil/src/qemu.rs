@@ -60,11 +60,10 @@ impl Board {
         let mut child = Command::new(&qemu)
             .args(["-M", "mps2-an386", "-display", "none", "-monitor", "none"])
             .args(["-serial", "stdio"])
-            // Virtual time from the instruction count (1 ns each): the cost of an update does not depend on
-            // how fast this machine emulates. While the board sleeps (WFI, waiting for the next byte) its
-            // clock runs at real time (sleep=on); sleep=off would jump it to the watchdog's deadline at every
-            // wait. Controller results never depend on the board clock.
-            .args(["-icount", "shift=0,align=off,sleep=on"])
+            // Virtual time from the instruction count, 1 ns each: the board clock, the per-update cost and
+            // the watchdog's trip time are instruction counts, whatever this machine's speed. The firmware
+            // never sleeps (it spins on RAM waiting for its interrupts), so `sleep` plays no part.
+            .args(["-icount", "shift=0,align=off,sleep=off"])
             .arg("-kernel")
             .arg(elf)
             .stdin(Stdio::piped())

@@ -3,12 +3,11 @@
 //! scripts/ci_firmware provides both and sets PNEUFLEX_REQUIRE_FIRMWARE=1, which turns a missing one into a
 //! failure. Without them (an everyday `cargo test`) each test says what is missing and passes.
 //!
-//! The PIL loop is lockstep, and the board's clock is QEMU's virtual time (`-icount shift=0,sleep=on`):
-//! instructions count 1 ns each, and while the board sleeps waiting for a byte its clock runs at the host's
-//! real-time rate (QEMU has no mode that both stops time while the host computes and lets a silent host's
-//! watchdog expire). So the safety tests send their frames ahead in one burst, keeping the board busy, and
-//! assert times the board measured on its own clock: the trip time is exact in virtual time; what remains
-//! tied to the host is only that QEMU delivers a queued burst without a 100 ms gap.
+//! The PIL loop is lockstep, and the board's clock is QEMU's virtual time (`-icount shift=0`): one ns per
+//! instruction. The firmware spins on RAM while it waits (its UART and timer interrupts fill a ring buffer and
+//! a deadline flag), so even a silent host's watchdog trips at an exact instruction count. Host speed enters in
+//! one place only: how many spin instructions pass while the host is busy, which is why the safety tests send
+//! their frames in one burst and the watchdog is 100 ms (≈ 1 s of host time at QEMU's speed here).
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -210,18 +209,24 @@ fn host_silence_puts_the_valve_safe_within_the_watchdog_period_in_virtual_time_l
     let (_board, mut link) = started(&elf);
     run_ticks(&mut link, 0..100);
     // The host falls silent: the board's clock runs on in virtual time.
+    let wall = std::time::Instant::now();
     let (safe, _) = await_safe(&mut link).expect("the board reports its safe state");
+    // Printed, never asserted: how long the host waited for 100 ms of the board's time.
+    eprintln!(
+        "host silence: the trip arrived after {:?} of wall time",
+        wall.elapsed()
+    );
     assert_eq!(safe.reason, fault_code::HOST_SILENT);
     assert_eq!(safe.last_tick, 99);
     let waited_us = safe.safe_at_us - safe.last_valid_us;
     eprintln!(
         "watchdog {WATCHDOG_MS} ms: safe {waited_us} us (virtual) after the last valid frame"
     );
-    // The board's timer ends its sleep at the deadline; QEMU wakes the sleeping CPU a little later
-    // (195 µs measured): never before the period, within 1 % after it.
+    // The board's timer fires at the last valid frame + the period (its clock, instruction counts):
+    // exactly, up to the few instructions of the wake-up (100 000 us measured).
     let period = u32::from(WATCHDOG_MS) * 1000;
     assert!(
-        (period..=period + 1000).contains(&waited_us),
+        (period..=period + 10).contains(&waited_us),
         "{waited_us} us"
     );
     assert_latched(&mut link, 100);
