@@ -371,7 +371,8 @@ impl Sweep {
         }
     }
 
-    fn row_of(&self, r: &RunResult) -> RunRow {
+    /// The table row of one run's result (status, reason, every metric column).
+    pub fn row_of(&self, r: &RunResult) -> RunRow {
         let unsettled: Vec<String> = r
             .windows
             .iter()
