@@ -65,6 +65,19 @@ pub fn pil(
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out/pil").join(&scene.name));
+    if let Some(words) = rerun
+        && words.first().map(String::as_str) == Some("save")
+        && let Some(target) = words.get(1)
+    {
+        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        if abs(Path::new(target)).starts_with(abs(&dest)) {
+            bail!(
+                "--rerun save {target}: the recording would be inside the output directory {}, which is \
+                 replaced as a whole by the next run; save it elsewhere",
+                dest.display()
+            );
+        }
+    }
     let stage = OutputDir::create(&dest, &[scene_path, &elf], Recoverable::Regenerable)?;
 
     let mut runs: Vec<PilRun> = Vec::new();
