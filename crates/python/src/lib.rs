@@ -9,6 +9,7 @@
 
 mod controller;
 mod errors;
+mod identify;
 mod model;
 mod plant;
 mod scene;
@@ -38,6 +39,9 @@ mod _native {
 
     #[pymodule_export]
     use crate::sweep::{sweep_plan, sweep_rows, tune_evaluate, tune_run};
+
+    #[pymodule_export]
+    use crate::identify::identify_json;
 
     #[cfg(feature = "figures")]
     #[pymodule_export]

@@ -23,6 +23,11 @@ The classes and functions come from the Rust crates through the native module ``
 - ``sweep(scene, sets, samples=None, seed=0, executor="local")`` -> sweep.csv's table;
   ``tune(scene, free, over, out=...)`` -> tune.json as a dict; executors ``"local"`` / ``LocalExecutor(threads)``
   (the Rust pool) or ``"ray"`` / ``RayExecutor(chunk_size)`` (Ray tasks; the same table). See ``pneuflex.sweeps``.
+- ``identify(logs, actuator, free, bounds=[], validation=0.2, segment=0.1, settle=0.015, out=None)``: the fit of
+  ``pneuflex identify`` (docs/identification.md) -> dict: ``estimates`` (key -> value, std_error, ci95, ...),
+  ``correlation`` (ndarray, in the order of ``keys``), ``rms_fit`` / ``rms_validation`` ({p_a, p_b, x}),
+  ``warnings``, ``report`` (report.json as a dict) and ``validation`` (per log: ndarrays of the held-out
+  measured and model signals, NaN where not compared); writes the CLI's outputs into ``out`` when given.
 
 SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError`` for unreadable files,
 ``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key.
@@ -31,3 +36,41 @@ SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError
 from ._native import *  # noqa: F401,F403
 from ._native import PneuflexError, __version__  # noqa: F401
 from .sweeps import LocalExecutor, RayExecutor, sweep, tune  # noqa: F401,E402
+
+
+def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settle=0.015, out=None):
+    """Fits the ``free`` keys of the actuator sheet to rig logs (see the module doc and docs/identification.md)."""
+    import json
+
+    import numpy as np
+
+    from ._native import identify_json
+
+    if isinstance(logs, (str, bytes)) or hasattr(logs, "__fspath__"):
+        logs = [logs]
+    if isinstance(free, str):
+        free = [free]
+    raw = json.loads(
+        identify_json(
+            [str(p) for p in logs], str(actuator), list(free), [str(b) for b in bounds],
+            validation, segment, settle, None if out is None else str(out),
+        )
+    )
+    rep = raw["report"]
+    fit = rep["fit"]
+    names = ("p_a", "p_b", "x")
+    nan = float("nan")
+    return {
+        "keys": [e["key"] for e in fit["estimates"]],
+        "estimates": {e["key"]: e for e in fit["estimates"]},
+        "correlation": np.array([[nan if v is None else v for v in row] for row in fit["correlation"]]),
+        "rms_fit": dict(zip(names, fit["rms_fit"])),
+        "rms_validation": dict(zip(names, [nan if v is None else v for v in fit["rms_validation"]])),
+        "warnings": rep["warnings"],
+        "report": rep,
+        "validation": [
+            {k: (v if k == "log" else np.array([nan if x is None else x for x in v], dtype=float))
+             for k, v in d.items()}
+            for d in raw["validation"]
+        ],
+    }
