@@ -55,7 +55,10 @@ pub fn identify(
     };
     let sheet = write_outputs(&id, &req, &dest)?;
     let f = &id.report.fit;
-    println!("{:<40} {:>14} {:>14} {:>32}", "key", "start", "fitted", "95 % interval");
+    println!(
+        "{:<40} {:>14} {:>14} {:>32}",
+        "key", "start", "fitted", "95 % interval"
+    );
     for e in &f.estimates {
         println!(
             "{:<40} {:>14.6e} {:>14.6e}   [{:.6e}, {:.6e}]",
@@ -76,7 +79,11 @@ pub fn identify(
     for w in &id.report.warnings {
         eprintln!("warning: {w}");
     }
-    println!("fit took {:.1} s; fitted sheet: {}", id.report.fit_seconds, sheet.display());
+    println!(
+        "fit took {:.1} s; fitted sheet: {}",
+        id.report.fit_seconds,
+        sheet.display()
+    );
     println!("report: {}", dest.join("report.md").display());
     Ok(())
 }
@@ -103,13 +110,15 @@ pub fn perturb(actuator: &Path, keys: &[String], seed: u64, out: &Path) -> anyho
     let (sheet, changes) = pneuflex_identify::perturb::perturb(actuator, &ks, seed, out)?;
     let table: Vec<serde_json::Value> = changes
         .iter()
-        .map(|c| {
-            serde_json::json!({"key": c.key.name(), "shipped": c.shipped, "truth": c.truth})
-        })
+        .map(|c| serde_json::json!({"key": c.key.name(), "shipped": c.shipped, "truth": c.truth}))
         .collect();
     let json = out.join("truth.json");
     std::fs::write(&json, serde_json::to_string_pretty(&table)?)
         .with_context(|| format!("{}: cannot write", json.display()))?;
-    println!("hidden truth: {} (values in {})", sheet.display(), json.display());
+    println!(
+        "hidden truth: {} (values in {})",
+        sheet.display(),
+        json.display()
+    );
     Ok(())
 }

@@ -112,13 +112,19 @@ impl Excitation {
             return Err(format!("--ramp: must be >= 0 s, got {}", self.ramp_s));
         }
         if !(0.0..=1.0).contains(&self.amplitude) {
-            return Err(format!("--amplitude: must be in [0, 1], got {}", self.amplitude));
+            return Err(format!(
+                "--amplitude: must be in [0, 1], got {}",
+                self.amplitude
+            ));
         }
         if !(-1.0..=1.0).contains(&self.bias) {
             return Err(format!("--bias: must be in [-1, 1], got {}", self.bias));
         }
         if self.centring_per_m < 0.0 {
-            return Err(format!("--centring: must be >= 0, got {}", self.centring_per_m));
+            return Err(format!(
+                "--centring: must be >= 0, got {}",
+                self.centring_per_m
+            ));
         }
         match self.signal {
             Signal::Prbs { bit_s, .. } if !(bit_s.is_finite() && bit_s > 0.0) => {
@@ -146,9 +152,8 @@ impl Excitation {
             1.0
         };
         let centre = x_start + w * (self.centre_m - x_start);
-        let u = self.bias
-            + w * self.amplitude * self.signal.at(t)
-            + self.centring_per_m * (centre - x);
+        let u =
+            self.bias + w * self.amplitude * self.signal.at(t) + self.centring_per_m * (centre - x);
         if u.is_nan() { 0.0 } else { u.clamp(-1.0, 1.0) }
     }
 }

@@ -315,7 +315,8 @@ pub fn fit(
     let rms_start = pb.rms_at(&start, false);
     if rms_start.iter().any(|v| !v.is_finite()) {
         return Err(IdentifyError::Fit(
-            "the replay with the start values does not stay finite: check the sheet and the logs".into(),
+            "the replay with the start values does not stay finite: check the sheet and the logs"
+                .into(),
         ));
     }
     let n = free.len();
@@ -331,7 +332,14 @@ pub fn fit(
             .iter()
             .map(|d| Prepared::new(d.log.clone(), &ro, d.fit_end))
             .collect();
-        let cp = Problem::new(*base, Offsets::default(), free.to_vec(), &coarse, ro, sigma0);
+        let cp = Problem::new(
+            *base,
+            Offsets::default(),
+            free.to_vec(),
+            &coarse,
+            ro,
+            sigma0,
+        );
         let (cp, report) = LevenbergMarquardt::new()
             .with_patience(opts.patience)
             .minimize(cp);
@@ -343,11 +351,7 @@ pub fn fit(
         if pass > 0 {
             let rms = pb.rms_at(&pb.values(), false);
             // A floor: a signal fitted to the bit must not take all the weight.
-            pb.sigma = [
-                rms[0].max(1.0),
-                rms[1].max(1.0),
-                rms[2].max(1e-7),
-            ];
+            pb.sigma = [rms[0].max(1.0), rms[1].max(1.0), rms[2].max(1e-7)];
         }
         let lm = LevenbergMarquardt::new().with_patience(opts.patience);
         let (p, report) = lm.minimize(pb);
@@ -371,7 +375,7 @@ pub fn fit(
     for (i, &l) in eig.eigenvalues.iter().enumerate() {
         let v = eig.eigenvectors.column(i);
         if l > 1e-12 * lmax && l > 0.0 {
-            pinv += (&v * v.transpose()) / l;
+            pinv += (v * v.transpose()) / l;
         } else {
             for (k, nk) in null.iter_mut().enumerate() {
                 if v[k].abs() > 0.1 {
@@ -421,7 +425,9 @@ pub fn fit(
     let mut cov = sandwich.clone();
     for k in 0..n {
         // Keep the correlations of the sandwich; take the larger variance of the two estimates.
-        let f = (white[(k, k)] / sandwich[(k, k)].max(f64::MIN_POSITIVE)).max(1.0).sqrt();
+        let f = (white[(k, k)] / sandwich[(k, k)].max(f64::MIN_POSITIVE))
+            .max(1.0)
+            .sqrt();
         for l in 0..n {
             cov[(k, l)] *= f;
             cov[(l, k)] *= f;
@@ -446,7 +452,11 @@ pub fn fit(
             bounds: [f.lo, f.hi],
             std_error: std[k],
             ci95: [v - half, v + half],
-            rel_half_width: if v != 0.0 { half / v.abs() } else { f64::INFINITY },
+            rel_half_width: if v != 0.0 {
+                half / v.abs()
+            } else {
+                f64::INFINITY
+            },
             at_bound: (v - f.lo).abs() < 1e-3 * range || (f.hi - v).abs() < 1e-3 * range,
         });
     }

@@ -12,8 +12,8 @@ pub mod log;
 pub mod params;
 pub mod perturb;
 pub mod replay;
-pub mod request;
 pub mod report;
+pub mod request;
 pub mod sheet;
 
 use std::path::PathBuf;

@@ -83,7 +83,10 @@ pub fn parse_log(path: &Path, text: &str, sha256: String) -> Result<Log, Identif
         column: column.map(str::to_string),
         message,
     };
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.starts_with('#'));
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.starts_with('#'));
     let Some((header_no, header)) = lines.next() else {
         return Err(err(None, None, "no column header (an empty trace?)".into()));
     };
@@ -143,13 +146,9 @@ pub fn parse_log(path: &Path, text: &str, sha256: String) -> Result<Log, Identif
         let mut v = [0.0; COLUMNS.len()];
         for (i, c) in COLUMNS.iter().enumerate() {
             let s = fields[idx[i]].trim();
-            let x: f64 = s.parse().map_err(|_| {
-                err(
-                    Some(line_no),
-                    Some(c),
-                    format!("`{s}` is not a number"),
-                )
-            })?;
+            let x: f64 = s
+                .parse()
+                .map_err(|_| err(Some(line_no), Some(c), format!("`{s}` is not a number")))?;
             if !x.is_finite() {
                 return Err(err(
                     Some(line_no),
@@ -179,7 +178,10 @@ pub fn parse_log(path: &Path, text: &str, sha256: String) -> Result<Log, Identif
         return Err(err(
             None,
             None,
-            format!("{} data rows; identification needs a log of many ticks", log.t.len()),
+            format!(
+                "{} data rows; identification needs a log of many ticks",
+                log.t.len()
+            ),
         ));
     }
     if log.note.is_none() && !text.lines().any(|l| l.starts_with("# end:")) {

@@ -94,9 +94,10 @@ impl Key {
     /// actuator sheet itself (`actuator`).
     pub fn file(self) -> Option<&'static str> {
         match self {
-            Key::SonicConductance | Key::CriticalRatio | Key::SwitchingDelay | Key::ResponseTime => {
-                Some("valve")
-            }
+            Key::SonicConductance
+            | Key::CriticalRatio
+            | Key::SwitchingDelay
+            | Key::ResponseTime => Some("valve"),
             Key::DeadVolumeA | Key::DeadVolumeB => Some("cylinder"),
             Key::MovingMass | Key::Viscous | Key::Coulomb | Key::Static => Some("actuator"),
             Key::OffsetPa | Key::OffsetPb | Key::OffsetX => None,
@@ -254,7 +255,9 @@ impl Key {
                 "free motion with large accelerations: fast, large steps or PRBS away from the stops \
                  (rig excite --signal prbs --amplitude 1)"
             }
-            Key::Viscous => "free motion at several speeds (rig excite --signal chirp, free motion)",
+            Key::Viscous => {
+                "free motion at several speeds (rig excite --signal chirp, free motion)"
+            }
             Key::Coulomb | Key::Static => {
                 "slow free motion with reversals (rig excite --signal chirp at a small amplitude)"
             }

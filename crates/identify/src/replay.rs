@@ -174,12 +174,7 @@ impl Prepared {
         self.segments
             .iter()
             .filter(|&&(_, e)| e <= self.fit_end)
-            .map(|&(s, e)| {
-                self.compared
-                    .iter()
-                    .filter(|&&k| k > s && k <= e)
-                    .count()
-            })
+            .map(|&(s, e)| self.compared.iter().filter(|&&k| k > s && k <= e).count())
             .filter(|&n| n > 0)
             .collect()
     }
@@ -262,7 +257,11 @@ fn local_fit(t: &[f64], y: &[f64], c: usize, w: usize) -> [f64; 2] {
     let a = c.saturating_sub(w);
     let b = (c + w).min(t.len() - 1);
     if b - a < 2 {
-        let v = if b > a { (y[b] - y[a]) / (t[b] - t[a]) } else { 0.0 };
+        let v = if b > a {
+            (y[b] - y[a]) / (t[b] - t[a])
+        } else {
+            0.0
+        };
         return [y[c], v];
     }
     // Normal equations of y = c0 + c1 s + c2 s^2 in s = t - t[c]; the slope at c is c1.

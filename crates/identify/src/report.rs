@@ -111,7 +111,10 @@ pub fn markdown(r: &Report) -> String {
     let f = &r.fit;
     let _ = writeln!(s, "# Identification report\n");
     let _ = writeln!(s, "Sheet: `{}`\n", r.sheet);
-    let _ = writeln!(s, "| log | sha256 | rows | fit rows | validation rows | note |");
+    let _ = writeln!(
+        s,
+        "| log | sha256 | rows | fit rows | validation rows | note |"
+    );
     let _ = writeln!(s, "|---|---|---|---|---|---|");
     for l in &r.logs {
         let _ = writeln!(
@@ -126,7 +129,10 @@ pub fn markdown(r: &Report) -> String {
         );
     }
     let _ = writeln!(s, "\n## Estimates (95 % intervals from the Jacobian)\n");
-    let _ = writeln!(s, "| key | start | fitted | 95 % interval | +- % | bounds |");
+    let _ = writeln!(
+        s,
+        "| key | start | fitted | 95 % interval | +- % | bounds |"
+    );
     let _ = writeln!(s, "|---|---|---|---|---|---|");
     for e in &f.estimates {
         let _ = writeln!(

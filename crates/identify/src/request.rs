@@ -99,13 +99,18 @@ pub fn parse_bounds(
         .map(|&k| {
             let start = k.get(model, &off);
             let (lo, hi) = k.default_bounds(start, model);
-            Free { key: k, start, lo, hi }
+            Free {
+                key: k,
+                start,
+                lo,
+                hi,
+            }
         })
         .collect();
     for b in bounds {
-        let (name, range) = b.split_once('=').ok_or_else(|| {
-            key_err("--bounds", b, "expected KEY=[lo,hi]".into())
-        })?;
+        let (name, range) = b
+            .split_once('=')
+            .ok_or_else(|| key_err("--bounds", b, "expected KEY=[lo,hi]".into()))?;
         let k = Key::parse(name)
             .ok_or_else(|| key_err("--bounds", name, "no such parameter".into()))?;
         let f = free
@@ -234,7 +239,11 @@ pub fn write_outputs(id: &Identified, req: &Request, out: &Path) -> Result<PathB
     header += &format!(
         "started from {}; free: {}\n",
         req.actuator.display(),
-        id.keys.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
+        id.keys
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     header += &format!(
         "fit quality: residual RMS p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm on {} rows; held-out validation \

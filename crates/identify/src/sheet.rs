@@ -26,10 +26,11 @@ fn read(path: &Path) -> Result<String, IdentifyError> {
 }
 
 fn parse(path: &Path, text: &str) -> Result<DocumentMut, IdentifyError> {
-    text.parse::<DocumentMut>().map_err(|e| IdentifyError::Output {
-        file: path.to_path_buf(),
-        message: format!("cannot edit: {e}"),
-    })
+    text.parse::<DocumentMut>()
+        .map_err(|e| IdentifyError::Output {
+            file: path.to_path_buf(),
+            message: format!("cannot edit: {e}"),
+        })
 }
 
 fn write(path: &Path, text: &str) -> Result<(), IdentifyError> {

@@ -34,7 +34,8 @@ fn excitation(seed: u64) -> Excitation {
 /// logs pin a combination, and the interval says how well each is known).
 fn not_identified(warnings: &[String], key: &str) -> bool {
     warnings.iter().any(|w| {
-        w.starts_with(&format!("{key}: not identifiable")) || w.starts_with(&format!("{key}: poorly"))
+        w.starts_with(&format!("{key}: not identifiable"))
+            || w.starts_with(&format!("{key}: poorly"))
     })
 }
 
@@ -124,7 +125,11 @@ fn check_seed(seed: u64) {
     }
     let supply = id.model.actuator.supply.supply_pressure_pa;
     assert!(f.rms_validation[0] < 0.02 * supply && f.rms_validation[1] < 0.02 * supply);
-    assert!(f.rms_validation[2] < 0.5e-3, "x RMS {} m", f.rms_validation[2]);
+    assert!(
+        f.rms_validation[2] < 0.5e-3,
+        "x RMS {} m",
+        f.rms_validation[2]
+    );
 }
 
 /// Moving mass from a log with no acceleration (the piston held against its stop while the chambers are
@@ -148,7 +153,10 @@ fn flags_mass_from_a_log_without_motion() {
     let text = common::record(&shipped(), 9, ex, 2.0, None, &log);
     let l = pneuflex_identify::log::parse_log(&log, &text, String::new()).unwrap();
     let x_max = l.x.iter().cloned().fold(0.0, f64::max);
-    assert!(x_max < 2e-4, "the piston must stay on its stop, reached {x_max} m");
+    assert!(
+        x_max < 2e-4,
+        "the piston must stay on its stop, reached {x_max} m"
+    );
     let req = Request {
         logs: vec![log],
         actuator: shipped(),
@@ -170,8 +178,14 @@ fn flags_mass_from_a_log_without_motion() {
                 || w.starts_with("mechanics.moving_mass_kg: poorly identified")
         })
         .expect("the mass is flagged");
-    assert!(mass.contains("free motion with large accelerations"), "{mass}");
-    assert!(!id.report.fit.estimates[2].std_error.is_finite() || id.report.fit.estimates[2].rel_half_width > 0.1);
+    assert!(
+        mass.contains("free motion with large accelerations"),
+        "{mass}"
+    );
+    assert!(
+        !id.report.fit.estimates[2].std_error.is_finite()
+            || id.report.fit.estimates[2].rel_half_width > 0.1
+    );
     assert!(
         !w.iter().any(|w| w.starts_with("valve.sonic_conductance")),
         "C is identified from pressure steps: {w:?}"

@@ -39,7 +39,7 @@ fn request(log: PathBuf, free: &[&str], bounds: &[&str]) -> Request {
 }
 
 fn error(req: &Request) -> String {
-    identify(req).err().expect("refused").to_string()
+    identify(req).expect_err("refused").to_string()
 }
 
 #[test]
@@ -55,8 +55,15 @@ fn missing_column_names_file_and_column() {
         })
         .collect();
     let log = write(&dir, "trace.csv", &header, &r);
-    let e = error(&request(log.clone(), &["valve.sonic_conductance_m3_per_s_pa"], &[]));
-    assert!(e.starts_with(&format!("{}:2: column `p_b`", log.display())), "{e}");
+    let e = error(&request(
+        log.clone(),
+        &["valve.sonic_conductance_m3_per_s_pa"],
+        &[],
+    ));
+    assert!(
+        e.starts_with(&format!("{}:2: column `p_b`", log.display())),
+        "{e}"
+    );
     assert!(e.contains("missing column"), "{e}");
 }
 
@@ -66,9 +73,16 @@ fn nan_row_names_file_line_and_column() {
     let mut r = rows(50);
     r[20] = r[20].replace(",0.01,0.01,", ",NaN,0.01,");
     let log = write(&dir, "trace.csv", HEADER, &r);
-    let e = error(&request(log.clone(), &["valve.sonic_conductance_m3_per_s_pa"], &[]));
+    let e = error(&request(
+        log.clone(),
+        &["valve.sonic_conductance_m3_per_s_pa"],
+        &[],
+    ));
     // Line 1 is the comment, 2 the header, row 20 is line 23.
-    assert!(e.starts_with(&format!("{}:23: column `x`", log.display())), "{e}");
+    assert!(
+        e.starts_with(&format!("{}:23: column `x`", log.display())),
+        "{e}"
+    );
     assert!(e.contains("NaN"), "{e}");
 }
 
@@ -78,8 +92,15 @@ fn time_going_backwards_names_file_line_and_t() {
     let mut r = rows(50);
     r[30] = r[30].replacen("0.03,", "0.01,", 1);
     let log = write(&dir, "trace.csv", HEADER, &r);
-    let e = error(&request(log.clone(), &["valve.sonic_conductance_m3_per_s_pa"], &[]));
-    assert!(e.starts_with(&format!("{}:33: column `t`", log.display())), "{e}");
+    let e = error(&request(
+        log.clone(),
+        &["valve.sonic_conductance_m3_per_s_pa"],
+        &[],
+    ));
+    assert!(
+        e.starts_with(&format!("{}:33: column `t`", log.display())),
+        "{e}"
+    );
     assert!(e.contains("time must increase"), "{e}");
 }
 
@@ -87,8 +108,15 @@ fn time_going_backwards_names_file_line_and_t() {
 fn unknown_or_inapplicable_free_key_is_named() {
     let dir = common::scratch("bad-key");
     let log = write(&dir, "trace.csv", HEADER, &rows(50));
-    let e = error(&request(log.clone(), &["valve.sonic_conductance,mechanics.mass"], &[]));
-    assert!(e.starts_with("--free: valve.sonic_conductance: no such parameter"), "{e}");
+    let e = error(&request(
+        log.clone(),
+        &["valve.sonic_conductance,mechanics.mass"],
+        &[],
+    ));
+    assert!(
+        e.starts_with("--free: valve.sonic_conductance: no such parameter"),
+        "{e}"
+    );
     // The shipped valve is on/off: a proportional valve's response time does not apply.
     let e = error(&request(log, &["valve.response_time_s"], &[]));
     assert!(e.starts_with("--free: valve.response_time_s:"), "{e}");
@@ -100,7 +128,11 @@ fn bounds_excluding_the_start_value_are_named() {
     let dir = common::scratch("bad-bounds");
     let log = write(&dir, "trace.csv", HEADER, &rows(50));
     let free = ["mechanics.moving_mass_kg"];
-    let e = error(&request(log.clone(), &free, &["mechanics.moving_mass_kg=[1,2]"]));
+    let e = error(&request(
+        log.clone(),
+        &free,
+        &["mechanics.moving_mass_kg=[1,2]"],
+    ));
     assert!(
         e.starts_with("--bounds: mechanics.moving_mass_kg: [1, 2] excludes the start value 0.6"),
         "{e}"

@@ -46,7 +46,7 @@ fn perturbation_is_seeded_and_within_20_to_40_percent() {
     assert_eq!(da, db);
     assert_ne!(da, dc);
     let truth = ActuatorSheet::load(&a).unwrap().model();
-    let base = ActuatorSheet::load(&shipped()).unwrap().model();
+    let base = ActuatorSheet::load(shipped()).unwrap().model();
     let off = Offsets::default();
     for c in &da {
         let rel = (c.truth / c.shipped - 1.0).abs();
@@ -82,11 +82,14 @@ fn emulator_runs_the_hidden_truth() {
     let n = log.len();
     let p = Prepared::new(log, &ReplayOptions::default(), n - 1);
     let with_truth = rms_of(&p, &ActuatorSheet::load(&truth).unwrap().model());
-    let with_shipped = rms_of(&p, &ActuatorSheet::load(&shipped()).unwrap().model());
+    let with_shipped = rms_of(&p, &ActuatorSheet::load(shipped()).unwrap().model());
     eprintln!("pressure / position RMS: truth {with_truth:?}, shipped {with_shipped:?}");
     // 12-bit pressure channels resolve 270 / 540 Pa: the truth replays within a few counts.
     assert!(with_truth[0] < 2000.0, "{with_truth:?}");
-    assert!(with_shipped[0] > 3.0 * with_truth[0], "{with_shipped:?} vs {with_truth:?}");
+    assert!(
+        with_shipped[0] > 3.0 * with_truth[0],
+        "{with_shipped:?} vs {with_truth:?}"
+    );
 }
 
 /// A transport delay of 5 sample periods: the chambers leave atmosphere 5 rows later (30 ms of steps with
@@ -109,5 +112,9 @@ fn transport_delay_shifts_the_response() {
     };
     let k0 = first_move(None, "0.csv");
     let k5 = first_move(Some(0.005), "5.csv");
-    assert_eq!(k5, k0 + 5, "first pressure rise at row {k0} without, {k5} with the delay");
+    assert_eq!(
+        k5,
+        k0 + 5,
+        "first pressure rise at row {k0} without, {k5} with the delay"
+    );
 }

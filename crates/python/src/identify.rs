@@ -40,7 +40,10 @@ pub fn identify_json(
     settle: f64,
     out: Option<PathBuf>,
 ) -> PyResult<String> {
-    if !(segment.is_finite() && segment > 0.0 && settle.is_finite() && (0.0..segment).contains(&settle))
+    if !(segment.is_finite()
+        && segment > 0.0
+        && settle.is_finite()
+        && (0.0..segment).contains(&settle))
     {
         return Err(PneuflexError::new_err(format!(
             "segment must be > 0 s and settle in [0, segment), got {segment}, {settle}"

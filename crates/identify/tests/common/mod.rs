@@ -94,7 +94,11 @@ pub fn record_delayed(
                 eprintln!("{l}");
             }
         }
-        assert!(report.fault.is_none(), "excitation faulted: {:?}", report.fault);
+        assert!(
+            report.fault.is_none(),
+            "excitation faulted: {:?}",
+            report.fault
+        );
     }
     drop(sup);
     let text = String::from_utf8(buf).unwrap();
