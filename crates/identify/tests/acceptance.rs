@@ -191,3 +191,117 @@ fn flags_mass_from_a_log_without_motion() {
         "C is identified from pressure steps: {w:?}"
     );
 }
+
+/// The other keys: the valve's switching delay, viscous friction and a sensor offset (2 kPa added to every
+/// p_b reading of the log), with C and V_a; each inside its interval and within 5 % (C 10 %), the offset
+/// within 100 Pa.
+#[test]
+fn recovers_delay_viscous_friction_and_an_offset() {
+    let keys = [
+        Key::SonicConductance,
+        Key::SwitchingDelay,
+        Key::Viscous,
+        Key::DeadVolumeA,
+    ];
+    let dir = common::scratch("delay-offset");
+    let (truth, changes) = perturb(&shipped(), &keys, 3, &dir.join("truth")).unwrap();
+    let text = common::record(&truth, 3, excitation(3), 6.0, None, &dir.join("raw.csv"));
+    // p_b is the 7th column of the rig trace.
+    let mut out = String::new();
+    for line in text.lines() {
+        if line.starts_with('#') || line.starts_with("t,") {
+            out += line;
+        } else {
+            let mut f: Vec<String> = line.split(',').map(str::to_string).collect();
+            f[6] = (f[6].parse::<f64>().unwrap() + 2000.0).to_string();
+            out += &f.join(",");
+        }
+        out.push('\n');
+    }
+    let log = dir.join("offset.csv");
+    std::fs::write(&log, out).unwrap();
+    let mut free: Vec<String> = keys.iter().map(|k| k.name().to_string()).collect();
+    free.push("offset.p_b_pa".into());
+    let req = Request {
+        logs: vec![log],
+        actuator: shipped(),
+        free,
+        bounds: vec![],
+        validation_fraction: 0.25,
+        options: FitOptions::default(),
+    };
+    let id = identify(&req).unwrap();
+    let est = &id.report.fit.estimates;
+    for (c, e) in changes.iter().zip(est) {
+        let err = e.value / c.truth - 1.0;
+        eprintln!(
+            "{}: truth {:e} fitted {:e} ({:+.3} %) 95 % [{:e}, {:e}]",
+            e.key,
+            c.truth,
+            e.value,
+            100.0 * err,
+            e.ci95[0],
+            e.ci95[1]
+        );
+        assert!(
+            e.ci95[0] <= c.truth && c.truth <= e.ci95[1],
+            "{}: truth outside",
+            e.key
+        );
+        let tol = if c.key == Key::SonicConductance {
+            0.10
+        } else {
+            0.05
+        };
+        assert!(err.abs() <= tol, "{} off by {:.2} %", e.key, 100.0 * err);
+    }
+    let off = &est[4];
+    eprintln!(
+        "offset.p_b_pa: {} [{}, {}]",
+        off.value, off.ci95[0], off.ci95[1]
+    );
+    assert!((off.value - 2000.0).abs() < 100.0, "{off:?}");
+    assert!(off.ci95[0] <= 2000.0 && 2000.0 <= off.ci95[1], "{off:?}");
+}
+
+/// Several logs at once: the log held on the stop (pressure transients, no motion) with a free-motion log
+/// identifies the mass the held log alone could not.
+#[test]
+fn two_logs_identify_what_one_could_not() {
+    let dir = common::scratch("two-logs");
+    let held = dir.join("held.csv");
+    let ex = Excitation {
+        signal: Signal::Steps {
+            hold_s: 0.1,
+            seed: 4,
+        },
+        amplitude: 0.1,
+        bias: -0.9,
+        centre_m: 0.0,
+        centring_per_m: 0.0,
+        ramp_s: 0.0,
+    };
+    common::record(&shipped(), 9, ex, 2.0, None, &held);
+    let free_log = dir.join("free.csv");
+    common::record(&shipped(), 9, excitation(9), 4.0, None, &free_log);
+    let req = Request {
+        logs: vec![held, free_log],
+        actuator: shipped(),
+        free: vec!["valve.sonic_conductance_m3_per_s_pa,mechanics.moving_mass_kg".into()],
+        bounds: vec![],
+        validation_fraction: 0.2,
+        options: FitOptions::default(),
+    };
+    let id = identify(&req).unwrap();
+    let r = &id.report;
+    assert_eq!(r.logs.len(), 2);
+    assert!(r.logs.iter().all(|l| l.fit_rows > 0));
+    assert!(
+        !not_identified(&r.warnings, "mechanics.moving_mass_kg"),
+        "{:?}",
+        r.warnings
+    );
+    // The logs come from the shipped sheet: the fit stays at its values.
+    let m = &r.fit.estimates[1];
+    assert!((m.value / 0.6 - 1.0).abs() < 0.01, "{m:?}");
+}
