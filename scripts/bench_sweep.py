@@ -3,6 +3,7 @@
 import argparse
 import json
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -20,8 +21,11 @@ def sweep(scene, points, threads, out, quiet=True):
     cmd = [str(BIN), "sweep", scene, "--set", f"runs[*].impedance.b_d_ns_per_m=lin:52:53:{points}",
            "--threads", str(threads), "--out", str(out), "--quiet"]
     t = time.perf_counter()
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run(cmd, cwd=ROOT, check=True)
-    return time.perf_counter() - t
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    return time.perf_counter() - t, cpu
 
 
 def peak_rss_mib(scene, points, out):
@@ -49,22 +53,30 @@ def main():
     scenes = [("scenes/paper-fig3.toml", 6 if a.quick else 24, 2), ("scenes/paper-fig7-wood-to-iron.toml",
                                                                      4 if a.quick else 12, 2)]
     print(f"machine: {os.cpu_count()} CPUs, load average at start {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
-    print("\n| scene | points x runs | threads | scene-runs/s median (min, max) | scaling 2/1 per round (median, min, max) |")
-    print("|---|---|---|---|---|")
+    print("\n(scaling: wall time on 1 thread / on 2 threads, per round; CPU per scene-run: user + system time of the "
+          "process over its scene-runs — equal on 1 and 2 threads means no parallel overhead, whatever else loads "
+          "the machine)\n")
+    print("| scene | points x runs | threads | scene-runs/s median (min, max) | scaling 2/1 (median, min, max) "
+          "| CPU ms per scene-run (median) |")
+    print("|---|---|---|---|---|---|")
     for scene, points, runs in scenes:
         walls = {1: [], 2: []}
+        cpus = {1: [], 2: []}
         for r in range(rounds):
             for threads in ((1, 2) if r % 2 == 0 else (2, 1)):
-                walls[threads].append(sweep(scene, points, threads, OUT / f"tp-{threads}"))
+                w, c = sweep(scene, points, threads, OUT / f"tp-{threads}")
+                walls[threads].append(w)
+                cpus[threads].append(c)
         rate = {t: [points * runs / w for w in walls[t]] for t in walls}
         ratios = [w1 / w2 for w1, w2 in zip(walls[1], walls[2])]
         for t in (1, 2):
             rs = rate[t]
             scal = (f"{statistics.median(ratios):.2f} ({min(ratios):.2f}, {max(ratios):.2f})" if t == 2 else "")
+            cpu = 1e3 * statistics.median(cpus[t]) / (points * runs)
             print(f"| {Path(scene).stem} | {points} x {runs} | {t} | {statistics.median(rs):.1f} "
-                  f"({min(rs):.1f}, {max(rs):.1f}) | {scal} |")
+                  f"({min(rs):.1f}, {max(rs):.1f}) | {scal} | {cpu:.1f} |")
         results["throughput"].append({"scene": scene, "points": points, "runs": runs, "walls_s": walls,
-                                      "scaling": ratios})
+                                      "cpu_s": cpus, "scaling": ratios})
     print("\nper-point cost, one thread, median over the points (sweep_overhead example):\n")
     print("| scene | scene build [ms] | plant build [ms] | simulation [ms] | row [ms] | overhead / simulation |")
     print("|---|---|---|---|---|---|")
@@ -75,7 +87,7 @@ def main():
         results["overhead"].append(o)
         print(f"| {Path(scene).stem} | {1e3 * o['scene_build_s']:.3f} | {1e3 * o['plant_build_s']:.3f} | "
               f"{1e3 * o['simulate_s']:.2f} | {1e3 * o['row_s']:.3f} | {o['overhead_pct']:.2f} % |")
-    print("\npeak RSS of whole sweeps (paper-fig3-ideal, 2 runs per point, default threads):\n")
+    print("\npeak RSS of whole sweeps (paper-fig3-ideal, one swept key, 2 runs per point, default threads):\n")
     print("| points | peak RSS [MiB] | wall [s] |")
     print("|---|---|---|")
     for n in ((100, 1000) if a.quick else (100, 1000, 10000)):

@@ -87,11 +87,42 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     let bar = bar(n as u64, &format!("sweeping {}", scene.name), args.quiet);
     let start = Instant::now();
     let indices: Vec<usize> = (0..n).collect();
-    let results = sweep.run(&indices, args.threads, traces.as_deref(), &|| bar.inc(1))?;
+    // Rows go to sweep.csv chunk by chunk; only a heatmap's metrics are kept (memory does not grow with
+    // the number of points otherwise).
+    let keep: Vec<usize> = metrics
+        .iter()
+        .map(|m| sweep.metric_index(m))
+        .collect::<Result<_, _>>()?;
+    let heatmaps = pneuflex_sweep::output::has_heatmaps(&sweep);
+    let mut table = pneuflex_sweep::output::TableWriter::create(stage.path(), &sweep)?;
+    let mut kept = Vec::new();
+    let mut counts = [0usize; 4];
+    sweep.run_chunked(
+        &indices,
+        args.threads,
+        traces.as_deref(),
+        &|| bar.inc(1),
+        &mut |chunk| {
+            table.write(&sweep, chunk)?;
+            for r in chunk.iter().flat_map(|p| &p.runs) {
+                counts[match r.status {
+                    Status::Ok => 0,
+                    Status::NotSettled => 1,
+                    Status::Diverged => 2,
+                    Status::Error => 3,
+                }] += 1;
+            }
+            if heatmaps {
+                kept.extend(chunk.iter().map(|p| p.slim(&keep)));
+            }
+            Ok(())
+        },
+    )?;
+    table.finish()?;
     bar.finish_and_clear();
     let run_s = start.elapsed().as_secs_f64();
 
-    pneuflex_sweep::output::write(stage.path(), &sweep, &results, &metrics)?;
+    pneuflex_sweep::output::write_figures(stage.path(), &sweep, &kept, &metrics)?;
     let manifest = Manifest::new(
         "sweep",
         env!("CARGO_PKG_VERSION"),
@@ -99,15 +130,6 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     );
     let dest = stage.commit(manifest)?;
     if !args.quiet {
-        let mut counts = [0usize; 4];
-        for r in results.iter().flat_map(|p| &p.runs) {
-            counts[match r.status {
-                Status::Ok => 0,
-                Status::NotSettled => 1,
-                Status::Diverged => 2,
-                Status::Error => 3,
-            }] += 1;
-        }
         let threads = if args.threads == 0 {
             std::thread::available_parallelism().map_or(1, |n| n.get())
         } else {

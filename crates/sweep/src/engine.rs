@@ -98,6 +98,35 @@ pub struct PointResult {
     pub runs: Vec<RunRow>,
 }
 
+impl PointResult {
+    /// The same point keeping only the metric columns `keep` (the others None) and no reasons: what a
+    /// heatmap needs, small.
+    pub fn slim(&self, keep: &[usize]) -> PointResult {
+        PointResult {
+            index: self.index,
+            runs: self
+                .runs
+                .iter()
+                .map(|r| RunRow {
+                    run: r.run.clone(),
+                    controller: r.controller.clone(),
+                    status: r.status,
+                    reason: String::new(),
+                    metrics: (0..r.metrics.len())
+                        .map(|i| {
+                            if keep.contains(&i) {
+                                r.metrics[i]
+                            } else {
+                                None
+                            }
+                        })
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+}
+
 /// A metric column: window, metric name.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MetricColumn {
@@ -434,6 +463,38 @@ impl Sweep {
                 })
                 .collect()
         }))
+    }
+
+    /// [`Sweep::run`] in chunks of consecutive points: `on_chunk` gets each chunk's results in point order
+    /// as soon as the chunk is done, and nothing else is kept, so memory does not grow with the number of
+    /// points (the CLI streams the rows to sweep.csv this way).
+    pub fn run_chunked(
+        &self,
+        indices: &[usize],
+        threads: usize,
+        traces: Option<&Path>,
+        tick: &(dyn Fn() + Sync),
+        on_chunk: &mut dyn FnMut(&[PointResult]) -> Result<(), SweepError>,
+    ) -> Result<(), SweepError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
+        // Big enough to keep every thread busy (the chunk's slowest point idles the others at its end).
+        let chunk = (64 * pool.current_num_threads()).max(64);
+        for part in indices.chunks(chunk) {
+            let results: Vec<PointResult> = pool.install(|| {
+                part.par_iter()
+                    .map(|&i| {
+                        let r = self.run_point(i, traces);
+                        tick();
+                        r
+                    })
+                    .collect()
+            });
+            on_chunk(&results)?;
+        }
+        Ok(())
     }
 
     /// The table's header line (with its newline).

@@ -107,6 +107,62 @@ pub fn write(
     let csv = dir.join("sweep.csv");
     std::fs::write(&csv, sweep.table(results)).map_err(|e| io(&csv, e))?;
     let mut files = vec![PathBuf::from("sweep.csv")];
+    files.extend(write_figures(dir, sweep, results, metrics)?);
+    Ok(files)
+}
+
+/// Whether the sweep draws heatmaps (a grid of exactly two swept keys).
+pub fn has_heatmaps(sweep: &Sweep) -> bool {
+    sweep.points.grid.as_ref().is_some_and(|g| g.len() == 2)
+}
+
+/// sweep.csv written as the points come: the header at creation, then each chunk's rows.
+pub struct TableWriter {
+    path: PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+}
+
+impl TableWriter {
+    /// Creates `dir/sweep.csv` with the header.
+    pub fn create(dir: &Path, sweep: &Sweep) -> Result<Self, SweepError> {
+        use std::io::Write as _;
+        let path = dir.join("sweep.csv");
+        let io =
+            |e: std::io::Error| SweepError::Other(format!("{}: cannot write: {e}", path.display()));
+        let mut file = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io)?);
+        file.write_all(sweep.header().as_bytes()).map_err(io)?;
+        Ok(Self { path, file })
+    }
+
+    /// Appends the rows of `results`.
+    pub fn write(&mut self, sweep: &Sweep, results: &[PointResult]) -> Result<(), SweepError> {
+        use std::io::Write as _;
+        for p in results {
+            self.file.write_all(sweep.rows(p).as_bytes()).map_err(|e| {
+                SweepError::Other(format!("{}: cannot write: {e}", self.path.display()))
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Flushes the file.
+    pub fn finish(mut self) -> Result<(), SweepError> {
+        use std::io::Write as _;
+        self.file
+            .flush()
+            .map_err(|e| SweepError::Other(format!("{}: cannot write: {e}", self.path.display())))
+    }
+}
+
+/// The heatmaps of each of `metrics` (for a two-key grid) and sweep.json, from the points' results (all
+/// of them, or their [`PointResult::slim`] copies); returns the files written.
+pub fn write_figures(
+    dir: &Path,
+    sweep: &Sweep,
+    results: &[PointResult],
+    metrics: &[String],
+) -> Result<Vec<PathBuf>, SweepError> {
+    let mut files = Vec::new();
     let mut all_maps = Vec::new();
     for metric in metrics {
         let metric_i = sweep.metric_index(metric)?;

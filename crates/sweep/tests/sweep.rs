@@ -317,3 +317,21 @@ fn a_key_can_follow_another() {
     };
     assert!(e.contains("not swept"), "{e}");
 }
+
+#[test]
+fn the_chunked_run_writes_the_same_table() {
+    let s = sweep(
+        &data("ideal-impedance.toml"),
+        &["environment.stiffness_n_per_m=log:100:3000:70"],
+    )
+    .unwrap();
+    let idx: Vec<usize> = (0..s.len()).collect();
+    let whole = table(&s, 2);
+    let mut streamed = s.header();
+    s.run_chunked(&idx, 1, None, &|| {}, &mut |chunk| {
+        streamed.push_str(&s.table(chunk)[s.header().len()..]);
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(streamed, whole);
+}
