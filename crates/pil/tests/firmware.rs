@@ -274,7 +274,7 @@ fn a_storm_of_corrupted_frames_puts_the_valve_safe_before_the_watchdog() {
 fn a_panic_in_the_firmware_puts_the_valve_safe_and_is_reported() {
     let Some(elf) = firmware(
         "PNEUFLEX_FIRMWARE_PANIC",
-        "firmware/target/test-panic/thumbv7em-none-eabihf/release/pneuflex-firmware",
+        "firmware/target/pneuflex-firmware-test-panic",
     ) else {
         return;
     };
