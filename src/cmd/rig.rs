@@ -84,6 +84,7 @@ pub struct Hidden {
 /// or NaN puts the valve in its safe state and ends the run `loop.post_fault_s` later. Returns the loop
 /// report; an error (non-zero exit) if the run ended on a fault or a signal (then the output is committed
 /// as `<out_dir>.partial`).
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     rig_file: &Path,
     port: Option<&str>,
