@@ -28,10 +28,12 @@ pub struct FreeArg {
     pub lo: f64,
     /// Upper bound.
     pub hi: f64,
+    /// Searched in the logarithm (`KEY=log[LO,HI]`, both > 0): for a gain whose scale is unknown.
+    pub log: bool,
 }
 
 impl FreeArg {
-    /// Parses `KEY=[LO,HI]` (or `KEY=LO:HI`).
+    /// Parses `KEY=[LO,HI]` (or `KEY=LO:HI`), or `KEY=log[LO,HI]` to search in the logarithm.
     pub fn parse(arg: &str) -> Result<FreeArg, SweepError> {
         let bad = |m: &str| SweepError::Other(format!("--free {arg}: {m}"));
         let (key, range) = arg
@@ -39,6 +41,10 @@ impl FreeArg {
             .ok_or_else(|| bad("expected KEY=[LO,HI]"))?;
         let key = KeyPath::parse(key).map_err(SweepError::Key)?;
         let r = range.trim();
+        let (log, r) = match r.strip_prefix("log") {
+            Some(rest) => (true, rest.trim_start_matches(':')),
+            None => (false, r),
+        };
         let inner = r
             .strip_prefix('[')
             .and_then(|r| r.strip_suffix(']'))
@@ -58,7 +64,10 @@ impl FreeArg {
         if hi <= lo {
             return Err(bad(&format!("needs LO < HI, got {lo} and {hi}")));
         }
-        Ok(FreeArg { key, lo, hi })
+        if log && lo <= 0.0 {
+            return Err(bad(&format!("a log box needs LO > 0, got {lo}")));
+        }
+        Ok(FreeArg { key, lo, hi, log })
     }
 }
 
@@ -516,7 +525,13 @@ impl Tuner {
         self.free
             .iter()
             .zip(x)
-            .map(|(f, v)| (v - f.lo) / (f.hi - f.lo))
+            .map(|(f, v)| {
+                if f.log {
+                    (v.ln() - f.lo.ln()) / (f.hi.ln() - f.lo.ln())
+                } else {
+                    (v - f.lo) / (f.hi - f.lo)
+                }
+            })
             .collect()
     }
 
@@ -525,7 +540,13 @@ impl Tuner {
         self.free
             .iter()
             .zip(y)
-            .map(|(f, v)| f.lo + fold(*v) * (f.hi - f.lo))
+            .map(|(f, v)| {
+                if f.log {
+                    (f.lo.ln() + fold(*v) * (f.hi.ln() - f.lo.ln())).exp()
+                } else {
+                    f.lo + fold(*v) * (f.hi - f.lo)
+                }
+            })
             .collect()
     }
 

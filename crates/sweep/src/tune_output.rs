@@ -113,8 +113,13 @@ pub fn write(
     for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(&after)) {
         let _ = writeln!(
             comment,
-            "{} in [{}, {}]: {} -> {}",
-            f.key.text, f.lo, f.hi, b, a
+            "{} in {}[{}, {}]: {} -> {}",
+            f.key.text,
+            if f.log { "log" } else { "" },
+            f.lo,
+            f.hi,
+            b,
+            a
         );
     }
     let _ = writeln!(
@@ -190,7 +195,14 @@ pub fn write(
     );
     let _ = writeln!(r, "| key | box | before | after |\n|---|---|---|---|");
     for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(&after)) {
-        let _ = writeln!(r, "| `{}` | [{}, {}] | {b} | {a} |", f.key.text, f.lo, f.hi);
+        let _ = writeln!(
+            r,
+            "| `{}` | {}[{}, {}] | {b} | {a} |",
+            f.key.text,
+            if f.log { "log" } else { "" },
+            f.lo,
+            f.hi
+        );
     }
     let _ = writeln!(
         r,

@@ -135,6 +135,10 @@ fn a_bad_free_key_or_box_is_refused_before_anything_runs() {
     );
     assert!(e.contains("unknown field `b_d`"), "{e}");
     assert!(FreeArg::parse("environment.stiffness_n_per_m=[5,1]").is_err());
+    // A box in the logarithm: both bounds > 0.
+    let f = FreeArg::parse("runs[impedance].impedance.b_d_ns_per_m=log[10,1000]").unwrap();
+    assert!(f.log && f.lo == 10.0 && f.hi == 1000.0);
+    assert!(FreeArg::parse("runs[impedance].impedance.b_d_ns_per_m=log[0,1000]").is_err());
     assert!(FreeArg::parse("environment.stiffness_n_per_m=5").is_err());
     // The scene has only a step window: the default objective has no terms.
     let e = err("runs[impedance].impedance.b_d_ns_per_m=[10,100]", &[]);
