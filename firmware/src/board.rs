@@ -193,6 +193,17 @@ impl SetDutyCycle for Coil {
     }
 }
 
+/// An analog input of the I/O-board mode. The AN386 image has no ADC, so every conversion reads 0 counts; a
+/// real board converts its position sensor, pressure transmitters and load cell here.
+pub struct Adc;
+
+impl pneuflex_valve_driver::AdcChannel for Adc {
+    type Error = core::convert::Infallible;
+    fn read_counts(&mut self) -> Result<u16, Self::Error> {
+        Ok(0)
+    }
+}
+
 /// The supply dump valve: energised (high) = supply connected.
 pub struct DumpValve;
 

@@ -3,11 +3,13 @@
 //! parameters and reference schedule, then sends one sensor sample per tick; the board runs the
 //! `pneuflex-control` controller on it, drives the valve through `pneuflex-valve-driver` and answers with the
 //! valve command and telemetry. No valid frame for the watchdog time, a storm of bad frames, or a panic →
-//! the valve's safe state.
+//! the valve's safe state. A Config frame instead selects the I/O-board mode (`io_board.rs`, what `rig run`
+//! talks to).
 #![no_std]
 #![no_main]
 
 mod board;
+mod io_board;
 mod session;
 
 use core::fmt::Write as _;
@@ -15,10 +17,11 @@ use core::sync::atomic::{AtomicBool, AtomicU8, AtomicU32, Ordering};
 
 use cortex_m_rt::{entry, exception};
 use pneuflex_protocol::ctrl::{SafePayload, TEXT_LEN, TextPayload};
-use pneuflex_protocol::{Decoder, MAX_FRAME, Message, ValveMode, encode, fault_code};
-use pneuflex_valve_driver::{SafeMode, ValveDriver, ValveType};
+use pneuflex_protocol::{DecodeEvent, Decoder, MAX_FRAME, Message, ValveMode, encode, fault_code};
+use pneuflex_valve_driver::{SafeMode, Sampler, ValveDriver, ValveType};
 
 use board::{Clock, Coil, DumpValve, Uart};
+use io_board::IoBoard;
 use session::Session;
 
 /// Sequence number of the next frame sent (shared with the panic handler).
@@ -51,6 +54,13 @@ fn main() -> ! {
         Err(_) => panic!("valve driver outputs failed"),
     };
     let mut session = Session::new(valve, board::stack_peak_bytes);
+    // The I/O-board mode (rig run's board), entered by a Config frame while no controller runs.
+    let mut io = IoBoard::new(Sampler {
+        position: board::Adc,
+        channel_1: board::Adc,
+        pressure_b: board::Adc,
+        supply: board::Adc,
+    });
     let mut decoder = Decoder::new();
     board::enable_interrupts();
     loop {
@@ -59,6 +69,9 @@ fn main() -> ! {
         let now = clock.now_ns();
         NOW_US.store((now / 1000) as u32, Ordering::Relaxed);
         session.poll(now, &mut |m| send(&mut uart, m));
+        if byte.is_none() && io.period_ns().is_some() {
+            io.on_period(now, session.valve(), &mut |m| send(&mut uart, m));
+        }
         if let Some(b) = byte {
             // Answers are queued while the decoder holds the session's input, then sent.
             let mut events = [None; 4];
@@ -70,6 +83,18 @@ fn main() -> ! {
                 }
             });
             for ev in events.into_iter().flatten() {
+                if let DecodeEvent::Frame(f) = ev
+                    && (io.period_ns().is_some()
+                        || (matches!(f.msg, Message::Config(_)) && session.in_setup()))
+                {
+                    let before = io.period_ns();
+                    io.on_message(&f.msg, now, session.valve(), &mut |m| send(&mut uart, m));
+                    if let Some(p) = io.period_ns().filter(|&p| Some(p) != before) {
+                        // Samples every period from now on (TIMER1 reloads itself).
+                        board::arm_deadline(p);
+                    }
+                    continue;
+                }
                 let mut out: [Option<Message>; 2] = [None, None];
                 let mut k = 0;
                 let mut clk = || clock.now_ns();

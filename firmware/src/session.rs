@@ -105,6 +105,17 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
         self.safe_mode == SafeMode::Vent
     }
 
+    /// Whether the session waits for a setup (no controller running, no fault latched): the board may
+    /// then switch to the I/O-board mode.
+    pub fn in_setup(&self) -> bool {
+        matches!(self.state, State::Setup)
+    }
+
+    /// The valve driver (the I/O-board mode drives it too).
+    pub fn valve(&mut self) -> &mut ValveDriver<A, B, D> {
+        &mut self.valve
+    }
+
     /// The last tick the controller ran.
     pub fn last_tick(&self) -> u32 {
         self.last_tick

@@ -312,3 +312,94 @@ fn a_panic_in_the_firmware_puts_the_valve_safe_and_is_reported() {
     link.send(&sensors(501)).unwrap();
     assert!(link.recv_within(Duration::from_millis(500)).is_err());
 }
+
+/// The next Sample, skipping other frames (a Fault is returned through `fault`).
+fn next_sample(link: &mut Link, fault: &mut Option<(u8, u16)>) -> pneuflex_protocol::SamplePayload {
+    loop {
+        match link.recv().unwrap().msg {
+            Message::Sample(s) => return s,
+            Message::Fault { code, detail } => *fault = Some((code, detail)),
+            _ => {}
+        }
+    }
+}
+
+#[test]
+fn io_board_mode_applies_valve_commands_and_trips_its_own_watchdog_latched() {
+    use pneuflex_protocol::{ConfigPayload, ValvePayload, status as st};
+    let Some(elf) = release_elf() else { return };
+    let (_board, stdin, stdout) = qemu::Board::start(&elf).expect("QEMU starts");
+    let mut link = Link::new(stdin, stdout);
+    // Config (1 kHz samples, 20 ms board watchdog, vent), then the handshake's heartbeat.
+    link.send(&Message::Config(ConfigPayload {
+        sample_period_us: 1000,
+        watchdog_ms: 20,
+        safe_mode: ValveMode::SafeVent,
+    }))
+    .unwrap();
+    link.send(&Message::Heartbeat(0xC0DE_0001)).unwrap();
+    let mut fault = None;
+    loop {
+        if let Message::Heartbeat(c) = link.recv().unwrap().msg {
+            assert_eq!(c, 0xC0DE_0001, "echoed unchanged");
+            break;
+        }
+    }
+    // Before any command the valve is safe (vent) and the watchdog does not run.
+    let s = next_sample(&mut link, &mut fault);
+    assert_eq!((s.status, s.duty_q15), (st::SAFE, 0));
+    // A Run command: applied and echoed.
+    let mut burst = Vec::new();
+    let mut buf = [0u8; MAX_FRAME];
+    for tick in 1..=5u32 {
+        let n = encode(
+            tick as u8,
+            &Message::Valve(ValvePayload {
+                tick,
+                duty_q15: 16384,
+                mode: ValveMode::Run,
+            }),
+            &mut buf,
+        );
+        burst.extend_from_slice(&buf[..n]);
+    }
+    link.send_raw(&burst).unwrap();
+    let mut s = next_sample(&mut link, &mut fault);
+    while s.last_cmd_tick != 5 {
+        s = next_sample(&mut link, &mut fault);
+    }
+    assert_eq!((s.status, s.duty_q15), (0, 16384), "running at duty 0.5");
+    let last_cmd_seen_us = s.board_time_us;
+    // Silence: the board's own watchdog trips, latched, with the Fault frame.
+    while s.status == 0 {
+        s = next_sample(&mut link, &mut fault);
+    }
+    assert_eq!(fault, Some((fault_code::HOST_SILENT, 20)));
+    assert_eq!(s.status, st::SAFE | st::BOARD_FAULT | st::WATCHDOG);
+    assert_eq!(s.duty_q15, 0);
+    let waited = s.board_time_us - last_cmd_seen_us;
+    eprintln!(
+        "I/O board: watchdog 20 ms tripped in the sample {waited} us after the last command's echo"
+    );
+    // Checked each 1 ms sample: after 20 ms, within 20 ms + two periods of the echo.
+    assert!((19_000..=22_000).contains(&waited), "{waited} us");
+    // Latched: a Run command is echoed but not applied; Reset clears the fault, the valve stays safe.
+    link.send(&Message::Valve(ValvePayload {
+        tick: 6,
+        duty_q15: 16384,
+        mode: ValveMode::Run,
+    }))
+    .unwrap();
+    while s.last_cmd_tick != 6 {
+        s = next_sample(&mut link, &mut fault);
+    }
+    assert_eq!(
+        (s.status & st::BOARD_FAULT, s.duty_q15),
+        (st::BOARD_FAULT, 0)
+    );
+    link.send(&Message::Reset(RESET_MAGIC)).unwrap();
+    while s.status & st::BOARD_FAULT != 0 {
+        s = next_sample(&mut link, &mut fault);
+    }
+    assert_eq!((s.status, s.duty_q15), (st::SAFE, 0), "cleared, still safe");
+}
