@@ -1,11 +1,11 @@
 //! One module per subcommand; each returns `anyhow::Result` and leaves printing of errors to `main`.
-pub mod pil;
 pub mod identify;
+pub mod pil;
 pub mod rig;
 pub mod run;
 pub mod sweep;
-pub mod tune;
 pub mod tf;
+pub mod tune;
 
 /// An error that ends the process with a given exit code (128 + signal for an interrupted command).
 #[derive(Debug)]
