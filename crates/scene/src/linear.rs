@@ -94,7 +94,8 @@ impl LinearPlant {
         };
         let model = match actuator {
             Some(a) => {
-                let sheet = scene.load_sheet(&scene.resolve(a))
+                let sheet = scene
+                    .load_sheet(&scene.resolve(a))
                     .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
                 let m = sheet.model();
                 let (_, tf) = m.transfer_function_mid_stroke().map_err(|e| {

@@ -59,7 +59,8 @@ impl OneDofPneumatic {
             });
         };
         let path = scene.resolve(actuator);
-        let sheet = scene.load_sheet(&path)
+        let sheet = scene
+            .load_sheet(&path)
             .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
         let mut model = sheet.model();
         if let Some(a) = alpha_deg {

@@ -1166,7 +1166,9 @@ pub fn write_convergence(
                     .legend(move |(x, y)| Circle::new((x + 12, y), 3, blue.filled()));
                 chart
                     .draw_series(LineSeries::new(
-                        best.iter().copied().filter(|p| p.1.is_finite() && p.1 > 0.0),
+                        best.iter()
+                            .copied()
+                            .filter(|p| p.1.is_finite() && p.1 > 0.0),
                         orange.stroke_width(3),
                     ))
                     .map_err(|e| e.to_string())?
@@ -1194,14 +1196,18 @@ pub fn write_convergence(
             };
         }
         if hi / lo > 10.0 {
-            body!(builder!()
-                .build_cartesian_2d(0.0..n, (lo * 0.8..hi * 1.25).log_scale())
-                .map_err(|e| e.to_string())?);
+            body!(
+                builder!()
+                    .build_cartesian_2d(0.0..n, (lo * 0.8..hi * 1.25).log_scale())
+                    .map_err(|e| e.to_string())?
+            );
         } else {
             let pad = 0.05 * (hi - lo).max(1e-12 * hi.abs().max(1.0));
-            body!(builder!()
-                .build_cartesian_2d(0.0..n, (lo - pad)..(hi + pad))
-                .map_err(|e| e.to_string())?);
+            body!(
+                builder!()
+                    .build_cartesian_2d(0.0..n, (lo - pad)..(hi + pad))
+                    .map_err(|e| e.to_string())?
+            );
         }
         root.present().map_err(|e| e.to_string())
     };
