@@ -1,5 +1,6 @@
 //! One module per subcommand; each returns `anyhow::Result` and leaves printing of errors to `main`.
 pub mod identify;
+pub mod live;
 pub mod pil;
 pub mod rig;
 pub mod run;

@@ -52,16 +52,7 @@ pub fn pil(
     }
     // The live view: each run's rows on the simulated timeline with `run`'s entity paths, plus the link's
     // quality and the board's update cost; one recording per run. Checked before anything runs.
-    #[cfg(feature = "rerun")]
-    let sink = rerun.map(pneuflex_rerun::parse_sink).transpose()?;
-    #[cfg(not(feature = "rerun"))]
-    if let Some(words) = rerun {
-        bail!(
-            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
-             `cargo run --release --features rerun -- rig pil ...` (docs/rerun.md)",
-            words.join(" ")
-        );
-    }
+    let live = super::live::LiveSink::parse(rerun, "rig pil")?;
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out/pil").join(&scene.name));
@@ -87,29 +78,17 @@ pub fn pil(
             scene.name, scene.runs[i].name
         );
         let name = &scene.runs[i].name;
-        #[cfg(feature = "rerun")]
-        let mut live = match &sink {
-            Some(sink) => Some(pneuflex_rerun::RowRecorder::new(
-                pneuflex_rerun::sink_for_run(sink, name, indices.len()),
-                &format!("pil/{}/{name}", scene.name),
-                pneuflex_rerun::Clock::Sim,
-                scene.dt_s,
-                pneuflex_scene::runner::pwm_period_s(&scene),
-            )?),
-            None => None,
-        };
-        #[cfg(feature = "rerun")]
-        let observer: &mut dyn pneuflex_control::RowObserver = match live.as_mut() {
-            Some(l) => l,
-            None => &mut (),
-        };
-        #[cfg(not(feature = "rerun"))]
-        let observer: &mut dyn pneuflex_control::RowObserver = &mut ();
-        let r = pneuflex_pil::run_pil_observed(&scene, i, &elf, &mut |_| {}, observer)
+        let mut view = live.view(
+            &format!("pil/{}/{name}", scene.name),
+            name,
+            indices.len(),
+            super::live::Timeline::Sim,
+            scene.dt_s,
+            pneuflex_scene::runner::pwm_period_s(&scene),
+        )?;
+        let r = pneuflex_pil::run_pil_observed(&scene, i, &elf, &mut |_| {}, view.observer())
             .with_context(|| format!("run `{name}`"))?;
-        #[cfg(feature = "rerun")]
-        if let Some(l) = live {
-            let rows = l.finish()?;
+        if let Some(rows) = view.finish()? {
             eprintln!("rerun: {rows} ticks of `{name}` logged");
         }
         runs.push(r);

@@ -191,32 +191,14 @@ pub fn run_scene(
         }
     };
     // The live view: the same entity paths as `run`, on the wall clock; checked before the rig is touched.
-    #[cfg(feature = "rerun")]
-    let mut live = match rerun {
-        Some(words) => Some(pneuflex_rerun::RowRecorder::new(
-            pneuflex_rerun::parse_sink(words)?,
-            &format!("rig/{}/{}", scene.name, scene.runs[index].name),
-            pneuflex_rerun::Clock::Wall,
-            scene.dt_s,
-            pneuflex_scene::runner::pwm_period_s(&scene),
-        )?),
-        None => None,
-    };
-    #[cfg(not(feature = "rerun"))]
-    if let Some(words) = rerun {
-        bail!(
-            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
-             `cargo run --release --features rerun -- rig run ...` (docs/rerun.md)",
-            words.join(" ")
-        );
-    }
-    #[cfg(feature = "rerun")]
-    let observer: &mut dyn pneuflex_control::RowObserver = match live.as_mut() {
-        Some(l) => l,
-        None => &mut (),
-    };
-    #[cfg(not(feature = "rerun"))]
-    let observer: &mut dyn pneuflex_control::RowObserver = &mut ();
+    let mut live = super::live::LiveSink::parse(rerun, "rig run")?.view(
+        &format!("rig/{}/{}", scene.name, scene.runs[index].name),
+        &scene.runs[index].name,
+        1,
+        super::live::Timeline::Wall,
+        scene.dt_s,
+        pneuflex_scene::runner::pwm_period_s(&scene),
+    )?;
     let result = run(
         rig_file,
         port,
@@ -225,15 +207,14 @@ pub fn run_scene(
         &mut reference,
         duration,
         &out_dir,
-        observer,
+        live.observer(),
     )
     .map(|_| ());
-    #[cfg(feature = "rerun")]
-    if let Some(l) = live {
-        match l.finish() {
-            Ok(rows) => eprintln!("rerun: {rows} ticks logged"),
-            Err(e) => eprintln!("warning: the Rerun view is incomplete: {e}"),
-        }
+    // The recording is safe on disk whatever the view did: a logging error is a warning.
+    match live.finish() {
+        Ok(Some(rows)) => eprintln!("rerun: {rows} ticks logged"),
+        Ok(None) => {}
+        Err(e) => eprintln!("warning: the Rerun view is incomplete: {e:#}"),
     }
     result
 }
