@@ -128,22 +128,27 @@ pub fn markdown(r: &Report) -> String {
             l.note.as_deref().unwrap_or("")
         );
     }
-    let _ = writeln!(s, "\n## Estimates (95 % intervals from the Jacobian)\n");
     let _ = writeln!(
         s,
-        "| key | start | fitted | 95 % interval | +- % | bounds |"
+        "\n## Estimates (95 % intervals: value +- (1.96 std error + replay bias bound))\n"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| key | start | fitted | 95 % interval | +- % | std error | replay bias | bounds |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
     for e in &f.estimates {
         let _ = writeln!(
             s,
-            "| `{}` | {} | {} | [{}, {}] | {:.2} | [{}, {}] |",
+            "| `{}` | {} | {} | [{}, {}] | {:.2} | {} | {} | [{}, {}] |",
             e.key,
             g(e.start),
             g(e.value),
             g(e.ci95[0]),
             g(e.ci95[1]),
             100.0 * e.rel_half_width,
+            g(e.std_error),
+            g(e.bias),
             g(e.bounds[0]),
             g(e.bounds[1])
         );
