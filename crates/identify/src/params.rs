@@ -32,10 +32,29 @@ pub enum Key {
     OffsetPb,
     /// Offset of the position reading, m.
     OffsetX,
+    /// Sonic conductance C of one valve path (0 supply -> A, 1 A -> exhaust, 2 supply -> B, 3 B -> exhaust:
+    /// `pneuflex_pneumatics::PATHS`), m^3/(s Pa); written as `[valve.paths.<path>]` in the valve sheet.
+    PathConductance(u8),
+    /// Critical pressure ratio b of one valve path (as [`Key::PathConductance`]).
+    PathCritical(u8),
 }
 
+/// The per-path keys' names, in the order of `pneuflex_pneumatics::PATHS`.
+const PATH_C: [&str; 4] = [
+    "valve.paths.supply_a.sonic_conductance_m3_per_s_pa",
+    "valve.paths.a_exhaust.sonic_conductance_m3_per_s_pa",
+    "valve.paths.supply_b.sonic_conductance_m3_per_s_pa",
+    "valve.paths.b_exhaust.sonic_conductance_m3_per_s_pa",
+];
+const PATH_B: [&str; 4] = [
+    "valve.paths.supply_a.critical_pressure_ratio",
+    "valve.paths.a_exhaust.critical_pressure_ratio",
+    "valve.paths.supply_b.critical_pressure_ratio",
+    "valve.paths.b_exhaust.critical_pressure_ratio",
+];
+
 /// Every key, in the order of the report.
-pub const ALL: [Key; 13] = [
+pub const ALL: [Key; 21] = [
     Key::SonicConductance,
     Key::CriticalRatio,
     Key::SwitchingDelay,
@@ -49,6 +68,14 @@ pub const ALL: [Key; 13] = [
     Key::OffsetPa,
     Key::OffsetPb,
     Key::OffsetX,
+    Key::PathConductance(0),
+    Key::PathConductance(1),
+    Key::PathConductance(2),
+    Key::PathConductance(3),
+    Key::PathCritical(0),
+    Key::PathCritical(1),
+    Key::PathCritical(2),
+    Key::PathCritical(3),
 ];
 
 /// Sensor offsets (not in the actuator sheet; reported, and subtracted from the readings in the replay).
@@ -79,6 +106,8 @@ impl Key {
             Key::OffsetPa => "offset.p_a_pa",
             Key::OffsetPb => "offset.p_b_pa",
             Key::OffsetX => "offset.x_m",
+            Key::PathConductance(i) => PATH_C[usize::from(i) & 3],
+            Key::PathCritical(i) => PATH_B[usize::from(i) & 3],
         }
     }
 
@@ -97,7 +126,9 @@ impl Key {
             Key::SonicConductance
             | Key::CriticalRatio
             | Key::SwitchingDelay
-            | Key::ResponseTime => Some("valve"),
+            | Key::ResponseTime
+            | Key::PathConductance(_)
+            | Key::PathCritical(_) => Some("valve"),
             Key::DeadVolumeA | Key::DeadVolumeB => Some("cylinder"),
             Key::MovingMass | Key::Viscous | Key::Coulomb | Key::Static => Some("actuator"),
             Key::OffsetPa | Key::OffsetPb | Key::OffsetX => None,
@@ -154,6 +185,8 @@ impl Key {
             Key::OffsetPa => o.p_a,
             Key::OffsetPb => o.p_b,
             Key::OffsetX => o.x,
+            Key::PathConductance(i) => v.path(usize::from(i) & 3).sonic_conductance_m3_per_s_pa,
+            Key::PathCritical(i) => v.path(usize::from(i) & 3).critical_pressure_ratio,
         }
     }
 
@@ -195,6 +228,19 @@ impl Key {
             Key::OffsetPa => o.p_a = x,
             Key::OffsetPb => o.p_b = x,
             Key::OffsetX => o.x = x,
+            // A path of its own from here on (the valve's C and b no longer reach it).
+            Key::PathConductance(i) => {
+                let i = usize::from(i) & 3;
+                let mut p = v.path(i);
+                p.sonic_conductance_m3_per_s_pa = x;
+                v.paths[i] = Some(p);
+            }
+            Key::PathCritical(i) => {
+                let i = usize::from(i) & 3;
+                let mut p = v.path(i);
+                p.critical_pressure_ratio = x;
+                v.paths[i] = Some(p);
+            }
         }
     }
 
@@ -203,7 +249,7 @@ impl Key {
     /// switching delay, +-20 kPa / +-2 mm for offsets.
     pub fn default_bounds(self, x0: f64, m: &OneDofModel) -> (f64, f64) {
         match self {
-            Key::CriticalRatio => (0.01, 0.9),
+            Key::CriticalRatio | Key::PathCritical(_) => (0.01, 0.9),
             Key::SwitchingDelay => {
                 let period = match m.actuator.valve.kind {
                     ValveKind::OnOffPwm {
@@ -243,6 +289,14 @@ impl Key {
             Key::SonicConductance | Key::CriticalRatio => {
                 "full steps between supply and exhaust with the piston held (at an end stop or against the \
                  block): choked and subsonic flow in both directions (rig excite --signal steps, contact)"
+            }
+            Key::PathConductance(0 | 1) | Key::PathCritical(0 | 1) => {
+                "full fills and exhausts of chamber A with the piston held (at an end stop or against the \
+                 block), each through to the subsonic end (rig excite --signal steps --hold 0.2, contact)"
+            }
+            Key::PathConductance(_) | Key::PathCritical(_) => {
+                "full fills and exhausts of chamber B with the piston held (at an end stop or against the \
+                 block), each through to the subsonic end (rig excite --signal steps --hold 0.2, contact)"
             }
             Key::SwitchingDelay | Key::ResponseTime => {
                 "fast command edges with the pressures logged at the full rate (rig excite --signal prbs)"

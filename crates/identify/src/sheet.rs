@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use pneuflex_pneumatics::ActuatorSheet;
-use toml_edit::{DocumentMut, value};
+use toml_edit::{DocumentMut, Item, Table, value};
 
 use crate::IdentifyError;
 use crate::params::Key;
@@ -38,6 +38,26 @@ fn write(path: &Path, text: &str) -> Result<(), IdentifyError> {
         file: path.to_path_buf(),
         message: format!("cannot write: {e}"),
     })
+}
+
+/// Sets the dotted key `name` (`valve.paths.supply_a.critical_pressure_ratio`) to `v`, creating the tables
+/// on the way (the intermediate ones implicit, so that only `[valve.paths.supply_a]` is written).
+fn set_dotted(doc: &mut DocumentMut, name: &str, v: f64) {
+    let parts: Vec<&str> = name.split('.').collect();
+    let (last, tables) = parts.split_last().unwrap_or((&name, &[]));
+    let mut item = doc.as_item_mut();
+    for (i, t) in tables.iter().enumerate() {
+        if item.get(t).is_none()
+            && let Some(tl) = item.as_table_like_mut()
+        {
+            // A `[a.b]` table, not an inline one; the ones on the way implicit (no empty header).
+            let mut new = Table::new();
+            new.set_implicit(i + 1 < tables.len());
+            tl.insert(t, Item::Table(new));
+        }
+        item = &mut item[*t];
+    }
+    item[*last] = value(v);
 }
 
 /// Writes the sheet set of `src` into the existing directory `dir` with `values` (sensor offsets are left
@@ -73,8 +93,7 @@ pub fn write_sheets(
         let mut cdoc = parse(&from, &ctext)?;
         for &(k, v) in values {
             if k.file() == Some(comp) {
-                let (table, key) = k.name().split_once('.').unwrap_or(("", k.name()));
-                cdoc[table][key] = value(v);
+                set_dotted(&mut cdoc, k.name(), v);
             }
         }
         let mut name = Path::new(&rel)

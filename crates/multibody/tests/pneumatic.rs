@@ -22,6 +22,7 @@ fn actuator() -> Actuator {
                 sonic_conductance_m3_per_s_pa: 1.0e-8,
                 critical_pressure_ratio: 0.3,
             },
+            paths: [None; 4],
             underlap: 0.0,
             kind: ValveKind::Proportional {
                 response_time_s: 0.0,

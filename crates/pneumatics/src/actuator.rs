@@ -210,7 +210,14 @@ impl Actuator {
         let c = &self.cylinder;
         let sp = &self.supply;
         let o: Openings = self.valve.openings(spool);
-        let or = OrificeStep::new(&self.valve.orifice);
+        // One set of ISO 6358 constants per path (all equal to the valve's unless the sheet gives paths).
+        let v = &self.valve;
+        let (or_pa, or_ar, or_pb, or_br) = (
+            OrificeStep::new(&v.path(0)),
+            OrificeStep::new(&v.path(1)),
+            OrificeStep::new(&v.path(2)),
+            OrificeStep::new(&v.path(3)),
+        );
         ChamberStep {
             area_a: c.area_a(),
             area_b: c.area_b(),
@@ -220,11 +227,14 @@ impl Actuator {
             dead_b: c.dead_volume_b_m3,
             n: self.gas.polytropic_exponent,
             r: self.gas.gas_constant_j_per_kg_k,
-            k_pa: or.gain(o.p_a),
-            k_ar: or.gain(o.a_r),
-            k_pb: or.gain(o.p_b),
-            k_br: or.gain(o.b_r),
-            or,
+            k_pa: or_pa.gain(o.p_a),
+            k_ar: or_ar.gain(o.a_r),
+            k_pb: or_pb.gain(o.p_b),
+            k_br: or_br.gain(o.b_r),
+            or_pa,
+            or_ar,
+            or_pb,
+            or_br,
             ps: sp.supply_pressure_pa,
             ts: sp.supply_temperature_k,
             t0_over_ts: ISO_T0_K / sp.supply_temperature_k,
@@ -295,8 +305,11 @@ pub(crate) struct ChamberStep {
     n: f64,
     /// Gas constant R, J/(kg K).
     r: f64,
-    /// ISO 6358 constants of one path.
-    or: OrificeStep,
+    /// ISO 6358 constants of the paths P->A, A->R, P->B, B->R.
+    or_pa: OrificeStep,
+    or_ar: OrificeStep,
+    or_pb: OrificeStep,
+    or_br: OrificeStep,
     /// Gains (opening C rho0) of the paths P->A, A->R, P->B, B->R, kg/(s Pa).
     k_pa: f64,
     k_ar: f64,
@@ -322,28 +335,28 @@ impl ChamberStep {
     /// Signed flow supply -> chamber (kg/s) through a path of gain `k` and its enthalpy carrier
     /// q T_upstream (kg K/s), eq. (11); the chamber is at `p`, `t` (floored).
     #[inline(always)]
-    fn supply_path(&self, k: f64, p: f64, t: f64) -> (f64, f64) {
+    fn supply_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
         if k <= 0.0 {
             (0.0, 0.0)
         } else if self.ps >= p {
-            let q = self.or.flow(k, self.t0_over_ts, self.ps, p);
+            let q = or.flow(k, self.t0_over_ts, self.ps, p);
             (q, q * self.ts)
         } else {
-            let q = self.or.flow(k, ISO_T0_K / t, p, self.ps);
+            let q = or.flow(k, ISO_T0_K / t, p, self.ps);
             (-q, -q * t)
         }
     }
 
     /// Signed flow chamber -> exhaust (kg/s) and its enthalpy carrier (kg K/s), eq. (11).
     #[inline(always)]
-    fn exhaust_path(&self, k: f64, p: f64, t: f64) -> (f64, f64) {
+    fn exhaust_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
         if k <= 0.0 {
             (0.0, 0.0)
         } else if p >= self.pr {
-            let q = self.or.flow(k, ISO_T0_K / t, p, self.pr);
+            let q = or.flow(k, ISO_T0_K / t, p, self.pr);
             (q, q * t)
         } else {
-            let q = self.or.flow(k, self.t0_over_tr, self.pr, p);
+            let q = or.flow(k, self.t0_over_tr, self.pr, p);
             (-q, -q * self.tr)
         }
     }
@@ -355,10 +368,10 @@ impl ChamberStep {
         let pb = s.p_b.max(P_FLOOR);
         let ta = s.t_a.max(T_FLOOR);
         let tb = s.t_b.max(T_FLOOR);
-        let (q_pa, h_pa) = self.supply_path(self.k_pa, pa, ta);
-        let (q_ar, h_ar) = self.exhaust_path(self.k_ar, pa, ta);
-        let (q_pb, h_pb) = self.supply_path(self.k_pb, pb, tb);
-        let (q_br, h_br) = self.exhaust_path(self.k_br, pb, tb);
+        let (q_pa, h_pa) = self.supply_path(&self.or_pa, self.k_pa, pa, ta);
+        let (q_ar, h_ar) = self.exhaust_path(&self.or_ar, self.k_ar, pa, ta);
+        let (q_pb, h_pb) = self.supply_path(&self.or_pb, self.k_pb, pb, tb);
+        let (q_br, h_br) = self.exhaust_path(&self.or_br, self.k_br, pb, tb);
         (
             PortFlows {
                 p_a: q_pa,
@@ -427,6 +440,7 @@ mod tests {
                     sonic_conductance_m3_per_s_pa: 5.0e-9,
                     critical_pressure_ratio: b,
                 },
+                paths: [None; 4],
                 underlap,
                 kind: ValveKind::Proportional {
                     response_time_s: 0.0,
@@ -444,17 +458,29 @@ mod tests {
     /// The per-step evaluation (one square root per path, no pressure-ratio division) gives the same
     /// flows and chamber rates as the textbook form: `Orifice::mass_flow` per path (ISO 6358 with
     /// phi(p_d / p_u), eq. 11) and dT/dt = T (p'/p + V'/V - R T M'/(p V)) (eqs. 2-3, 9-10), to rounding,
-    /// in every flow regime (choked, subsonic, laminar, reverse) and for both flow directions.
+    /// in every flow regime (choked, subsonic, laminar, reverse) and for both flow directions; with one
+    /// orifice for all paths and with each path its own (`ValveModel::paths`: C and b differ per path).
     #[test]
     fn step_constants_match_reference_equations() {
         let pressures = [
             5.0e4, 1.0e5, P_ATM, 1.0135e5, 1.5e5, 3.0e5, 5.99e5, 5.9999e5, 6.0e5, 6.5e5,
         ];
         let mut checked = 0;
-        for b in [0.0, 0.3, 0.528] {
+        for (b, per_path) in [(0.0, false), (0.3, false), (0.528, false), (0.3, true)] {
             for underlap in [0.0, 0.05] {
-                let a = act(underlap, b);
-                let or = a.valve.orifice;
+                let mut a = act(underlap, b);
+                if per_path {
+                    for (i, (c, bi)) in [(3e-9, 0.1), (4e-9, 0.45), (2.5e-9, 0.3), (4.5e-9, 0.528)]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        a.valve.paths[i] = Some(Orifice {
+                            sonic_conductance_m3_per_s_pa: c,
+                            critical_pressure_ratio: bi,
+                        });
+                    }
+                }
+                let or: [Orifice; 4] = std::array::from_fn(|i| a.valve.path(i));
                 let (ps, ts) = (a.supply.supply_pressure_pa, a.supply.supply_temperature_k);
                 let (pr, tr) = (
                     a.supply.atmosphere_pressure_pa,
@@ -471,10 +497,10 @@ mod tests {
                                 t_b: 340.0,
                             };
                             let (ta, tb) = (s.t_a, s.t_b);
-                            let (q_pa, h_pa) = or.mass_flow(o.p_a, ps, ts, pa, ta);
-                            let (q_ar, h_ar) = or.mass_flow(o.a_r, pa, ta, pr, tr);
-                            let (q_pb, h_pb) = or.mass_flow(o.p_b, ps, ts, pb, tb);
-                            let (q_br, h_br) = or.mass_flow(o.b_r, pb, tb, pr, tr);
+                            let (q_pa, h_pa) = or[0].mass_flow(o.p_a, ps, ts, pa, ta);
+                            let (q_ar, h_ar) = or[1].mass_flow(o.a_r, pa, ta, pr, tr);
+                            let (q_pb, h_pb) = or[2].mass_flow(o.p_b, ps, ts, pb, tb);
+                            let (q_br, h_br) = or[3].mass_flow(o.b_r, pb, tb, pr, tr);
                             let f = a.port_flows(&s, spool);
                             let scale = 1e-12 * (5.0e-9 * 1.185 * 6.5e5);
                             for (got, want) in
@@ -515,7 +541,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(checked, 3 * 2 * 6 * 10 * 10);
+        assert_eq!(checked, 4 * 2 * 6 * 10 * 10);
     }
 
     /// The rod force of the per-step constants is the public `piston_force`.

@@ -9,7 +9,7 @@ use serde::Deserialize;
 use crate::actuator::{Actuator, Cylinder, Gas, R_AIR, STANDARD_GRAVITY, Supply};
 use crate::flow::Orifice;
 use crate::mechanics::{Friction, Mechanics, OneDofModel};
-use crate::valve::{ValveKind, ValveModel};
+use crate::valve::{PATHS, ValveKind, ValveModel};
 use pneuflex_files::Position;
 
 /// Error reading or validating a component file.
@@ -425,11 +425,31 @@ struct ValveSection {
     underlap: Option<f64>,
     pwm_frequency_hz: Option<f64>,
     switching_delay_s: Option<f64>,
+    #[serde(default)]
+    paths: Option<PathsSection>,
+}
+
+/// Optional `[valve.paths.<path>]` tables: a path's own C and/or b (the others take the valve's).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PathsSection {
+    supply_a: Option<PathSection>,
+    a_exhaust: Option<PathSection>,
+    supply_b: Option<PathSection>,
+    b_exhaust: Option<PathSection>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PathSection {
+    sonic_conductance_m3_per_s_pa: Option<f64>,
+    critical_pressure_ratio: Option<f64>,
 }
 
 /// A valve data sheet: `[valve]` with `kind` = "proportional" (`response_time_s`, `underlap`) or
 /// "on_off_pwm" (`pwm_frequency_hz`, `switching_delay_s`), plus `sonic_conductance_m3_per_s_pa` and
-/// `critical_pressure_ratio`.
+/// `critical_pressure_ratio`; optionally `[valve.paths.supply_a]` (`a_exhaust`, `supply_b`,
+/// `b_exhaust`) with either of those two keys for a path whose metering edge differs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ValveSheet {
     /// Model name.
@@ -462,6 +482,24 @@ impl ValveSheet {
                 "[0, 1)",
             )?,
         };
+        let mut paths = [None; 4];
+        if let Some(p) = s.paths {
+            let given = [p.supply_a, p.a_exhaust, p.supply_b, p.b_exhaust];
+            for (i, g) in given.into_iter().enumerate() {
+                let Some(g) = g else { continue };
+                let key = |k: &str| format!("valve.paths.{}.{k}", PATHS[i]);
+                let mut o = orifice;
+                if let Some(v) = g.sonic_conductance_m3_per_s_pa {
+                    o.sonic_conductance_m3_per_s_pa =
+                        c.bounded(&key("sonic_conductance_m3_per_s_pa"), v, SONIC_CONDUCTANCE)?;
+                }
+                if let Some(v) = g.critical_pressure_ratio {
+                    o.critical_pressure_ratio =
+                        c.range(&key("critical_pressure_ratio"), v, 0.0, 1.0, "[0, 1)")?;
+                }
+                paths[i] = Some(o);
+            }
+        }
         let not_for = |field: &str, v: Option<f64>, kind: &str| match v {
             Some(_) => Err(c.err(
                 field,
@@ -533,6 +571,7 @@ impl ValveSheet {
             name: s.name,
             valve: ValveModel {
                 orifice,
+                paths,
                 underlap,
                 kind,
             },

@@ -26,4 +26,4 @@ pub use components::{
 pub use flow::Orifice;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};
 pub use tf::{Linearisation, OperatingPoint, OperatingPointError, TfParams, TransferFunction};
-pub use valve::{Openings, ValveKind, ValveModel, ValveState};
+pub use valve::{Openings, PATHS, ValveKind, ValveModel, ValveState};

@@ -40,11 +40,18 @@ pub enum ValveKind {
     },
 }
 
+/// The four flow paths of a 5-port valve, in the order of [`ValveModel::paths`].
+pub const PATHS: [&str; 4] = ["supply_a", "a_exhaust", "supply_b", "b_exhaust"];
+
 /// A 5-port directional valve: flow restriction, centre underlap and spool dynamics.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ValveModel {
     /// ISO 6358 characteristics of one fully open path.
     pub orifice: Orifice,
+    /// Per-path ISO 6358 characteristics where a path differs from `orifice` (supply -> A, A -> exhaust,
+    /// supply -> B, B -> exhaust, as [`PATHS`]); `None`: `orifice`. A real valve's metering edges are not
+    /// identical, and identification can tell them apart (docs/identification.md).
+    pub paths: [Option<Orifice>; 4],
     /// Underlap as a fraction of full spool travel (proportional valve): at `s = 0` every path is open by
     /// this fraction, which gives the centre leakage and hence K_c of eq. (12). 0 for a 5/2 valve.
     pub underlap: f64,
@@ -87,6 +94,12 @@ fn sanitize(u: f64) -> f64 {
 }
 
 impl ValveModel {
+    /// The ISO 6358 characteristics of path `i` (as [`PATHS`]).
+    #[inline]
+    pub fn path(&self, i: usize) -> Orifice {
+        self.paths[i].unwrap_or(self.orifice)
+    }
+
     /// Path openings for spool position `s` (underlapped spool: a path opens from `s = -underlap`).
     #[inline]
     pub fn openings(&self, s: f64) -> Openings {

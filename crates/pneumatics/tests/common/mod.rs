@@ -34,6 +34,7 @@ pub fn orifice() -> Orifice {
 pub fn proportional(underlap: f64, tau: f64) -> ValveModel {
     ValveModel {
         orifice: orifice(),
+        paths: [None; 4],
         underlap,
         kind: ValveKind::Proportional {
             response_time_s: tau,
@@ -44,6 +45,7 @@ pub fn proportional(underlap: f64, tau: f64) -> ValveModel {
 pub fn pwm(freq: f64, delay: f64) -> ValveModel {
     ValveModel {
         orifice: orifice(),
+        paths: [None; 4],
         underlap: 0.0,
         kind: ValveKind::OnOffPwm {
             pwm_frequency_hz: freq,
