@@ -571,10 +571,11 @@ struct Bootstrap {
 /// is a few 1e-3 of the value). bias = mean(d), sd = std(d).
 ///
 /// Measured on the emulated rig (truth of seed 10, ten noise seeds): the bootstrap's bias has the sign of
-/// the true mean error and about half its size (C +0.05 vs +0.11 %, V_a +0.10 vs +0.22 %); its sd is ~1.5
-/// times the estimates' spread (the residual covariance it draws from also holds the restart errors'
-/// propagation), so the intervals err on the wide side: over truths of seeds 1-20, |error| / std error has
-/// an RMS of 0.61. `None` with fewer than 2 replicates.
+/// the true mean error and about half its size for C, V_a, V_b (+0.05 vs +0.11 %, +0.10 vs +0.22 %, +0.09
+/// vs +0.22 %), a sixth for m, the wrong sign for b (+0.016 vs -0.10 %): only part of the bias is this
+/// mechanism. The sigma is ~1.4 times the estimates' spread (the residual covariance it draws from also
+/// holds the restart errors' propagation), which covers the rest there: over truths of seeds 1-20,
+/// |error| / std error has an RMS of 0.61. `None` with fewer than 2 replicates.
 fn restart_bootstrap(
     pb: &Problem,
     values: &[f64],
