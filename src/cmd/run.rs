@@ -16,9 +16,7 @@ use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pneuflex_files::OutputDir;
 use pneuflex_files::output::{Manifest, Partial, Recoverable};
-use pneuflex_scene::{
-    Limits, PlantSpec, RunOptions, RunResult, Scene, WindowKind, run_scene_with, write_results,
-};
+use pneuflex_scene::{Limits, PlantSpec, RunOptions, RunResult, Scene, WindowKind, run_scene_with};
 
 use super::Exit;
 
@@ -161,10 +159,6 @@ fn run_scene_file(
         bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
     };
     let stop = install_stop_flag()?;
-    let opts = RunOptions {
-        limits,
-        stop: Some(&stop),
-    };
     // Watches nothing: the runs may execute in parallel.
     struct Quiet;
     impl pneuflex_scene::StepObserver for Quiet {
@@ -172,48 +166,76 @@ fn run_scene_file(
             false
         }
     }
-    #[cfg(feature = "rerun")]
-    let results = match observer.as_mut() {
-        Some(obs) => run_scene_with(scene, &opts, &mut progress, obs)?,
-        None => run_scene_with(scene, &opts, &mut progress, &mut Quiet)?,
-    };
-    #[cfg(not(feature = "rerun"))]
-    let results = run_scene_with(scene, &opts, &mut progress, &mut Quiet)?;
-    bar.finish_and_clear();
-    let sim_time = start.elapsed();
+    // Each run's trace is written as soon as the run is done, while the other runs still simulate: the runs
+    // end at different times, and the core that finished first would otherwise idle (docs/performance.md).
+    // The scope ends when every trace is written.
+    let dir = stage.path();
+    let trace_errors = std::sync::Mutex::new(Vec::new());
+    let (results, sim_time, summary, written, figures) = rayon::in_place_scope(
+        |writers| -> anyhow::Result<_> {
+            let write_trace = |r: &RunResult| {
+                let (r, errors) = (r.clone(), &trace_errors);
+                writers.spawn(move |_| {
+                    if let Err(e) = pneuflex_scene::write_trace(dir, &r) {
+                        errors
+                            .lock()
+                            .unwrap_or_else(|e| e.into_inner())
+                            .push((r.name, e));
+                    }
+                });
+            };
+            let opts = RunOptions {
+                limits,
+                stop: Some(&stop),
+                on_run: Some(&write_trace),
+            };
+            #[cfg(feature = "rerun")]
+            let results = match observer.as_mut() {
+                Some(obs) => run_scene_with(scene, &opts, &mut progress, obs)?,
+                None => run_scene_with(scene, &opts, &mut progress, &mut Quiet)?,
+            };
+            #[cfg(not(feature = "rerun"))]
+            let results = run_scene_with(scene, &opts, &mut progress, &mut Quiet)?;
+            bar.finish_and_clear();
+            let sim_time = start.elapsed();
 
-    // Rerun logging only reads the plant: the results are those of a run without it. Its cost is reported.
-    #[cfg(feature = "rerun")]
-    if let Some(obs) = observer {
-        let (cost, steps) = (obs.cost().as_secs_f64(), obs.steps());
-        obs.finish()?;
-        if !quiet {
-            let sim_s = (sim_time.as_secs_f64() - cost).max(1e-9);
-            println!(
-                "rerun: {steps} steps logged; {:.0} steps/s without logging, {:.0} with ({cost:.2} s of logging)",
-                steps as f64 / sim_s,
-                steps as f64 / (sim_s + cost)
+            // Rerun logging only reads the plant: the results are those of a run without it. Its cost is
+            // reported.
+            #[cfg(feature = "rerun")]
+            if let Some(obs) = observer {
+                let (cost, steps) = (obs.cost().as_secs_f64(), obs.steps());
+                obs.finish()?;
+                if !quiet {
+                    let sim_s = (sim_time.as_secs_f64() - cost).max(1e-9);
+                    println!(
+                        "rerun: {steps} steps logged; {:.0} steps/s without logging, {:.0} with ({cost:.2} s of logging)",
+                        steps as f64 / sim_s,
+                        steps as f64 / (sim_s + cost)
+                    );
+                }
+            }
+
+            let summary = pneuflex_scene::summary(scene, &results);
+            // summary.json beside the figures (different files), while the last traces are written. Figures
+            // only for a complete command with a run that did not diverge.
+            let figures = summary.complete && results.iter().any(|r| r.diverged.is_none());
+            let (written, figures) = rayon::join(
+                || pneuflex_scene::write_summary(dir, scene, &results),
+                || {
+                    figures.then(|| {
+                        pneuflex_viz::write_figures(dir, scene, &results, pneuflex_viz::Format::Png)
+                    })
+                },
             );
-        }
-    }
-
-    let summary = pneuflex_scene::summary(scene, &results);
-    // Traces and summary.json on one side, figures on the other (different files): in parallel. Figures
-    // only for a complete command with a run that did not diverge.
-    let figures = summary.complete && results.iter().any(|r| r.diverged.is_none());
-    let (written, figures) = rayon::join(
-        || write_results(stage.path(), scene, &results),
-        || {
-            figures.then(|| {
-                pneuflex_viz::write_figures(
-                    stage.path(),
-                    scene,
-                    &results,
-                    pneuflex_viz::Format::Png,
-                )
-            })
+            Ok((results, sim_time, summary, written, figures))
         },
-    );
+    )?;
+    // The first failed trace in run order, then summary.json.
+    let mut trace_errors = trace_errors.into_inner().unwrap_or_else(|e| e.into_inner());
+    trace_errors.sort_by_key(|(name, _)| results.iter().position(|r| &r.name == name));
+    if let Some((_, e)) = trace_errors.into_iter().next() {
+        return Err(e.into());
+    }
     written?;
     let manifest = Manifest::new("run", env!("CARGO_PKG_VERSION"), summary.inputs.clone());
     let signal = stop.load(std::sync::atomic::Ordering::Relaxed);

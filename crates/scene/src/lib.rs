@@ -25,7 +25,7 @@ pub mod trace;
 
 pub use error::SceneError;
 pub use multibody::{FlangeDrive, MultibodyPlant};
-pub use output::{Summary, scene_inputs, summary, write_results};
+pub use output::{Summary, scene_inputs, summary, write_results, write_summary, write_trace};
 pub use plant::{IdealLoop, LinearSpring, Plant, Visual, VisualPose, VisualShape};
 pub use pneumatic::OneDofPneumatic;
 pub use runner::{

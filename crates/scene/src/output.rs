@@ -194,6 +194,11 @@ pub fn write_results(dir: &Path, scene: &Scene, results: &[RunResult]) -> Result
     let written: Vec<Result<(), SceneError>> =
         results.par_iter().map(|r| write_trace(dir, r)).collect();
     written.into_iter().collect::<Result<(), _>>()?;
+    write_summary(dir, scene, results)
+}
+
+/// Writes summary.json into `dir`: the scene's results as [`summary`] gives them.
+pub fn write_summary(dir: &Path, scene: &Scene, results: &[RunResult]) -> Result<(), SceneError> {
     let path = dir.join("summary.json");
     let text =
         serde_json::to_string_pretty(&summary(scene, results)).map_err(|e| SceneError::Write {
@@ -204,8 +209,9 @@ pub fn write_results(dir: &Path, scene: &Scene, results: &[RunResult]) -> Result
     Ok(())
 }
 
-/// Writes `<dir>/<run>/<trace file>`.
-fn write_trace(dir: &Path, r: &RunResult) -> Result<(), SceneError> {
+/// Writes `<dir>/<run>/<trace file>` (`trace.csv`, or `trace.diverged.csv` / `trace.interrupted.csv` for a
+/// run that did not end normally).
+pub fn write_trace(dir: &Path, r: &RunResult) -> Result<(), SceneError> {
     let run_dir = dir.join(&r.name);
     fs::create_dir_all(&run_dir).map_err(werr(&run_dir))?;
     let path = run_dir.join(trace_file_name(r));

@@ -201,11 +201,13 @@ impl Plant for OneDofPneumatic {
 
     fn advance(&mut self, dt: f64) {
         let h = dt / f64::from(self.substeps);
+        let gravity_n = self.model.mechanics.gravity_force();
         for _ in 0..self.substeps {
             // The contact force is held over a substep: the spring's own time scale (≥ 20 ms at
             // 1400 N/m on 0.6 kg) is far longer than a substep.
             let f_ext = -self.env.force(self.state.x);
-            self.model.step(&mut self.state, self.u, f_ext, h);
+            self.model
+                .step_with_gravity(&mut self.state, self.u, f_ext, gravity_n, h);
         }
     }
 

@@ -271,14 +271,29 @@ pub fn run_scene_observed(
     run_scene_with(scene, &RunOptions::default(), progress, observer)
 }
 
-/// How a scene is run: the limits it must stay within, and a flag a signal handler sets to stop it.
-#[derive(Clone, Copy, Debug, Default)]
+/// How a scene is run: the limits it must stay within, a flag a signal handler sets to stop it, and who
+/// is told when a run's trace is complete.
+#[derive(Clone, Copy, Default)]
 pub struct RunOptions<'a> {
     /// Refuse scenes beyond these before anything runs.
     pub limits: crate::schema::Limits,
     /// Non-zero stops the current run at the next tick (the value is the signal number, e.g. 2 = SIGINT);
     /// later runs are not started.
     pub stop: Option<&'a std::sync::atomic::AtomicUsize>,
+    /// Called once per run that ran, as soon as its trace, window metrics and warnings are final (its
+    /// Lyapunov check may still be under way), on the thread that ran it, in any order: `pneuflex run`
+    /// writes the run's trace there while the other runs are still simulating.
+    pub on_run: Option<&'a (dyn Fn(&RunResult) + Sync)>,
+}
+
+impl std::fmt::Debug for RunOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunOptions")
+            .field("limits", &self.limits)
+            .field("stop", &self.stop)
+            .field("on_run", &self.on_run.map(|_| "Fn(&RunResult)"))
+            .finish()
+    }
 }
 
 /// The conventional name of a signal number, for messages.
@@ -339,6 +354,9 @@ pub fn run_scene_with(
         )?;
         observer.end_run(&r);
         finish_run(scene, i, &mut r, pwm_period);
+        if let Some(f) = opts.on_run {
+            f(&r);
+        }
         out.push(r);
     }
     progress(1.0);
@@ -352,18 +370,26 @@ fn stopped(opts: &RunOptions<'_>) -> bool {
 
 /// A simulated run's metrics, Lyapunov check and warnings.
 fn finish_run(scene: &Scene, i: usize, r: &mut RunResult, pwm_period: Option<f64>) {
-    if r.diverged.is_none() && r.interrupted.is_none() {
-        r.windows = compute_windows_with(scene, &r.trace, pwm_period);
-    }
+    finish_metrics(scene, i, r, pwm_period);
     if r.controller == ControllerKind::Adaptive {
         r.lyapunov = lyapunov_summary(scene, &scene.runs[i]);
+    }
+}
+
+/// A simulated run's window metrics and warnings (what needs its trace).
+fn finish_metrics(scene: &Scene, i: usize, r: &mut RunResult, pwm_period: Option<f64>) {
+    if r.diverged.is_none() && r.interrupted.is_none() {
+        r.windows = compute_windows_with(scene, &r.trace, pwm_period);
     }
     r.warnings = pinned_parameters(&scene.runs[i], &r.trace);
 }
 
 /// The runs of a scene on the pool's threads: each worker takes the next run in the scene's order (so the
 /// runs started are a prefix), builds its plant and controller, simulates and computes its metrics. The
-/// calling thread reports progress from what the workers send. The first error in run order is returned.
+/// Lyapunov checks of the adaptive runs (they need the scene, not the trace) are jobs of their own, taken
+/// by the first worker without a run: the runs end at different times, and the last run's worker would
+/// otherwise check it while the other core idles. The calling thread reports progress from what the
+/// workers send. The first error in run order is returned.
 fn run_parallel(
     scene: &Scene,
     opts: &RunOptions<'_>,
@@ -376,6 +402,8 @@ fn run_parallel(
     let pwm_period = pwm_period_s(scene);
     let next = AtomicUsize::new(0);
     let slots: Vec<Mutex<Option<Result<RunResult, SceneError>>>> =
+        (0..n_runs).map(|_| Mutex::new(None)).collect();
+    let lyapunov: Vec<Mutex<Option<LyapunovSummary>>> =
         (0..n_runs).map(|_| Mutex::new(None)).collect();
     let workers = n_runs.min(rayon::current_num_threads());
     let (tx, rx) = std::sync::mpsc::channel::<(usize, f64)>();
@@ -413,7 +441,10 @@ fn run_parallel(
                             &mut NoObserver,
                             opts.stop,
                         )?;
-                        finish_run(scene, i, &mut r, pwm_period);
+                        finish_metrics(scene, i, &mut r, pwm_period);
+                        if let Some(f) = opts.on_run {
+                            f(&r);
+                        }
                         Ok(r)
                     };
                     let r = run();
@@ -426,6 +457,15 @@ fn run_parallel(
                 }
             });
         }
+        // Queued behind the runs: a worker takes one when it has no run left.
+        for (i, slot) in lyapunov.iter().enumerate() {
+            if scene.runs[i].controller == ControllerKind::Adaptive {
+                s.spawn(move |_| {
+                    *slot.lock().unwrap_or_else(|e| e.into_inner()) =
+                        lyapunov_summary(scene, &scene.runs[i]);
+                });
+            }
+        }
         drop(tx);
         let mut done = vec![0.0; n_runs];
         let mut total = 0.0;
@@ -437,9 +477,15 @@ fn run_parallel(
     });
     progress(1.0);
     let mut out = Vec::with_capacity(n_runs);
-    for slot in slots {
+    for (slot, lyap) in slots.into_iter().zip(lyapunov) {
         match slot.into_inner().unwrap_or_else(|e| e.into_inner()) {
-            Some(r) => out.push(r?),
+            Some(r) => {
+                let mut r = r?;
+                if r.controller == ControllerKind::Adaptive {
+                    r.lyapunov = lyap.into_inner().unwrap_or_else(|e| e.into_inner());
+                }
+                out.push(r);
+            }
             None => break,
         }
     }

@@ -226,6 +226,7 @@ fn a_stop_request_ends_the_run_at_the_next_tick_and_starts_no_other() {
     let opts = RunOptions {
         limits: Limits::default(),
         stop: Some(&flag),
+        on_run: None,
     };
     let res = run_scene_with(
         &s,

@@ -69,6 +69,7 @@ fn a_stop_flag_set_before_starts_no_run() {
     let opts = RunOptions {
         limits: Limits::default(),
         stop: Some(&stop),
+        on_run: None,
     };
     struct Quiet;
     impl StepObserver for Quiet {
@@ -78,4 +79,47 @@ fn a_stop_flag_set_before_starts_no_run() {
     }
     let r = run_scene_with(&s, &opts, &mut |_| {}, &mut Quiet).unwrap();
     assert!(r.is_empty(), "{} runs", r.len());
+}
+
+/// `RunOptions::on_run` (how `pneuflex run` writes each trace while the other runs simulate) is called
+/// once per run with the trace, metrics and warnings the command returns, in parallel and one after
+/// another; the adaptive run's Lyapunov check (a job of its own in parallel) is in the result.
+#[test]
+fn every_run_is_handed_over_once_with_its_final_trace() {
+    let s = scene("paper-fig3-ideal.toml");
+    for watched in [false, true] {
+        let handed = std::sync::Mutex::new(Vec::new());
+        let on_run = |r: &RunResult| handed.lock().unwrap().push(r.clone());
+        let opts = RunOptions {
+            on_run: Some(&on_run),
+            ..RunOptions::default()
+        };
+        struct Quiet;
+        impl StepObserver for Quiet {
+            fn watches(&self) -> bool {
+                false
+            }
+        }
+        let results = if watched {
+            run_scene_with(&s, &opts, &mut |_| {}, &mut Watching).unwrap()
+        } else {
+            run_scene_with(&s, &opts, &mut |_| {}, &mut Quiet).unwrap()
+        };
+        let mut handed = handed.into_inner().unwrap();
+        assert_eq!(handed.len(), results.len(), "watched {watched}");
+        handed.sort_by_key(|h| results.iter().position(|r| r.name == h.name));
+        for (h, r) in handed.iter_mut().zip(&results) {
+            // Handed over before the Lyapunov check is attached; everything else is final.
+            h.lyapunov = r.lyapunov;
+            assert_eq!(
+                fingerprint(std::slice::from_ref(h)),
+                fingerprint(std::slice::from_ref(r))
+            );
+        }
+        let adaptive = results.iter().find(|r| r.name == "adaptive").unwrap();
+        assert!(
+            adaptive.lyapunov.is_some(),
+            "watched {watched}: no Lyapunov check"
+        );
+    }
 }

@@ -506,17 +506,25 @@ where
     Ok(())
 }
 
+thread_local! {
+    /// This thread's pixel buffer for PNG figures ([`render`]).
+    static PIXELS: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 fn render(path: &Path, format: Format, plot: &Plot) -> Result<(), VizError> {
     let size = (1200, 700);
     let r = match format {
-        Format::Png => {
-            let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
+        Format::Png => PIXELS.with_borrow_mut(|rgb| {
+            // The figures of a command are drawn on a few threads, each reusing its pixel buffer: a fresh
+            // 2.5 MB buffer costs its page faults again (a third of drawing's kernel time). Every pixel is
+            // painted (the white background first), so what the buffer held does not matter.
+            rgb.resize(size.0 as usize * size.1 as usize * 3, 0);
             draw_plot(
-                BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(),
+                BitMapBackend::with_buffer(rgb, size).into_drawing_area(),
                 plot,
             )
-            .and_then(|()| write_png(path, &rgb, size))
-        }
+            .and_then(|()| write_png(path, rgb, size))
+        }),
         Format::Svg => draw_plot(SVGBackend::new(path, size).into_drawing_area(), plot),
     };
     r.map_err(|message| VizError::Draw {
@@ -526,9 +534,9 @@ fn render(path: &Path, format: Format, plot: &Plot) -> Result<(), VizError> {
 }
 
 /// Writes an RGB image as PNG with one filter for every row (`Up`: a plot is long runs of one colour, the
-/// same from row to row) and zlib level 1. Against plotters' own encoder (five filters tried on every row, then
-/// fdeflate) the pixels are the same and the files about half the size (paper-fig3: 553 -> 302 KB), at the same
-/// whole-process time (scripts/time_run.py, docs/performance.md).
+/// same from row to row) and zlib level 1 (flate2's zlib-rs backend). Against plotters' own encoder (five filters
+/// tried on every row, then fdeflate) the pixels are the same and the files about half the size (paper-fig3:
+/// 553 -> 338 KB; scripts/time_run.py, docs/performance.md).
 fn write_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<(), String> {
     let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), w, h);
