@@ -5,8 +5,10 @@
 
 Runs each BIN `run SCENE --out TMP -q` N times, alternating the binaries (and their order every round),
 and prints per binary the min/median/max of wall time, CPU time (user + sys, wait4's rusage) and peak RSS
-(GNU time's %M). Also the simulation time the command reports (`simulated in`, 10 ms resolution), from 5
-runs without -q per binary. Nothing is asserted: this machine is noisy; compare within one run.
+(GNU time's %M). Then N more runs per binary without -q, interleaved the same way: their wall time, the
+simulation time the command reports (`simulated in`: 1 ms resolution, 10 ms in binaries older than the
+commit after 720316c) and the ratio of the two per run (issue 14: fig7's whole process against its
+simulation). Nothing is asserted: this machine is noisy; compare within one run.
 """
 import os
 import statistics
@@ -38,11 +40,14 @@ def once(binary, scene, out):
 
 
 def sim_time(binary, scene, out):
+    """(whole-process wall time, the simulation time the command reports) of one run without -q, s."""
+    t0 = time.perf_counter()
     text = subprocess.run([binary, "run", scene, "--out", out], capture_output=True, text=True).stdout
+    wall = time.perf_counter() - t0
     for line in text.splitlines():
         if "simulated in" in line:
-            return float(line.split("simulated in")[1].split("s;")[0])
-    return float("nan")
+            return wall, float(line.split("simulated in")[1].split("s;")[0])
+    return wall, float("nan")
 
 
 def main():
@@ -56,13 +61,18 @@ def main():
             order = bins if k % 2 == 0 else bins[::-1]
             for b in order:
                 rows[b].append(once(b, scene, outs[b]))
-        sims = {b: [sim_time(b, scene, outs[b]) for _ in range(5)] for b in bins}
+        sims = {b: [] for b in bins}
+        for k in range(n):
+            for b in bins if k % 2 == 0 else bins[::-1]:
+                sims[b].append(sim_time(b, scene, outs[b]))
     fmt = lambda xs, s: "/".join(f"{x * s:.1f}" for x in (min(xs), statistics.median(xs), max(xs)))
     print(f"{scene}, {n} interleaved runs each (min/median/max)")
     for b in bins:
         wall, cpu, rss = zip(*rows[b])
-        print(f"  {b}: wall {fmt(wall, 1e3)} ms, CPU {fmt(cpu, 1e3)} ms, peak RSS {fmt(rss, 1 / 1024)} MiB, "
-              f"reported simulation {fmt(sims[b], 1e3)} ms")
+        print(f"  {b}: wall {fmt(wall, 1e3)} ms, CPU {fmt(cpu, 1e3)} ms, peak RSS {fmt(rss, 1 / 1024)} MiB")
+        whole, sim = zip(*sims[b])
+        print(f"  {' ' * len(b)}  without -q: wall {fmt(whole, 1e3)} ms, reported simulation {fmt(sim, 1e3)} ms, "
+              f"whole / simulation (per run) {fmt([w / s for w, s in sims[b]], 1)}")
 
 
 if __name__ == "__main__":

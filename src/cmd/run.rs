@@ -279,7 +279,7 @@ fn run_scene_file(
             println!("{}", claims_table(&claims));
         }
         println!(
-            "{}: {} run(s) of {} s simulated in {:.2} s; outputs in {}",
+            "{}: {} run(s) of {} s simulated in {:.3} s; outputs in {}",
             scene.name,
             results.len(),
             scene.duration_s,

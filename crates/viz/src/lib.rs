@@ -12,9 +12,10 @@ pub mod overlay;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use plotters::element::DashedPathElement;
+use plotters::element::{DashedPathElement, Drawable, PointCollection};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
+use plotters_backend::{BackendCoord, DrawingErrorKind};
 use pneuflex_scene::metrics::moving_average;
 use pneuflex_scene::runner::pwm_period_s;
 use pneuflex_scene::schema::{EventSpec, WindowKind};
@@ -436,13 +437,12 @@ where
                     )
                 });
         } else {
-            // Segment by segment: plotters joins a thick polyline with miters, and a sharp reversal (the PWM
-            // ripple, a contact impact) then draws a spike far outside the data.
             chart
-                .draw_series(
-                    pts.windows(2)
-                        .map(|w| PathElement::new(vec![w[0], w[1]], style)),
-                )
+                .draw_series(std::iter::once(Stroke {
+                    points: pts,
+                    color,
+                    width,
+                }))
                 .map_err(|e| e.to_string())?
                 .label(l.label.as_str())
                 .legend(move |(x, y)| {
@@ -504,6 +504,58 @@ where
         .map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())?;
     Ok(())
+}
+
+/// A polyline `width` pixels wide, drawn segment by segment as one-pixel lines side by side (offset across
+/// the segment's main direction). Not plotters' thick path: that joins segments with miters,
+/// and a sharp reversal (the PWM ripple, a contact impact) then draws a spike far outside the data; and
+/// drawing every segment as its own filled polygon (a vector, an edge sort) cost a third of a figure.
+struct Stroke {
+    points: Vec<(f64, f64)>,
+    color: RGBColor,
+    width: u32,
+}
+
+impl<'a> PointCollection<'a, (f64, f64)> for &'a Stroke {
+    type Point = &'a (f64, f64);
+    type IntoIter = &'a [(f64, f64)];
+    fn point_iter(self) -> &'a [(f64, f64)] {
+        &self.points
+    }
+}
+
+impl<DB: DrawingBackend> Drawable<DB> for Stroke {
+    fn draw<I: Iterator<Item = BackendCoord>>(
+        &self,
+        mut points: I,
+        backend: &mut DB,
+        _: (u32, u32),
+    ) -> Result<(), DrawingErrorKind<DB::ErrorType>> {
+        let style = self.color.stroke_width(1);
+        let Some(mut from) = points.next() else {
+            return Ok(());
+        };
+        // The offsets -w/2 ..= w/2 (integer division): what plotters' own thick line covers (a quadrilateral
+        // w/2 either side of the path, its corners truncated to pixels), so the figures look as before.
+        let r = (self.width / 2) as i32;
+        for to in points {
+            let across = if (to.0 - from.0).abs() >= (to.1 - from.1).abs() {
+                (0, 1)
+            } else {
+                (1, 0)
+            };
+            for k in -r..=r {
+                let d = (across.0 * k, across.1 * k);
+                backend.draw_line(
+                    (from.0 + d.0, from.1 + d.1),
+                    (to.0 + d.0, to.1 + d.1),
+                    &style,
+                )?;
+            }
+            from = to;
+        }
+        Ok(())
+    }
 }
 
 thread_local! {
