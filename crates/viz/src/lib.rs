@@ -510,21 +510,21 @@ where
 /// the segment's main direction). Not plotters' thick path: that joins segments with miters,
 /// and a sharp reversal (the PWM ripple, a contact impact) then draws a spike far outside the data; and
 /// drawing every segment as its own filled polygon (a vector, an edge sort) cost a third of a figure.
-struct Stroke {
-    points: Vec<(f64, f64)>,
+struct Stroke<C> {
+    points: Vec<C>,
     color: RGBColor,
     width: u32,
 }
 
-impl<'a> PointCollection<'a, (f64, f64)> for &'a Stroke {
-    type Point = &'a (f64, f64);
-    type IntoIter = &'a [(f64, f64)];
-    fn point_iter(self) -> &'a [(f64, f64)] {
+impl<'a, C> PointCollection<'a, C> for &'a Stroke<C> {
+    type Point = &'a C;
+    type IntoIter = &'a [C];
+    fn point_iter(self) -> &'a [C] {
         &self.points
     }
 }
 
-impl<DB: DrawingBackend> Drawable<DB> for Stroke {
+impl<C, DB: DrawingBackend> Drawable<DB> for Stroke<C> {
     fn draw<I: Iterator<Item = BackendCoord>>(
         &self,
         mut points: I,
@@ -1303,6 +1303,92 @@ pub fn write_convergence(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The pixels (x, y) a drawing paints in black, at least half covered (plotters anti-aliases one-pixel
+    /// sloped lines), on a white 200 x 200 buffer.
+    fn painted(
+        draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>),
+    ) -> Vec<(i32, i32)> {
+        let mut rgb = vec![0u8; 200 * 200 * 3];
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, (200, 200)).into_drawing_area();
+            root.fill(&WHITE).unwrap();
+            draw(&root);
+            root.present().unwrap();
+        }
+        (0..200 * 200)
+            .filter(|i| rgb[3 * i] < 128)
+            .map(|i| ((i % 200) as i32, (i / 200) as i32))
+            .collect()
+    }
+
+    /// `Stroke` (our thick line) looks like plotters' own thick line: every pixel it paints is next to one
+    /// of plotters'; on flat and steep segments (the traces' PWM ripple) it paints as many pixels within a
+    /// quarter, and on any slope at least `width` pixels per pixel of length (plotters' own diagonals are
+    /// wider than its flat lines); a sharp reversal stays within the line's width of the data, without a
+    /// miter spike.
+    #[test]
+    fn a_stroke_looks_like_plotters_thick_line_without_its_spikes() {
+        let segments: [[(i32, i32); 2]; 4] = [
+            [(20, 100), (180, 104)],
+            [(100, 20), (103, 180)],
+            [(20, 20), (180, 180)],
+            [(30, 170), (170, 60)],
+        ];
+        for seg in segments {
+            let ours = painted(|root| {
+                root.draw(&Stroke {
+                    points: seg.to_vec(),
+                    color: BLACK,
+                    width: 2,
+                })
+                .unwrap();
+            });
+            let theirs = painted(|root| {
+                root.draw(&PathElement::new(seg.to_vec(), BLACK.stroke_width(2)))
+                    .unwrap();
+            });
+            let (dx, dy) = (seg[1].0 - seg[0].0, seg[1].1 - seg[0].1);
+            let length = f64::from(dx * dx + dy * dy).sqrt();
+            assert!(
+                ours.len() as f64 >= 2.0 * length,
+                "{seg:?}: {} pixels on a {length:.0}-pixel segment",
+                ours.len()
+            );
+            if dx.abs() > 10 * dy.abs() || dy.abs() > 10 * dx.abs() {
+                let ratio = ours.len() as f64 / theirs.len() as f64;
+                assert!(
+                    (0.75..=1.25).contains(&ratio),
+                    "{seg:?}: {} pixels against {}",
+                    ours.len(),
+                    theirs.len()
+                );
+            }
+            for &(x, y) in &ours {
+                assert!(
+                    theirs
+                        .iter()
+                        .any(|&(u, v)| (u - x).abs() <= 1 && (v - y).abs() <= 1),
+                    "{seg:?}: ({x}, {y}) is not next to plotters' line"
+                );
+            }
+        }
+        // A reversal: up 100 px and straight back down within 4 px of x.
+        let zigzag = vec![(50, 150), (52, 50), (54, 150), (150, 150)];
+        let ours = painted(|root| {
+            root.draw(&Stroke {
+                points: zigzag.clone(),
+                color: BLACK,
+                width: 2,
+            })
+            .unwrap();
+        });
+        let top = ours.iter().map(|p| p.1).min().unwrap();
+        assert!(
+            top >= 49,
+            "the reversal reaches y = {top}, above the data's 50 by more than the width"
+        );
+    }
 
     fn pixels(path: &Path) -> (u32, u32, Vec<u8>) {
         let decoder =
