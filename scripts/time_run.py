@@ -65,14 +65,14 @@ def main():
         for k in range(n):
             for b in bins if k % 2 == 0 else bins[::-1]:
                 sims[b].append(sim_time(b, scene, outs[b]))
-    fmt = lambda xs, s: "/".join(f"{x * s:.1f}" for x in (min(xs), statistics.median(xs), max(xs)))
+    fmt = lambda xs, s, d=1: "/".join(f"{x * s:.{d}f}" for x in (min(xs), statistics.median(xs), max(xs)))
     print(f"{scene}, {n} interleaved runs each (min/median/max)")
     for b in bins:
         wall, cpu, rss = zip(*rows[b])
         print(f"  {b}: wall {fmt(wall, 1e3)} ms, CPU {fmt(cpu, 1e3)} ms, peak RSS {fmt(rss, 1 / 1024)} MiB")
         whole, sim = zip(*sims[b])
         print(f"  {' ' * len(b)}  without -q: wall {fmt(whole, 1e3)} ms, reported simulation {fmt(sim, 1e3)} ms, "
-              f"whole / simulation (per run) {fmt([w / s for w, s in sims[b]], 1)}")
+              f"whole / simulation (per run) {fmt([w / s for w, s in sims[b]], 1, 2)}")
 
 
 if __name__ == "__main__":

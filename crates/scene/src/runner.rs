@@ -388,8 +388,9 @@ fn finish_metrics(scene: &Scene, i: usize, r: &mut RunResult, pwm_period: Option
 /// runs started are a prefix), builds its plant and controller, simulates and computes its metrics. The
 /// Lyapunov checks of the adaptive runs (they need the scene, not the trace) are jobs of their own, taken
 /// by the first worker without a run: the runs end at different times, and the last run's worker would
-/// otherwise check it while the other core idles. The calling thread reports progress from what the
-/// workers send. The first error in run order is returned.
+/// otherwise check it while the other core idles. A run stopped by a signal is still checked, as in the
+/// sequential path. The calling thread reports progress from what the workers send. The first error in
+/// run order is returned.
 fn run_parallel(
     scene: &Scene,
     opts: &RunOptions<'_>,
@@ -405,12 +406,17 @@ fn run_parallel(
         (0..n_runs).map(|_| Mutex::new(None)).collect();
     let lyapunov: Vec<Mutex<Option<LyapunovSummary>>> =
         (0..n_runs).map(|_| Mutex::new(None)).collect();
+    let adaptive: Vec<usize> = (0..n_runs)
+        .filter(|&i| scene.runs[i].controller == ControllerKind::Adaptive)
+        .collect();
+    let next_check = AtomicUsize::new(0);
     let workers = n_runs.min(rayon::current_num_threads());
     let (tx, rx) = std::sync::mpsc::channel::<(usize, f64)>();
     rayon::in_place_scope(|s| {
         for _ in 0..workers {
             let tx = tx.clone();
-            let (next, slots) = (&next, &slots);
+            let (next, slots, next_check, adaptive, lyapunov) =
+                (&next, &slots, &next_check, &adaptive, &lyapunov);
             s.spawn(move |_| {
                 loop {
                     if stopped(opts) {
@@ -455,16 +461,15 @@ fn run_parallel(
                         next.fetch_max(n_runs, Ordering::Relaxed);
                     }
                 }
-            });
-        }
-        // Queued behind the runs: a worker takes one when it has no run left.
-        for (i, slot) in lyapunov.iter().enumerate() {
-            if scene.runs[i].controller == ControllerKind::Adaptive {
-                s.spawn(move |_| {
-                    *slot.lock().unwrap_or_else(|e| e.into_inner()) =
+                // No run left: the Lyapunov checks not yet taken, before anything this worker queued
+                // (`on_run`'s trace writing), which the command's end does not wait for.
+                loop {
+                    let i = next_check.fetch_add(1, Ordering::Relaxed);
+                    let Some(&i) = adaptive.get(i) else { break };
+                    *lyapunov[i].lock().unwrap_or_else(|e| e.into_inner()) =
                         lyapunov_summary(scene, &scene.runs[i]);
-                });
-            }
+                }
+            });
         }
         drop(tx);
         let mut done = vec![0.0; n_runs];

@@ -119,10 +119,9 @@ pub fn envelope(t: &[f64], y: &[f64], t0: f64, t1: f64, columns: usize) -> Vec<(
 pub fn column_index(t: f64, t0: f64, t1: f64, columns: usize) -> usize {
     let last = columns.max(1) - 1;
     if t1 > t0 {
-        ((((t - t0) / (t1 - t0)) * last as f64 + 1e-3)
-            .floor()
-            .max(0.0) as usize)
-            .min(last)
+        // The cast truncates towards zero and saturates (negative and NaN to 0): floor(max(x, 0)) without
+        // libm's floor, which baseline x86-64 calls as a function (2.5 % of drawing the figures).
+        ((((t - t0) / (t1 - t0)) * last as f64 + 1e-3) as usize).min(last)
     } else {
         0
     }
@@ -707,18 +706,105 @@ pub fn write_figures(
         .iter()
         .map(|r| *r.trace.t().last().unwrap_or(&0.0))
         .fold(0.0, f64::max);
-    // Every figure is built first, then all are drawn in parallel (each into its own file).
-    let mut jobs: Vec<(PathBuf, Plot<'_>)> = Vec::new();
+    // Every figure is a job that builds its plot (period means, unit conversions) and draws it into its own
+    // file; the jobs run in parallel (building the plots first, on one thread, was 1.2 ms of fig7's outputs).
+    type Build<'b> = Box<dyn Fn() -> Plot<'b> + Send + Sync + 'b>;
+    let mut jobs: Vec<(PathBuf, Build<'_>)> = Vec::new();
+    let (ok, events) = (&ok, &events);
+    jobs.push((
+        dir.join(format!("force.{}", format.ext())),
+        Box::new(move || {
+            force_plot(
+                format!("{}: contact force", scene.name),
+                (0.0, t_end),
+                events.clone(),
+                ok,
+                period_s,
+            )
+        }),
+    ));
+    jobs.push((
+        dir.join(format!("position.{}", format.ext())),
+        Box::new(move || position_plot(scene, ok, t_end, events.clone(), period_s)),
+    ));
+    for (i, ev) in scene.events.iter().enumerate() {
+        let te = ev.t_s();
+        // Long enough to show every run's settling time, within the trace.
+        let settle_end = ok
+            .iter()
+            .filter_map(|r| event_window(r, te, t_end))
+            .filter_map(|w| Some(w.t0_s + w.event.as_ref()?.settling_time_s?))
+            .fold(te + 2.5, f64::max);
+        let t_range = ((te - 0.5).max(0.0), (settle_end + 0.3).min(t_end));
+        if t_range.1 <= t_range.0 {
+            continue;
+        }
+        jobs.push((
+            dir.join(format!("event-{i}.{}", format.ext())),
+            Box::new(move || {
+                let mut zoom = force_plot(
+                    format!(
+                        "{}: force around event {} at t = {te} s ({})",
+                        scene.name,
+                        i,
+                        event_label(ev)
+                    ),
+                    t_range,
+                    vec![te],
+                    ok,
+                    period_s,
+                );
+                mark_settling(&mut zoom, ok, te);
+                zoom
+            }),
+        ));
+    }
+    // Paper Fig. 7: the force response of every controller around each environment swap, the carriage
+    // move shaded.
+    for (i, ev) in scene.events.iter().enumerate() {
+        if let EventSpec::SwapEnvironment {
+            t_s,
+            to,
+            duration_s,
+        } = ev
+        {
+            let t_range = ((t_s - 1.0).max(0.0), (t_s + duration_s + 4.0).min(t_end));
+            if t_range.1 <= t_range.0 {
+                continue;
+            }
+            jobs.push((
+                dir.join(format!("fig7-swap-{i}.{}", format.ext())),
+                Box::new(move || {
+                    let mut fig7 = force_plot(
+                        format!(
+                            "{}: force response to the environment change (swap to {to} at {t_s} s)",
+                            scene.name
+                        ),
+                        t_range,
+                        vec![*t_s, t_s + duration_s],
+                        ok,
+                        period_s,
+                    );
+                    fig7.shade = Some((*t_s, t_s + duration_s, format!(" carriage swaps to {to}")));
+                    fig7
+                }),
+            ));
+        }
+    }
+    use rayon::prelude::*;
+    jobs.par_iter()
+        .map(|(p, build)| render(p, format, &build()).map(|()| p.clone()))
+        .collect()
+}
 
-    let force = force_plot(
-        format!("{}: contact force", scene.name),
-        (0.0, t_end),
-        events.clone(),
-        &ok,
-        period_s,
-    );
-    jobs.push((dir.join(format!("force.{}", format.ext())), force));
-
+/// The flange position of every run against its reference position (both in mm).
+fn position_plot<'a>(
+    scene: &Scene,
+    ok: &[&'a RunResult],
+    t_end: f64,
+    events: Vec<f64>,
+    period_s: Option<f64>,
+) -> Plot<'a> {
     let mut position = Plot::new(
         format!(
             "{}: flange position x against reference position x_r",
@@ -726,7 +812,7 @@ pub fn write_figures(
         ),
         "position [mm]",
         (0.0, t_end),
-        events.clone(),
+        events,
     );
     let mm = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<_>>();
     for (i, r) in ok.iter().enumerate() {
@@ -760,66 +846,7 @@ pub fn write_figures(
             width: 2,
         });
     }
-    jobs.push((dir.join(format!("position.{}", format.ext())), position));
-
-    for (i, ev) in scene.events.iter().enumerate() {
-        let te = ev.t_s();
-        // Long enough to show every run's settling time, within the trace.
-        let settle_end = ok
-            .iter()
-            .filter_map(|r| event_window(r, te, t_end))
-            .filter_map(|w| Some(w.t0_s + w.event.as_ref()?.settling_time_s?))
-            .fold(te + 2.5, f64::max);
-        let t_range = ((te - 0.5).max(0.0), (settle_end + 0.3).min(t_end));
-        if t_range.1 <= t_range.0 {
-            continue;
-        }
-        let mut zoom = force_plot(
-            format!(
-                "{}: force around event {} at t = {te} s ({})",
-                scene.name,
-                i,
-                event_label(ev)
-            ),
-            t_range,
-            vec![te],
-            &ok,
-            period_s,
-        );
-        mark_settling(&mut zoom, &ok, te);
-        jobs.push((dir.join(format!("event-{i}.{}", format.ext())), zoom));
-    }
-    // Paper Fig. 7: the force response of every controller around each environment swap, the carriage
-    // move shaded.
-    for (i, ev) in scene.events.iter().enumerate() {
-        if let EventSpec::SwapEnvironment {
-            t_s,
-            to,
-            duration_s,
-        } = ev
-        {
-            let t_range = ((t_s - 1.0).max(0.0), (t_s + duration_s + 4.0).min(t_end));
-            if t_range.1 <= t_range.0 {
-                continue;
-            }
-            let mut fig7 = force_plot(
-                format!(
-                    "{}: force response to the environment change (swap to {to} at {t_s} s)",
-                    scene.name
-                ),
-                t_range,
-                vec![*t_s, t_s + duration_s],
-                &ok,
-                period_s,
-            );
-            fig7.shade = Some((*t_s, t_s + duration_s, format!(" carriage swaps to {to}")));
-            jobs.push((dir.join(format!("fig7-swap-{i}.{}", format.ext())), fig7));
-        }
-    }
-    use rayon::prelude::*;
-    jobs.par_iter()
-        .map(|(p, plot)| render(p, format, plot).map(|()| p.clone()))
-        .collect()
+    position
 }
 
 /// A darker shade of a run's colour, for its reference line drawn over its measured signal.
