@@ -130,6 +130,9 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
         ),
     };
     out.extend(margin_warnings(scene));
+    if let PlantSpec::Multibody(mb) = &scene.plant {
+        out.extend(mount_damping_warnings(scene, mb));
+    }
     let Ok(sheet) = scene.load_sheet(&sheet) else {
         return out;
     };
@@ -180,6 +183,75 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
                 ),
             });
         }
+    }
+    out
+}
+
+/// Where a material's mount cannot have its own damping at the scene's solver substep h = physics_dt_s /
+/// solver_iterations: Rapier's implicit motor damps with c + k h, and pneuflex-multibody gives the motor
+/// c - k h but never less than c / 10 (`RigWorld::update_mount`), so a mount with k h > 0.9 c is damped with
+/// more than its material's c (by k h - 0.9 c): its impacts and ripple then depend on the step.
+pub fn mount_damping_warnings(scene: &Scene, mb: &crate::schema::MultibodySpec) -> Vec<Warning> {
+    let h = mb.physics_dt_s / mb.solver_iterations.max(1) as f64;
+    let mut mounts: Vec<(String, f64, f64)> = mb
+        .materials
+        .iter()
+        .map(|m| (m.name.clone(), m.stiffness_n_per_m, m.damping_n_s_per_m))
+        .collect();
+    for ev in &scene.events {
+        if let EventSpec::Stiffness {
+            stiffness_n_per_m,
+            material,
+            damping_n_s_per_m,
+            ..
+        } = ev
+        {
+            // Absent: the material facing the flange (the initial one, as far as a check before the run knows).
+            let Some(spec) = (match material {
+                Some(n) => mb.materials.iter().find(|m| &m.name == n),
+                None => mb.initial_material(),
+            }) else {
+                continue;
+            };
+            let c = damping_n_s_per_m.unwrap_or(spec.damping_n_s_per_m);
+            mounts.push((spec.name.clone(), *stiffness_n_per_m, c));
+        }
+    }
+    let mut out = Vec::new();
+    for (name, k, c) in mounts {
+        let numerical = k * h;
+        if numerical <= 0.9 * c
+            || out
+                .iter()
+                .any(|w: &Warning| w.message.contains(&format!("`{name}`")))
+        {
+            continue;
+        }
+        let damped = 0.1 * c + numerical;
+        // Four significant digits, no exponent for the N s/m of a rig.
+        let n = |x: f64| format!("{}", (x * 1e4).round() / 1e4);
+        let h_max = 0.9 * c / k;
+        out.push(Warning {
+            key: "plant.physics_dt_s".into(),
+            message: format!(
+                "material `{name}` ({k:.3e} N/m, {c} N s/m): at the solver substep h = physics_dt_s / \
+                 solver_iterations = {h:.3e} s its mount is damped with {} N s/m, not {c} (Rapier's implicit \
+                 spring adds k h = {} N s/m and at most 0.9 c of it is taken back), so its impacts and ripple \
+                 depend on the step; {}",
+                n(damped),
+                n(numerical),
+                if c > 0.0 {
+                    format!(
+                        "for the material's damping use h <= 0.9 c / k = {h_max:.3e} s (physics_dt_s <= {:.3e} s at \
+                         {} solver iterations)",
+                        h_max * mb.solver_iterations as f64,
+                        mb.solver_iterations
+                    )
+                } else {
+                    "an undamped mount (damping_n_s_per_m = 0) is damped with k h at any step".into()
+                }
+            ),
+        });
     }
     out
 }

@@ -264,3 +264,42 @@ fn gains_past_the_inner_loops_margin_are_warned_about_with_the_kp_that_keeps_it(
         "{w:?}"
     );
 }
+
+/// A mount whose damping the solver substep cannot represent (k h > 0.9 c: Rapier's implicit spring adds
+/// k h, and only 0.9 c of it is taken back) is warned about, naming the material and the step that would
+/// give its damping: the realistic iron (2e7 N/m, 400 N s/m) at h = 0.1 ms / 2; the Fig. 7 rig's wood and
+/// iron (700 and 1400 N/m, 2 N s/m at h = 2 ms / 2) are not.
+#[test]
+fn a_mount_damping_the_substep_cannot_give_is_warned_about() {
+    let (text, path) = shipped("paper-fig7-realistic.toml");
+    let w = advice::warnings(&load(&text, &path).unwrap());
+    let mounts: Vec<_> = w
+        .iter()
+        .filter(|w| w.message.contains("its mount is damped"))
+        .collect();
+    assert_eq!(mounts.len(), 1, "{w:?}");
+    assert_eq!(mounts[0].key, "plant.physics_dt_s");
+    assert!(
+        mounts[0].message.contains("material `iron`"),
+        "{}",
+        mounts[0]
+    );
+    assert!(
+        mounts[0]
+            .message
+            .contains("damped with 1040 N s/m, not 400"),
+        "{}",
+        mounts[0]
+    );
+    assert!(
+        mounts[0].message.contains("physics_dt_s <= 3.600e-5 s"),
+        "{}",
+        mounts[0]
+    );
+    let (text, path) = shipped("paper-fig7-wood-to-iron.toml");
+    let w = advice::warnings(&load(&text, &path).unwrap());
+    assert!(
+        w.iter().all(|w| !w.message.contains("its mount is damped")),
+        "{w:?}"
+    );
+}
