@@ -341,9 +341,11 @@ fn y_range(plot: &Plot) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
+/// `raster`: the backend is a pixel buffer (thick lines as side-by-side pixel lines, [`Stroke`]), not SVG.
 fn draw_plot<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     plot: &Plot,
+    raster: bool,
 ) -> Result<(), String>
 where
     DB::ErrorType: 'static,
@@ -441,6 +443,7 @@ where
                     points: pts,
                     color,
                     width,
+                    raster,
                 }))
                 .map_err(|e| e.to_string())?
                 .label(l.label.as_str())
@@ -505,14 +508,16 @@ where
     Ok(())
 }
 
-/// A polyline `width` pixels wide, drawn segment by segment as one-pixel lines side by side (offset across
-/// the segment's main direction). Not plotters' thick path: that joins segments with miters,
-/// and a sharp reversal (the PWM ripple, a contact impact) then draws a spike far outside the data; and
-/// drawing every segment as its own filled polygon (a vector, an edge sort) cost a third of a figure.
+/// A polyline `width` pixels wide, drawn segment by segment: not plotters' thick path, which joins segments
+/// with miters, so that a sharp reversal (the PWM ripple, a contact impact) draws a spike far outside the
+/// data. On a pixel buffer (`raster`) each segment is one-pixel lines side by side (offset across its main
+/// direction): plotters' own thick segment, a filled polygon (a vector, an edge sort), cost a third of a
+/// figure. In SVG each segment is a thick path of its own.
 struct Stroke<C> {
     points: Vec<C>,
     color: RGBColor,
     width: u32,
+    raster: bool,
 }
 
 impl<'a, C> PointCollection<'a, C> for &'a Stroke<C> {
@@ -534,6 +539,14 @@ impl<C, DB: DrawingBackend> Drawable<DB> for Stroke<C> {
         let Some(mut from) = points.next() else {
             return Ok(());
         };
+        if !self.raster {
+            let thick = self.color.stroke_width(self.width);
+            for to in points {
+                backend.draw_path([from, to], &thick)?;
+                from = to;
+            }
+            return Ok(());
+        }
         // The offsets -w/2 ..= w/2 (integer division): what plotters' own thick line covers (a quadrilateral
         // w/2 either side of the path, its corners truncated to pixels), so the figures look as before.
         let r = (self.width / 2) as i32;
@@ -573,10 +586,11 @@ fn render(path: &Path, format: Format, plot: &Plot) -> Result<(), VizError> {
             draw_plot(
                 BitMapBackend::with_buffer(rgb, size).into_drawing_area(),
                 plot,
+                true,
             )
             .and_then(|()| write_png(path, rgb, size))
         }),
-        Format::Svg => draw_plot(SVGBackend::new(path, size).into_drawing_area(), plot),
+        Format::Svg => draw_plot(SVGBackend::new(path, size).into_drawing_area(), plot, false),
     };
     r.map_err(|message| VizError::Draw {
         path: path.to_path_buf(),
@@ -1368,6 +1382,7 @@ mod tests {
                     points: seg.to_vec(),
                     color: BLACK,
                     width: 2,
+                    raster: true,
                 })
                 .unwrap();
             });
@@ -1407,6 +1422,7 @@ mod tests {
                 points: zigzag.clone(),
                 color: BLACK,
                 width: 2,
+                raster: true,
             })
             .unwrap();
         });
@@ -1465,6 +1481,7 @@ mod tests {
         draw_plot(
             BitMapBackend::new(&theirs, (1200, 700)).into_drawing_area(),
             &plot,
+            true,
         )
         .unwrap();
         let (a, b) = (pixels(&ours), pixels(&theirs));
