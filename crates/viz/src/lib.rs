@@ -696,7 +696,9 @@ fn mark_settling(plot: &mut Plot, ok: &[&RunResult], te: f64) {
 ///
 /// `force.<ext>`: f_e of every run with f_ref on top; `position.<ext>`: x (solid) and x_r (dashed, on top)
 /// of every run, mm; `event-<i>.<ext>`: the force from 0.5 s before to 2.5 s after event i (longer when a
-/// run settles later), each run's settling time marked (dotted, in its colour) or why it did not settle.
+/// run settles later), each run's settling time marked (dotted, in its colour) or why it did not settle;
+/// for a swap of the environment instead `fig7-swap-<i>.<ext>` (paper Fig. 7): 1 s before to 4 s after the
+/// carriage move (longer when a run settles later), the move shaded, the settling times marked.
 /// On an on/off valve the measured f_e and x are drawn as their PWM-period mean over a light band of the raw
 /// signal (its per-pixel-column min/max); on a continuous valve raw. Every series is reduced to its
 /// per-pixel-column first/min/max/last before drawing. Diverged runs are left out.
@@ -741,15 +743,21 @@ pub fn write_figures(
         dir.join(format!("position.{}", format.ext())),
         Box::new(move || position_plot(scene, ok, t_end, events.clone(), period_s)),
     ));
-    for (i, ev) in scene.events.iter().enumerate() {
-        let te = ev.t_s();
-        // Long enough to show every run's settling time, within the trace.
-        let settle_end = ok
-            .iter()
+    // The latest settling time of any run after an event at `te` (at least `te + 2.5` s).
+    let settle_end = |te: f64| {
+        ok.iter()
             .filter_map(|r| event_window(r, te, t_end))
             .filter_map(|w| Some(w.t0_s + w.event.as_ref()?.settling_time_s?))
-            .fold(te + 2.5, f64::max);
-        let t_range = ((te - 0.5).max(0.0), (settle_end + 0.3).min(t_end));
+            .fold(te + 2.5, f64::max)
+    };
+    for (i, ev) in scene.events.iter().enumerate() {
+        // A swap has its Fig. 7 figure below, with the settling times on it: not two views of one window.
+        if let EventSpec::SwapEnvironment { .. } = ev {
+            continue;
+        }
+        let te = ev.t_s();
+        // Long enough to show every run's settling time, within the trace.
+        let t_range = ((te - 0.5).max(0.0), (settle_end(te) + 0.3).min(t_end));
         if t_range.1 <= t_range.0 {
             continue;
         }
@@ -774,7 +782,7 @@ pub fn write_figures(
         ));
     }
     // Paper Fig. 7: the force response of every controller around each environment swap, the carriage
-    // move shaded.
+    // move shaded, each run's settling time marked (as on an event figure).
     for (i, ev) in scene.events.iter().enumerate() {
         if let EventSpec::SwapEnvironment {
             t_s,
@@ -782,7 +790,12 @@ pub fn write_figures(
             duration_s,
         } = ev
         {
-            let t_range = ((t_s - 1.0).max(0.0), (t_s + duration_s + 4.0).min(t_end));
+            let t_range = (
+                (t_s - 1.0).max(0.0),
+                (t_s + duration_s + 4.0)
+                    .max(settle_end(*t_s) + 0.3)
+                    .min(t_end),
+            );
             if t_range.1 <= t_range.0 {
                 continue;
             }
@@ -800,6 +813,7 @@ pub fn write_figures(
                         period_s,
                     );
                     fig7.shade = Some((*t_s, t_s + duration_s, format!(" carriage swaps to {to}")));
+                    mark_settling(&mut fig7, ok, *t_s);
                     fig7
                 }),
             ));

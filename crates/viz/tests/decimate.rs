@@ -249,3 +249,41 @@ fn figures_of_a_long_trace_are_written() {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
+
+/// A scene with an environment swap gets its Fig. 7 figure, with each run's settling time on it, and no
+/// second zoom on the same window (`event-<i>`): paper-fig7-wood-to-iron writes force, position and
+/// fig7-swap-0, and the swap figure carries the run's note for the 'swap' window.
+#[test]
+fn a_swap_has_one_figure_with_the_settling_times() {
+    let sc = scene("paper-fig7-wood-to-iron.toml");
+    let trace = synthetic_trace(8_001);
+    let windows = compute_windows(&sc, &trace);
+    let results = vec![RunResult {
+        name: "impedance".into(),
+        controller: ControllerKind::Impedance,
+        trace,
+        windows,
+        lyapunov: None,
+        diverged: None,
+        interrupted: None,
+        warnings: Vec::new(),
+    }];
+    let dir = out_dir("fig7-swap");
+    let written = write_figures(&dir, &sc, &results, Format::Svg).unwrap();
+    let mut names: Vec<String> = written
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["fig7-swap-0.svg", "force.svg", "position.svg"]);
+    let svg = std::fs::read_to_string(dir.join("fig7-swap-0.svg")).unwrap();
+    assert!(
+        svg.contains("impedance: "),
+        "no settling note on the swap figure"
+    );
+    assert!(
+        svg.contains("window &apos;swap&apos;") || svg.contains("window 'swap'"),
+        "the note names no window"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
