@@ -13,11 +13,12 @@ fn repo(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pneuflex-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh scratch directory, removed when the returned guard drops.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("pneuflex-cli-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn stderr(o: &Output) -> String {
@@ -44,6 +45,7 @@ fn ideal_scene(dir: &Path, duration_s: f64) -> PathBuf {
 #[test]
 fn a_user_file_in_out_survives_and_the_run_fails_naming_it() {
     let d = scratch("userfile");
+    let d = d.path().to_path_buf();
     let out = d.join("d");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "my notes").unwrap();
@@ -71,6 +73,7 @@ fn a_user_file_in_out_survives_and_the_run_fails_naming_it() {
 #[test]
 fn out_dot_is_refused_and_the_working_directory_is_untouched() {
     let d = scratch("dot");
+    let d = d.path().to_path_buf();
     std::fs::write(d.join("keep.txt"), "x").unwrap();
     let o = pneuflex()
         .current_dir(&d)
@@ -91,6 +94,7 @@ fn out_dot_is_refused_and_the_working_directory_is_untouched() {
 #[test]
 fn the_scene_folder_is_refused() {
     let d = scratch("scenefolder");
+    let d = d.path().to_path_buf();
     let scene = ideal_scene(&d, 7.0);
     let o = pneuflex()
         .args(["run", "-q", "--out"])
@@ -106,6 +110,7 @@ fn the_scene_folder_is_refused() {
 #[test]
 fn an_output_is_replaced_and_carries_its_manifest_and_provenance() {
     let d = scratch("replace");
+    let d = d.path().to_path_buf();
     let out = d.join("o");
     for _ in 0..2 {
         let o = pneuflex()
@@ -151,6 +156,7 @@ fn an_output_is_replaced_and_carries_its_manifest_and_provenance() {
 #[test]
 fn sigterm_leaves_the_complete_output_untouched_and_a_marked_partial_beside_it() {
     let d = scratch("sigterm");
+    let d = d.path().to_path_buf();
     let out = d.join("o");
     let short = ideal_scene(&d.join("short").tap_mkdir(), 7.0);
     let o = pneuflex()
@@ -235,6 +241,7 @@ fn a_missing_file_is_reported_once() {
 #[test]
 fn a_warning_names_the_file_line_and_key_before_the_run() {
     let d = scratch("warn");
+    let d = d.path().to_path_buf();
     let text = std::fs::read_to_string(repo("scenes/paper-fig3.toml")).unwrap();
     let text = text.replacen("stiffness_n_per_m = 700.0", "stiffness_n_per_m = 1e12", 1);
     let text = text.replacen(

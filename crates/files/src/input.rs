@@ -177,16 +177,18 @@ pub fn read_text(path: &Path, kind: InputKind) -> Result<String, InputError> {
 mod tests {
     use super::*;
 
-    fn tmp(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("pneuflex-files-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    /// A fresh scratch directory, removed when the returned guard drops.
+    fn tmp(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("pneuflex-files-{name}-"))
+            .tempdir()
+            .unwrap()
     }
 
     #[test]
     fn a_directory_is_refused_by_name() {
         let d = tmp("dir");
+        let d = d.path().to_path_buf();
         let e = read_text(&d, InputKind::Scene).unwrap_err();
         assert!(
             matches!(
@@ -215,6 +217,7 @@ mod tests {
     #[test]
     fn a_file_over_the_limit_is_refused() {
         let d = tmp("big");
+        let d = d.path().to_path_buf();
         let p = d.join("big.toml");
         std::fs::write(&p, vec![b'#'; (InputKind::Scene.max_bytes() + 1) as usize]).unwrap();
         let e = read_text(&p, InputKind::Scene).unwrap_err();
@@ -231,6 +234,7 @@ mod tests {
     #[test]
     fn text_is_read() {
         let d = tmp("ok");
+        let d = d.path().to_path_buf();
         let p = d.join("a.toml");
         std::fs::write(&p, "a = 1\n").unwrap();
         assert_eq!(read_text(&p, InputKind::Scene).unwrap(), "a = 1\n");

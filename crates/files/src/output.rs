@@ -529,11 +529,12 @@ impl Drop for OutputDir {
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("pneuflex-out-{}-{name}", std::process::id()));
-        let _ = fs::remove_dir_all(&d);
-        fs::create_dir_all(&d).unwrap();
-        d
+    /// A fresh scratch directory, removed when the returned guard drops.
+    fn scratch(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("pneuflex-out-{name}-"))
+            .tempdir()
+            .unwrap()
     }
 
     fn write_one(dest: &Path, body: &str) -> Result<PathBuf, OutputError> {
@@ -546,6 +547,7 @@ mod tests {
     #[test]
     fn a_user_file_survives_and_is_named() {
         let d = scratch("user");
+        let d = d.path().to_path_buf();
         let dest = d.join("d");
         fs::create_dir_all(&dest).unwrap();
         fs::write(dest.join("notes.txt"), "mine").unwrap();
@@ -559,6 +561,7 @@ mod tests {
     #[test]
     fn an_output_is_replaced_and_a_file_added_to_it_blocks_the_next() {
         let d = scratch("replace");
+        let d = d.path().to_path_buf();
         let dest = d.join("d");
         write_one(&dest, "1").unwrap();
         write_one(&dest, "2").unwrap();
@@ -587,6 +590,7 @@ mod tests {
     #[test]
     fn the_folder_of_an_input_is_refused() {
         let d = scratch("input");
+        let d = d.path().to_path_buf();
         let scene = d.join("scenes/a.toml");
         fs::create_dir_all(scene.parent().unwrap()).unwrap();
         fs::write(&scene, "").unwrap();
@@ -597,6 +601,7 @@ mod tests {
     #[test]
     fn a_partial_output_leaves_the_complete_one_untouched() {
         let d = scratch("partial");
+        let d = d.path().to_path_buf();
         let dest = d.join("d");
         write_one(&dest, "complete").unwrap();
         let o = OutputDir::create(&dest, &[], Recoverable::Regenerable).unwrap();
@@ -623,6 +628,7 @@ mod tests {
     #[test]
     fn a_failed_commit_keeps_irreplaceable_data() {
         let d = scratch("failedcommit");
+        let d = d.path().to_path_buf();
         let dest = d.join("r");
         let o = OutputDir::create(&dest, &[], Recoverable::Irreplaceable).unwrap();
         let staged = o.path().to_path_buf();
@@ -641,6 +647,7 @@ mod tests {
     #[test]
     fn stale_staging_of_a_dead_process_is_removed_or_kept_by_kind() {
         let d = scratch("stale");
+        let d = d.path().to_path_buf();
         // PIDs above the kernel's pid_max (4194304) never exist.
         let dead = 4_194_399u32;
         let regen = d.join(format!(".d.partial-{dead}"));

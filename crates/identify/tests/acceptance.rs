@@ -65,6 +65,7 @@ fn recovers_a_hidden_truth() {
 
 fn check_seed(seed: u64) {
     let dir = common::scratch(&format!("acceptance-{seed}"));
+    let dir = dir.path().to_path_buf();
     let (truth, changes) = perturb(&shipped(), &KEYS, seed, &dir.join("truth")).unwrap();
     let log = dir.join("free.csv");
     common::record(&truth, seed, excitation(seed), 6.0, None, &log);
@@ -158,6 +159,7 @@ fn check_seed(seed: u64) {
 #[test]
 fn flags_mass_from_a_log_without_motion() {
     let dir = common::scratch("unidentifiable");
+    let dir = dir.path().to_path_buf();
     let log = dir.join("held.csv");
     let ex = Excitation {
         signal: Signal::Steps {
@@ -224,6 +226,7 @@ fn recovers_delay_viscous_friction_and_an_offset() {
         Key::DeadVolumeA,
     ];
     let dir = common::scratch("delay-offset");
+    let dir = dir.path().to_path_buf();
     let (truth, changes) = perturb(&shipped(), &keys, 3, &dir.join("truth")).unwrap();
     let text = common::record(&truth, 3, excitation(3), 6.0, None, &dir.join("raw.csv"));
     // p_b is the 7th column of the rig trace.
@@ -289,6 +292,7 @@ fn recovers_delay_viscous_friction_and_an_offset() {
 #[test]
 fn two_logs_identify_what_one_could_not() {
     let dir = common::scratch("two-logs");
+    let dir = dir.path().to_path_buf();
     let held = dir.join("held.csv");
     let ex = Excitation {
         signal: Signal::Steps {

@@ -45,6 +45,7 @@ fn error(req: &Request) -> String {
 #[test]
 fn missing_column_names_file_and_column() {
     let dir = common::scratch("bad-column");
+    let dir = dir.path().to_path_buf();
     let header = HEADER.replace("p_b,", "");
     let r: Vec<String> = rows(50)
         .iter()
@@ -70,6 +71,7 @@ fn missing_column_names_file_and_column() {
 #[test]
 fn nan_row_names_file_line_and_column() {
     let dir = common::scratch("bad-nan");
+    let dir = dir.path().to_path_buf();
     let mut r = rows(50);
     r[20] = r[20].replace(",0.01,0.01,", ",NaN,0.01,");
     let log = write(&dir, "trace.csv", HEADER, &r);
@@ -89,6 +91,7 @@ fn nan_row_names_file_line_and_column() {
 #[test]
 fn time_going_backwards_names_file_line_and_t() {
     let dir = common::scratch("bad-time");
+    let dir = dir.path().to_path_buf();
     let mut r = rows(50);
     r[30] = r[30].replacen("0.03,", "0.01,", 1);
     let log = write(&dir, "trace.csv", HEADER, &r);
@@ -107,6 +110,7 @@ fn time_going_backwards_names_file_line_and_t() {
 #[test]
 fn unknown_or_inapplicable_free_key_is_named() {
     let dir = common::scratch("bad-key");
+    let dir = dir.path().to_path_buf();
     let log = write(&dir, "trace.csv", HEADER, &rows(50));
     let e = error(&request(
         log.clone(),
@@ -126,6 +130,7 @@ fn unknown_or_inapplicable_free_key_is_named() {
 #[test]
 fn bounds_excluding_the_start_value_are_named() {
     let dir = common::scratch("bad-bounds");
+    let dir = dir.path().to_path_buf();
     let log = write(&dir, "trace.csv", HEADER, &rows(50));
     let free = ["mechanics.moving_mass_kg"];
     let e = error(&request(

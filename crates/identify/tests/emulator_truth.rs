@@ -40,6 +40,7 @@ fn steps() -> Excitation {
 #[test]
 fn perturbation_is_seeded_and_within_20_to_40_percent() {
     let dir = common::scratch("perturb");
+    let dir = dir.path().to_path_buf();
     let (a, da) = perturb(&shipped(), &KEYS, 11, &dir.join("a")).unwrap();
     let (_, db) = perturb(&shipped(), &KEYS, 11, &dir.join("b")).unwrap();
     let (_, dc) = perturb(&shipped(), &KEYS, 12, &dir.join("c")).unwrap();
@@ -75,6 +76,7 @@ fn rms_of(p: &Prepared, model: &pneuflex_pneumatics::OneDofModel) -> [f64; 2] {
 #[test]
 fn emulator_runs_the_hidden_truth() {
     let dir = common::scratch("truth");
+    let dir = dir.path().to_path_buf();
     let (truth, _) = perturb(&shipped(), &KEYS, 21, &dir.join("truth")).unwrap();
     let trace = dir.join("trace.csv");
     common::record(&truth, 3, steps(), 2.0, None, &trace);
@@ -97,6 +99,7 @@ fn emulator_runs_the_hidden_truth() {
 #[test]
 fn transport_delay_shifts_the_response() {
     let dir = common::scratch("delay");
+    let dir = dir.path().to_path_buf();
     let ex = Excitation {
         centring_per_m: 0.0,
         ..steps()

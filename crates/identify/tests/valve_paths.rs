@@ -18,6 +18,7 @@ fn recovers_c_and_b_per_path() {
         .collect();
     let shipped = common::root().join("pneumatics/paper-actuator.toml");
     let dir = common::scratch("valve-paths");
+    let dir = dir.path().to_path_buf();
     let (truth, changes) = perturb(&shipped, &keys, 11, &dir.join("truth")).unwrap();
     // The truth sheet has its own paths: the loader reads them.
     let t = pneuflex_pneumatics::ActuatorSheet::load(&truth).unwrap();

@@ -165,15 +165,17 @@ fn two_materials_on_one_mount_are_rejected() {
 }
 
 /// A copy of the shipped rig.urdf with `from` replaced by `to` (which must occur), in a scratch directory.
-fn rig_variant(case: &str, from: &str, to: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("pneuflex-multibody-{}-{case}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// The directory is removed when the returned guard drops.
+fn rig_variant(case: &str, from: &str, to: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("pneuflex-multibody-{case}-"))
+        .tempdir()
+        .unwrap();
     let text = std::fs::read_to_string(rig_path()).unwrap();
     assert!(text.contains(from), "rig.urdf lacks {from:?}");
-    let p = dir.join("rig.urdf");
+    let p = dir.path().join("rig.urdf");
     std::fs::write(&p, text.replacen(from, to, 1)).unwrap();
-    p
+    (dir, p)
 }
 
 /// 1-based line of the first line of `path` containing `needle`.
@@ -197,7 +199,7 @@ fn build_err_within_5_s(path: PathBuf) -> (MultibodyError, String) {
 #[test]
 fn deeply_nested_urdf_is_an_error_not_a_stack_overflow() {
     let depth = 20_000;
-    let p = rig_variant(
+    let (_scratch, p) = rig_variant(
         "deep",
         "<link name=\"flange\">",
         &format!(
@@ -222,7 +224,7 @@ fn deeply_nested_urdf_is_an_error_not_a_stack_overflow() {
 /// Issue 11: `<mass value="heavy"/>` gave `custom: invalid float literal`; now file, line, element, key.
 #[test]
 fn non_numeric_mass_names_file_line_and_element() {
-    let p = rig_variant("heavy", "<mass value=\"0.60\"/>", "<mass value=\"heavy\"/>");
+    let (_scratch, p) = rig_variant("heavy", "<mass value=\"0.60\"/>", "<mass value=\"heavy\"/>");
     let line = line_of(&p, "heavy");
     let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
     assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
@@ -258,7 +260,7 @@ fn malformed_vectors_name_file_line_and_element() {
             "ixx: expected a finite number",
         ),
     ] {
-        let p = rig_variant(case, from, to);
+        let (_scratch, p) = rig_variant(case, from, to);
         let line = line_of(&p, to);
         let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
         assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
@@ -273,7 +275,7 @@ fn malformed_vectors_name_file_line_and_element() {
 /// was accepted; now an error naming the link.
 #[test]
 fn inertia_breaking_the_triangle_inequality_names_the_link() {
-    let p = rig_variant(
+    let (_scratch, p) = rig_variant(
         "triangle",
         "ixx=\"1.6e-04\" ixy=\"0\" ixz=\"0\" iyy=\"8.5e-05\"",
         "ixx=\"1.6e-03\" ixy=\"0\" ixz=\"0\" iyy=\"8.5e-05\"",
@@ -302,10 +304,11 @@ fn device_as_urdf_is_refused() {
 #[cfg(unix)]
 #[test]
 fn fifo_as_urdf_does_not_block() {
-    let dir = std::env::temp_dir().join(format!("pneuflex-multibody-{}-fifo", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let fifo = dir.join("rig.urdf");
-    let _ = std::fs::remove_file(&fifo);
+    let dir = tempfile::Builder::new()
+        .prefix("pneuflex-multibody-fifo-")
+        .tempdir()
+        .unwrap();
+    let fifo = dir.path().join("rig.urdf");
     let made = std::process::Command::new("mkfifo")
         .arg(&fifo)
         .status()
@@ -325,7 +328,7 @@ fn fifo_as_urdf_does_not_block() {
 fn nesting_at_the_limit_is_accepted() {
     // robot > link > 62 levels = 64.
     let n = pneuflex_multibody::urdf_scan::MAX_DEPTH - 2;
-    let p = rig_variant(
+    let (_scratch, p) = rig_variant(
         "at-limit",
         "<link name=\"flange\">",
         &format!(
@@ -335,7 +338,7 @@ fn nesting_at_the_limit_is_accepted() {
         ),
     );
     RigWorld::from_urdf(&p, &MultibodyConfig::paper_rig()).unwrap();
-    let p = rig_variant(
+    let (_scratch, p) = rig_variant(
         "over-limit",
         "<link name=\"flange\">",
         &format!(

@@ -7,30 +7,32 @@ fn data_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../pneumatics")
 }
 
-/// A fresh scratch directory holding copies of the shipped sheets.
-fn scratch(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("pneuflex-pneumatics-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+/// A fresh scratch directory holding copies of the shipped sheets, removed when the returned guard drops.
+fn scratch(name: &str) -> tempfile::TempDir {
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("pneuflex-pneumatics-{name}-"))
+        .tempdir()
+        .unwrap();
     for e in std::fs::read_dir(data_dir()).unwrap() {
         let p = e.unwrap().path();
         if p.extension().is_some_and(|x| x == "toml") {
-            std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+            std::fs::copy(&p, dir.path().join(p.file_name().unwrap())).unwrap();
         }
     }
     dir
 }
 
-/// Replaces `from` by `to` in `file` (which must contain it) and loads the actuator sheet; returns the error text.
-fn broken(case: &str, file: &str, from: &str, to: &str) -> (String, String) {
-    let dir = scratch(case);
+/// Replaces `from` by `to` in `file` (which must contain it) and loads the actuator sheet; returns the error text,
+/// the broken file's path and the guard of its scratch directory.
+fn broken(case: &str, file: &str, from: &str, to: &str) -> (String, String, tempfile::TempDir) {
+    let scratch = scratch(case);
+    let dir = scratch.path().to_path_buf();
     let path = dir.join(file);
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains(from), "{file} lacks {from:?}");
     std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
     let err = ActuatorSheet::load(dir.join("paper-actuator.toml")).expect_err("bad file accepted");
-    (err.to_string(), path.display().to_string())
+    (err.to_string(), path.display().to_string(), scratch)
 }
 
 fn assert_names(msg: &str, path: &str, field: &str) {
@@ -78,7 +80,7 @@ fn proportional_valve_sheet_loads() {
 
 #[test]
 fn unknown_key_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "unknown",
         "smc-mqm16-cylinder.toml",
         "bore_m = 0.016",
@@ -89,7 +91,7 @@ fn unknown_key_is_rejected() {
 
 #[test]
 fn zero_size_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "zero",
         "smc-mqm16-cylinder.toml",
         "stroke_m = 0.050",
@@ -101,7 +103,7 @@ fn zero_size_is_rejected() {
 
 #[test]
 fn negative_size_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "negative",
         "smc-mqm16-cylinder.toml",
         "bore_m = 0.016",
@@ -113,7 +115,7 @@ fn negative_size_is_rejected() {
 
 #[test]
 fn nan_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "nan",
         "smc-mqm16-cylinder.toml",
         "dead_volume_b_m3 = 3.5e-6",
@@ -125,7 +127,7 @@ fn nan_is_rejected() {
 #[test]
 fn supply_below_atmosphere_is_rejected() {
     // A gauge value typed where the absolute pressure belongs.
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "supply",
         "supply-0p5mpa.toml",
         "pressure_abs_pa = 601325.0",
@@ -136,7 +138,7 @@ fn supply_below_atmosphere_is_rejected() {
 
 #[test]
 fn rod_not_smaller_than_bore_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "rod",
         "smc-mqm16-cylinder.toml",
         "rod_m = 0.005",
@@ -147,7 +149,7 @@ fn rod_not_smaller_than_bore_is_rejected() {
 
 #[test]
 fn pwm_delay_longer_than_period_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "delay",
         "a05ps25x-5-2-valve.toml",
         "switching_delay_s = 0.005",
@@ -158,7 +160,7 @@ fn pwm_delay_longer_than_period_is_rejected() {
 
 #[test]
 fn field_of_other_valve_kind_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "kind",
         "a05ps25x-5-2-valve.toml",
         "pwm_frequency_hz = 40.0",
@@ -169,7 +171,7 @@ fn field_of_other_valve_kind_is_rejected() {
 
 #[test]
 fn negative_mass_in_actuator_sheet_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "mass",
         "paper-actuator.toml",
         "moving_mass_kg = 0.6",
@@ -180,7 +182,7 @@ fn negative_mass_in_actuator_sheet_is_rejected() {
 
 #[test]
 fn missing_component_file_is_reported() {
-    let (msg, _) = broken(
+    let (msg, _, _scratch) = broken(
         "missing",
         "paper-actuator.toml",
         "smc-mqm16-cylinder.toml",
@@ -191,7 +193,7 @@ fn missing_component_file_is_reported() {
 
 #[test]
 fn wrong_sensor_quantity_is_rejected() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "sensor",
         "paper-actuator.toml",
         "position_sensor = \"mps-0327-position-sensor.toml\"",
@@ -233,6 +235,7 @@ fn load_err_within_5_s(sheet: PathBuf) -> String {
 #[test]
 fn device_as_component_is_refused_at_its_key() {
     let dir = scratch("device");
+    let dir = dir.path().to_path_buf();
     let sheet = dir.join("paper-actuator.toml");
     let text = std::fs::read_to_string(&sheet).unwrap();
     std::fs::write(
@@ -256,6 +259,7 @@ fn device_as_component_is_refused_at_its_key() {
 #[test]
 fn fifo_as_component_does_not_block() {
     let dir = scratch("fifo");
+    let dir = dir.path().to_path_buf();
     let fifo = dir.join("valve.fifo");
     let made = std::process::Command::new("mkfifo")
         .arg(&fifo)
@@ -283,6 +287,7 @@ fn fifo_as_component_does_not_block() {
 #[test]
 fn oversized_component_is_refused() {
     let dir = scratch("oversized");
+    let dir = dir.path().to_path_buf();
     let big = dir.join("supply-0p5mpa.toml");
     let mut text = std::fs::read_to_string(&big).unwrap();
     text.push_str(&"#".repeat(2 << 20));
@@ -297,7 +302,7 @@ fn oversized_component_is_refused() {
 /// Issue 11: a missing component names the sheet, line and key that name it, and the OS error once.
 #[test]
 fn missing_component_names_the_key_that_names_it() {
-    let (msg, sheet) = broken(
+    let (msg, sheet, _scratch) = broken(
         "missing-key",
         "paper-actuator.toml",
         "\"a05ps25x-5-2-valve.toml\"",
@@ -324,7 +329,7 @@ fn missing_component_names_the_key_that_names_it() {
 /// Issue 11: `stroke_m = 1e300` was accepted; now refused with the file, the key's line and the bound.
 #[test]
 fn absurd_stroke_is_rejected_at_its_line() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "stroke",
         "smc-mqm16-cylinder.toml",
         "stroke_m = 0.050",
@@ -344,7 +349,7 @@ fn absurd_stroke_is_rejected_at_its_line() {
 #[test]
 fn absurd_bore_is_rejected_at_its_line() {
     for bad in ["10.0", "1e-5"] {
-        let (msg, path) = broken(
+        let (msg, path, _scratch) = broken(
             &format!("bore-{bad}"),
             "smc-mqm16-cylinder.toml",
             "bore_m = 0.016",
@@ -363,7 +368,7 @@ fn absurd_bore_is_rejected_at_its_line() {
 /// Issue 11: a sonic conductance of 1e-3 m^3/(s Pa) (1e5 times a real valve's) ran to -1e67 Pa.
 #[test]
 fn absurd_sonic_conductance_is_rejected_at_its_line() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "sonic",
         "a05ps25x-5-2-valve.toml",
         "sonic_conductance_m3_per_s_pa = 5.0e-9",
@@ -381,7 +386,7 @@ fn absurd_sonic_conductance_is_rejected_at_its_line() {
 /// Issue 11: a supply of 1e15 Pa was accepted.
 #[test]
 fn absurd_supply_is_rejected_at_its_line() {
-    let (msg, path) = broken(
+    let (msg, path, _scratch) = broken(
         "supply-high",
         "supply-0p5mpa.toml",
         "pressure_abs_pa = 601325.0",
@@ -436,7 +441,7 @@ fn validation_errors_carry_the_line_of_the_key() {
             "coulomb_n",
         ),
     ] {
-        let (msg, path) = broken(case, file, from, to);
+        let (msg, path, _scratch) = broken(case, file, from, to);
         let line = line_of(Path::new(&path), key);
         assert!(msg.starts_with(&format!("{path}:{line}: ")), "{msg}");
         assert!(msg.contains(key), "{msg}");

@@ -80,6 +80,7 @@ fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
 #[test]
 fn saved_recording_reads_back_with_one_row_per_step_and_a_footer() {
     let dir = temp_dir("save");
+    let dir = dir.path().to_path_buf();
     let file = dir.join("run.rrd");
     let steps = 1000;
     // A batch size that does not divide the step count exercises full and partial batches.
@@ -140,6 +141,7 @@ fn saved_recording_reads_back_with_one_row_per_step_and_a_footer() {
 #[test]
 fn wall_clock_recording_uses_the_same_paths_on_wall_time() {
     let dir = temp_dir("wall");
+    let dir = dir.path().to_path_buf();
     let file = dir.join("rig.rrd");
     let opts = RecorderOptions {
         clock: Clock::Wall,
@@ -166,6 +168,7 @@ fn wall_clock_recording_uses_the_same_paths_on_wall_time() {
 #[test]
 fn save_into_missing_directory_names_the_path_and_creates_nothing() {
     let dir = temp_dir("missing");
+    let dir = dir.path().to_path_buf();
     let missing = dir.join("no/such/dir");
     let file = missing.join("run.rrd");
     let err = RunRecorder::new("pneuflex-test", "missing", &Sink::Save(file.clone()))
@@ -186,6 +189,7 @@ fn save_into_missing_directory_names_the_path_and_creates_nothing() {
 #[test]
 fn save_onto_a_directory_is_rejected() {
     let dir = temp_dir("isdir");
+    let dir = dir.path().to_path_buf();
     let err = RunRecorder::new("pneuflex-test", "isdir", &Sink::Save(dir.clone()))
         .err()
         .expect("must fail");
@@ -229,6 +233,7 @@ fn connect_with_a_malformed_address_is_a_bad_url() {
 #[test]
 fn invalid_shapes_and_options_are_rejected() {
     let dir = temp_dir("shape");
+    let dir = dir.path().to_path_buf();
     let mut rec =
         RunRecorder::new("pneuflex-test", "shape", &Sink::Save(dir.join("s.rrd"))).unwrap();
     for shape in [
@@ -274,6 +279,7 @@ fn a_row_observer_shows_a_rig_run_on_the_wall_clock_with_the_runs_paths_and_the_
     use pneuflex_control::{LOOP_SIGNALS, RowObserver, Signal};
     use pneuflex_rerun::RowRecorder;
     let dir = temp_dir("rows");
+    let dir = dir.path().to_path_buf();
     let file = dir.join("rig.rrd");
     let own = [
         Signal {
@@ -341,6 +347,7 @@ fn a_row_observer_shows_a_rig_run_on_the_wall_clock_with_the_runs_paths_and_the_
 #[test]
 fn a_row_observer_refuses_a_save_path_in_a_missing_directory_before_the_run() {
     let dir = temp_dir("rows-missing");
+    let dir = dir.path().to_path_buf();
     let file = dir.join("no/such/dir/rig.rrd");
     let err = pneuflex_rerun::RowRecorder::new(Sink::Save(file), "rig", Clock::Wall, 1e-3, None)
         .err()

@@ -26,6 +26,7 @@ fn shipped_scenes() -> Vec<PathBuf> {
 #[test]
 fn every_shipped_scene_records_to_a_readable_rrd() {
     let dir = temp_dir("scenes");
+    let dir = dir.path().to_path_buf();
     for path in shipped_scenes() {
         let scene = Scene::load(&path).unwrap();
         let stem = path.file_stem().unwrap().to_str().unwrap();
@@ -112,6 +113,7 @@ fn a_save_into_a_missing_directory_is_refused_before_the_run() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3-ideal.toml");
     let scene = Scene::load(&path).unwrap();
     let dir = temp_dir("scene-missing");
+    let dir = dir.path().to_path_buf();
     let missing = dir.join("no/such");
     let err = SceneRecorder::new(Sink::Save(missing.join("a.rrd")), &scene)
         .err()

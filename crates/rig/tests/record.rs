@@ -16,11 +16,12 @@ fn rig_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rigs/emulated.toml")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pneuflex-record-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh scratch directory, removed when the returned guard drops.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("pneuflex-record-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn controller() -> ImpedanceController {
@@ -87,6 +88,7 @@ fn record_into(
 #[test]
 fn a_run_writes_trace_with_provenance_end_marker_and_manifest() {
     let d = scratch("ok");
+    let d = d.path().to_path_buf();
     let out = d.join("D");
     let (res, _) = record_into(&out, 0.5, None, false);
     let rec = res.unwrap();
@@ -120,6 +122,7 @@ fn a_run_writes_trace_with_provenance_end_marker_and_manifest() {
 #[test]
 fn a_failed_connect_never_touches_an_existing_trace() {
     let d = scratch("connect");
+    let d = d.path().to_path_buf();
     let out = d.join("D");
     record_into(&out, 0.2, None, false).0.unwrap();
     let before = std::fs::read(out.join("trace.csv")).unwrap();
@@ -141,6 +144,7 @@ fn a_failed_connect_never_touches_an_existing_trace() {
 #[test]
 fn a_directory_with_user_files_is_refused_before_connecting() {
     let d = scratch("foreign");
+    let d = d.path().to_path_buf();
     let out = d.join("D");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("trace.csv"), "my own data\n").unwrap();
@@ -157,6 +161,7 @@ fn a_directory_with_user_files_is_refused_before_connecting() {
 #[test]
 fn a_signal_commits_a_marked_partial_beside_the_previous_output() {
     let d = scratch("signal");
+    let d = d.path().to_path_buf();
     let out = d.join("D");
     record_into(&out, 0.2, None, false).0.unwrap();
     let before = std::fs::read(out.join("trace.csv")).unwrap();
@@ -183,6 +188,7 @@ fn a_signal_commits_a_marked_partial_beside_the_previous_output() {
 #[test]
 fn a_bad_duration_is_refused_before_connecting() {
     let d = scratch("duration");
+    let d = d.path().to_path_buf();
     for dur in [f64::NAN, -1.0, 0.0, 1e10] {
         let (res, connected) = record_into(&d.join("D"), dur, None, false);
         let e = res.unwrap_err();

@@ -1,7 +1,7 @@
 //! Outputs: trace.csv and summary.json written through a staging directory; diverged runs stop, are marked
 //! and never written as if they succeeded.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use pneuflex_files::OutputDir;
 use pneuflex_files::output::{Manifest, Recoverable};
@@ -21,17 +21,20 @@ fn scene(extra: &str) -> Scene {
     Scene::from_toml_str(&text, &path, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pneuflex-scene-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+/// A fresh scratch directory, removed when the returned guard drops.
+fn tmp(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("pneuflex-scene-test-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 #[test]
 fn traces_and_summary_are_written_and_read_back() {
     let s = scene("");
     let res = run_scene(&s, &mut |_| {}).unwrap();
-    let dest = tmp("ok").join("paper-fig3-ideal");
+    let scratch = tmp("ok");
+    let dest = scratch.path().join("paper-fig3-ideal");
     let stage = stage(&dest);
     let staged = stage.path().to_path_buf();
     write_results(stage.path(), &s, &res).unwrap();
@@ -93,7 +96,8 @@ fn a_runaway_run_stops_and_is_marked_diverged() {
         );
         assert!(r.windows.is_empty(), "no metrics for a diverged run");
     }
-    let dest = tmp("div").join("x");
+    let scratch = tmp("div");
+    let dest = scratch.path().join("x");
     let stage = stage(&dest);
     write_results(stage.path(), &s, &res).unwrap();
     stage.commit(manifest()).unwrap();
@@ -116,7 +120,8 @@ fn a_runaway_run_stops_and_is_marked_diverged() {
 
 #[test]
 fn an_uncommitted_staging_directory_is_removed() {
-    let dest = tmp("drop").join("x");
+    let scratch = tmp("drop");
+    let dest = scratch.path().join("x");
     let staged = {
         let stage = stage(&dest);
         std::fs::write(stage.path().join("half.csv"), "t\n").unwrap();

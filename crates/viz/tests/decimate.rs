@@ -1,7 +1,7 @@
 //! Per-pixel-column decimation: the envelope of a long series is kept, the drawn picture does not change,
 //! and a figure of a long trace is written.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use plotters::prelude::*;
 use pneuflex_scene::runner::compute_windows;
@@ -202,11 +202,12 @@ fn scene(file: &str) -> Scene {
     Scene::load(&root.join("scenes").join(file)).unwrap()
 }
 
-fn out_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pneuflex-viz-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh scratch directory, removed when the returned guard drops.
+fn out_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("pneuflex-viz-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 #[test]
@@ -230,6 +231,7 @@ fn figures_of_a_long_trace_are_written() {
             warnings: Vec::new(),
         }];
         let dir = out_dir(file);
+        let dir = dir.path().to_path_buf();
         let written = write_figures(&dir, &sc, &results, format).unwrap();
         let names: Vec<String> = written
             .iter()
@@ -269,6 +271,7 @@ fn a_swap_has_one_figure_with_the_settling_times() {
         warnings: Vec::new(),
     }];
     let dir = out_dir("fig7-swap");
+    let dir = dir.path().to_path_buf();
     let written = write_figures(&dir, &sc, &results, Format::Svg).unwrap();
     let mut names: Vec<String> = written
         .iter()

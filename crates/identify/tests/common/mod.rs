@@ -20,15 +20,12 @@ pub fn rig_path() -> PathBuf {
     root().join("rigs/emulated.toml")
 }
 
-/// A fresh scratch directory under the target directory.
-pub fn scratch(name: &str) -> PathBuf {
-    let d = root()
-        .join("target")
-        .join("identify-tests")
-        .join(format!("{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh scratch directory, removed when the returned guard drops.
+pub fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("pneuflex-identify-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 /// Records `duration_s` of `excitation` on the emulated rig whose plant runs the actuator sheet `truth`

@@ -3,17 +3,17 @@
 
 use std::collections::HashMap;
 use std::io::BufReader;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use re_log_encoding::DecoderApp;
 use rerun::log::{Chunk, LogMsg};
 
-/// Fresh empty directory under the system temp dir, unique per test.
-pub fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pneuflex-rerun-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// Fresh empty directory under the system temp dir, unique per test, removed when the guard drops.
+pub fn temp_dir(tag: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("pneuflex-rerun-{tag}-"))
+        .tempdir()
+        .unwrap()
 }
 
 /// What a decoded recording holds: rows per entity on a timeline, static entities, and whether
