@@ -168,21 +168,30 @@ fn run_scene_file(
     }
     // Each run's trace is written as soon as the run is done, while the other runs still simulate: the runs
     // end at different times, and the core that finished first would otherwise idle (docs/performance.md).
-    // The scope ends when every trace is written.
+    // The last run's trace waits for the end, beside the figures: they can start only then, and queued behind
+    // it they left one core alone with the last figure. The scope ends when every trace is written.
     let dir = stage.path();
     let trace_errors = std::sync::Mutex::new(Vec::new());
+    let write_trace_of = |r: &RunResult| {
+        if let Err(e) = pneuflex_scene::write_trace(dir, r) {
+            trace_errors
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push((r.name.clone(), e));
+        }
+    };
+    let ended = std::sync::atomic::AtomicUsize::new(0);
+    let last_run = std::sync::Mutex::new(None::<String>);
     let (results, sim_time, summary, written, figures) = rayon::in_place_scope(
         |writers| -> anyhow::Result<_> {
             let write_trace = |r: &RunResult| {
-                let (r, errors) = (r.clone(), &trace_errors);
-                writers.spawn(move |_| {
-                    if let Err(e) = pneuflex_scene::write_trace(dir, &r) {
-                        errors
-                            .lock()
-                            .unwrap_or_else(|e| e.into_inner())
-                            .push((r.name, e));
-                    }
-                });
+                if ended.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1 == scene.runs.len()
+                {
+                    *last_run.lock().unwrap_or_else(|e| e.into_inner()) = Some(r.name.clone());
+                    return;
+                }
+                let (r, write) = (r.clone(), &write_trace_of);
+                writers.spawn(move |_| write(&r));
             };
             let opts = RunOptions {
                 limits,
@@ -219,12 +228,19 @@ fn run_scene_file(
             // summary.json beside the figures (different files), while the last traces are written. Figures
             // only for a complete command with a run that did not diverge.
             let figures = summary.complete && results.iter().any(|r| r.diverged.is_none());
-            let (written, figures) = rayon::join(
-                || pneuflex_scene::write_summary(dir, scene, &results),
+            let last_run = last_run.into_inner().unwrap_or_else(|e| e.into_inner());
+            let (figures, written) = rayon::join(
                 || {
                     figures.then(|| {
                         pneuflex_viz::write_figures(dir, scene, &results, pneuflex_viz::Format::Png)
                     })
+                },
+                // The other core takes this first (a join's second half is what is stolen), then figures.
+                || {
+                    if let Some(r) = results.iter().find(|r| Some(&r.name) == last_run.as_ref()) {
+                        write_trace_of(r);
+                    }
+                    pneuflex_scene::write_summary(dir, scene, &results)
                 },
             );
             Ok((results, sim_time, summary, written, figures))

@@ -386,11 +386,11 @@ fn finish_metrics(scene: &Scene, i: usize, r: &mut RunResult, pwm_period: Option
 
 /// The runs of a scene on the pool's threads: each worker takes the next run in the scene's order (so the
 /// runs started are a prefix), builds its plant and controller, simulates and computes its metrics. The
-/// Lyapunov checks of the adaptive runs (they need the scene, not the trace) are jobs of their own, taken
-/// by the first worker without a run: the runs end at different times, and the last run's worker would
-/// otherwise check it while the other core idles. A run stopped by a signal is still checked, as in the
-/// sequential path. The calling thread reports progress from what the workers send. The first error in
-/// run order is returned.
+/// calling thread makes the Lyapunov checks of the adaptive runs (they need the scene, not the trace; 2 ms
+/// each on paper-fig7) while the workers simulate, where it would only wait for their messages: taken after
+/// the runs, a check held back the outputs that wait for this function. A run stopped by a signal is still
+/// checked, as in the sequential path. The calling thread reports progress from what the workers send. The
+/// first error in run order is returned.
 fn run_parallel(
     scene: &Scene,
     opts: &RunOptions<'_>,
@@ -404,19 +404,12 @@ fn run_parallel(
     let next = AtomicUsize::new(0);
     let slots: Vec<Mutex<Option<Result<RunResult, SceneError>>>> =
         (0..n_runs).map(|_| Mutex::new(None)).collect();
-    let lyapunov: Vec<Mutex<Option<LyapunovSummary>>> =
-        (0..n_runs).map(|_| Mutex::new(None)).collect();
-    let adaptive: Vec<usize> = (0..n_runs)
-        .filter(|&i| scene.runs[i].controller == ControllerKind::Adaptive)
-        .collect();
-    let next_check = AtomicUsize::new(0);
     let workers = n_runs.min(rayon::current_num_threads());
     let (tx, rx) = std::sync::mpsc::channel::<(usize, f64)>();
-    rayon::in_place_scope(|s| {
+    let lyapunov = rayon::in_place_scope(|s| {
         for _ in 0..workers {
             let tx = tx.clone();
-            let (next, slots, next_check, adaptive, lyapunov) =
-                (&next, &slots, &next_check, &adaptive, &lyapunov);
+            let (next, slots) = (&next, &slots);
             s.spawn(move |_| {
                 loop {
                     if stopped(opts) {
@@ -461,17 +454,16 @@ fn run_parallel(
                         next.fetch_max(n_runs, Ordering::Relaxed);
                     }
                 }
-                // No run left: the Lyapunov checks not yet taken, before anything this worker queued
-                // (`on_run`'s trace writing), which the command's end does not wait for.
-                loop {
-                    let i = next_check.fetch_add(1, Ordering::Relaxed);
-                    let Some(&i) = adaptive.get(i) else { break };
-                    *lyapunov[i].lock().unwrap_or_else(|e| e.into_inner()) =
-                        lyapunov_summary(scene, &scene.runs[i]);
-                }
             });
         }
         drop(tx);
+        let lyapunov: Vec<Option<LyapunovSummary>> = (0..n_runs)
+            .map(|i| {
+                (scene.runs[i].controller == ControllerKind::Adaptive)
+                    .then(|| lyapunov_summary(scene, &scene.runs[i]))
+                    .flatten()
+            })
+            .collect();
         let mut done = vec![0.0; n_runs];
         let mut total = 0.0;
         for (i, f) in rx {
@@ -479,6 +471,7 @@ fn run_parallel(
             done[i] = f;
             progress(total / n_runs as f64);
         }
+        lyapunov
     });
     progress(1.0);
     let mut out = Vec::with_capacity(n_runs);
@@ -486,9 +479,7 @@ fn run_parallel(
         match slot.into_inner().unwrap_or_else(|e| e.into_inner()) {
             Some(r) => {
                 let mut r = r?;
-                if r.controller == ControllerKind::Adaptive {
-                    r.lyapunov = lyap.into_inner().unwrap_or_else(|e| e.into_inner());
-                }
+                r.lyapunov = lyap;
                 out.push(r);
             }
             None => break,
