@@ -326,9 +326,13 @@ fn claims_table(claims: &[pneuflex_scene::claims::ClaimResult]) -> String {
     let mut s = String::from("claims:\n");
     for c in claims {
         let v = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{x:.4}"));
+        let fragile = c
+            .fragile
+            .as_ref()
+            .map_or(String::new(), |f| format!("; fragile: {f}"));
         let _ = writeln!(
             s,
-            "  {:<13} {} ({} {}: {} {}, {} {})",
+            "  {:<13} {} ({} {}: {} {}, {} {}{fragile})",
             if c.holds { "holds" } else { "DOES NOT HOLD" },
             c.statement,
             c.window,
@@ -376,7 +380,10 @@ fn table(results: &[RunResult]) -> String {
                         opt(Some(e.recovery_overshoot_n), "N", 3),
                         e.recovery_overshoot_pct,
                         match (e.settling_time_s, &e.not_settled) {
-                            (Some(ts), _) => format!("settled in {ts:.3} s"),
+                            (Some(ts), _) => match e.fragility() {
+                                Some(f) => format!("settled in {ts:.3} s ({f})"),
+                                None => format!("settled in {ts:.3} s"),
+                            },
                             (None, Some(why)) => format!("NOT SETTLED: {why}"),
                             (None, None) => "not settled".into(),
                         }

@@ -197,6 +197,13 @@ pub struct EventResponse {
     pub settled: bool,
     /// Settling time, s: from the event until the deviation stays within the band; None when not settled.
     pub settling_time_s: Option<f64>,
+    /// The settling time with the band 5 % narrower and 5 % wider, s ([`SETTLING_BAND_PROBE`]).
+    pub settling_time_range_s: [Option<f64>; 2],
+    /// Whether the settling time hangs on where the band is drawn: one of the two probes differs from it by
+    /// more than 10 % (or one settles and the other not). A decaying peak of the deviation then sits at the
+    /// band's edge, and the settling time jumps with anything that moves that peak a little (the step, a
+    /// parameter): compare such a run's settling time only with its range.
+    pub settling_fragile: bool,
     /// Why the run did not settle (None when it did).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub not_settled: Option<String>,
@@ -206,6 +213,37 @@ pub struct EventResponse {
     /// Steady tracking error, N: the largest |f_ref - f_e| over the window's tail (on `signal`).
     pub tracking_error_n: f64,
 }
+
+impl EventResponse {
+    /// "fragile: 0.805–1.121 s with the band ±5 %" when the settling time is fragile (else None): what a
+    /// table or a figure says beside it.
+    pub fn fragility(&self) -> Option<String> {
+        if !self.settling_fragile {
+            return None;
+        }
+        let pct = 100.0 * SETTLING_BAND_PROBE;
+        let [narrow, wide] = self.settling_time_range_s;
+        Some(match (self.settling_time_s, narrow, wide) {
+            (Some(ts), Some(n), Some(w)) => format!(
+                "fragile: {:.3}–{:.3} s with the band ±{pct:.0} %",
+                ts.min(n).min(w),
+                ts.max(n).max(w)
+            ),
+            (Some(_), None, _) => format!("fragile: not settled with the band {pct:.0} % narrower"),
+            (Some(_), _, None) => format!("fragile: not settled with the band {pct:.0} % wider"),
+            (None, _, Some(w)) => {
+                format!("fragile: settles in {w:.3} s with the band {pct:.0} % wider")
+            }
+            (None, Some(n), None) => {
+                format!("fragile: settles in {n:.3} s with the band {pct:.0} % narrower")
+            }
+            (None, None, None) => "fragile".to_string(),
+        })
+    }
+}
+
+/// How far the settling band is moved (as a fraction of it, each way) to probe a settling time's sensitivity.
+pub const SETTLING_BAND_PROBE: f64 = 0.05;
 
 /// Centred moving average over `n` samples: always a whole window of `n` (shifted inwards at the ends, so a
 /// PWM period is always averaged whole); `n` <= 1 returns the input.
@@ -355,12 +393,25 @@ pub fn event_response(
         None
     };
     // Settling: the deviation stays within the band from then to the end of the window.
-    let settling_time_s = match (&not_settled, dev.iter().rposition(|d| d.abs() > band)) {
+    let settling = |band: f64| match (&not_settled, dev.iter().rposition(|d| d.abs() > band)) {
         (Some(_), _) => None,
         (None, None) => Some(0.0),
         (None, Some(i)) if i + 1 < i_tail => Some(t[i + 1] - t[0]),
         (None, Some(_)) => None,
     };
+    let settling_time_s = settling(band);
+    // The same with the band a little narrower and wider: a settling time that jumps between them is set
+    // by a peak at the band's edge, not by how fast the loop recovers.
+    let settling_time_range_s = [
+        settling(band * (1.0 - SETTLING_BAND_PROBE)),
+        settling(band * (1.0 + SETTLING_BAND_PROBE)),
+    ];
+    let settling_fragile = settling_time_range_s
+        .iter()
+        .any(|p| match (settling_time_s, p) {
+            (Some(ts), Some(p)) => (p - ts).abs() > 0.1 * ts,
+            (a, b) => a.is_some() != b.is_some(),
+        });
     let not_settled = match (&not_settled, settling_time_s) {
         (None, None) => Some(format!(
             "still outside the ±{band:.2} N band of its periodic steady state in the last {tail_s:.2} s"
@@ -381,6 +432,8 @@ pub fn event_response(
         settling_band_n: band,
         settled: settling_time_s.is_some(),
         settling_time_s,
+        settling_time_range_s,
+        settling_fragile,
         not_settled,
         oscillation,
         tracking_error_n,
@@ -439,6 +492,67 @@ mod tests {
         assert!(
             ts <= env + 1e-3 && ts > env - std::f64::consts::PI / w,
             "{ts} vs {env}"
+        );
+    }
+
+    /// e(t) = amp·e^{-a t} on a 10 N constant reference, 0–4 s at 1 ms.
+    fn decay(amp: f64, a: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let t: Vec<f64> = (0..=4000).map(|k| k as f64 * 1e-3).collect();
+        let f_e = t.iter().map(|&ti| 10.0 + amp * (-a * ti).exp()).collect();
+        (t.clone(), vec![10.0; t.len()], f_e)
+    }
+
+    #[test]
+    fn a_smooth_decay_has_a_settling_time_that_does_not_hang_on_the_band() {
+        // |d| = 5 e^{-4t} falls to a band b at t = ln(5/b)/4: the nominal 0.2 N band (2 % of 10 N; the
+        // tail's ripple is ~1e-6 N) and the probes 5 % either side, each to the 1 ms sample after it.
+        let (t, f_ref, f_e) = decay(5.0, 4.0);
+        let r = event_response(&t, &f_ref, &f_e, Steady::Constant, None).unwrap();
+        let at = |b: f64| (5.0 / b).ln() / 4.0;
+        let b = r.settling_band_n;
+        assert!((b - 0.2).abs() < 1e-4, "{b}");
+        let close = |got: Option<f64>, want: f64| got.is_some_and(|g| (g - want).abs() <= 1.5e-3);
+        assert!(
+            close(r.settling_time_s, at(b)),
+            "{:?} vs {}",
+            r.settling_time_s,
+            at(b)
+        );
+        let [narrow, wide] = r.settling_time_range_s;
+        assert!(
+            close(narrow, at(0.95 * b)),
+            "{narrow:?} vs {}",
+            at(0.95 * b)
+        );
+        assert!(close(wide, at(1.05 * b)), "{wide:?} vs {}", at(1.05 * b));
+        assert!(!r.settling_fragile && r.fragility().is_none());
+    }
+
+    #[test]
+    fn a_peak_at_the_edge_of_the_band_makes_the_settling_time_fragile() {
+        // e(t) = -A e^{-at} cos(wt): its k-th extremum is at w t_k = kπ - atan(a/w). A is chosen so that
+        // the 5th sits 2 % above the 0.2 N band: the nominal band and the narrower probe settle after it,
+        // the wider probe after the 4th, half a period (π/w = 0.314 s) sooner.
+        let (a, w) = (2.0_f64, 10.0_f64);
+        let t_k = |k: f64| (k * std::f64::consts::PI - (a / w).atan()) / w;
+        let shape = |ti: f64| (-a * ti).exp() * (w * ti).cos();
+        let amp = 1.02 * 0.2 / shape(t_k(5.0)).abs();
+        let t: Vec<f64> = (0..=4000).map(|k| k as f64 * 1e-3).collect();
+        let f_ref = vec![10.0; t.len()];
+        let f_e: Vec<f64> = t.iter().map(|&ti| 10.0 + amp * shape(ti)).collect();
+        let r = event_response(&t, &f_ref, &f_e, Steady::Constant, None).unwrap();
+        let ts = r.settling_time_s.unwrap();
+        let [narrow, wide] = r.settling_time_range_s;
+        let (narrow, wide) = (narrow.unwrap(), wide.unwrap());
+        // After the 5th extremum and before the 6th; the wider probe after the 4th and before the 5th.
+        assert!(ts > t_k(5.0) && ts < t_k(5.5), "{ts} vs {}", t_k(5.0));
+        assert!(narrow >= ts && narrow < t_k(6.0), "{narrow}");
+        assert!(wide > t_k(4.0) && wide < t_k(4.5), "{wide} vs {}", t_k(4.0));
+        assert!(r.settling_fragile);
+        let text = r.fragility().unwrap();
+        assert!(
+            text.contains(&format!("{wide:.3}–{narrow:.3} s with the band ±5 %")),
+            "{text}"
         );
     }
 

@@ -728,6 +728,9 @@ fn mark_settling(plot: &mut Plot, ok: &[&RunResult], te: f64) {
             _ => format!("{}: not settled (window '{}')", r.name, w.name),
         };
         plot.notes.push((text, color));
+        // A fragile settling time gets its range on a line of its own (docs/scenes.md).
+        plot.notes
+            .extend(ev.fragility().map(|f| (format!("  {f}"), color)));
     }
 }
 
