@@ -88,11 +88,16 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     let start = Instant::now();
     let indices: Vec<usize> = (0..n).collect();
     // Rows go to sweep.csv chunk by chunk; only a heatmap's metrics are kept (memory does not grow with
-    // the number of points otherwise).
-    let keep: Vec<usize> = metrics
+    // the number of points otherwise), with a settling time's fragility that its map marks.
+    let mut keep: Vec<usize> = metrics
         .iter()
         .map(|m| sweep.metric_index(m))
         .collect::<Result<_, _>>()?;
+    keep.extend(
+        keep.clone()
+            .into_iter()
+            .filter_map(|m| sweep.fragile_column(m)),
+    );
     let heatmaps = pneuflex_sweep::output::has_heatmaps(&sweep);
     let mut table = pneuflex_sweep::output::TableWriter::create(stage.path(), &sweep)?;
     let mut kept = Vec::new();

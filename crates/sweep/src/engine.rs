@@ -155,6 +155,7 @@ pub fn window_metrics(kind: WindowKind) -> &'static [&'static str] {
             "recovery_overshoot_n",
             "recovery_overshoot_pct",
             "settling_time_s",
+            "settling_fragile",
             "tracking_error_n",
         ],
     }
@@ -173,6 +174,8 @@ pub fn metric_of(w: &WindowMetrics, metric: &str) -> Option<f64> {
         "recovery_overshoot_n" => ev.map(|e| e.recovery_overshoot_n),
         "recovery_overshoot_pct" => ev.map(|e| e.recovery_overshoot_pct),
         "settling_time_s" => ev.map(|e| e.settling_time_s.unwrap_or(f64::INFINITY)),
+        // 1 when the settling time hangs on where the band is drawn (docs/scenes.md), else 0.
+        "settling_fragile" => ev.map(|e| f64::from(u8::from(e.settling_fragile))),
         "tracking_error_n" => ev.map(|e| e.tracking_error_n),
         _ => None,
     }
@@ -556,6 +559,17 @@ impl Sweep {
                     known.join(", ")
                 ))
             })
+    }
+
+    /// For a settling-time column, its window's `settling_fragile` column (what a heatmap of it marks).
+    pub fn fragile_column(&self, metric: usize) -> Option<usize> {
+        let c = self.columns.get(metric)?;
+        if c.metric != "settling_time_s" {
+            return None;
+        }
+        self.columns
+            .iter()
+            .position(|f| f.window == c.window && f.metric == "settling_fragile")
     }
 
     /// The default heatmap metric: the first sine window's RMS error, else the first column.

@@ -43,6 +43,15 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
     }
     let (nx, ny) = (grid[0].1.len(), grid[1].1.len());
     let name = sweep.columns[metric].name();
+    // A settling time's map marks the cells where it is fragile (its window's settling_fragile column).
+    let fragile_i = sweep.fragile_column(metric);
+    let fragile = |p: &PointResult, run: usize| -> bool {
+        fragile_i.is_some_and(|f| {
+            p.runs
+                .get(run)
+                .is_some_and(|r| r.status == Status::Ok && r.metrics[f] == Some(1.0))
+        })
+    };
     let value = |p: &PointResult, run: usize| -> Option<f64> {
         let r = p.runs.get(run)?;
         // A run that never settled (a limit cycle, an end stop, lost contact) is drawn as not working
@@ -62,12 +71,21 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
         }
         c
     };
+    let marks = |f: &dyn Fn(&PointResult) -> bool| -> Vec<bool> {
+        let mut m = vec![false; nx * ny];
+        for p in results {
+            let (x, y) = (p.index / ny, p.index % ny);
+            m[y * nx + x] = f(p);
+        }
+        m
+    };
     let mut out = Vec::new();
     for (k, run) in sweep.base_scene.runs.iter().enumerate() {
         out.push((
             format!("heatmap-{}-{name}.png", run.name),
             format!("{} ({}): {name}", run.name, run.controller.name()),
             cells(&|p| value(p, k)),
+            marks(&|p| fragile(p, k)),
             false,
         ));
     }
@@ -87,6 +105,7 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
             format!("heatmap-{an}-minus-{inn}-{name}.png"),
             format!("{an} − {inn}: {name} (< 0: {an} lower)"),
             cells(&|p| Some(value(p, a)? - value(p, i)?)),
+            marks(&|p| fragile(p, a) || fragile(p, i)),
             true,
         ));
     }
@@ -175,7 +194,8 @@ pub fn write_figures(
     Ok(files)
 }
 
-type Map = (String, String, Vec<Option<f64>>, bool);
+/// File name, title, cells, marked cells (a fragile settling time), diverging scale.
+type Map = (String, String, Vec<Option<f64>>, Vec<bool>, bool);
 
 fn write_maps(
     dir: &Path,
@@ -187,7 +207,7 @@ fn write_maps(
     if let Some(grid) = sweep.points.grid.as_ref().filter(|g| g.len() == 2) {
         let xt: Vec<String> = grid[0].1.iter().map(tick).collect();
         let yt: Vec<String> = grid[1].1.iter().map(tick).collect();
-        for (file, title, cells, diverging) in maps {
+        for (file, title, cells, marked, diverging) in maps {
             let path = dir.join(file);
             pneuflex_viz::write_heatmap(
                 &path,
@@ -198,6 +218,8 @@ fn write_maps(
                     y_label: &sweep.points.keys[grid[1].0].text,
                     y_ticks: &yt,
                     cells,
+                    marked,
+                    mark_note: "* settling time hangs on the band (±5 % moves it > 10 %)",
                     value_label: &sweep.columns[metric_i].name(),
                     diverging: *diverging,
                 },

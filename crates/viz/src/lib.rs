@@ -1083,6 +1083,11 @@ pub struct Heatmap<'a> {
     /// The cells, row by row from the bottom: `cells[y * nx + x]`; None is drawn grey with a cross
     /// (no value: the run diverged), a non-finite value grey with a circle (e.g. never settled).
     pub cells: &'a [Option<f64>],
+    /// Cells whose number hangs on a threshold (a fragile settling time), in the order of `cells` (empty:
+    /// none): an asterisk after the value, and `mark_note` under the map when any is marked.
+    pub marked: &'a [bool],
+    /// What the asterisk means.
+    pub mark_note: &'a str,
     /// What the colour bar shows.
     pub value_label: &'a str,
     /// A diverging scale centred on zero (blue < 0 < red), for differences; else a sequential scale.
@@ -1231,11 +1236,16 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), VizError> {
                     .draw_series(std::iter::once(Rectangle::new([c0, c1], fill.filled())))
                     .map_err(|e| e.to_string())?;
                 let centre = (SegmentValue::CenterOf(x), SegmentValue::CenterOf(y));
+                let star = if map.marked.get(y * nx + x) == Some(&true) {
+                    "*"
+                } else {
+                    ""
+                };
                 let text = match v {
                     None => "×".to_string(),
                     Some(v) if !v.is_finite() => "∞".to_string(),
-                    Some(v) if show_text => cell_text(v),
-                    Some(_) => String::new(),
+                    Some(v) if show_text => cell_text(v) + star,
+                    Some(_) => star.to_string(),
                 };
                 if !text.is_empty() {
                     let (r, g, b) = (fill.0 as f64, fill.1 as f64, fill.2 as f64);
@@ -1279,6 +1289,14 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), VizError> {
             Rectangle::new([(0.0, a), (1.0, b)], colour(0.5 * (a + b)).filled())
         }))
         .map_err(|e| e.to_string())?;
+        if map.marked.contains(&true) {
+            root.draw(&Text::new(
+                map.mark_note,
+                (14, height as i32 - 22),
+                (FAMILY, 13).into_font(),
+            ))
+            .map_err(|e| e.to_string())?;
+        }
         root.present().map_err(|e| e.to_string())
     };
     draw().map_err(|message| VizError::Draw {
