@@ -28,9 +28,9 @@ enum Command {
         /// the largest kp with `--margin-db` of gain margin, and the predicted limit-cycle onset.
         #[arg(long = "loop")]
         loop_analysis: bool,
-        /// Gain margin the largest kp is computed for, dB.
-        #[arg(long, default_value_t = 6.0)]
-        margin_db: f64,
+        /// With --loop: the gain margin the largest kp is computed for, dB (default 6).
+        #[arg(long)]
+        margin_db: Option<f64>,
         /// With --loop: also draw the Bode plot of every run's inner loop at every stiffness (PNG).
         #[arg(long, value_name = "FILE.png")]
         bode: Option<PathBuf>,
@@ -90,6 +90,12 @@ enum Command {
         /// No progress bar and no summary line.
         #[arg(long, short)]
         quiet: bool,
+        /// Largest number of points (default 1,000,000; at most 100,000,000); the sweep is refused beyond.
+        #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::spec::DEFAULT_MAX_POINTS)]
+        max_points: u64,
+        /// Largest output `--traces` may write, MiB (default 4096); the sweep is refused beyond.
+        #[arg(long, value_name = "MIB", default_value_t = cmd::sweep::DEFAULT_MAX_OUTPUT_MB)]
+        max_output_mb: u64,
     },
     /// Find the gains that minimise the worst case, over a list of environments, of a weighted sum of a
     /// run's RMS error, phase lag and recovery overshoot (CMA-ES, in parallel, with a budget and a seed);
@@ -132,6 +138,9 @@ enum Command {
         /// No progress bar and no summary.
         #[arg(long, short)]
         quiet: bool,
+        /// Largest number of scene runs (budget x environments; default 1,000,000, at most 100,000,000).
+        #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::spec::DEFAULT_MAX_POINTS)]
+        max_runs: u64,
     },
     /// Fit actuator-sheet parameters to rig logs (docs/identification.md): replay the logged valve command
     /// through the 1-DOF model, Levenberg-Marquardt, 95 % intervals, report, fitted sheet.
@@ -160,6 +169,12 @@ enum Command {
         /// Start of each segment left out of the comparison, s.
         #[arg(long, default_value_t = 0.015)]
         settle: f64,
+        /// Largest number of data rows of one log (default 2,000,000); a longer log is refused.
+        #[arg(long, value_name = "N", default_value_t = 2_000_000)]
+        max_rows: usize,
+        /// Longest time span of one log, s (default 3600); a longer log is refused.
+        #[arg(long, value_name = "S", default_value_t = 3600.0)]
+        max_log_s: f64,
     },
     /// Write a hidden truth for identification tests: the sheet with KEYS each moved 20-40 % (seeded).
     Perturb {
@@ -320,9 +335,16 @@ fn main() -> ExitCode {
             loop_analysis: true,
             margin_db,
             bode,
-        } => cmd::tf::loop_margins(&file, margin_db, json, bode.as_deref())
-            .map(|text| println!("{text}")),
-        Command::Tf { file, json, .. } => cmd::tf::tf(&file, json).map(|text| println!("{text}")),
+        } => cmd::tf::loop_margins(&file, margin_db.unwrap_or(6.0), json, bode.as_deref())
+            .and_then(|text| cmd::write_stdout(format_args!("{text}"))),
+        Command::Tf {
+            file,
+            json,
+            margin_db,
+            bode,
+            ..
+        } => cmd::tf::tf(&file, json, margin_db, bode.as_deref())
+            .and_then(|text| cmd::write_stdout(format_args!("{text}"))),
         Command::Run {
             scene,
             out,
@@ -350,6 +372,8 @@ fn main() -> ExitCode {
             seed,
             traces,
             quiet,
+            max_points,
+            max_output_mb,
         } => cmd::sweep::sweep(
             &scene,
             out.as_deref(),
@@ -361,6 +385,8 @@ fn main() -> ExitCode {
                 metric,
                 traces,
                 quiet,
+                max_points,
+                max_output_mb,
             },
         ),
         Command::Tune {
@@ -376,6 +402,7 @@ fn main() -> ExitCode {
             threads,
             out,
             quiet,
+            max_runs,
         } => cmd::tune::tune(
             &scene,
             out.as_deref(),
@@ -390,6 +417,7 @@ fn main() -> ExitCode {
                     population,
                     sigma0,
                     threads,
+                    max_runs,
                 },
                 quiet,
             },
@@ -423,15 +451,23 @@ fn main() -> ExitCode {
             validation,
             segment,
             settle,
+            max_rows,
+            max_log_s,
         } => cmd::identify::identify(
             logs,
             &actuator,
-            free,
-            bounds,
             out.as_deref(),
-            validation,
-            segment,
-            settle,
+            cmd::identify::IdentifyArgs {
+                free,
+                bounds,
+                validation,
+                segment_s: segment,
+                settle_s: settle,
+                limits: pneuflex_identify::log::LogLimits {
+                    max_rows,
+                    max_span_s: max_log_s,
+                },
+            },
         ),
         Command::Perturb {
             actuator,
@@ -495,8 +531,12 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
-            match err.downcast_ref::<cmd::Exit>() {
+            let exit = err.downcast_ref::<cmd::Exit>();
+            // A reader that went away (`| head`) hears nothing more.
+            if exit.is_none_or(|e| !e.message.is_empty()) {
+                cmd::write_stderr(format_args!("error: {err:#}"));
+            }
+            match exit {
                 Some(e) => ExitCode::from(e.code),
                 None => ExitCode::FAILURE,
             }

@@ -1,37 +1,74 @@
 //! `pneuflex identify` and `pneuflex perturb`: wiring only; the work is in `pneuflex-identify`.
+//!
+//! `identify` checks every option and stages its output directory before the fit (a refused `--out` costs
+//! no fit). SIGINT, SIGTERM or SIGHUP stop the fit at its next evaluation: `DIR.partial` gets a report of
+//! the values reached (not converged, no intervals, no fitted sheet), the previous output stays untouched,
+//! and the exit code is 128 + the signal.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
 
 use anyhow::{Context, bail};
+use pneuflex_files::OutputDir;
+use pneuflex_files::output::{Manifest, Partial, Writer};
+use pneuflex_identify::IdentifyError;
 use pneuflex_identify::fit::FitOptions;
+use pneuflex_identify::log::LogLimits;
 use pneuflex_identify::params::Key;
 use pneuflex_identify::replay::ReplayOptions;
-use pneuflex_identify::request::{Request, identify as fit_logs, write_outputs};
+use pneuflex_identify::request::{Request, identify_stoppable, stage_output, write_staged};
+
+/// The options of `identify` beyond the logs and the sheet.
+#[derive(Clone, Debug)]
+pub struct IdentifyArgs {
+    /// `--free`.
+    pub free: Vec<String>,
+    /// `--bounds`.
+    pub bounds: Vec<String>,
+    /// `--validation`: the held-out fraction.
+    pub validation: f64,
+    /// `--segment`, s.
+    pub segment_s: f64,
+    /// `--settle`, s.
+    pub settle_s: f64,
+    /// `--max-rows`, `--max-log-s`.
+    pub limits: LogLimits,
+}
 
 /// `pneuflex identify --log L... --actuator S --free K,... [--bounds K=[lo,hi]]... [--out DIR]`.
-#[allow(clippy::too_many_arguments)]
 pub fn identify(
     logs: Vec<PathBuf>,
     actuator: &Path,
-    free: Vec<String>,
-    bounds: Vec<String>,
     out: Option<&Path>,
-    validation: f64,
-    segment_s: f64,
-    settle_s: f64,
+    a: IdentifyArgs,
 ) -> anyhow::Result<()> {
+    let (segment_s, settle_s) = (a.segment_s, a.settle_s);
     if !(segment_s.is_finite() && segment_s > 0.0) {
         bail!("--segment: must be > 0 s, got {segment_s}");
     }
     if !(settle_s.is_finite() && settle_s >= 0.0 && settle_s < segment_s) {
         bail!("--settle: must be in [0, --segment) s, got {settle_s}");
     }
+    if !(a.validation.is_finite() && (0.0..0.9).contains(&a.validation)) {
+        bail!(
+            "--validation: the held-out fraction must be in [0, 0.9), got {}",
+            a.validation
+        );
+    }
+    if a.limits.max_rows < 10 {
+        bail!("--max-rows: at least 10, got {}", a.limits.max_rows);
+    }
+    if !(a.limits.max_span_s.is_finite() && a.limits.max_span_s > 0.0) {
+        bail!("--max-log-s: must be > 0 s, got {}", a.limits.max_span_s);
+    }
     let req = Request {
         logs,
         actuator: actuator.to_path_buf(),
-        free,
-        bounds,
-        validation_fraction: validation,
+        free: a.free,
+        bounds: a.bounds,
+        limits: a.limits,
+        validation_fraction: a.validation,
         options: FitOptions {
             replay: ReplayOptions {
                 segment_s,
@@ -41,7 +78,6 @@ pub fn identify(
             ..FitOptions::default()
         },
     };
-    let id = fit_logs(&req)?;
     let dest = match out {
         Some(d) => d.to_path_buf(),
         None => {
@@ -53,72 +89,188 @@ pub fn identify(
             Path::new("out").join("identify").join(stem)
         }
     };
-    let sheet = write_outputs(&id, &req, &dest)?;
+    // The keys, the sheet and every log are read (and refused) first, then the output is staged, then the fit.
+    let sheet = pneuflex_pneumatics::ActuatorSheet::load(&req.actuator)?;
+    let keys = pneuflex_identify::request::parse_free(&req.free, &sheet.model())?;
+    pneuflex_identify::request::parse_bounds(&keys, &req.bounds, &sheet.model())?;
+    for l in &req.logs {
+        pneuflex_files::input::check_regular(l, pneuflex_files::InputKind::Trace)?;
+    }
+    let stage = stage_output(&req, &dest)?;
+    let stop = super::stop_flag()?;
+    let id = match identify_stoppable(&req, Some(&stop)) {
+        Ok(id) => id,
+        Err(IdentifyError::Interrupted {
+            signal,
+            reached,
+            pass,
+        }) => return interrupted(stage, &req, &dest, signal, &reached, &pass),
+        Err(e) => return Err(e.into()),
+    };
+    let sheet = write_staged(&id, &req, stage)?;
+    if stop.load(Ordering::Relaxed) != 0 {
+        // The signal came after the fit: the complete output is written; say so and end as interrupted.
+        return Err(super::interrupted(
+            stop.load(Ordering::Relaxed),
+            format!(
+                "came after the fit had finished; its output is complete in {}",
+                dest.display()
+            ),
+        ));
+    }
     let f = &id.report.fit;
-    println!(
+    outln!(
         "{:<40} {:>14} {:>14} {:>32}",
-        "key", "start", "fitted", "95 % interval"
+        "key",
+        "start",
+        "fitted",
+        "95 % interval"
     );
     for e in &f.estimates {
-        println!(
+        outln!(
             "{:<40} {:>14.6e} {:>14.6e}   [{:.6e}, {:.6e}]",
-            e.key, e.start, e.value, e.ci95[0], e.ci95[1]
+            e.key,
+            e.start,
+            e.value,
+            e.ci95[0],
+            e.ci95[1]
         );
     }
-    println!(
-        "residual RMS (fit): p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm; held-out validation: p_a {:.0} Pa, p_b {:.0} Pa ({:.2} / {:.2} % of supply), x {:.3} mm",
+    let validation = if id.data.iter().all(|d| d.validation.is_empty()) {
+        "no held-out validation (--validation 0)".to_string()
+    } else {
+        format!(
+            "held-out validation: p_a {:.0} Pa, p_b {:.0} Pa ({:.2} / {:.2} % of supply), x {:.3} mm",
+            f.rms_validation[0],
+            f.rms_validation[1],
+            id.report.validation_pressure_pct_supply[0],
+            id.report.validation_pressure_pct_supply[1],
+            f.rms_validation[2] * 1e3
+        )
+    };
+    outln!(
+        "residual RMS (fit): p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm; {validation}",
         f.rms_fit[0],
         f.rms_fit[1],
         f.rms_fit[2] * 1e3,
-        f.rms_validation[0],
-        f.rms_validation[1],
-        id.report.validation_pressure_pct_supply[0],
-        id.report.validation_pressure_pct_supply[1],
-        f.rms_validation[2] * 1e3
     );
     for w in &id.report.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
-    println!(
+    outln!(
         "fit took {:.1} s; fitted sheet: {}",
         id.report.fit_seconds,
         sheet.display()
     );
-    println!("report: {}", dest.join("report.md").display());
+    outln!("report: {}", dest.join("report.md").display());
     Ok(())
 }
 
+/// Commits an interrupted fit as `<dest>.partial`: a report of the values reached, no fitted sheet.
+fn interrupted(
+    stage: OutputDir,
+    req: &Request,
+    dest: &Path,
+    signal: usize,
+    reached: &[(String, f64)],
+    pass: &str,
+) -> anyhow::Result<()> {
+    let reason = pneuflex_scene::runner::signal_name(signal);
+    let mut md = format!(
+        "# pneuflex identify: INTERRUPTED by {reason}\n\nThe fit was stopped during {pass}, before it \
+         converged: the values below are where it was, with no intervals, and no fitted sheet was written. \
+         Run the command again to finish it.\n\n| key | value reached |\n|---|---|\n"
+    );
+    for (k, v) in reached {
+        let _ = writeln!(md, "| `{k}` | {v:e} |");
+    }
+    let _ = writeln!(md, "\nLogs:");
+    for l in &req.logs {
+        let _ = writeln!(md, "- {}", l.display());
+    }
+    std::fs::write(stage.path().join("report.md"), md).context("writing report.md")?;
+    let json = serde_json::json!({
+        "complete": false,
+        "interrupted": reason,
+        "pass": pass,
+        "reached": reached.iter().map(|(k, v)| serde_json::json!({"key": k, "value": v})).collect::<Vec<_>>(),
+    });
+    std::fs::write(
+        stage.path().join("report.json"),
+        serde_json::to_string_pretty(&json)? + "\n",
+    )
+    .context("writing report.json")?;
+    let to = stage.commit_partial(
+        Manifest::new("identify", env!("CARGO_PKG_VERSION"), Vec::new()),
+        Partial {
+            reason,
+            time_reached_s: 0.0,
+            done: Some(format!("stopped during {pass}")),
+        },
+    )?;
+    Err(super::interrupted(
+        signal,
+        format!(
+            "the fit was stopped during {pass}; the values reached are in {} (not converged, no fitted \
+             sheet); {} is untouched",
+            to.join("report.md").display(),
+            dest.display()
+        ),
+    ))
+}
+
 /// `pneuflex perturb --actuator S --keys K,... --seed N --out DIR`: a hidden truth for tests, written with
-/// `truth.json` (shipped and perturbed value per key).
+/// `truth.json` (shipped and perturbed value per key). DIR must not exist; it is staged beside and renamed
+/// into place, so a refused value leaves nothing behind.
 pub fn perturb(actuator: &Path, keys: &[String], seed: u64, out: &Path) -> anyhow::Result<()> {
-    let mut ks = Vec::new();
+    let mut ks: Vec<Key> = Vec::new();
     for k in keys.iter().flat_map(|k| k.split(',')).map(str::trim) {
         if k.is_empty() {
             continue;
         }
-        ks.push(Key::parse(k).with_context(|| format!("--keys: {k}: no such parameter"))?);
+        let key = Key::parse(k).with_context(|| {
+            format!(
+                "--keys: {k}: no such parameter; the keys are {}",
+                pneuflex_identify::params::ALL
+                    .iter()
+                    .map(|k| k.name())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })?;
+        if ks.contains(&key) {
+            bail!(
+                "--keys: {k}: given twice (as `{}`): one key, one truth",
+                key.name()
+            );
+        }
+        ks.push(key);
     }
     if ks.is_empty() {
         bail!("--keys: no parameter to perturb");
     }
-    if out.exists() {
+    if std::fs::symlink_metadata(out).is_ok() {
         bail!(
             "{}: exists; perturb writes a new directory and replaces nothing",
             out.display()
         );
     }
-    let (sheet, changes) = pneuflex_identify::perturb::perturb(actuator, &ks, seed, out)?;
+    let stage = OutputDir::create(out, &[actuator], Writer::simulation("perturb"))?;
+    let (sheet, changes) = pneuflex_identify::perturb::perturb(actuator, &ks, seed, stage.path())?;
     let table: Vec<serde_json::Value> = changes
         .iter()
         .map(|c| serde_json::json!({"key": c.key.name(), "shipped": c.shipped, "truth": c.truth}))
         .collect();
-    let json = out.join("truth.json");
+    let json = stage.path().join("truth.json");
     std::fs::write(&json, serde_json::to_string_pretty(&table)?)
         .with_context(|| format!("{}: cannot write", json.display()))?;
-    println!(
+    let inputs = vec![pneuflex_files::InputDigest::of_file(actuator, "actuator")?];
+    let dest = stage.commit(Manifest::new("perturb", env!("CARGO_PKG_VERSION"), inputs))?;
+    let sheet = dest.join(sheet.file_name().unwrap_or_default());
+    outln!(
         "hidden truth: {} (values in {})",
         sheet.display(),
-        json.display()
+        dest.join("truth.json").display()
     );
     Ok(())
 }

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use pneuflex_files::OutputDir;
-use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_files::output::{Manifest, Partial, Writer};
 use pneuflex_pil::{PilRun, U_TOLERANCE};
 use pneuflex_scene::{Scene, write_results};
 
@@ -41,15 +41,16 @@ pub fn pil(
         None => (0..scene.runs.len()).collect(),
     };
     let elf = firmware.map_or_else(default_firmware, Path::to_path_buf);
-    // Missing QEMU or firmware: said before any output directory is made.
+    // Missing QEMU or a file that is not the board's firmware: said before any output directory is made.
     pneuflex_pil::qemu::qemu_binary()?;
-    if !elf.is_file() {
+    if !elf.exists() {
         bail!(
             "firmware {}: not found; build it with `cargo build --release` in firmware/ (docs/firmware.md), \
              or pass --firmware",
             elf.display()
         );
     }
+    pneuflex_pil::qemu::check_firmware(&elf)?;
     // The live view: each run's rows on the simulated timeline with `run`'s entity paths, plus the link's
     // quality and the board's update cost; one recording per run. Checked before anything runs.
     let live = super::live::LiveSink::parse(rerun, "rig pil")?;
@@ -69,13 +70,15 @@ pub fn pil(
             );
         }
     }
-    let stage = OutputDir::create(&dest, &[scene_path, &elf], Recoverable::Regenerable)?;
+    let stage = OutputDir::create(&dest, &[scene_path, &elf], Writer::simulation("rig pil"))?;
 
+    let stop = super::stop_flag()?;
     let mut runs: Vec<PilRun> = Vec::new();
     for &i in &indices {
-        eprintln!(
+        errln!(
             "{}: run `{}` on the emulated board ...",
-            scene.name, scene.runs[i].name
+            scene.name,
+            scene.runs[i].name
         );
         let name = &scene.runs[i].name;
         let mut view = live.view(
@@ -86,10 +89,26 @@ pub fn pil(
             scene.dt_s,
             pneuflex_scene::runner::pwm_period_s(&scene),
         )?;
-        let r = pneuflex_pil::run_pil_observed(&scene, i, &elf, &mut |_| {}, view.observer())
-            .with_context(|| format!("run `{name}`"))?;
+        let r = match pneuflex_pil::run_pil_observed(
+            &scene,
+            i,
+            &elf,
+            &mut |_| {},
+            view.observer(),
+            Some(&stop),
+        ) {
+            Ok(r) => r,
+            Err(pneuflex_pil::PilError::Interrupted(cut)) => {
+                let _ = view.finish();
+                return interrupted(stage, &scene, &indices, &runs, *cut, &dest, &stop);
+            }
+            Err(e) => {
+                return Err(anyhow::Error::new(e)
+                    .context(format!("run `{name}` on the firmware {}", elf.display())));
+            }
+        };
         if let Some(rows) = view.finish()? {
-            eprintln!("rerun: {rows} ticks of `{name}` logged");
+            errln!("rerun: {rows} ticks of `{name}` logged");
         }
         runs.push(r);
     }
@@ -115,8 +134,8 @@ pub fn pil(
         env!("CARGO_PKG_VERSION"),
         summary.inputs.clone(),
     ))?;
-    println!("{table}");
-    println!("outputs in {}", dest.display());
+    outln!("{table}");
+    outln!("outputs in {}", dest.display());
     let bad: Vec<String> = done
         .runs
         .iter()
@@ -147,6 +166,49 @@ pub fn pil(
         );
     }
     Ok(())
+}
+
+/// Commits an interrupted PIL command as `<dest>.partial`: the runs done, and the cut run's trace
+/// (`trace.interrupted.csv`), with summary.json marked incomplete; no comparison of a cut run.
+fn interrupted(
+    stage: OutputDir,
+    scene: &Scene,
+    indices: &[usize],
+    runs: &[PilRun],
+    cut: pneuflex_scene::RunResult,
+    dest: &Path,
+    stop: &std::sync::atomic::AtomicUsize,
+) -> anyhow::Result<()> {
+    let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
+    let mut done = scene.clone();
+    done.runs = indices[..=runs.len()]
+        .iter()
+        .map(|&i| scene.runs[i].clone())
+        .collect();
+    done.claims.clear();
+    let mut results: Vec<_> = runs.iter().map(|r| r.firmware.clone()).collect();
+    let time_reached_s = cut.trace.t().last().copied().unwrap_or(0.0);
+    let cut_name = cut.name.clone();
+    results.push(cut);
+    write_results(stage.path(), &done, &results)?;
+    let summary = pneuflex_scene::summary(&done, &results);
+    let reason = pneuflex_scene::runner::signal_name(signal);
+    let to = stage.commit_partial(
+        Manifest::new("rig pil", env!("CARGO_PKG_VERSION"), summary.inputs.clone()),
+        Partial {
+            reason,
+            time_reached_s,
+            done: Some(format!("{} of {} runs", runs.len(), indices.len())),
+        },
+    )?;
+    Err(super::interrupted(
+        signal,
+        format!(
+            "stopped at t = {time_reached_s:.3} s of run `{cut_name}` on the board; what ran is in {}              (marked incomplete in summary.json); {} is untouched",
+            to.display(),
+            dest.display()
+        ),
+    ))
 }
 
 fn comparison_json(scene: &Scene, runs: &[PilRun]) -> serde_json::Value {

@@ -35,13 +35,13 @@ pub fn emulate(
     };
     let stop = session::install_ctrl_c()?;
     match &handle.path {
-        Some(p) => println!(
+        Some(p) => outln!(
             "emulating rig `{}` on {}  (connect with: pneuflex rig run --port {} ...; Ctrl-C stops)",
             rig.name,
             p.display(),
             p.display()
         ),
-        None => println!(
+        None => outln!(
             "emulating rig `{}` on {}  (Ctrl-C stops)",
             rig.name,
             port.unwrap_or("")
@@ -55,7 +55,7 @@ pub fn emulate(
         std::thread::sleep(Duration::from_millis(20));
     }
     let log = handle.stop();
-    println!(
+    outln!(
         "emulator stopped: {} samples sent, {} valve commands received, {} board-watchdog trips{}",
         log.samples_sent,
         log.commands.len(),
@@ -86,6 +86,7 @@ pub struct Hidden {
 /// as `<out_dir>.partial`).
 #[allow(clippy::too_many_arguments)]
 pub fn run(
+    command: &'static str,
     rig_file: &Path,
     port: Option<&str>,
     scene: Option<&Path>,
@@ -102,7 +103,7 @@ pub fn run(
     if let Some(s) = scene {
         inputs.push((s, "scene"));
     }
-    println!(
+    outln!(
         "running on `{}` at {} Hz for {duration_s} s; output: {}",
         port.unwrap_or(&rig.link.port),
         rig.rt.rate_hz,
@@ -110,6 +111,7 @@ pub fn run(
     );
     let mut clock = WallClock::new(Duration::from_micros(rig.rt.spin_us));
     let rec = record::record_observed(
+        command,
         &rig,
         || serial::connect(&rig, rig_file, port),
         out_dir,
@@ -122,12 +124,12 @@ pub fn run(
         observer,
     )?;
     for r in &rec.recovered {
-        eprintln!(
+        errln!(
             "note: the recording of an earlier run that died was kept in {}",
             r.display()
         );
     }
-    println!("{}", rec.report);
+    outln!("{}", rec.report);
     let trace = rec.dir.join("trace.csv");
     if rec.partial {
         bail!(
@@ -145,7 +147,7 @@ pub fn run(
             trace.display()
         );
     }
-    println!("trace: {}", trace.display());
+    outln!("trace: {}", trace.display());
     Ok(rec.report)
 }
 
@@ -176,10 +178,13 @@ pub fn run_scene(
     let mut reference = |t: f64| setpoints.at(t);
     let out_dir = match out {
         Some(dir) => dir.to_path_buf(),
-        None => Path::new("out")
-            .join("rig")
-            .join(&scene.name)
-            .join(&scene.runs[index].name),
+        // A recording is never replaced: a second one goes beside the first (`<run>-2`, ...).
+        None => pneuflex_files::output::fresh_destination(
+            &Path::new("out")
+                .join("rig")
+                .join(&scene.name)
+                .join(&scene.runs[index].name),
+        ),
     };
     let duration = match duration_s {
         Some(d) => d,
@@ -200,6 +205,7 @@ pub fn run_scene(
         pneuflex_scene::runner::pwm_period_s(&scene),
     )?;
     let result = run(
+        record::COMMAND,
         rig_file,
         port,
         Some(scene_path),
@@ -212,9 +218,9 @@ pub fn run_scene(
     .map(|_| ());
     // The recording is safe on disk whatever the view did: a logging error is a warning.
     match live.finish() {
-        Ok(Some(rows)) => eprintln!("rerun: {rows} ticks logged"),
+        Ok(Some(rows)) => errln!("rerun: {rows} ticks logged"),
         Ok(None) => {}
-        Err(e) => eprintln!("warning: the Rerun view is incomplete: {e:#}"),
+        Err(e) => errln!("warning: the Rerun view is incomplete: {e:#}"),
     }
     result
 }
@@ -252,6 +258,25 @@ pub fn excite(
     out: Option<&Path>,
 ) -> anyhow::Result<()> {
     use pneuflex_identify::excite::{Excitation, Exciter, Signal};
+    // The length first: the other checks (the ramp is a quarter of it) follow from it.
+    check_duration(a.duration_s).map_err(|e| anyhow!("--duration: {}", e.message))?;
+    if !(a.hold_s.is_finite() && a.hold_s > 0.0) {
+        bail!("--hold: must be > 0 s, got {}", a.hold_s);
+    }
+    if a.signal != "chirp" && a.hold_s > a.duration_s {
+        bail!(
+            "--hold {} s: longer than --duration {} s: the {} would hold one level for the whole run and              excite nothing",
+            a.hold_s,
+            a.duration_s,
+            a.signal
+        );
+    }
+    if !(a.amplitude.is_finite() && a.amplitude > 0.0 && a.amplitude <= 1.0) {
+        bail!(
+            "--amplitude: must be in (0, 1] (a zero amplitude excites nothing), got {}",
+            a.amplitude
+        );
+    }
     let signal = match a.signal.as_str() {
         "prbs" => Signal::Prbs {
             bit_s: a.hold_s,
@@ -281,10 +306,13 @@ pub fn excite(
     let mut reference = |_t: f64| Setpoint::default();
     let out_dir = match out {
         Some(d) => d.to_path_buf(),
-        None => Path::new("out").join("rig").join("excite").join(&a.signal),
+        None => pneuflex_files::output::fresh_destination(
+            &Path::new("out").join("rig").join("excite").join(&a.signal),
+        ),
     };
     let Some(truth) = &a.lockstep_truth else {
         return run(
+            record::EXCITE,
             rig_file,
             port,
             None,
@@ -305,6 +333,7 @@ pub fn excite(
     let mut link_clock = clock.clone();
     let stop = std::sync::atomic::AtomicBool::new(false);
     let rec = record::record(
+        record::EXCITE,
         &rig,
         || serial::connect_link(link, &rig, &mut link_clock),
         &out_dir,
@@ -315,7 +344,7 @@ pub fn excite(
         &stop,
         &mut clock,
     )?;
-    println!("{}", rec.report);
+    outln!("{}", rec.report);
     let trace = rec.dir.join("trace.csv");
     if let Some(f) = &rec.report.fault {
         bail!(
@@ -326,6 +355,6 @@ pub fn excite(
             trace.display()
         );
     }
-    println!("trace: {}", trace.display());
+    outln!("trace: {}", trace.display());
     Ok(())
 }

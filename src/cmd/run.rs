@@ -8,14 +8,12 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::AtomicUsize;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pneuflex_files::OutputDir;
-use pneuflex_files::output::{Manifest, Partial, Recoverable};
+use pneuflex_files::output::{Manifest, Partial, Writer};
 use pneuflex_scene::{Limits, PlantSpec, RunOptions, RunResult, Scene, WindowKind, run_scene_with};
 
 use super::Exit;
@@ -48,23 +46,6 @@ pub(super) fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
     v
 }
 
-/// Installs SIGINT, SIGTERM and SIGHUP handlers that store the signal number in the returned flag; a
-/// second signal while the flag is set exits at once (code 128 + 2 for a second Ctrl-C).
-fn install_stop_flag() -> anyhow::Result<Arc<AtomicUsize>> {
-    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
-    let flag = Arc::new(AtomicUsize::new(0));
-    let armed = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    for sig in [SIGINT, SIGTERM, SIGHUP] {
-        // Order matters: the conditional shutdown sees the flag set by a previous signal only.
-        signal_hook::flag::register_conditional_shutdown(sig, 128 + sig, armed.clone())
-            .context("installing the signal handler")?;
-        signal_hook::flag::register(sig, armed.clone()).context("installing the signal handler")?;
-        signal_hook::flag::register_usize(sig, flag.clone(), sig as usize)
-            .context("installing the signal handler")?;
-    }
-    Ok(flag)
-}
-
 /// Runs a scene file and writes its outputs; Err on bad input, on a write failure, when a run diverged
 /// (the outputs are still written, with the run marked diverged in summary.json) or on a signal.
 pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Result<()> {
@@ -85,7 +66,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
                 let at = pneuflex_files::toml_key_position(&scene.text, &w.key)
                     .map(|p| format!(":{p}"))
                     .unwrap_or_default();
-                eprintln!("warning: {}{at}: {w}", scene_path.display());
+                errln!("warning: {}{at}: {w}", scene_path.display());
             }
         });
         run_scene_file(&scene, scene_path, out, args, limits)
@@ -107,7 +88,7 @@ fn run_scene_file(
     // The output directory is checked and staged before anything runs: a bad --out fails at once.
     let inputs = inputs_of(scene, scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    let stage = OutputDir::create(&dest, &protect, Recoverable::Regenerable)?;
+    let stage = OutputDir::create(&dest, &protect, Writer::simulation("run"))?;
     if let Some(words) = rerun
         && words.first().map(String::as_str) == Some("save")
         && let Some(target) = words.get(1)
@@ -158,7 +139,7 @@ fn run_scene_file(
         }
         bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
     };
-    let stop = install_stop_flag()?;
+    let stop = super::stop_flag()?;
     // Watches nothing: the runs may execute in parallel.
     struct Quiet;
     impl pneuflex_scene::StepObserver for Quiet {
@@ -216,7 +197,7 @@ fn run_scene_file(
                 obs.finish()?;
                 if !quiet {
                     let sim_s = (sim_time.as_secs_f64() - cost).max(1e-9);
-                    println!(
+                    outln!(
                         "rerun: {steps} steps logged; {:.0} steps/s without logging, {:.0} with ({cost:.2} s of logging)",
                         steps as f64 / sim_s,
                         steps as f64 / (sim_s + cost)
@@ -266,6 +247,7 @@ fn run_scene_file(
             Partial {
                 reason: reason.clone(),
                 time_reached_s,
+                done: None,
             },
         )?;
         return Err(Exit {
@@ -286,15 +268,15 @@ fn run_scene_file(
     let dest = stage.commit(manifest)?;
 
     if !quiet {
-        println!("{}", table(&results));
+        outln!("{}", table(&results));
         for w in results.iter().flat_map(|r| &r.warnings) {
-            println!("warning: {w}");
+            outln!("warning: {w}");
         }
         let claims = pneuflex_scene::claims::check_all(scene, &results);
         if !claims.is_empty() {
-            println!("{}", claims_table(&claims));
+            outln!("{}", claims_table(&claims));
         }
-        println!(
+        outln!(
             "{}: {} run(s) of {} s simulated in {:.3} s; outputs in {}",
             scene.name,
             results.len(),

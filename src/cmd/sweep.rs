@@ -1,15 +1,21 @@
 //! `pneuflex sweep <scene> --set KEY=SPEC ... [--out DIR]`: the scene at every point of a grid or sample of
 //! its keys, in parallel; one table of every point's metrics per run, and heatmaps for two keys. The
 //! engine is `pneuflex_sweep`; this wires arguments, the progress bar and the output directory.
+//!
+//! Limits come before work: the number of points (`--max-points`) and, with `--traces`, the bytes written
+//! (`--max-output-mb`) are worked out from the arguments and refused before anything is allocated. SIGINT,
+//! SIGTERM or SIGHUP stop the sweep at the next point: the rows done so far go to `DIR.partial` (marked in
+//! its manifest and sweep.json), the previous output stays untouched, and the exit code is 128 + the signal.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pneuflex_files::OutputDir;
-use pneuflex_files::output::{Manifest, Recoverable};
-use pneuflex_sweep::{SetArg, Status, Sweep};
+use pneuflex_files::output::{Manifest, Partial, Writer};
+use pneuflex_sweep::{SetArg, Status, Sweep, SweepError};
 
 /// Options of `sweep`.
 #[derive(Clone, Debug, Default)]
@@ -28,7 +34,14 @@ pub struct SweepArgs {
     pub traces: bool,
     /// No progress bar and no summary line.
     pub quiet: bool,
+    /// `--max-points`: the most points the sweep may have.
+    pub max_points: u64,
+    /// `--max-output-mb`: the most `--traces` may write, MiB.
+    pub max_output_mb: u64,
 }
+
+/// The default of `--max-output-mb`: what `--traces` may write unless raised, MiB.
+pub const DEFAULT_MAX_OUTPUT_MB: u64 = 4096;
 
 /// A progress bar over `n` items that appears when the work lasts more than a moment.
 pub fn bar(n: u64, what: &str, quiet: bool) -> ProgressBar {
@@ -58,9 +71,48 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
         .iter()
         .map(|s| SetArg::parse(s))
         .collect::<Result<Vec<_>, _>>()?;
+    if args.threads > 1024 {
+        anyhow::bail!("--threads {}: at most 1024 (0: one per core)", args.threads);
+    }
+    let stop = super::stop_flag()?;
     let checking = Instant::now();
-    // Every point's scene is parsed and validated here, before anything runs.
-    let sweep = Sweep::new(scene_path, &sets, args.samples, args.seed)?;
+    // Every point's scene is parsed and validated here, before anything runs (and before an output
+    // directory exists); the point count is checked first.
+    let sweep = {
+        let probe =
+            Sweep::new_unchecked(scene_path, &sets, args.samples, args.seed, args.max_points)?;
+        let bar = bar(probe.len() as u64, "checking the points", args.quiet);
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+        let shown = std::sync::atomic::AtomicBool::new(false);
+        let tick = || {
+            if !args.quiet
+                && checking.elapsed().as_millis() > 500
+                && !shown.swap(true, Ordering::Relaxed)
+            {
+                bar.set_draw_target(ProgressDrawTarget::stderr());
+            }
+            bar.inc(1);
+        };
+        let checked = Sweep::new_checked(
+            scene_path,
+            &sets,
+            args.samples,
+            args.seed,
+            args.max_points,
+            Some(&stop),
+            &tick,
+        );
+        bar.finish_and_clear();
+        match checked {
+            Err(SweepError::Interrupted) => {
+                return Err(super::interrupted(
+                    stop.load(Ordering::Relaxed),
+                    "stopped while checking the points; nothing was run or written".into(),
+                ));
+            }
+            other => other?,
+        }
+    };
     let checked_s = checking.elapsed().as_secs_f64();
     let metrics = if args.metric.is_empty() {
         vec![
@@ -74,13 +126,29 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     for m in &metrics {
         sweep.metric_index(m)?;
     }
+    if args.traces {
+        let bytes = sweep.traces_bytes();
+        let limit = args.max_output_mb.saturating_mul(1 << 20);
+        if bytes > limit {
+            anyhow::bail!(
+                "--traces: {} points x {} run(s) of {} s at dt {} s would write about {:.1} GiB, more than \
+                 the limit of {} MiB; sweep fewer points, or raise --max-output-mb",
+                sweep.len(),
+                sweep.base_scene.runs.len(),
+                sweep.base_scene.duration_s,
+                sweep.base_scene.dt_s,
+                bytes as f64 / (1u64 << 30) as f64,
+                args.max_output_mb
+            );
+        }
+    }
     let scene = &sweep.base_scene;
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(format!("{}-sweep", scene.name)));
     let inputs = super::run::inputs_of(scene, scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    let stage = OutputDir::create(&dest, &protect, Recoverable::Regenerable)?;
+    let stage = OutputDir::create(&dest, &protect, Writer::simulation("sweep"))?;
     let traces = args.traces.then(|| stage.path().join("points"));
 
     let n = sweep.len();
@@ -102,13 +170,16 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     let mut table = pneuflex_sweep::output::TableWriter::create(stage.path(), &sweep)?;
     let mut kept = Vec::new();
     let mut counts = [0usize; 4];
-    sweep.run_chunked(
+    let mut done = 0usize;
+    let ran = sweep.run_chunked(
         &indices,
         args.threads,
         traces.as_deref(),
+        Some(&stop),
         &|| bar.inc(1),
         &mut |chunk| {
             table.write(&sweep, chunk)?;
+            done += chunk.len();
             for r in chunk.iter().flat_map(|p| &p.runs) {
                 counts[match r.status {
                     Status::Ok => 0,
@@ -122,17 +193,43 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
             }
             Ok(())
         },
-    )?;
+    );
+    let interrupted = match ran {
+        Ok(()) => None,
+        Err(SweepError::Interrupted) => Some(stop.load(Ordering::Relaxed)),
+        Err(e) => return Err(e.into()),
+    };
     table.finish()?;
     bar.finish_and_clear();
     let run_s = start.elapsed().as_secs_f64();
 
-    pneuflex_sweep::output::write_figures(stage.path(), &sweep, &kept, &metrics)?;
     let manifest = Manifest::new(
         "sweep",
         env!("CARGO_PKG_VERSION"),
         pneuflex_scene::scene_inputs(scene),
     );
+    if let Some(signal) = interrupted {
+        // The rows done so far, marked: no heatmaps of a grid with holes.
+        pneuflex_sweep::output::write_record(stage.path(), &sweep, Vec::new(), Some(done))?;
+        let reason = pneuflex_scene::runner::signal_name(signal);
+        let to = stage.commit_partial(
+            manifest,
+            Partial {
+                reason,
+                time_reached_s: 0.0,
+                done: Some(format!("{done} of {n} points")),
+            },
+        )?;
+        return Err(super::interrupted(
+            signal,
+            format!(
+                "stopped after {done} of {n} points; their rows are in {} (marked partial); {} is untouched",
+                to.join("sweep.csv").display(),
+                dest.display()
+            ),
+        ));
+    }
+    pneuflex_sweep::output::write_figures(stage.path(), &sweep, &kept, &metrics)?;
     let dest = stage.commit(manifest)?;
     if !args.quiet {
         let threads = if args.threads == 0 {
@@ -140,7 +237,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
         } else {
             args.threads
         };
-        println!(
+        outln!(
             "{}: {n} point(s) x {} run(s) on {threads} thread(s) in {run_s:.2} s ({:.1} scene-runs/s; points checked in {checked_s:.2} s): \
              {} ok, {} not settled, {} diverged, {} error; table in {}",
             scene.name,

@@ -8,8 +8,23 @@ use anyhow::Context as _;
 use pneuflex_pneumatics::load_actuator_sheet;
 
 /// Computes K_n, omega_n, xi_n and the denominator of eq. (16) for the actuator in `path`; returns a
-/// table, or one JSON object (SI units) when `json` is set.
-pub fn tf(path: &Path, json: bool) -> anyhow::Result<String> {
+/// table, or one JSON object (SI units) when `json` is set. `--margin-db` and `--bode` belong to `--loop`:
+/// given without it they are refused rather than silently ignored.
+pub fn tf(
+    path: &Path,
+    json: bool,
+    margin_db: Option<f64>,
+    bode: Option<&Path>,
+) -> anyhow::Result<String> {
+    if let Some(b) = bode {
+        anyhow::bail!(
+            "--bode {}: the Bode plot is of the loop; add --loop (with a scene file)",
+            b.display()
+        );
+    }
+    if margin_db.is_some() {
+        anyhow::bail!("--margin-db: applies to the loop analysis; add --loop (with a scene file)");
+    }
     // Errors name the file, the line and the key (also the scene key or sheet key naming a missing file).
     let sheet = load_actuator_sheet(path)?;
     let sheet_path = sheet.path.clone();
@@ -141,7 +156,10 @@ pub fn loop_margins(
             let _ = std::fs::remove_file(&tmp);
             return Err(e.into());
         }
-        std::fs::rename(&tmp, b).with_context(|| format!("--bode {}", b.display()))?;
+        // A hard link, not a rename: it fails rather than replace a file that appeared meanwhile.
+        let linked = std::fs::hard_link(&tmp, b);
+        let _ = std::fs::remove_file(&tmp);
+        linked.with_context(|| format!("--bode {}", b.display()))?;
         writeln!(s, "Bode plot: {}", b.display())?;
     }
     if json {

@@ -1,12 +1,18 @@
 //! `pneuflex tune <scene> --free KEY=[LO,HI] ... --over KEY=V1,V2,... --budget N --seed S`: CMA-ES over the
 //! free keys, minimising the worst case over the environments of a weighted sum of a run's metrics. The
 //! engine is `pneuflex_sweep::tune`; this wires arguments, the progress bar and the output directory.
+//!
+//! Everything is checked before the search starts (the keys, one meaning each; the boxes at their corners
+//! in every environment; the budget against one generation and `--max-runs`). SIGINT, SIGTERM or SIGHUP
+//! end the search after the generation under way: its history and a report marked interrupted go to
+//! `DIR.partial`, the previous output stays untouched, and the exit code is 128 + the signal.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use pneuflex_files::OutputDir;
-use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_files::output::{Manifest, Partial, Writer};
 use pneuflex_sweep::SetArg;
 use pneuflex_sweep::tune::{FreeArg, Term, TuneOptions, Tuner};
 
@@ -56,14 +62,22 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
         .map(|s| Term::parse(s))
         .collect::<Result<Vec<_>, _>>()?;
     // The scene at the box's corners and at its own values, in every environment: checked before anything runs.
-    let tuner = Tuner::new(scene_path, free, &over, args.run.as_deref(), terms)?;
+    let tuner = Tuner::new(
+        scene_path,
+        free,
+        &over,
+        args.run.as_deref(),
+        terms,
+        args.options.max_runs,
+    )?;
+    args.options.check(tuner.free.len(), tuner.envs.len())?;
     let scene = &tuner.base_scene;
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(format!("{}-tune", scene.name)));
     let inputs = super::run::inputs_of(scene, scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    let stage = OutputDir::create(&dest, &protect, Recoverable::Regenerable)?;
+    let stage = OutputDir::create(&dest, &protect, Writer::simulation("tune"))?;
 
     // The command as recorded in the tuned scene and the report: without the options that do not change
     // the result (where it is written, threads, quiet), so that the files are the same whatever they are.
@@ -85,27 +99,59 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
         &format!(
             "tuning {} over {} environment(s)",
             scene.name,
-            tuner.envs.values.len()
+            tuner.envs.len()
         ),
         args.quiet,
     );
     let start = Instant::now();
-    let history = tuner.search(&args.options, &|| bar.inc(1))?;
+    let stop = super::stop_flag()?;
+    let history = tuner.search(&args.options, Some(&stop), &|| bar.inc(1))?;
     bar.finish_and_clear();
     let search_s = start.elapsed().as_secs_f64();
+    let signal = stop.load(Ordering::Relaxed);
+    let reason = (signal != 0).then(|| pneuflex_scene::runner::signal_name(signal));
     let summary = pneuflex_sweep::tune_output::write(
         stage.path(),
         &tuner,
         &args.options,
         &history,
         &command,
+        reason.as_deref(),
     )?;
     let manifest = Manifest::new(
         "tune",
         env!("CARGO_PKG_VERSION"),
         pneuflex_scene::scene_inputs(scene),
     );
+    if let Some(reason) = reason {
+        let to = stage.commit_partial(
+            manifest,
+            Partial {
+                reason,
+                time_reached_s: 0.0,
+                done: Some(format!(
+                    "{} of {} candidates",
+                    history.len(),
+                    args.options.budget
+                )),
+            },
+        )?;
+        return Err(super::interrupted(
+            signal,
+            format!(
+                "stopped after {} of {} candidates; the history and a report marked interrupted are in {} \
+                 (no tuned scene); {} is untouched",
+                history.len(),
+                args.options.budget,
+                to.display(),
+                dest.display()
+            ),
+        ));
+    }
     let dest = stage.commit(manifest)?;
+    if let Some(why) = &summary.kept_start {
+        errln!("note: {why} (report: {})", dest.join("report.md").display());
+    }
     if !args.quiet {
         let j = |x: f64| {
             if x.is_finite() {
@@ -119,16 +165,22 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
             .iter()
             .zip(summary.before.iter().zip(&summary.after))
         {
-            println!("{k}: {b} -> {a}");
+            outln!("{k}: {b} -> {a}");
         }
-        println!(
+        outln!(
             "{}: worst-case J {} -> {} after {} candidates ({} generations) in {search_s:.1} s; tuned scene {}, report {}",
             scene.name,
             j(summary.j_before),
             j(summary.j_after),
             summary.evaluations,
             summary.generations,
-            dest.join(&summary.tuned_scene).display(),
+            summary
+                .tuned_scene
+                .as_ref()
+                .map_or("none (the start is kept)".into(), |t| dest
+                    .join(t)
+                    .display()
+                    .to_string()),
             dest.join("report.md").display()
         );
     }

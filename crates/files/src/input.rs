@@ -167,10 +167,16 @@ pub fn read_text(path: &Path, kind: InputKind) -> Result<String, InputError> {
             noun: kind.noun(),
         });
     }
-    String::from_utf8(bytes).map_err(|e| InputError::NotText {
+    let mut text = String::from_utf8(bytes).map_err(|e| InputError::NotText {
         path: path.to_path_buf(),
         offset: e.utf8_error().valid_up_to(),
-    })
+    })?;
+    // A byte-order mark (editors on Windows write one) is not part of the text: left in, it would make the
+    // first key or column name start with an invisible character.
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
 }
 
 #[cfg(test)]
@@ -238,5 +244,13 @@ mod tests {
         let p = d.join("a.toml");
         std::fs::write(&p, "a = 1\n").unwrap();
         assert_eq!(read_text(&p, InputKind::Scene).unwrap(), "a = 1\n");
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_not_part_of_the_text() {
+        let d = tmp("bom");
+        let p = d.path().join("a.toml");
+        std::fs::write(&p, "\u{feff}name = \"x\"\n").unwrap();
+        assert_eq!(read_text(&p, InputKind::Scene).unwrap(), "name = \"x\"\n");
     }
 }

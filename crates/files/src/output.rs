@@ -51,6 +51,32 @@ pub enum OutputError {
         /// Why it counts as foreign.
         why: &'static str,
     },
+    /// The destination holds a rig recording, which no command replaces.
+    #[error(
+        "{}: not replaced: it holds a rig recording ({why}); a recording cannot be made again and pneuflex \
+         never replaces or deletes one; choose another output directory",
+        dest.display()
+    )]
+    Recording {
+        /// The destination.
+        dest: PathBuf,
+        /// How it was recognised as a recording.
+        why: String,
+    },
+    /// The destination is the output of another pneuflex command.
+    #[error(
+        "{}: not replaced: it is the output of `pneuflex {other}`, and `pneuflex {command}` replaces only its \
+         own outputs; choose another output directory",
+        dest.display()
+    )]
+    OtherCommand {
+        /// The destination.
+        dest: PathBuf,
+        /// The command that wrote it.
+        other: String,
+        /// The command that would replace it.
+        command: String,
+    },
     /// The destination exists and is not a directory.
     #[error("{}: exists and is not a directory; choose another output directory", path.display())]
     NotADirectory {
@@ -84,6 +110,9 @@ pub struct Partial {
     pub reason: String,
     /// Simulated (or rig) time reached, s.
     pub time_reached_s: f64,
+    /// How much of the work was done, for commands that are not one run (`412 of 1000 points`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub done: Option<String>,
 }
 
 /// The manifest: what wrote an output directory, from which inputs, and which files are its own.
@@ -102,6 +131,9 @@ pub struct Manifest {
     /// Set when the output is partial.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub partial: Option<Partial>,
+    /// Whether the directory is a rig recording (it cannot be made again; never replaced).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub recording: bool,
     /// The inputs, by content hash.
     pub inputs: Vec<InputDigest>,
     /// Every file written, relative to the directory, `/`-separated, sorted.
@@ -118,6 +150,7 @@ impl Manifest {
             command: command.into(),
             complete: true,
             partial: None,
+            recording: false,
             inputs,
             files: Vec::new(),
         }
@@ -134,13 +167,45 @@ pub enum Recoverable {
     Irreplaceable,
 }
 
+/// Who writes an output: the command (as its manifest names it) and whether what it writes can be made
+/// again. It decides what the output may replace: a simulation output replaces only an output of the same
+/// command; a recording replaces nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Writer {
+    /// The command, as the manifest records it (`run`, `sweep`, `rig excite`, ...).
+    pub command: &'static str,
+    /// Regenerable (a simulation) or irreplaceable (a recording from a board).
+    pub recoverable: Recoverable,
+}
+
+impl Writer {
+    /// A command whose output can be made again.
+    pub const fn simulation(command: &'static str) -> Self {
+        Self {
+            command,
+            recoverable: Recoverable::Regenerable,
+        }
+    }
+
+    /// A command that records a rig on the wall clock: its output is never replaced.
+    pub const fn recording(command: &'static str) -> Self {
+        Self {
+            command,
+            recoverable: Recoverable::Irreplaceable,
+        }
+    }
+}
+
+/// The commands whose outputs are rig recordings (also recognised without a manifest, by their trace).
+const RECORDING_COMMANDS: [&str; 2] = ["rig run", "rig excite"];
+
 /// An output directory being written; it appears under its final name only on commit.
 #[derive(Debug)]
 pub struct OutputDir {
     dest: PathBuf,
     tmp: PathBuf,
     done: bool,
-    recoverable: Recoverable,
+    writer: Writer,
     /// Staging directories of dead processes that were kept (irreplaceable data), for the caller to report.
     pub recovered: Vec<PathBuf>,
 }
@@ -217,6 +282,21 @@ pub fn check_not_protected(dest: &Path, protect: &[&Path]) -> Result<(), OutputE
             ));
         }
     }
+    // Inside another output: writing there would add files its manifest does not list (and inside a
+    // recording, mix a simulation into data that cannot be made again).
+    for up in abs.ancestors().skip(1) {
+        if let Some(m) = read_manifest(up) {
+            let what = match recording_evidence(up, Some(&m)) {
+                Some(_) => "the rig recording",
+                None => "the output",
+            };
+            return refuse(format!(
+                "it is inside {}, {what} of `pneuflex {}`; choose a directory outside it",
+                up.display(),
+                m.command
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -259,9 +339,68 @@ pub fn read_manifest(dir: &Path) -> Option<Manifest> {
     serde_json::from_slice(&fs::read(&path).ok()?).ok()
 }
 
-/// Checks that `dest` may be replaced: absent, an empty directory, or a pneuflex output whose manifest
-/// lists every file in it.
-pub fn check_replaceable(dest: &Path) -> Result<(), OutputError> {
+/// Why a directory is a rig recording, if it is one: its manifest says so (or names a recording command),
+/// or a `trace.csv` in it has the rig trace's `wall_time` column (recognised without the manifest, so that
+/// a recording whose manifest was edited or lost is still never replaced).
+pub fn recording_evidence(dir: &Path, manifest: Option<&Manifest>) -> Option<String> {
+    if let Some(m) = manifest {
+        if m.recording {
+            return Some(format!(
+                "its manifest marks it as recorded by `pneuflex {}`",
+                m.command
+            ));
+        }
+        if RECORDING_COMMANDS.contains(&m.command.as_str()) {
+            return Some(format!("recorded by `pneuflex {}`", m.command));
+        }
+    }
+    let mut traces = Vec::new();
+    find_traces(dir, 0, &mut traces);
+    traces
+        .into_iter()
+        .find(|t| has_wall_clock_header(t))
+        .map(|t| {
+            let rel = t.strip_prefix(dir).unwrap_or(&t).display().to_string();
+            format!("{rel} has the wall_time column of a rig trace")
+        })
+}
+
+/// Every `trace*.csv` below `dir`, to a depth of 3 folders.
+fn find_traces(dir: &Path, depth: usize, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let Ok(ft) = e.file_type() else { continue };
+        let name = e.file_name().to_string_lossy().into_owned();
+        if ft.is_dir() && depth < 3 {
+            find_traces(&e.path(), depth + 1, out);
+        } else if ft.is_file() && name.starts_with("trace") && name.ends_with(".csv") {
+            out.push(e.path());
+        }
+    }
+}
+
+/// Whether the first line that is not a comment names a `wall_time` column (read: the first 64 KiB).
+fn has_wall_clock_header(path: &Path) -> bool {
+    use std::io::Read;
+    let Ok(f) = fs::File::open(path) else {
+        return false;
+    };
+    let mut head = Vec::new();
+    if f.take(64 << 10).read_to_end(&mut head).is_err() {
+        return false;
+    }
+    let text = String::from_utf8_lossy(&head);
+    text.lines()
+        .map(|l| l.trim_start_matches('\u{feff}'))
+        .find(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .is_some_and(|h| h.split(',').any(|c| c.trim() == "wall_time"))
+}
+
+/// Checks that `writer` may replace `dest`: absent, an empty directory, or an output of the same command
+/// whose manifest lists every file in it. A rig recording is never replaceable.
+pub fn check_replaceable(dest: &Path, writer: &Writer) -> Result<(), OutputError> {
     let meta = match fs::symlink_metadata(dest) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
@@ -280,13 +419,27 @@ pub fn check_replaceable(dest: &Path) -> Result<(), OutputError> {
     }
     let files = list_files(dest)?;
     let has_dirs_only = files.is_empty();
-    match read_manifest(dest) {
+    let manifest = read_manifest(dest);
+    if let Some(why) = recording_evidence(dest, manifest.as_ref()) {
+        return Err(OutputError::Recording {
+            dest: dest.to_path_buf(),
+            why,
+        });
+    }
+    match manifest {
         Some(m) if m.tool == "pneuflex" => {
             if let Some(f) = files.iter().find(|f| !m.files.contains(f)) {
                 return Err(OutputError::Foreign {
                     dest: dest.to_path_buf(),
                     foreign: dest.join(f),
                     why: "not listed in its .pneuflex-output.json",
+                });
+            }
+            if m.command != writer.command || writer.recoverable == Recoverable::Irreplaceable {
+                return Err(OutputError::OtherCommand {
+                    dest: dest.to_path_buf(),
+                    other: m.command,
+                    command: writer.command.to_string(),
                 });
             }
             Ok(())
@@ -313,6 +466,25 @@ pub fn check_replaceable(dest: &Path) -> Result<(), OutputError> {
             why: "the directory has no valid .pneuflex-output.json",
         }),
     }
+}
+
+/// The first free destination for a recording made without `--out`: `default` when it is absent or an empty
+/// directory, else `default-2`, `default-3`, ... (recordings are never replaced, so a second recording
+/// with the same default goes beside the first).
+pub fn fresh_destination(default: &Path) -> PathBuf {
+    let empty = |p: &Path| match fs::symlink_metadata(p) {
+        Err(e) => e.kind() == std::io::ErrorKind::NotFound,
+        Ok(m) => m.is_dir() && fs::read_dir(p).is_ok_and(|mut d| d.next().is_none()),
+    };
+    if empty(default) {
+        return default.to_path_buf();
+    }
+    let name = name_of(default);
+    let parent = parent_of(default);
+    (2..100_000)
+        .map(|i| parent.join(format!("{name}-{i}")))
+        .find(|p| empty(p))
+        .unwrap_or_else(|| default.to_path_buf())
 }
 
 fn pid_alive(pid: u32) -> bool {
@@ -410,13 +582,9 @@ fn remove_empty_dirs(dir: &Path) {
 impl OutputDir {
     /// Prepares to write `dest`: refuses protected places and directories pneuflex did not write, cleans
     /// stale staging directories beside it, and creates a fresh staging directory.
-    pub fn create(
-        dest: &Path,
-        protect: &[&Path],
-        recoverable: Recoverable,
-    ) -> Result<Self, OutputError> {
+    pub fn create(dest: &Path, protect: &[&Path], writer: Writer) -> Result<Self, OutputError> {
         check_not_protected(dest, protect)?;
-        check_replaceable(dest)?;
+        check_replaceable(dest, &writer)?;
         let parent = parent_of(dest);
         fs::create_dir_all(&parent).map_err(io(&parent, "create"))?;
         let name = name_of(dest);
@@ -426,7 +594,7 @@ impl OutputDir {
             fs::remove_dir_all(&tmp).map_err(io(&tmp, "remove"))?;
         }
         fs::create_dir_all(&tmp).map_err(io(&tmp, "create"))?;
-        let mark = match recoverable {
+        let mark = match writer.recoverable {
             Recoverable::Regenerable => "regenerable",
             Recoverable::Irreplaceable => "irreplaceable",
         };
@@ -436,7 +604,7 @@ impl OutputDir {
             dest: dest.to_path_buf(),
             tmp,
             done: false,
-            recoverable,
+            writer,
             recovered,
         })
     }
@@ -476,6 +644,9 @@ impl OutputDir {
     }
 
     fn commit_to(mut self, to: PathBuf, mut manifest: Manifest) -> Result<PathBuf, OutputError> {
+        // The manifest names the command that wrote the directory, whatever the caller built it with.
+        manifest.command = self.writer.command.to_string();
+        manifest.recording = self.writer.recoverable == Recoverable::Irreplaceable;
         manifest.files = list_files(&self.tmp)?;
         let mpath = self.tmp.join(MANIFEST);
         let text = serde_json::to_string_pretty(&manifest).map_err(|e| OutputError::Io {
@@ -485,7 +656,7 @@ impl OutputDir {
         })? + "\n";
         fs::write(&mpath, text).map_err(io(&mpath, "write"))?;
         // Checked again: the destination may have changed while the command ran.
-        check_replaceable(&to)?;
+        check_replaceable(&to, &self.writer)?;
         let aside = parent_of(&to).join(format!(".{}.old-{}", name_of(&to), std::process::id()));
         let had_old = to.exists();
         if had_old {
@@ -519,7 +690,8 @@ impl Drop for OutputDir {
     /// commit failed): that one stays, and the next command renames it to `<dest>.unfinished-<pid>`.
     fn drop(&mut self) {
         let nothing_written = || list_files(&self.tmp).is_ok_and(|f| f.is_empty());
-        if !self.done && (self.recoverable == Recoverable::Regenerable || nothing_written()) {
+        if !self.done && (self.writer.recoverable == Recoverable::Regenerable || nothing_written())
+        {
             let _ = fs::remove_dir_all(&self.tmp);
         }
     }
@@ -538,7 +710,7 @@ mod tests {
     }
 
     fn write_one(dest: &Path, body: &str) -> Result<PathBuf, OutputError> {
-        let o = OutputDir::create(dest, &[], Recoverable::Regenerable)?;
+        let o = OutputDir::create(dest, &[], Writer::simulation("test"))?;
         fs::create_dir_all(o.path().join("run")).unwrap();
         fs::write(o.path().join("run/trace.csv"), body).unwrap();
         o.commit(Manifest::new("test", "0", vec![]))
@@ -604,7 +776,7 @@ mod tests {
         let d = d.path().to_path_buf();
         let dest = d.join("d");
         write_one(&dest, "complete").unwrap();
-        let o = OutputDir::create(&dest, &[], Recoverable::Regenerable).unwrap();
+        let o = OutputDir::create(&dest, &[], Writer::simulation("test")).unwrap();
         fs::write(o.path().join("summary.json"), "{}").unwrap();
         let p = o
             .commit_partial(
@@ -612,6 +784,7 @@ mod tests {
                 Partial {
                     reason: "SIGINT".into(),
                     time_reached_s: 1.5,
+                    done: None,
                 },
             )
             .unwrap();
@@ -630,7 +803,7 @@ mod tests {
         let d = scratch("failedcommit");
         let d = d.path().to_path_buf();
         let dest = d.join("r");
-        let o = OutputDir::create(&dest, &[], Recoverable::Irreplaceable).unwrap();
+        let o = OutputDir::create(&dest, &[], Writer::recording("rig run")).unwrap();
         let staged = o.path().to_path_buf();
         fs::write(staged.join("trace.csv"), "t\n0\n").unwrap();
         // Somebody's file appears in the destination while the run goes on: the commit is refused…
@@ -665,8 +838,89 @@ mod tests {
             foreign.exists(),
             "a directory without pneuflex's mark is never removed"
         );
-        let o = OutputDir::create(&d.join("r"), &[], Recoverable::Irreplaceable).unwrap();
+        let o = OutputDir::create(&d.join("r"), &[], Writer::recording("rig run")).unwrap();
         assert_eq!(o.recovered, vec![d.join(format!("r.unfinished-{dead}"))]);
         assert!(d.join(format!("r.unfinished-{dead}/trace.csv")).exists());
+    }
+
+    /// A recording as `rig run` leaves it: a trace with the wall-clock column and its manifest.
+    fn record_one(dest: &Path) -> PathBuf {
+        let o = OutputDir::create(dest, &[], Writer::recording("rig excite")).unwrap();
+        fs::write(
+            o.path().join("trace.csv"),
+            "# pneuflex rig trace\nt,u,wall_time,fault\n0,0,1.7e9,\n",
+        )
+        .unwrap();
+        o.commit(Manifest::new("rig run", "0", vec![])).unwrap()
+    }
+
+    #[test]
+    fn a_recording_names_its_command_and_is_replaced_by_no_command() {
+        let d = scratch("recording");
+        let dest = d.path().join("rec");
+        record_one(&dest);
+        let m = read_manifest(&dest).unwrap();
+        // The writer names the command, whatever the caller's manifest said.
+        assert_eq!(m.command, "rig excite");
+        assert!(m.recording);
+        let trace = fs::read(dest.join("trace.csv")).unwrap();
+        for w in [
+            Writer::simulation("sweep"),
+            Writer::simulation("rig excite"),
+            Writer::recording("rig excite"),
+            Writer::recording("rig run"),
+        ] {
+            let e = OutputDir::create(&dest, &[], w).unwrap_err();
+            assert!(matches!(e, OutputError::Recording { .. }), "{e}");
+            assert!(e.to_string().contains("rig recording"), "{e}");
+        }
+        // A manifest edited to say it is a sweep's, listing every file: still a recording by its trace.
+        let mut m = read_manifest(&dest).unwrap();
+        m.command = "sweep".into();
+        m.recording = false;
+        fs::write(dest.join(MANIFEST), serde_json::to_string(&m).unwrap()).unwrap();
+        let e = OutputDir::create(&dest, &[], Writer::simulation("sweep")).unwrap_err();
+        assert!(e.to_string().contains("wall_time"), "{e}");
+        assert_eq!(fs::read(dest.join("trace.csv")).unwrap(), trace);
+    }
+
+    #[test]
+    fn a_simulation_output_is_replaced_only_by_its_own_command() {
+        let d = scratch("othercmd");
+        let dest = d.path().join("o");
+        write_one(&dest, "1").unwrap();
+        let e = OutputDir::create(&dest, &[], Writer::simulation("sweep")).unwrap_err();
+        assert!(
+            e.to_string().contains("output of `pneuflex test`") && e.to_string().contains("sweep"),
+            "{e}"
+        );
+        assert_eq!(fs::read_to_string(dest.join("run/trace.csv")).unwrap(), "1");
+    }
+
+    #[test]
+    fn nothing_is_written_inside_another_output() {
+        let d = scratch("inside");
+        let rec = d.path().join("rec");
+        record_one(&rec);
+        let e =
+            OutputDir::create(&rec.join("fit"), &[], Writer::simulation("identify")).unwrap_err();
+        assert!(
+            e.to_string().contains("inside") && e.to_string().contains("rig recording"),
+            "{e}"
+        );
+        let sim = d.path().join("sim");
+        write_one(&sim, "1").unwrap();
+        let e = OutputDir::create(&sim.join("a/b"), &[], Writer::simulation("test")).unwrap_err();
+        assert!(e.to_string().contains("inside"), "{e}");
+        assert!(!sim.join("a").exists());
+    }
+
+    #[test]
+    fn a_second_recording_without_out_goes_beside_the_first() {
+        let d = scratch("fresh");
+        let dest = d.path().join("adaptive");
+        assert_eq!(fresh_destination(&dest), dest);
+        record_one(&dest);
+        assert_eq!(fresh_destination(&dest), d.path().join("adaptive-2"));
     }
 }

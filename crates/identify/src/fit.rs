@@ -15,6 +15,7 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use pneuflex_pneumatics::OneDofModel;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::IdentifyError;
 use crate::params::{Key, Offsets};
@@ -80,6 +81,8 @@ pub struct Problem<'a> {
     /// Sigma per signal (p_a, p_b in Pa, x in m).
     pub sigma: [f64; 3],
     z: DVector<f64>,
+    /// A signal's number once one came: the residuals are then refused, which ends LM at once.
+    stop: Option<&'a AtomicUsize>,
 }
 
 fn to_z(f: &Free, p: f64) -> f64 {
@@ -113,7 +116,12 @@ impl<'a> Problem<'a> {
             opts,
             sigma,
             z,
+            stop: None,
         }
+    }
+
+    fn stopped(&self) -> bool {
+        self.stop.is_some_and(|s| s.load(Ordering::Relaxed) != 0)
     }
 
     /// The free parameters' current physical values.
@@ -241,6 +249,9 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
+        if self.stopped() {
+            return None;
+        }
         Some(self.residuals_at(&self.values()))
     }
 
@@ -323,6 +334,18 @@ pub fn fit(
     data: &[Prepared],
     opts: &FitOptions,
 ) -> Result<FitResult, IdentifyError> {
+    fit_stoppable(base, free, data, opts, None)
+}
+
+/// [`fit`] that a signal can stop (`stop` holds its number once one came): LM ends at its next
+/// evaluation and the fit returns [`IdentifyError::Interrupted`] with the values reached.
+pub fn fit_stoppable(
+    base: &OneDofModel,
+    free: &[Free],
+    data: &[Prepared],
+    opts: &FitOptions,
+    stop: Option<&AtomicUsize>,
+) -> Result<FitResult, IdentifyError> {
     let rows: usize = data.iter().map(|d| d.compared.len()).sum();
     if rows <= free.len() {
         return Err(IdentifyError::Fit(format!(
@@ -340,6 +363,16 @@ pub fn fit(
         opts.replay,
         sigma0,
     );
+    pb.stop = stop;
+    let interrupted = |pb: &Problem, pass: &str| IdentifyError::Interrupted {
+        signal: stop.map_or(0, |s| s.load(Ordering::Relaxed)),
+        reached: free
+            .iter()
+            .zip(pb.values())
+            .map(|(f, v)| (f.key.name().to_string(), v))
+            .collect(),
+        pass: pass.to_string(),
+    };
     let start: Vec<f64> = free.iter().map(|f| f.start).collect();
     let rms_start = pb.rms_at(&start, false);
     if rms_start.iter().any(|v| !v.is_finite()) {
@@ -361,7 +394,7 @@ pub fn fit(
             .iter()
             .map(|d| Prepared::new(d.log.clone(), &ro, d.fit_end))
             .collect();
-        let cp = Problem::new(
+        let mut cp = Problem::new(
             *base,
             Offsets::default(),
             free.to_vec(),
@@ -369,12 +402,16 @@ pub fn fit(
             ro,
             sigma0,
         );
+        cp.stop = stop;
         let (cp, report) = LevenbergMarquardt::new()
             .with_patience(opts.patience)
             .minimize(cp);
         evaluations += report.number_of_evaluations * (n + 1);
         termination.push(format!("coarse {:?}", report.termination));
         pb.z = cp.z.clone();
+        if pb.stopped() {
+            return Err(interrupted(&pb, "the coarse pass"));
+        }
     }
     for pass in 0..=opts.reweight_passes {
         if pass > 0 {
@@ -387,6 +424,12 @@ pub fn fit(
         pb = p;
         evaluations += report.number_of_evaluations * (n + 1);
         termination.push(format!("{:?}", report.termination));
+        if pb.stopped() {
+            return Err(interrupted(
+                &pb,
+                &format!("pass {} of {}", pass + 1, opts.reweight_passes + 1),
+            ));
+        }
     }
     let values = pb.values();
     let r0 = pb.residuals_at(&values);

@@ -61,4 +61,14 @@ pub enum IdentifyError {
     /// The fit could not be carried out (no data, a diverging replay).
     #[error("{0}")]
     Fit(String),
+    /// A signal stopped the fit before it converged.
+    #[error("interrupted during {pass}, before the fit converged")]
+    Interrupted {
+        /// The signal's number.
+        signal: usize,
+        /// Each free key's value when it stopped (not converged, no interval).
+        reached: Vec<(String, f64)>,
+        /// Which pass was under way.
+        pass: String,
+    },
 }

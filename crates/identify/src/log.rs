@@ -67,16 +67,76 @@ impl Log {
     }
 }
 
+/// How much of a log identification takes: its rows and its time span (the replay's cost grows with both),
+/// refused beyond with the number and the option that raises the limit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogLimits {
+    /// Largest number of data rows of one log (`--max-rows`).
+    pub max_rows: usize,
+    /// Longest time span of one log, s (`--max-log-s`).
+    pub max_span_s: f64,
+}
+
+impl Default for LogLimits {
+    fn default() -> Self {
+        Self {
+            max_rows: 2_000_000,
+            max_span_s: 3600.0,
+        }
+    }
+}
+
+/// The most bytes a row of a trace takes, for the file-size limit that goes with `max_rows`: a rig trace's
+/// row is ~120 bytes; this leaves room for long numbers.
+const MAX_BYTES_PER_ROW: u64 = 512;
+
+/// A gap in time that identification refuses: more than this many median sample periods (and more than
+/// [`MIN_GAP_S`]): the replay would integrate the whole gap with the last command held.
+pub const MAX_GAP_PERIODS: f64 = 50.0;
+/// Gaps shorter than this are accepted whatever the sample period.
+pub const MIN_GAP_S: f64 = 0.05;
+
 /// Reads a trace file. Errors name the file and, where a row or column is to blame, the line and the column.
 pub fn read_log(path: &Path) -> Result<Log, IdentifyError> {
+    read_log_limited(path, &LogLimits::default())
+}
+
+/// [`read_log`] within `limits`: the file's size is checked against the rows limit before it is read.
+pub fn read_log_limited(path: &Path, limits: &LogLimits) -> Result<Log, IdentifyError> {
+    let size = pneuflex_files::input::check_regular(path, pneuflex_files::InputKind::Trace)
+        .map_err(|e| IdentifyError::Input(e.to_string()))?;
+    let max_bytes = (limits.max_rows as u64).saturating_mul(MAX_BYTES_PER_ROW) + 65_536;
+    if size > max_bytes {
+        return Err(IdentifyError::Log {
+            file: path.to_path_buf(),
+            line: None,
+            column: None,
+            message: format!(
+                "{size} bytes: more than a log of {} rows takes ({max_bytes} bytes); cut the log, or raise \
+                 --max-rows",
+                limits.max_rows
+            ),
+        });
+    }
     let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Trace)
         .map_err(|e| IdentifyError::Input(e.to_string()))?;
     let sha256 = pneuflex_files::sha256_hex(text.as_bytes());
-    parse_log(path, &text, sha256)
+    parse_log_limited(path, &text, sha256, limits)
 }
 
 /// Parses trace text (see [`read_log`]); `path` is used in messages.
 pub fn parse_log(path: &Path, text: &str, sha256: String) -> Result<Log, IdentifyError> {
+    parse_log_limited(path, text, sha256, &LogLimits::default())
+}
+
+/// [`parse_log`] within `limits`; a gap in time of more than [`MAX_GAP_PERIODS`] sample periods is refused
+/// with its line.
+pub fn parse_log_limited(
+    path: &Path,
+    text: &str,
+    sha256: String,
+    limits: &LogLimits,
+) -> Result<Log, IdentifyError> {
     let err = |line: Option<usize>, column: Option<&str>, message: String| IdentifyError::Log {
         file: path.to_path_buf(),
         line,
@@ -167,6 +227,29 @@ pub fn parse_log(path: &Path, text: &str, sha256: String) -> Result<Log, Identif
                 format!("time must increase: {} after {prev}", v[0]),
             ));
         }
+        if log.t.len() >= limits.max_rows {
+            return Err(err(
+                Some(line_no),
+                None,
+                format!(
+                    "more than {} data rows; cut the log, or raise --max-rows",
+                    limits.max_rows
+                ),
+            ));
+        }
+        if let Some(&t0) = log.t.first()
+            && v[0] - t0 > limits.max_span_s
+        {
+            return Err(err(
+                Some(line_no),
+                Some("t"),
+                format!(
+                    "t = {} s: the log spans more than {} s from its first row (t = {t0} s); cut the log, or \
+                     raise --max-log-s",
+                    v[0], limits.max_span_s
+                ),
+            ));
+        }
         log.t.push(v[0]);
         log.u.push(v[1]);
         log.x.push(v[2]);
@@ -184,8 +267,38 @@ pub fn parse_log(path: &Path, text: &str, sha256: String) -> Result<Log, Identif
             ),
         ));
     }
+    // A gap: the replay would integrate across it with the last command held, at the log's step.
+    let dt = log.dt();
+    if let Some(k) = (1..log.t.len()).find(|&k| {
+        let gap = log.t[k] - log.t[k - 1];
+        gap > MAX_GAP_PERIODS * dt && gap > MIN_GAP_S
+    }) {
+        let line = data_line_number(text, k);
+        return Err(err(
+            line,
+            Some("t"),
+            format!(
+                "time jumps by {} s, from {} to {} s, where the median sample period is {dt} s: identification \
+                 replays a log as one continuous recording; cut it at the gap and give each part as its own --log",
+                log.t[k] - log.t[k - 1],
+                log.t[k - 1],
+                log.t[k]
+            ),
+        ));
+    }
     if log.note.is_none() && !text.lines().any(|l| l.starts_with("# end:")) {
         log.note = Some("no end marker: the trace was cut (its rows are used)".into());
     }
     Ok(log)
+}
+
+/// The 1-based line of the `k`-th data row (comments, the header and blank lines skipped).
+fn data_line_number(text: &str, k: usize) -> Option<usize> {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.starts_with('#'))
+        .skip(1)
+        .filter(|(_, l)| !l.trim().is_empty())
+        .nth(k)
+        .map(|(i, _)| i + 1)
 }

@@ -173,11 +173,16 @@ pub fn markdown(r: &Report) -> String {
     let _ = writeln!(s, "\n## Residual RMS per signal\n");
     let _ = writeln!(s, "| | p_a [kPa] | p_b [kPa] | x [mm] |");
     let _ = writeln!(s, "|---|---|---|---|");
+    let held_out = f.rms_validation.iter().all(|v| v.is_finite());
     for (name, v) in [
         ("start values, fit rows", f.rms_start),
         ("fitted, fit rows", f.rms_fit),
         ("fitted, held-out validation rows", f.rms_validation),
     ] {
+        if !v.iter().all(|x| x.is_finite()) {
+            let _ = writeln!(s, "| {name} | – | – | – |");
+            continue;
+        }
         let _ = writeln!(
             s,
             "| {name} | {:.3} | {:.3} | {:.4} |",
@@ -186,12 +191,19 @@ pub fn markdown(r: &Report) -> String {
             v[2] * 1e3
         );
     }
+    let validation = if held_out {
+        format!(
+            "Validation pressure RMS: {:.3} % (p_a), {:.3} % (p_b) of the supply pressure.",
+            r.validation_pressure_pct_supply[0], r.validation_pressure_pct_supply[1],
+        )
+    } else {
+        "No rows were held out for validation (--validation 0): the fit is judged on the rows it fitted only."
+            .to_string()
+    };
     let _ = writeln!(
         s,
-        "\nValidation pressure RMS: {:.3} % (p_a), {:.3} % (p_b) of the supply pressure. {} rows fitted; \
-         weighted residual variance {:.3}; LM: {}; {} replays of the logs; fit took {:.1} s.",
-        r.validation_pressure_pct_supply[0],
-        r.validation_pressure_pct_supply[1],
+        "\n{validation} {} rows fitted; weighted residual variance {:.3}; LM: {}; {} replays of the logs; fit \
+         took {:.1} s.",
         f.rows,
         f.residual_variance,
         f.termination.join(", "),

@@ -3,13 +3,13 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_files::output::{Manifest, Writer};
 use pneuflex_files::{InputDigest, OutputDir};
 use pneuflex_pneumatics::{ActuatorSheet, OneDofModel};
 
 use crate::IdentifyError;
-use crate::fit::{FitOptions, Free, fit};
-use crate::log::read_log;
+use crate::fit::{FitOptions, Free, fit_stoppable};
+use crate::log::{LogLimits, read_log_limited};
 use crate::params::{ALL, Key, Offsets};
 use crate::replay::Prepared;
 use crate::report::{LogEntry, Report, markdown, validation_png, warnings};
@@ -29,6 +29,8 @@ pub struct Request {
     pub validation_fraction: f64,
     /// Fit settings.
     pub options: FitOptions,
+    /// How long a log may be (rows, time span).
+    pub limits: LogLimits,
 }
 
 /// The result of [`identify`].
@@ -154,6 +156,15 @@ pub fn parse_bounds(
 
 /// Reads the inputs, fits, and builds the report (nothing is written).
 pub fn identify(req: &Request) -> Result<Identified, IdentifyError> {
+    identify_stoppable(req, None)
+}
+
+/// [`identify`] that a signal can stop: `stop` holds the signal's number once one came, and the fit then
+/// returns [`IdentifyError::Interrupted`] with the values reached.
+pub fn identify_stoppable(
+    req: &Request,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
+) -> Result<Identified, IdentifyError> {
     let sheet = ActuatorSheet::load(&req.actuator)?;
     let base = sheet.model();
     let keys = parse_free(&req.free, &base)?;
@@ -171,13 +182,21 @@ pub fn identify(req: &Request) -> Result<Identified, IdentifyError> {
     options.replay.stroke_m = Some(base.actuator.cylinder.stroke_m);
     let mut data = Vec::new();
     for p in &req.logs {
-        let log = read_log(p)?;
+        let log = read_log_limited(p, &req.limits)?;
         let n = log.len();
+        let span = log.t[n - 1] - log.t[0];
+        if options.replay.segment_s > span {
+            return Err(IdentifyError::Fit(format!(
+                "--segment {} s: longer than the log {} ({span} s)",
+                options.replay.segment_s,
+                p.display()
+            )));
+        }
         let fit_end = ((1.0 - req.validation_fraction) * (n - 1) as f64).round() as usize;
         data.push(Prepared::new(log, &options.replay, fit_end));
     }
     let t0 = Instant::now();
-    let result = fit(&base, &free, &data, &options)?;
+    let result = fit_stoppable(&base, &free, &data, &options, stop)?;
     let fit_seconds = t0.elapsed().as_secs_f64();
     let mut model = base;
     let mut offsets = Offsets::default();
@@ -218,18 +237,37 @@ pub fn identify(req: &Request) -> Result<Identified, IdentifyError> {
     })
 }
 
+/// The output directory of `identify`, staged beside `out` before the fit (a refused `--out` costs no fit):
+/// never the folder of a log or of the sheet, never a recording, never inside another output.
+pub fn stage_output(req: &Request, out: &Path) -> Result<OutputDir, IdentifyError> {
+    let mut protect: Vec<&Path> = req.logs.iter().map(PathBuf::as_path).collect();
+    protect.push(&req.actuator);
+    OutputDir::create(out, &protect, Writer::simulation("identify")).map_err(|e| {
+        IdentifyError::Output {
+            file: out.to_path_buf(),
+            message: e.to_string(),
+        }
+    })
+}
+
 /// Writes the fitted sheet set, `report.json`, `report.md` and `validation-<i>.png` into `out` (staged
 /// beside it and renamed into place: `pneuflex_files::OutputDir`). Returns the fitted actuator sheet.
 pub fn write_outputs(id: &Identified, req: &Request, out: &Path) -> Result<PathBuf, IdentifyError> {
+    let stage = stage_output(req, out)?;
+    write_staged(id, req, stage)
+}
+
+/// [`write_outputs`] into a directory staged by [`stage_output`].
+pub fn write_staged(
+    id: &Identified,
+    req: &Request,
+    stage: OutputDir,
+) -> Result<PathBuf, IdentifyError> {
+    let out = stage.dest().to_path_buf();
     let oerr = |e: pneuflex_files::OutputError| IdentifyError::Output {
-        file: out.to_path_buf(),
+        file: out.clone(),
         message: e.to_string(),
     };
-    let mut protect: Vec<&Path> = req.logs.iter().filter_map(|p| p.parent()).collect();
-    if let Some(d) = req.actuator.parent() {
-        protect.push(d);
-    }
-    let stage = OutputDir::create(out, &protect, Recoverable::Regenerable).map_err(oerr)?;
     let dir = stage.path().to_path_buf();
     let f = &id.report.fit;
     let mut header = String::from("Fitted by `pneuflex identify` from the logs:\n");
@@ -245,16 +283,22 @@ pub fn write_outputs(id: &Identified, req: &Request, out: &Path) -> Result<PathB
             .collect::<Vec<_>>()
             .join(", ")
     );
+    let validation = if f.rms_validation.iter().all(|v| v.is_finite()) {
+        format!(
+            "held-out validation p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm",
+            f.rms_validation[0],
+            f.rms_validation[1],
+            f.rms_validation[2] * 1e3
+        )
+    } else {
+        "no rows held out for validation".to_string()
+    };
     header += &format!(
-        "fit quality: residual RMS p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm on {} rows; held-out validation \
-         p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm (report.md)\n",
+        "fit quality: residual RMS p_a {:.0} Pa, p_b {:.0} Pa, x {:.3} mm on {} rows; {validation} (report.md)\n",
         f.rms_fit[0],
         f.rms_fit[1],
         f.rms_fit[2] * 1e3,
         f.rows,
-        f.rms_validation[0],
-        f.rms_validation[1],
-        f.rms_validation[2] * 1e3
     );
     for e in &f.estimates {
         header += &format!(

@@ -74,6 +74,7 @@ fn check_seed(seed: u64) {
         actuator: shipped(),
         free: KEYS.iter().map(|k| k.name().to_string()).collect(),
         bounds: vec![],
+        limits: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };
@@ -187,6 +188,7 @@ fn flags_mass_from_a_log_without_motion() {
             "mechanics.moving_mass_kg".into(),
         ],
         bounds: vec![],
+        limits: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     };
@@ -250,6 +252,7 @@ fn recovers_delay_viscous_friction_and_an_offset() {
         actuator: shipped(),
         free,
         bounds: vec![],
+        limits: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };
@@ -313,6 +316,7 @@ fn two_logs_identify_what_one_could_not() {
         actuator: shipped(),
         free: vec!["valve.sonic_conductance_m3_per_s_pa,mechanics.moving_mass_kg".into()],
         bounds: vec![],
+        limits: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     };

@@ -33,6 +33,7 @@ fn request(log: PathBuf, free: &[&str], bounds: &[&str]) -> Request {
         actuator: common::root().join("pneumatics/paper-actuator.toml"),
         free: free.iter().map(|s| s.to_string()).collect(),
         bounds: bounds.iter().map(|s| s.to_string()).collect(),
+        limits: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     }

@@ -49,6 +49,7 @@ fn recovers_c_and_b_per_path() {
         actuator: shipped.clone(),
         free: keys.iter().map(|k| k.name().to_string()).collect(),
         bounds: vec![],
+        limits: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };

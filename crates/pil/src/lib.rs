@@ -40,6 +40,9 @@ pub enum PilError {
     /// The scene.
     #[error(transparent)]
     Scene(#[from] pneuflex_scene::SceneError),
+    /// A signal stopped the run: what the board ran until then.
+    #[error("interrupted: {}", .0.interrupted.as_deref().unwrap_or("by a signal"))]
+    Interrupted(Box<RunResult>),
 }
 
 /// The board's watchdog in a PIL run, ms of virtual time. Generous: the host computes the plant between
@@ -102,7 +105,7 @@ pub fn run_pil(
     elf: &Path,
     progress: &mut dyn FnMut(f64),
 ) -> Result<PilRun, PilError> {
-    run_pil_observed(scene, index, elf, progress, &mut ())
+    run_pil_observed(scene, index, elf, progress, &mut (), None)
 }
 
 /// [`run_pil`] with an observer of the firmware run's rows, which also get the link's quality and the
@@ -113,7 +116,9 @@ pub fn run_pil_observed(
     elf: &Path,
     progress: &mut dyn FnMut(f64),
     observer: &mut dyn pneuflex_control::RowObserver,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<PilRun, PilError> {
+    qemu::check_firmware(elf)?;
     let run = scene
         .runs
         .get(index)
@@ -130,7 +135,7 @@ pub fn run_pil_observed(
     let mut plant = build_plant(scene)?;
     let live = fw.live();
     let mut rows = observe::LinkRows::new(observer, live);
-    let mut firmware = pneuflex_scene::simulate_observed(
+    let mut firmware = pneuflex_scene::runner::simulate_stoppable(
         scene,
         index,
         plant.as_mut(),
@@ -138,6 +143,7 @@ pub fn run_pil_observed(
         &setpoints,
         progress,
         &mut rows,
+        stop,
     )?;
     // simulate_observed leaves the run's end to its caller (run_scene_with calls it).
     rows.end_run(&firmware);
@@ -150,6 +156,10 @@ pub fn run_pil_observed(
             PilError::Link(m) => PilError::Link(format!("{m}{exited}")),
             e => e,
         });
+    }
+    if firmware.interrupted.is_some() {
+        drop(board);
+        return Err(PilError::Interrupted(Box::new(firmware)));
     }
     let end = fw.finish()?;
     drop(board);

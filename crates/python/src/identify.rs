@@ -54,6 +54,7 @@ pub fn identify_json(
         actuator,
         free,
         bounds,
+        limits: Default::default(),
         validation_fraction: validation,
         options: FitOptions {
             replay: ReplayOptions {

@@ -5,6 +5,7 @@
 
 use std::path::PathBuf;
 
+use pneuflex_sweep::spec::DEFAULT_MAX_POINTS;
 use pneuflex_sweep::tune::{Evaluation, FreeArg, Term, TuneOptions, Tuner};
 use pneuflex_sweep::{SetArg, Sweep, SweepError};
 use pyo3::prelude::*;
@@ -38,7 +39,7 @@ pub fn sweep_plan(
 ) -> PyResult<(usize, String)> {
     let s = self::sets(&sets)?;
     let sweep = py
-        .detach(|| Sweep::new(&scene_path, &s, samples, seed))
+        .detach(|| Sweep::new(&scene_path, &s, samples, seed, DEFAULT_MAX_POINTS))
         .map_err(err)?;
     Ok((sweep.len(), sweep.header()))
 }
@@ -58,7 +59,7 @@ pub fn sweep_rows(
 ) -> PyResult<String> {
     let s = self::sets(&sets)?;
     py.detach(|| -> Result<String, SweepError> {
-        let sweep = Sweep::new_unchecked(&scene_path, &s, samples, seed)?;
+        let sweep = Sweep::new_unchecked(&scene_path, &s, samples, seed, DEFAULT_MAX_POINTS)?;
         if let Some(i) = indices.iter().find(|&&i| i >= sweep.len()) {
             return Err(SweepError::Other(format!(
                 "point {i}: the sweep has {} points",
@@ -90,7 +91,7 @@ fn tuner(
         .iter()
         .map(|s| Term::parse(s))
         .collect::<Result<Vec<_>, _>>()?;
-    Tuner::new(scene_path, free, &over, run, terms)
+    Tuner::new(scene_path, free, &over, run, terms, DEFAULT_MAX_POINTS)
 }
 
 /// One candidate of a tune, evaluated here: its text form (`Evaluation::encode`), for a remote executor.
@@ -151,12 +152,13 @@ pub fn tune_run(
         population,
         sigma0,
         threads,
+        max_runs: DEFAULT_MAX_POINTS,
     };
     let failed = std::sync::Mutex::new(None::<String>);
     let history = py
         .detach(|| match &evaluate {
-            None => t.search(&opts, &|| {}),
-            Some(f) => t.search_with(&opts, &|| {}, &|x: &[f64]| {
+            None => t.search(&opts, None, &|| {}),
+            Some(f) => t.search_with(&opts, None, &|| {}, &|x: &[f64]| {
                 let text = Python::attach(|py| -> PyResult<String> {
                     f.call1(py, (x.to_vec(),))?.extract::<String>(py)
                 });
@@ -190,7 +192,7 @@ pub fn tune_run(
     std::fs::create_dir_all(&out).map_err(|e| errors::other(format!("{}: {e}", out.display())))?;
     let command = command.unwrap_or_else(|| format!("pneuflex.tune({})", scene_path.display()));
     let summary = py
-        .detach(|| pneuflex_sweep::tune_output::write(&out, &t, &opts, &history, &command))
+        .detach(|| pneuflex_sweep::tune_output::write(&out, &t, &opts, &history, &command, None))
         .map_err(err)?;
     serde_json::to_string(&summary).map_err(errors::other)
 }

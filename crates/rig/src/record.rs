@@ -9,7 +9,7 @@ use std::sync::atomic::AtomicBool;
 use pneuflex_control::{Controller, Setpoint};
 use pneuflex_files::InputDigest;
 use pneuflex_files::output::{
-    Manifest, OutputDir, OutputError, Partial, Recoverable, check_not_protected, check_replaceable,
+    Manifest, OutputDir, OutputError, Partial, Writer, check_not_protected, check_replaceable,
 };
 
 use crate::clock::Clock;
@@ -20,8 +20,10 @@ use crate::serial::{Link, SerialRig};
 use crate::session;
 use crate::trace::TraceWriter;
 
-/// The command recorded in the manifest.
+/// The recording commands, as their manifests name them.
 pub const COMMAND: &str = "rig run";
+/// `rig excite`'s recordings.
+pub const EXCITE: &str = "rig excite";
 
 /// What a recorded run produced.
 #[derive(Debug)]
@@ -71,6 +73,7 @@ pub enum RecordError {
 /// outputs. `connect` is called only after the destination was checked and before anything is written.
 #[allow(clippy::too_many_arguments)]
 pub fn record<L, E, C, K>(
+    command: &'static str,
     rig: &RigFile,
     connect: impl FnOnce() -> Result<SerialRig<L>, E>,
     out_dir: &Path,
@@ -88,6 +91,7 @@ where
     K: Clock + ?Sized,
 {
     record_observed(
+        command,
         rig,
         connect,
         out_dir,
@@ -105,6 +109,7 @@ where
 /// the link's quality ([`crate::serial::LINK_SIGNALS`]), and the fault as an event.
 #[allow(clippy::too_many_arguments)]
 pub fn record_observed<L, E, C, K>(
+    command: &'static str,
     rig: &RigFile,
     connect: impl FnOnce() -> Result<SerialRig<L>, E>,
     out_dir: &Path,
@@ -134,10 +139,11 @@ where
         .collect::<Result<Vec<_>, _>>()?;
     let protect: Vec<&Path> = inputs.iter().map(|(p, _)| *p).collect();
     // Read-only checks first: a refused destination costs no connection.
+    let writer = Writer::recording(command);
     check_not_protected(out_dir, &protect)?;
-    check_replaceable(out_dir)?;
+    check_replaceable(out_dir, &writer)?;
     let link = connect().map_err(|e| RecordError::Connect(e.to_string()))?;
-    let out = OutputDir::create(out_dir, &protect, Recoverable::Irreplaceable)?;
+    let out = OutputDir::create(out_dir, &protect, writer)?;
     let recovered = out.recovered.clone();
     let trace_path = out.path().join("trace.csv");
     let kept = |out: OutputDir, message: String| RecordError::Trace {
@@ -173,10 +179,10 @@ where
         Some(f) if f.kind == ErrorKind::Interrupted => out.partial_dest(),
         _ => out_dir.to_path_buf(),
     };
-    if let Err(e) = check_replaceable(&target) {
+    if let Err(e) = check_replaceable(&target, &writer) {
         return Err(kept(out, e.to_string()));
     }
-    let manifest = Manifest::new(COMMAND, env!("CARGO_PKG_VERSION"), digests);
+    let manifest = Manifest::new(command, env!("CARGO_PKG_VERSION"), digests);
     let (dir, partial) = match &report.fault {
         Some(f) if f.kind == ErrorKind::Interrupted => (
             out.commit_partial(
@@ -184,6 +190,7 @@ where
                 Partial {
                     reason: "signal (SIGINT, SIGTERM or SIGHUP)".into(),
                     time_reached_s: report.time_reached_s,
+                    done: None,
                 },
             )?,
             true,

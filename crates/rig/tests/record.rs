@@ -72,6 +72,7 @@ fn record_into(
         }
     };
     let res = record::record(
+        record::COMMAND,
         &rig,
         connect,
         out,
@@ -127,7 +128,14 @@ fn a_failed_connect_never_touches_an_existing_trace() {
     record_into(&out, 0.2, None, false).0.unwrap();
     let before = std::fs::read(out.join("trace.csv")).unwrap();
     assert!(!before.is_empty());
-    let (res, connected) = record_into(&out, 0.2, None, true);
+    // A recording is never replaced: a second one into the same directory is refused before connecting.
+    let (res, connected) = record_into(&out, 0.2, None, false);
+    let e = res.unwrap_err();
+    assert!(!connected, "refused before the rig is touched");
+    assert!(e.to_string().contains("rig recording"), "{e}");
+    assert_eq!(std::fs::read(out.join("trace.csv")).unwrap(), before);
+    // A failed connect into a new directory writes nothing.
+    let (res, connected) = record_into(&d.join("E"), 0.2, None, true);
     let e = res.unwrap_err();
     assert!(connected);
     assert!(matches!(e, RecordError::Connect(_)), "{e}");
@@ -159,16 +167,16 @@ fn a_directory_with_user_files_is_refused_before_connecting() {
 }
 
 #[test]
-fn a_signal_commits_a_marked_partial_beside_the_previous_output() {
+fn a_signal_commits_a_marked_partial_and_leaves_an_earlier_recording_untouched() {
     let d = scratch("signal");
     let d = d.path().to_path_buf();
     let out = d.join("D");
     record_into(&out, 0.2, None, false).0.unwrap();
     let before = std::fs::read(out.join("trace.csv")).unwrap();
-    let (res, _) = record_into(&out, 1.0, Some(0.3), false);
+    let (res, _) = record_into(&d.join("E"), 1.0, Some(0.3), false);
     let rec = res.unwrap();
     assert!(rec.partial);
-    assert_eq!(rec.dir, d.join("D.partial"));
+    assert_eq!(rec.dir, d.join("E.partial"));
     assert_eq!(std::fs::read(out.join("trace.csv")).unwrap(), before);
     let text = std::fs::read_to_string(rec.dir.join("trace.csv")).unwrap();
     let (rows, end) = trace::data_lines(&text);

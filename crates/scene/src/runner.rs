@@ -523,6 +523,24 @@ pub fn simulate_observed(
     )
 }
 
+/// [`simulate_observed`] that a signal can stop: `stop` non-zero ends the run at the next tick, which comes
+/// back with `interrupted` set (the rows simulated so far in its trace).
+#[allow(clippy::too_many_arguments)]
+pub fn simulate_stoppable(
+    scene: &Scene,
+    index: usize,
+    plant: &mut dyn Plant,
+    controller: &mut dyn Controller,
+    setpoints: &control::SetpointSchedule,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn StepObserver,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
+) -> Result<RunResult, SceneError> {
+    simulate_loop(
+        scene, index, plant, controller, setpoints, progress, observer, stop,
+    )
+}
+
 #[allow(clippy::too_many_arguments)]
 fn simulate_loop(
     scene: &Scene,

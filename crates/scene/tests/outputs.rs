@@ -4,11 +4,11 @@
 use std::path::Path;
 
 use pneuflex_files::OutputDir;
-use pneuflex_files::output::{Manifest, Recoverable};
+use pneuflex_files::output::{Manifest, Writer};
 use pneuflex_scene::{Scene, run_scene, write_results};
 
 fn stage(dest: &Path) -> OutputDir {
-    OutputDir::create(dest, &[], Recoverable::Regenerable).unwrap()
+    OutputDir::create(dest, &[], Writer::simulation("test")).unwrap()
 }
 
 fn manifest() -> Manifest {

@@ -21,7 +21,14 @@ fn main() {
     // A key every scene has and whose value barely matters: each point is a full scene run.
     let set = SetArg::parse(&format!("runs[*].impedance.b_d_ns_per_m=lin:52:53:{n}")).unwrap();
     let t = Instant::now();
-    let sweep = Sweep::new(Path::new(&scene), &[set], None, 0).unwrap_or_else(|e| panic!("{e}"));
+    let sweep = Sweep::new(
+        Path::new(&scene),
+        &[set],
+        None,
+        0,
+        pneuflex_sweep::spec::DEFAULT_MAX_POINTS,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     let check_s = t.elapsed().as_secs_f64();
     let (mut build, mut plants, mut sim, mut rows) = (vec![], vec![], vec![], vec![]);
     for i in 0..n {

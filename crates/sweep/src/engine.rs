@@ -3,11 +3,12 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use pneuflex_scene::{Limits, PlantSpec, RunResult, Scene, SceneError, WindowKind, WindowMetrics};
 use rayon::prelude::*;
 
-use crate::key::{Base, KeyError, Value};
+use crate::key::{Base, KeyError, KeyPath, Value};
 use crate::spec::{Points, SetArg, SpecError};
 
 /// Everything that stops a sweep before it runs.
@@ -16,9 +17,20 @@ pub enum SweepError {
     /// A `--set` that cannot be read.
     #[error(transparent)]
     Spec(#[from] SpecError),
-    /// A key that cannot be written into the scene (no such table, run or element).
-    #[error("--set {0}")]
-    Key(KeyError),
+    /// A key that cannot be written into the scene (no such table, run or element), or two spellings of
+    /// one key: `file:line:col: key: message (option)`, the position that of the key's table where the
+    /// file has it.
+    #[error("{}{}: {error} ({option})", file.display(), at.map(|p| format!(":{p}")).unwrap_or_default())]
+    Key {
+        /// The scene file.
+        file: PathBuf,
+        /// Where the key (or the deepest part of it the file has) is written.
+        at: Option<pneuflex_files::Position>,
+        /// `--set`, `--free`, `--over`.
+        option: &'static str,
+        /// The key and what is wrong.
+        error: KeyError,
+    },
     /// The scene file itself (before any edit) is wrong or unreadable.
     #[error(transparent)]
     Scene(#[from] SceneError),
@@ -38,14 +50,38 @@ pub enum SweepError {
         /// The sheet's error.
         error: Box<pneuflex_pneumatics::ComponentError>,
     },
+    /// A signal stopped the work before it was done.
+    #[error("interrupted by a signal")]
+    Interrupted,
     /// Anything else (a thread pool that cannot start, a bad metric name, ...).
     #[error("{0}")]
     Other(String),
 }
 
-impl From<KeyError> for SweepError {
-    fn from(e: KeyError) -> Self {
-        SweepError::Key(e)
+impl SweepError {
+    /// A key error of `option`, located in the scene file `base` was read from.
+    pub fn key(base: &Base, option: &'static str, error: KeyError) -> Self {
+        let text = &base.scene.text;
+        // The deepest prefix of the key the file writes (`runs[9].inner.kp_per_m` -> `runs`).
+        let path = error.key.split(':').next().unwrap_or("").to_string();
+        let mut at = None;
+        let mut prefix = path.as_str();
+        while !prefix.is_empty() {
+            if let Some(p) = pneuflex_files::toml_key_position(text, prefix) {
+                at = Some(p);
+                break;
+            }
+            prefix = match prefix.rfind(['.', '[']) {
+                Some(i) => &prefix[..i],
+                None => "",
+            };
+        }
+        SweepError::Key {
+            file: base.scene.path.clone(),
+            at,
+            option,
+            error,
+        }
     }
 }
 
@@ -215,18 +251,43 @@ pub fn fmt_f64(x: f64) -> String {
 impl Sweep {
     /// Reads the scene, expands the points and checks every point's scene (and sheet) before anything
     /// runs: the first bad point's error is returned, located in the file, with the point.
+    /// At most `max_points` points (refused beyond, before anything is allocated: `--max-points`).
     pub fn new(
         scene_path: &Path,
         sets: &[SetArg],
         samples: Option<usize>,
         seed: u64,
+        max_points: u64,
     ) -> Result<Sweep, SweepError> {
-        let sweep = Self::new_unchecked(scene_path, sets, samples, seed)?;
+        Self::new_checked(scene_path, sets, samples, seed, max_points, None, &|| {})
+    }
+
+    /// [`Sweep::new`] with a stop flag (a signal's number; the check ends early with
+    /// [`SweepError::Interrupted`]) and a tick after every point checked (a progress bar).
+    pub fn new_checked(
+        scene_path: &Path,
+        sets: &[SetArg],
+        samples: Option<usize>,
+        seed: u64,
+        max_points: u64,
+        stop: Option<&AtomicUsize>,
+        tick: &(dyn Fn() + Sync),
+    ) -> Result<Sweep, SweepError> {
+        let sweep = Self::new_unchecked(scene_path, sets, samples, seed, max_points)?;
         // Structural key errors are the same at every point: the first point says them once.
         sweep.scene_at(0)?;
+        tick();
+        let stopped = || stop.is_some_and(|s| s.load(Ordering::Relaxed) != 0);
         let first_bad = (1..sweep.len())
             .into_par_iter()
-            .map(|i| sweep.scene_at(i).err())
+            .map(|i| {
+                if stopped() {
+                    return Some(SweepError::Interrupted);
+                }
+                let e = sweep.scene_at(i).err();
+                tick();
+                e
+            })
             .find_first(Option::is_some)
             .flatten();
         if let Some(e) = first_bad {
@@ -242,10 +303,14 @@ impl Sweep {
         sets: &[SetArg],
         samples: Option<usize>,
         seed: u64,
+        max_points: u64,
     ) -> Result<Sweep, SweepError> {
         let base_scene = Scene::load(scene_path)?;
-        let base = Base::load(scene_path)?;
-        let points = crate::spec::points(sets, samples, seed)?;
+        let base = Base::load(scene_path).map_err(|e| SweepError::Other(e.to_string()))?;
+        let keys: Vec<(&str, &KeyPath)> = sets.iter().map(|s| ("--set", &s.key)).collect();
+        base.check_distinct(&keys)
+            .map_err(|e| SweepError::key(&base, "--set", e))?;
+        let points = crate::spec::points(sets, samples, seed, max_points, "--max-points")?;
         let columns = base_scene
             .metrics
             .iter()
@@ -273,12 +338,22 @@ impl Sweep {
 
     /// Number of points.
     pub fn len(&self) -> usize {
-        self.points.values.len()
+        self.points.len()
     }
 
     /// Whether the sweep has no points (never, once built).
     pub fn is_empty(&self) -> bool {
-        self.points.values.is_empty()
+        self.points.is_empty()
+    }
+
+    /// The bytes `--traces` would write: every run's trace at every point (its rows times its columns at
+    /// about 14 bytes a value) and a summary, from the scene's duration and step.
+    pub fn traces_bytes(&self) -> u64 {
+        let s = &self.base_scene;
+        let rows = (s.duration_s / s.dt_s).ceil().max(1.0) + 1.0;
+        let columns = 14.0; // the loop's 8 signals, a controller's 3 and the plant's few
+        let per_point = s.runs.len() as f64 * rows * columns * 14.0 + 16_384.0;
+        (per_point * self.len() as f64).min(u64::MAX as f64) as u64
     }
 
     /// `#i of n: key = value, ...`.
@@ -287,7 +362,7 @@ impl Sweep {
             .points
             .keys
             .iter()
-            .zip(&self.points.values[i])
+            .zip(&self.points.row(i))
             .map(|(k, v)| format!("{} = {v}", k.text))
             .collect();
         format!("#{i} of {}: {}", self.len(), kv.join(", "))
@@ -296,13 +371,13 @@ impl Sweep {
     /// The scene of point `i`, parsed and validated by the scene's own code, with the sheet's edited
     /// files as its overlay (and the sheet loaded once, to check it).
     pub fn scene_at(&self, i: usize) -> Result<Scene, SweepError> {
-        let edits: Vec<(&crate::key::KeyPath, &Value)> = self
-            .points
-            .keys
-            .iter()
-            .zip(&self.points.values[i])
-            .collect();
-        let edited = self.base.edit(&edits)?;
+        let row = self.points.row(i);
+        let edits: Vec<(&crate::key::KeyPath, &Value)> =
+            self.points.keys.iter().zip(&row).collect();
+        let edited = self
+            .base
+            .edit(&edits)
+            .map_err(|e| SweepError::key(&self.base, "--set", e))?;
         let located = |e: SceneError| -> SweepError {
             // Positions of the file as the user wrote it (an added key moves later lines of the copy).
             let e = match e {
@@ -471,11 +546,15 @@ impl Sweep {
     /// [`Sweep::run`] in chunks of consecutive points: `on_chunk` gets each chunk's results in point order
     /// as soon as the chunk is done, and nothing else is kept, so memory does not grow with the number of
     /// points (the CLI streams the rows to sweep.csv this way).
+    ///
+    /// `stop` (a signal's number, 0 while none came) is checked before each point: once set, no point
+    /// starts, the points done are handed on, and the sweep returns [`SweepError::Interrupted`].
     pub fn run_chunked(
         &self,
         indices: &[usize],
         threads: usize,
         traces: Option<&Path>,
+        stop: Option<&AtomicUsize>,
         tick: &(dyn Fn() + Sync),
         on_chunk: &mut dyn FnMut(&[PointResult]) -> Result<(), SweepError>,
     ) -> Result<(), SweepError> {
@@ -483,19 +562,27 @@ impl Sweep {
             .num_threads(threads)
             .build()
             .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
+        let stopped = || stop.is_some_and(|s| s.load(Ordering::Relaxed) != 0);
         // Big enough to keep every thread busy (the chunk's slowest point idles the others at its end).
         let chunk = (64 * pool.current_num_threads()).max(64);
         for part in indices.chunks(chunk) {
-            let results: Vec<PointResult> = pool.install(|| {
+            let results: Vec<Option<PointResult>> = pool.install(|| {
                 part.par_iter()
                     .map(|&i| {
+                        if stopped() {
+                            return None;
+                        }
                         let r = self.run_point(i, traces);
                         tick();
-                        r
+                        Some(r)
                     })
                     .collect()
             });
-            on_chunk(&results)?;
+            let done: Vec<PointResult> = results.into_iter().flatten().collect();
+            on_chunk(&done)?;
+            if stopped() {
+                return Err(SweepError::Interrupted);
+            }
         }
         Ok(())
     }
@@ -512,7 +599,9 @@ impl Sweep {
     /// The table's lines of one point (one per run).
     pub fn rows(&self, p: &PointResult) -> String {
         let mut s = String::new();
-        let keys: Vec<String> = self.points.values[p.index]
+        let keys: Vec<String> = self
+            .points
+            .row(p.index)
             .iter()
             .map(|v| quote(&v.to_string()))
             .collect();

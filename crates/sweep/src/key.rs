@@ -502,6 +502,67 @@ fn get_in_item<'a>(item: &'a Item, segs: &[Seg]) -> Option<&'a Item> {
     }
 }
 
+/// The concrete places `segs` names below `item`: one dotted path per value written, every array element
+/// by its index (`runs[adaptive]` and `runs[1]` are the same place when run 1 is named adaptive; `[*]` is
+/// every element). Keys the file leaves out are named as written.
+fn places_in(item: Option<&Item>, segs: &[Seg], walked: String, out: &mut Vec<String>) {
+    let Some((seg, rest)) = segs.split_first() else {
+        out.push(walked);
+        return;
+    };
+    let names: Option<Vec<Option<String>>> = match item {
+        Some(Item::ArrayOfTables(a)) => Some(a.iter().map(name_of_table).collect()),
+        Some(Item::Value(TValue::Array(a))) => Some(inline_names(a).collect()),
+        _ => None,
+    };
+    match seg {
+        Seg::Key(k) => {
+            let sub = item.and_then(|i| i.as_table_like()).and_then(|t| t.get(k));
+            let w = if walked.is_empty() {
+                k.clone()
+            } else {
+                format!("{walked}.{k}")
+            };
+            places_in(sub, rest, w, out);
+        }
+        Seg::Index(_) | Seg::Name(_) | Seg::All => {
+            let indices = names
+                .and_then(|n| element(n.into_iter(), seg, "").ok())
+                .unwrap_or_default();
+            if indices.is_empty() {
+                // Not resolvable here: the edit itself reports it; name it as written.
+                places_in(
+                    None,
+                    rest,
+                    format!("{walked}{}", join(std::slice::from_ref(seg))),
+                    out,
+                );
+            }
+            for i in indices {
+                let elem = match item {
+                    Some(Item::ArrayOfTables(a)) => {
+                        a.get(i).map(|t| t as &dyn toml_edit::TableLike)
+                    }
+                    Some(Item::Value(TValue::Array(a))) => match a.get(i) {
+                        Some(TValue::InlineTable(t)) => Some(t as &dyn toml_edit::TableLike),
+                        _ => None,
+                    },
+                    _ => None,
+                };
+                let w = format!("{walked}[{i}]");
+                match rest.split_first() {
+                    None => out.push(w),
+                    Some((Seg::Key(k), more)) => {
+                        let sub = elem.and_then(|t| t.get(k));
+                        places_in(sub, more, format!("{w}.{k}"), out);
+                    }
+                    Some(_) => places_in(None, rest, w, out),
+                }
+            }
+        }
+    }
+}
+
 /// The scene's text and its actuator sheet's files, with the edits of one point applied.
 #[derive(Clone, Debug)]
 pub struct Edited {
@@ -547,6 +608,92 @@ impl Base {
             Item::Value(TValue::Integer(i)) => Some(*i.value() as f64),
             _ => None,
         }
+    }
+
+    /// The concrete places a key writes, each as `FILE:PATH` with every array element by index: two keys
+    /// that share a place are the same key, however they are spelt (`runs[1]` and `runs[adaptive]`). A
+    /// sheet key's file is the one the scene (and the sheet) names, resolved.
+    pub fn places(&self, key: &KeyPath) -> Result<Vec<String>, KeyError> {
+        let mut doc = self.scene.doc.clone();
+        let mut file = self.scene.path.clone();
+        let mut dir = self.base_dir.clone();
+        for (i, part) in key.parts.iter().enumerate() {
+            if i + 1 == key.parts.len() {
+                let mut out = Vec::new();
+                places_in(Some(doc.as_item()), part, String::new(), &mut out);
+                let f = std::fs::canonicalize(&file).unwrap_or(file.clone());
+                return Ok(out
+                    .into_iter()
+                    .map(|p| format!("{}:{p}", f.display()))
+                    .collect());
+            }
+            let holder = EditableFile {
+                path: file.clone(),
+                text: String::new(),
+                doc: doc.clone(),
+            };
+            let Some(name) = holder.string_at(part) else {
+                return Err(KeyError {
+                    key: key.text.clone(),
+                    message: format!(
+                        "`{}` in {} does not name a file",
+                        join(part),
+                        file.display()
+                    ),
+                });
+            };
+            let p = {
+                let p = Path::new(&name);
+                if p.is_absolute() {
+                    p.to_path_buf()
+                } else {
+                    dir.join(p)
+                }
+            };
+            let text =
+                pneuflex_files::read_text(&p, pneuflex_files::InputKind::Sheet).map_err(|e| {
+                    KeyError {
+                        key: key.text.clone(),
+                        message: e.to_string(),
+                    }
+                })?;
+            doc = EditableFile::new(&p, &text)
+                .map_err(|mut e| {
+                    e.key = key.text.clone();
+                    e
+                })?
+                .doc;
+            dir = p.parent().map(Path::to_path_buf).unwrap_or_default();
+            file = p;
+        }
+        Ok(Vec::new())
+    }
+
+    /// Refuses two keys that write the same place (see [`Base::places`]): `keys` are (option, key) in the
+    /// order given; the error names both spellings and the place.
+    pub fn check_distinct(&self, keys: &[(&str, &KeyPath)]) -> Result<(), KeyError> {
+        let mut seen: Vec<(String, usize)> = Vec::new();
+        for (k, (option, key)) in keys.iter().enumerate() {
+            for place in self.places(key)? {
+                if let Some((_, j)) = seen.iter().find(|(p, j)| p == &place && *j != k) {
+                    let (o2, k2) = keys[*j];
+                    let at = place.rsplit_once(':').map_or(place.as_str(), |(_, p)| p);
+                    return Err(KeyError {
+                        key: key.text.clone(),
+                        message: if k2.text == key.text {
+                            format!("given twice ({o2} and {option})")
+                        } else {
+                            format!(
+                                "the same key as {o2} {} (both are `{at}`): one key, one value",
+                                k2.text
+                            )
+                        },
+                    });
+                }
+                seen.push((place, k));
+            }
+        }
+        Ok(())
     }
 
     /// The scene text and sheet overlay with every `(key, value)` written in order.

@@ -31,7 +31,15 @@ struct Record<'a> {
     metric_columns: Vec<String>,
     table: &'static str,
     heatmaps: Vec<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    heatmaps_skipped: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    partial: Option<String>,
 }
+
+/// The most cells a heatmap draws: beyond, a map is unreadable and its kept metrics would grow with the
+/// sweep; sweep.csv has every point whatever the size.
+pub const MAX_HEATMAP_CELLS: usize = 65_536;
 
 /// Every figure's file name (relative) and its cells, for a two-key grid.
 fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<Map> {
@@ -130,9 +138,19 @@ pub fn write(
     Ok(files)
 }
 
-/// Whether the sweep draws heatmaps (a grid of exactly two swept keys).
+/// Whether the sweep draws heatmaps (a grid of exactly two swept keys, of at most [`MAX_HEATMAP_CELLS`]).
 pub fn has_heatmaps(sweep: &Sweep) -> bool {
-    sweep.points.grid.as_ref().is_some_and(|g| g.len() == 2)
+    sweep.points.grid.as_ref().is_some_and(|g| g.len() == 2) && sweep.len() <= MAX_HEATMAP_CELLS
+}
+
+/// Why a two-key grid gets no heatmap, if it gets none.
+fn heatmaps_skipped(sweep: &Sweep) -> Option<String> {
+    (sweep.points.grid.as_ref().is_some_and(|g| g.len() == 2) && !has_heatmaps(sweep)).then(|| {
+        format!(
+            "{} cells are more than a heatmap draws ({MAX_HEATMAP_CELLS}); every point is in sweep.csv",
+            sweep.len()
+        )
+    })
 }
 
 /// sweep.csv written as the points come: the header at creation, then each chunk's rows.
@@ -185,11 +203,14 @@ pub fn write_figures(
     let mut all_maps = Vec::new();
     for metric in metrics {
         let metric_i = sweep.metric_index(metric)?;
+        if !has_heatmaps(sweep) {
+            continue;
+        }
         let maps = heatmap_cells(sweep, results, metric_i);
         write_maps(dir, sweep, &maps, metric_i, &mut files)?;
         all_maps.extend(maps.into_iter().map(|m| m.0));
     }
-    write_record(dir, sweep, all_maps)?;
+    write_record(dir, sweep, all_maps, None)?;
     files.push(PathBuf::from("sweep.json"));
     Ok(files)
 }
@@ -231,7 +252,14 @@ fn write_maps(
     Ok(())
 }
 
-fn write_record(dir: &Path, sweep: &Sweep, heatmaps: Vec<String>) -> Result<(), SweepError> {
+/// Writes sweep.json: what was swept, the heatmaps drawn, and for an interrupted sweep (`partial`: the
+/// points done) that its table is partial.
+pub fn write_record(
+    dir: &Path,
+    sweep: &Sweep,
+    heatmaps: Vec<String>,
+    partial: Option<usize>,
+) -> Result<(), SweepError> {
     let io = |p: &Path, e: std::io::Error| {
         SweepError::Other(format!("{}: cannot write: {e}", p.display()))
     };
@@ -253,6 +281,13 @@ fn write_record(dir: &Path, sweep: &Sweep, heatmaps: Vec<String>) -> Result<(), 
         table: "sweep.csv: one row per point and run; status ok | not_settled | diverged | error \
                 (a diverged run's metrics are empty; a settling time that never came is inf)",
         heatmaps,
+        heatmaps_skipped: heatmaps_skipped(sweep),
+        partial: partial.map(|d| {
+            format!(
+                "interrupted: sweep.csv has the {d} of {} points done (in point order per chunk)",
+                sweep.len()
+            )
+        }),
     };
     let json = dir.join("sweep.json");
     let text =

@@ -46,9 +46,9 @@ pub struct SetArg {
     pub spec: Spec,
 }
 
-/// A `--set` that cannot be read.
+/// A `--set` that cannot be read: `--set KEY=SPEC: message`, or `--samples: message` for another option.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("--set {arg}: {message}")]
+#[error("{}: {message}", if arg.starts_with("--") { arg.clone() } else if arg.is_empty() { "--set".to_string() } else { format!("--set {arg}") })]
 pub struct SpecError {
     /// The argument as written.
     pub arg: String,
@@ -240,20 +240,120 @@ impl SplitMix64 {
     }
 }
 
-/// The points of a sweep: every key's value at every point.
+/// The largest number of points (sweep) or scene runs (tune) a command takes unless raised with
+/// `--max-points` / `--max-runs`: a million scene runs are hours on two cores.
+pub const DEFAULT_MAX_POINTS: u64 = 1_000_000;
+/// The hard ceiling of `--max-points` and `--max-runs` (the sample values alone are 8 bytes per key and point).
+pub const HARD_MAX_POINTS: u64 = 100_000_000;
+
+/// One axis of the grid: a listed key's values, or the samples shared by every sampled key.
+#[derive(Clone, Debug, PartialEq)]
+enum Axis {
+    /// The key's index among the keys, and its values.
+    List(usize, Vec<Value>),
+    /// The sampled keys' indices and each one's values, `[key][sample]`.
+    Samples(Vec<usize>, Vec<Vec<f64>>),
+}
+
+impl Axis {
+    fn len(&self) -> usize {
+        match self {
+            Axis::List(_, v) => v.len(),
+            Axis::Samples(_, v) => v.first().map_or(0, Vec::len),
+        }
+    }
+}
+
+/// The points of a sweep: every key's value at every point, worked out from the point's number when asked
+/// ([`Points::row`]), so that memory does not grow with the number of points.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Points {
     /// The swept keys, in `--set` order.
     pub keys: Vec<KeyPath>,
-    /// One row per point: the value of each key.
-    pub values: Vec<Vec<Value>>,
     /// The grid's axes (the key's index among `keys`, its values), first varying slowest, when no key is
     /// sampled; keys that follow another (`@KEY`) are not axes.
     pub grid: Option<Vec<(usize, Vec<Value>)>>,
+    axes: Vec<Axis>,
+    /// Followers: (key, the key it follows, factor).
+    follows: Vec<(usize, usize, f64)>,
+    len: usize,
 }
 
-/// Expands the `--set`s into points; `samples` and `seed` serve the sampled keys.
-pub fn points(sets: &[SetArg], samples: Option<usize>, seed: u64) -> Result<Points, SpecError> {
+impl Points {
+    /// The single point of no keys (a tune over the scene's own environment).
+    pub fn none() -> Self {
+        Points {
+            keys: Vec::new(),
+            grid: None,
+            axes: Vec::new(),
+            follows: Vec::new(),
+            len: 1,
+        }
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether there are no points (never: a sweep has at least one).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Every key's value at point `i` (the last axis varies fastest).
+    pub fn row(&self, i: usize) -> Vec<Value> {
+        let mut row = vec![Value::Int(0); self.keys.len()];
+        let mut rest = i;
+        for axis in self.axes.iter().rev() {
+            let n = axis.len();
+            let k = rest % n;
+            rest /= n;
+            match axis {
+                Axis::List(key, v) => row[*key] = v[k].clone(),
+                Axis::Samples(keys, v) => {
+                    for (j, &key) in keys.iter().enumerate() {
+                        row[key] = Value::Float(v[j][k]);
+                    }
+                }
+            }
+        }
+        for &(key, of, factor) in &self.follows {
+            row[key] = follow(&row[of], factor);
+        }
+        row
+    }
+}
+
+/// A follower's value: the followed value times the factor (checked to be a number beforehand).
+fn follow(v: &Value, factor: f64) -> Value {
+    match v {
+        Value::Int(i) if factor == 1.0 => Value::Int(*i),
+        v => match v.as_f64() {
+            Some(x) => Value::Float(x * factor),
+            None => v.clone(),
+        },
+    }
+}
+
+/// `a × b × ...` as the user reads it, for a refused count.
+fn product_text(lens: &[usize]) -> String {
+    lens.iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(" × ")
+}
+
+/// Expands the `--set`s into points; `samples` and `seed` serve the sampled keys. The number of points is
+/// worked out first, with checked arithmetic, and refused above `max_points` (the flag that raises it is
+/// `limit_flag`) before anything is allocated.
+pub fn points(
+    sets: &[SetArg],
+    samples: Option<usize>,
+    seed: u64,
+    max_points: u64,
+    limit_flag: &str,
+) -> Result<Points, SpecError> {
     if sets.is_empty() {
         return Err(SpecError {
             arg: String::new(),
@@ -294,12 +394,84 @@ pub fn points(sets: &[SetArg], samples: Option<usize>, seed: u64) -> Result<Poin
         }
         (false, Some(n)) => n,
     };
+    // Followers: the key they follow (an axis key, listed or sampled) and the factor; every value they
+    // would multiply is checked to be a number here, once.
+    let mut follows: Vec<(usize, usize, f64)> = Vec::new();
+    for (i, s) in sets.iter().enumerate() {
+        if let Spec::Follow { key, factor } = &s.spec {
+            let arg = format!("{}={}", s.key.text, s.spec_text);
+            let Some(j) = sets.iter().position(|o| &o.key.text == key) else {
+                return Err(SpecError {
+                    arg,
+                    message: format!("follows `{key}`, which is not swept (give it its own --set)"),
+                });
+            };
+            if matches!(sets[j].spec, Spec::Follow { .. }) {
+                return Err(SpecError {
+                    arg,
+                    message: format!("follows `{key}`, which follows another key itself"),
+                });
+            }
+            if *factor != 1.0
+                && let Spec::List(v) = &sets[j].spec
+                && let Some(bad) = v.iter().find(|v| v.as_f64().is_none())
+            {
+                return Err(SpecError {
+                    arg,
+                    message: format!("`{key}` = {bad} is not a number to multiply"),
+                });
+            }
+            follows.push((i, j, *factor));
+        }
+    }
+    // The axes' lengths, and their product, before anything is drawn or allocated.
+    let mut lens = Vec::new();
+    for (i, s) in sets.iter().enumerate() {
+        match &s.spec {
+            Spec::List(v) => lens.push(v.len()),
+            Spec::Sample { .. } if sampled.first() == Some(&i) => lens.push(n_samples),
+            Spec::Sample { .. } | Spec::Follow { .. } => {}
+        }
+    }
+    if lens.is_empty() {
+        return Err(SpecError {
+            arg: String::new(),
+            message: "every --set follows another key: nothing to sweep".into(),
+        });
+    }
+    let max = max_points.min(HARD_MAX_POINTS);
+    let total = lens
+        .iter()
+        .try_fold(1u64, |acc, &n| acc.checked_mul(n as u64))
+        .filter(|&t| t <= max)
+        .ok_or_else(|| {
+            let exact = lens
+                .iter()
+                .try_fold(1u128, |acc, &n| acc.checked_mul(n as u128));
+            let count = exact.map_or("more than 2^128".into(), |t| format!("{t}"));
+            let flag = if max_points >= HARD_MAX_POINTS {
+                format!("the ceiling of {limit_flag} is {HARD_MAX_POINTS}")
+            } else {
+                format!("{limit_flag} N raises the limit, up to {HARD_MAX_POINTS}")
+            };
+            SpecError {
+                arg: if sampled.is_empty() {
+                    String::new()
+                } else {
+                    "--set/--samples".into()
+                },
+                message: format!(
+                    "{count} points ({}) is more than the limit of {max}; {flag}",
+                    product_text(&lens)
+                ),
+            }
+        })? as usize;
     // The samples: one value per sampled key per sample, drawn key by key in --set order.
     let mut rng = SplitMix64::new(seed);
     let mut sample_values: Vec<Vec<f64>> = Vec::new(); // [key][sample]
     for &i in &sampled {
         let Spec::Sample { lo, hi, log, lhs } = sets[i].spec else {
-            unreachable!()
+            unreachable!("sampled keys are Spec::Sample")
         };
         let perm = if lhs {
             rng.permutation(n_samples)
@@ -321,104 +493,16 @@ pub fn points(sets: &[SetArg], samples: Option<usize>, seed: u64) -> Result<Poin
             .collect();
         sample_values.push(vals);
     }
-    // Axes: each list key, and the samples as one axis at the first sampled key.
-    enum Axis {
-        List(usize),
-        Samples,
-    }
     let mut axes = Vec::new();
+    let mut sample_values = Some(sample_values);
     for (i, s) in sets.iter().enumerate() {
-        match s.spec {
-            Spec::List(_) => axes.push(Axis::List(i)),
-            Spec::Sample { .. } if sampled.first() == Some(&i) => axes.push(Axis::Samples),
+        match &s.spec {
+            Spec::List(v) => axes.push(Axis::List(i, v.clone())),
+            Spec::Sample { .. } if sampled.first() == Some(&i) => axes.push(Axis::Samples(
+                sampled.clone(),
+                sample_values.take().unwrap_or_default(),
+            )),
             Spec::Sample { .. } | Spec::Follow { .. } => {}
-        }
-    }
-    // Followers: the key they follow (an axis key, listed or sampled) and the factor.
-    let mut follows: Vec<(usize, usize, f64)> = Vec::new();
-    for (i, s) in sets.iter().enumerate() {
-        if let Spec::Follow { key, factor } = &s.spec {
-            let arg = format!("{}={}", s.key.text, s.spec_text);
-            let Some(j) = sets.iter().position(|o| &o.key.text == key) else {
-                return Err(SpecError {
-                    arg,
-                    message: format!("follows `{key}`, which is not swept (give it its own --set)"),
-                });
-            };
-            if matches!(sets[j].spec, Spec::Follow { .. }) {
-                return Err(SpecError {
-                    arg,
-                    message: format!("follows `{key}`, which follows another key itself"),
-                });
-            }
-            follows.push((i, j, *factor));
-        }
-    }
-    if axes.is_empty() {
-        return Err(SpecError {
-            arg: String::new(),
-            message: "every --set follows another key: nothing to sweep".into(),
-        });
-    }
-    let len = |a: &Axis| match a {
-        Axis::List(i) => match &sets[*i].spec {
-            Spec::List(v) => v.len(),
-            _ => unreachable!(),
-        },
-        Axis::Samples => n_samples,
-    };
-    let total: usize = axes.iter().map(len).product();
-    if total > 10_000_000 {
-        return Err(SpecError {
-            arg: String::new(),
-            message: format!("{total} points: more than the limit of 10,000,000"),
-        });
-    }
-    let mut values = Vec::with_capacity(total);
-    let mut idx = vec![0usize; axes.len()];
-    for _ in 0..total {
-        let mut row = vec![Value::Int(0); sets.len()];
-        for (a, axis) in axes.iter().enumerate() {
-            match axis {
-                Axis::List(i) => {
-                    let Spec::List(v) = &sets[*i].spec else {
-                        unreachable!()
-                    };
-                    row[*i] = v[idx[a]].clone();
-                }
-                Axis::Samples => {
-                    for (k, &i) in sampled.iter().enumerate() {
-                        row[i] = Value::Float(sample_values[k][idx[a]]);
-                    }
-                }
-            }
-        }
-        for &(i, j, factor) in &follows {
-            row[i] = match &row[j] {
-                Value::Int(v) if factor == 1.0 => Value::Int(*v),
-                v => match v.as_f64() {
-                    Some(x) => Value::Float(x * factor),
-                    None if factor == 1.0 => v.clone(),
-                    None => {
-                        return Err(SpecError {
-                            arg: format!("{}={}", sets[i].key.text, sets[i].spec_text),
-                            message: format!(
-                                "`{}` = {v} is not a number to multiply",
-                                sets[j].key.text
-                            ),
-                        });
-                    }
-                },
-            };
-        }
-        values.push(row);
-        // Odometer: the last axis varies fastest.
-        for a in (0..axes.len()).rev() {
-            idx[a] += 1;
-            if idx[a] < len(&axes[a]) {
-                break;
-            }
-            idx[a] = 0;
         }
     }
     let grid = sampled.is_empty().then(|| {
@@ -432,7 +516,9 @@ pub fn points(sets: &[SetArg], samples: Option<usize>, seed: u64) -> Result<Poin
     });
     Ok(Points {
         keys: sets.iter().map(|s| s.key.clone()).collect(),
-        values,
         grid,
+        axes,
+        follows,
+        len: total,
     })
 }

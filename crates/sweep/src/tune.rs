@@ -10,6 +10,7 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use cmaes::{CMAESOptions, DVector};
 use pneuflex_scene::{Scene, WindowKind};
@@ -30,6 +31,9 @@ pub struct FreeArg {
     pub hi: f64,
     /// Searched in the logarithm (`KEY=log[LO,HI]`, both > 0): for a gain whose scale is unknown.
     pub log: bool,
+    /// An integer key (a count, such as `substeps`): searched over the integers of the box, written as an
+    /// integer. Found by [`Tuner::new`] from what the scene accepts.
+    pub integer: bool,
 }
 
 impl FreeArg {
@@ -39,7 +43,7 @@ impl FreeArg {
         let (key, range) = arg
             .split_once('=')
             .ok_or_else(|| bad("expected KEY=[LO,HI]"))?;
-        let key = KeyPath::parse(key).map_err(SweepError::Key)?;
+        let key = KeyPath::parse(key).map_err(|e| bad(&e.message))?;
         let r = range.trim();
         let (log, r) = match r.strip_prefix("log") {
             Some(rest) => (true, rest.trim_start_matches(':')),
@@ -67,7 +71,13 @@ impl FreeArg {
         if log && lo <= 0.0 {
             return Err(bad(&format!("a log box needs LO > 0, got {lo}")));
         }
-        Ok(FreeArg { key, lo, hi, log })
+        Ok(FreeArg {
+            key,
+            lo,
+            hi,
+            log,
+            integer: false,
+        })
     }
 }
 
@@ -149,6 +159,8 @@ pub struct TuneOptions {
     pub sigma0: f64,
     /// Worker threads (0: one per core).
     pub threads: usize,
+    /// Largest number of scene runs (candidates × environments) the search may take (`--max-runs`).
+    pub max_runs: u64,
 }
 
 impl Default for TuneOptions {
@@ -159,7 +171,68 @@ impl Default for TuneOptions {
             population: None,
             sigma0: 0.3,
             threads: 0,
+            max_runs: crate::spec::DEFAULT_MAX_POINTS,
         }
+    }
+}
+
+impl TuneOptions {
+    /// CMA-ES's population for `n` free keys: the one given, else 4 + 3 ln n (the cmaes crate's default).
+    pub fn population_for(&self, n: usize) -> usize {
+        self.population
+            .unwrap_or(4 + (3.0 * (n.max(1) as f64).ln()).floor() as usize)
+    }
+
+    /// Checks the options against a problem of `n` free keys over `environments`, before anything runs:
+    /// each refusal names the option and the value that would work.
+    pub fn check(&self, n: usize, environments: usize) -> Result<(), SweepError> {
+        if !(self.sigma0.is_finite() && self.sigma0 > 0.0 && self.sigma0 <= 1.0) {
+            return Err(SweepError::Other(format!(
+                "--sigma0: the initial step is a fraction of each box, in (0, 1]; got {}",
+                self.sigma0
+            )));
+        }
+        let pop = self.population_for(n);
+        if let Some(p) = self.population
+            && p < 2
+        {
+            return Err(SweepError::Other(format!(
+                "--population: CMA-ES needs at least 2 candidates per generation, got {p}"
+            )));
+        }
+        if let Some(p) = self.population
+            && p > self.budget
+        {
+            return Err(SweepError::Other(format!(
+                "--population {p}: more candidates in one generation than --budget {} allows; give a \
+                 population of at most the budget (default 4 + 3 ln n)",
+                self.budget
+            )));
+        }
+        if self.budget < pop {
+            return Err(SweepError::Other(format!(
+                "--budget {}: below one generation of {pop} candidates (the population{}); give --budget {pop} \
+                 or more",
+                self.budget,
+                if self.population.is_some() {
+                    ", --population"
+                } else {
+                    " for this many free keys"
+                }
+            )));
+        }
+        let runs = (self.budget as u64).checked_mul(environments as u64);
+        let max = self.max_runs.min(crate::spec::HARD_MAX_POINTS);
+        if runs.is_none_or(|r| r > max) {
+            return Err(SweepError::Other(format!(
+                "--budget {} over {environments} environment(s): {} scene runs, more than the limit of {max}; \
+                 lower --budget or the --over grid, or raise --max-runs (up to {})",
+                self.budget,
+                runs.map_or("more than 2^64".into(), |r| r.to_string()),
+                crate::spec::HARD_MAX_POINTS
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -228,15 +301,27 @@ fn fold(y: f64) -> f64 {
 impl Tuner {
     /// Reads the scene, the free keys, the environments and the terms, and checks the scene at the box's
     /// corners and at the initial values in every environment before anything runs.
+    /// `max_runs` bounds the environments (`--over`'s grid) before they are expanded.
     pub fn new(
         scene_path: &Path,
         free: Vec<FreeArg>,
         over: &[SetArg],
         run: Option<&str>,
         terms: Vec<Term>,
+        max_runs: u64,
     ) -> Result<Tuner, SweepError> {
         let base_scene = Scene::load(scene_path)?;
-        let base = Base::load(scene_path)?;
+        let base = Base::load(scene_path).map_err(|e| SweepError::Other(e.to_string()))?;
+        let mut keys: Vec<(&str, &KeyPath)> = free.iter().map(|f| ("--free", &f.key)).collect();
+        keys.extend(over.iter().map(|s| ("--over", &s.key)));
+        base.check_distinct(&keys).map_err(|e| {
+            let option = if free.iter().any(|f| f.key.text == e.key) {
+                "--free"
+            } else {
+                "--over"
+            };
+            SweepError::key(&base, option, e)
+        })?;
         if free.is_empty() {
             return Err(SweepError::Other(
                 "nothing to tune: give at least one --free KEY=[LO,HI]".into(),
@@ -251,13 +336,9 @@ impl Tuner {
             }
         }
         let envs = if over.is_empty() {
-            Points {
-                keys: Vec::new(),
-                values: vec![Vec::new()],
-                grid: None,
-            }
+            Points::none()
         } else {
-            crate::spec::points(over, None, 0)?
+            crate::spec::points(over, None, 0, max_runs, "--max-runs")?
         };
         let run = match run {
             Some(name) => base_scene.run_index(name)?,
@@ -304,7 +385,7 @@ impl Tuner {
                     .clamp(f.lo, f.hi)
             })
             .collect();
-        let tuner = Tuner {
+        let mut tuner = Tuner {
             scene_path: scene_path.to_path_buf(),
             base_scene,
             free,
@@ -318,14 +399,59 @@ impl Tuner {
             initial,
             base,
         };
+        tuner.find_integer_keys()?;
         let lo: Vec<f64> = tuner.free.iter().map(|f| f.lo).collect();
         let hi: Vec<f64> = tuner.free.iter().map(|f| f.hi).collect();
         for x in [&tuner.initial, &lo, &hi] {
-            for e in 0..tuner.envs.values.len() {
+            for e in 0..tuner.envs.len() {
                 tuner.scene(x, e, true)?;
             }
         }
         Ok(tuner)
+    }
+
+    /// Marks the free keys the scene reads as integers (a fractional value is refused where an integral
+    /// one in the box loads), and narrows their boxes to the integers inside: such a key is searched over
+    /// integers and written as one, so the tuned scene loads.
+    fn find_integer_keys(&mut self) -> Result<(), SweepError> {
+        for k in 0..self.free.len() {
+            let f = &self.free[k];
+            let (lo, hi) = (f.lo.ceil(), f.hi.floor());
+            // A value with a fraction, inside the box, at the other keys' initial values.
+            let mut x = self.initial.clone();
+            x[k] = f.lo + 0.382 * (f.hi - f.lo);
+            if x[k].fract() == 0.0 {
+                x[k] += 0.25 * (f.hi - f.lo).min(1.0);
+            }
+            let fractional_refused = self.scene(&x, 0, true).is_err();
+            x[k] = x[k].round().clamp(lo, hi.max(lo));
+            if !(fractional_refused && self.scene(&x, 0, true).is_ok()) {
+                continue;
+            }
+            let f = &mut self.free[k];
+            if hi - lo < 1.0 {
+                return Err(SweepError::Other(format!(
+                    "--free {}=[{}, {}]: an integer key (the scene takes whole numbers only); the box holds {} \
+                     integer(s): give a box with at least two",
+                    f.key.text,
+                    f.lo,
+                    f.hi,
+                    (hi - lo + 1.0).max(0.0)
+                )));
+            }
+            if f.log {
+                return Err(SweepError::Other(format!(
+                    "--free {}: an integer key is searched over its integers, not in the logarithm: give \
+                     KEY=[LO,HI]",
+                    f.key.text
+                )));
+            }
+            f.integer = true;
+            f.lo = lo;
+            f.hi = hi;
+            self.initial[k] = self.initial[k].round().clamp(lo, hi);
+        }
+        Ok(())
     }
 
     /// `key = value, ...` of environment `e`.
@@ -336,7 +462,7 @@ impl Tuner {
         self.envs
             .keys
             .iter()
-            .zip(&self.envs.values[e])
+            .zip(&self.envs.row(e))
             .map(|(k, v)| format!("{} = {v}", k.text))
             .collect::<Vec<_>>()
             .join(", ")
@@ -344,11 +470,15 @@ impl Tuner {
 
     /// The scene with the free keys at `x` in environment `e`; `only_run` keeps just the tuned run.
     pub fn scene(&self, x: &[f64], e: usize, only_run: bool) -> Result<Scene, SweepError> {
-        let xv: Vec<Value> = x.iter().map(|v| Value::Float(*v)).collect();
+        let xv = self.values(x);
+        let env = self.envs.row(e);
         let mut edits: Vec<(&KeyPath, &Value)> =
             self.free.iter().map(|f| &f.key).zip(&xv).collect();
-        edits.extend(self.envs.keys.iter().zip(&self.envs.values[e]));
-        let edited = self.base.edit(&edits)?;
+        edits.extend(self.envs.keys.iter().zip(&env));
+        let edited = self
+            .base
+            .edit(&edits)
+            .map_err(|err| SweepError::key(&self.base, "--free/--over", err))?;
         let point = || {
             let kv: Vec<String> = self
                 .free
@@ -388,6 +518,21 @@ impl Tuner {
             scene.claims.clear();
         }
         Ok(scene)
+    }
+
+    /// The values written at the free keys for `x`: integers for integer keys.
+    fn values(&self, x: &[f64]) -> Vec<Value> {
+        self.free
+            .iter()
+            .zip(x)
+            .map(|(f, v)| {
+                if f.integer {
+                    Value::Int(v.round() as i64)
+                } else {
+                    Value::Float(*v)
+                }
+            })
+            .collect()
     }
 
     /// J_e and its terms for one run's result.
@@ -445,7 +590,7 @@ impl Tuner {
 
     /// Evaluates the tuned run at `x` in every environment (in parallel).
     pub fn evaluate(&self, x: &[f64]) -> Evaluation {
-        let envs: Vec<EnvEval> = (0..self.envs.values.len())
+        let envs: Vec<EnvEval> = (0..self.envs.len())
             .into_par_iter()
             .map(|e| {
                 let fail = |why: String| EnvEval {
@@ -494,7 +639,7 @@ impl Tuner {
 
     /// Every run of the scene at `x` in every environment: `[env][run]` evaluations (for the report).
     pub fn evaluate_all_runs(&self, x: &[f64]) -> Vec<Vec<EnvEval>> {
-        (0..self.envs.values.len())
+        (0..self.envs.len())
             .into_par_iter()
             .map(|e| {
                 let n = self.base_scene.runs.len();
@@ -526,7 +671,9 @@ impl Tuner {
             .iter()
             .zip(x)
             .map(|(f, v)| {
-                if f.log {
+                if f.integer {
+                    (v - f.lo + 0.5) / (f.hi - f.lo + 1.0)
+                } else if f.log {
                     (v.ln() - f.lo.ln()) / (f.hi.ln() - f.lo.ln())
                 } else {
                     (v - f.lo) / (f.hi - f.lo)
@@ -541,7 +688,11 @@ impl Tuner {
             .iter()
             .zip(y)
             .map(|(f, v)| {
-                if f.log {
+                if f.integer {
+                    // Each integer owns an equal share of the box: [lo - 0.5, hi + 0.5] folded, rounded.
+                    let span = f.hi - f.lo + 1.0;
+                    (f.lo - 0.5 + fold(*v) * span).round().clamp(f.lo, f.hi)
+                } else if f.log {
                     (f.lo.ln() + fold(*v) * (f.hi.ln() - f.lo.ln())).exp()
                 } else {
                     f.lo + fold(*v) * (f.hi - f.lo)
@@ -553,12 +704,16 @@ impl Tuner {
     /// Runs CMA-ES: every candidate evaluated (in parallel) over every environment; `tick` after each
     /// candidate. Returns every evaluation in generation order (within a generation, ordered by rank and
     /// values: the same whatever the thread count).
+    ///
+    /// `stop` (a signal's number, 0 while none came) ends the search at the end of the generation under
+    /// way: candidates not yet started are not evaluated, and the history holds those that were.
     pub fn search(
         &self,
         opts: &TuneOptions,
+        stop: Option<&AtomicUsize>,
         tick: &(dyn Fn() + Sync),
     ) -> Result<Vec<HistoryRow>, SweepError> {
-        self.search_with(opts, tick, &|x| self.evaluate(x))
+        self.search_with(opts, stop, tick, &|x| self.evaluate(x))
     }
 
     /// [`Tuner::search`] with the candidates evaluated by `evaluate` (e.g. on a Ray cluster: it must return
@@ -566,15 +721,21 @@ impl Tuner {
     pub fn search_with(
         &self,
         opts: &TuneOptions,
+        stop: Option<&AtomicUsize>,
         tick: &(dyn Fn() + Sync),
         evaluate: &(dyn Fn(&[f64]) -> Evaluation + Sync),
     ) -> Result<Vec<HistoryRow>, SweepError> {
+        opts.check(self.free.len(), self.envs.len())?;
+        let stopped = || stop.is_some_and(|s| s.load(Ordering::Relaxed) != 0);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)
             .build()
             .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
         let generation_rows: Mutex<Vec<Evaluation>> = Mutex::new(Vec::new());
         let objective = |y: &DVector<f64>| -> f64 {
+            if stopped() {
+                return f64::MAX;
+            }
             let x = self.from_search(y.as_slice());
             let ev = evaluate(&x);
             let rank = ev.rank;
@@ -586,13 +747,13 @@ impl Tuner {
             rank
         };
         let mut options = CMAESOptions::new(self.to_unit(&self.initial), opts.sigma0)
-            .max_function_evals(opts.budget.max(1))
+            .max_function_evals(opts.budget)
             .seed(opts.seed)
             // A flat objective (every candidate failing alike) must not end the search before the budget.
             .tol_fun(0.0)
             .tol_fun_hist(0.0);
         if let Some(p) = opts.population {
-            options = options.population_size(p.max(2));
+            options = options.population_size(p);
         }
         let mut cma = options
             .build(objective)
@@ -614,7 +775,7 @@ impl Tuner {
                 })
             });
             history.extend(rows.into_iter().map(|eval| HistoryRow { generation, eval }));
-            if done.is_some() || history.len() >= opts.budget {
+            if done.is_some() || history.len() >= opts.budget || stopped() {
                 break;
             }
         }
@@ -624,7 +785,7 @@ impl Tuner {
     /// The scene's text with the free keys at `x` (the environments as the file has them) and a comment at
     /// the top saying how they were found.
     pub fn tuned_text(&self, x: &[f64], comment: &str) -> Result<String, SweepError> {
-        let xv: Vec<Value> = x.iter().map(|v| Value::Float(*v)).collect();
+        let xv = self.values(x);
         let edits: Vec<(&KeyPath, &Value)> = self.free.iter().map(|f| &f.key).zip(&xv).collect();
         if self.free.iter().any(|f| !f.key.in_scene()) {
             return Err(SweepError::Other(
@@ -632,7 +793,10 @@ impl Tuner {
                     .into(),
             ));
         }
-        let edited = self.base.edit(&edits)?;
+        let edited = self
+            .base
+            .edit(&edits)
+            .map_err(|e| SweepError::key(&self.base, "--free", e))?;
         let mut head = String::new();
         for line in comment.lines() {
             head.push_str("# ");

@@ -25,8 +25,13 @@ pub struct TuneSummary {
     pub evaluations: usize,
     /// CMA-ES generations.
     pub generations: usize,
-    /// The tuned scene's file name.
-    pub tuned_scene: String,
+    /// The tuned scene's file name; None when none was written (see `kept_start`).
+    pub tuned_scene: Option<String>,
+    /// Why no tuned scene was written and the start is kept: the search found nothing better, the best
+    /// candidate's scene does not load, or the search was interrupted.
+    pub kept_start: Option<String>,
+    /// The signal that interrupted the search (a partial output), if one did.
+    pub interrupted: Option<String>,
 }
 
 fn j_text(j: f64) -> String {
@@ -53,35 +58,48 @@ pub fn best(history: &[HistoryRow]) -> Option<&Evaluation> {
         .reduce(|a, b| if b.rank < a.rank { b } else { a })
 }
 
-/// Writes the outputs of a finished search into `dir`; `command` is the command line (for the comment).
+/// Writes the outputs of a search into `dir`; `command` is the command line (for the comment). A tuned
+/// scene is written only when the best candidate, as written (four significant digits), loads and is no
+/// worse than the start; otherwise the report says why and the start is kept. `interrupted` (the signal's
+/// name) marks a search stopped early: its history and report are written, no tuned scene.
 pub fn write(
     dir: &Path,
     tuner: &Tuner,
     opts: &TuneOptions,
     history: &[HistoryRow],
     command: &str,
+    interrupted: Option<&str>,
 ) -> Result<TuneSummary, SweepError> {
     let io = |p: &Path, e: std::io::Error| {
         SweepError::Other(format!("{}: cannot write: {e}", p.display()))
     };
-    let best =
-        best(history).ok_or_else(|| SweepError::Other("no candidate was evaluated".into()))?;
-    let after: Vec<f64> = best.x.iter().map(|v| round4(*v)).collect();
+    let best = best(history);
     let before = tuner.initial.clone();
-    // Before and after as the files have them: every run, every environment.
-    let all_before = tuner.evaluate_all_runs(&before);
-    let all_after = tuner.evaluate_all_runs(&after);
+    let after: Vec<f64> = best.map_or(before.clone(), |b| b.x.iter().map(|v| round4(*v)).collect());
     let worst = |all: &[Vec<EnvEval>]| {
         all.iter()
             .map(|e| e[tuner.run].j)
             .fold(f64::NEG_INFINITY, f64::max)
     };
-    let (j_before, j_after) = (worst(&all_before), worst(&all_after));
+    // Before and after as the files have them: every run, every environment (not re-run for an
+    // interrupted search: the user asked it to stop).
+    let (all_before, all_after) = if interrupted.is_none() {
+        (
+            tuner.evaluate_all_runs(&before),
+            tuner.evaluate_all_runs(&after),
+        )
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    let (j_before, j_after) = if interrupted.is_none() {
+        (worst(&all_before), worst(&all_after))
+    } else {
+        let j0 = history.first().map_or(f64::INFINITY, |h| h.eval.j);
+        (j0, best.map_or(f64::INFINITY, |b| b.j))
+    };
     let run_name = &tuner.base_scene.runs[tuner.run].name;
     let generations = history.last().map_or(0, |h| h.generation);
-    let population = opts
-        .population
-        .unwrap_or(4 + (3.0 * (tuner.free.len() as f64).ln()).floor() as usize);
+    let population = opts.population_for(tuner.free.len());
     let terms_text: Vec<String> = tuner
         .terms
         .iter()
@@ -129,8 +147,36 @@ pub fn write(
         j_text(j_after)
     );
     let text = tuner.tuned_text(&after, &comment)?;
-    let tuned_path = dir.join(&tuned_name);
-    std::fs::write(&tuned_path, text).map_err(|e| io(&tuned_path, e))?;
+    // Written only if it loads and is no worse than the start.
+    let kept_start = if let Some(sig) = interrupted {
+        Some(format!(
+            "the search was interrupted by {sig} after {} candidate(s): no tuned scene",
+            history.len()
+        ))
+    } else if let Err(e) = pneuflex_scene::Scene::from_toml_str(
+        &text,
+        &tuner.scene_path,
+        tuner.scene_path.parent().unwrap_or(Path::new("")),
+    ) {
+        Some(format!(
+            "the best candidate's scene does not load ({e}); the start is kept"
+        ))
+    } else if !(j_after <= j_before) || (!j_after.is_finite() && !j_before.is_finite()) {
+        Some(format!(
+            "the search found nothing better than the start (worst-case J {} before, {} for the best \
+             candidate as written); the start is kept",
+            j_text(j_before),
+            j_text(j_after)
+        ))
+    } else {
+        None
+    };
+    let mut files = Vec::new();
+    if kept_start.is_none() {
+        let tuned_path = dir.join(&tuned_name);
+        std::fs::write(&tuned_path, text).map_err(|e| io(&tuned_path, e))?;
+        files.push(PathBuf::from(&tuned_name));
+    }
 
     // History.
     let mut csv = String::from("evaluation,generation");
@@ -139,7 +185,7 @@ pub fn write(
         csv.push_str(&f.key.text.replace(',', ";"));
     }
     csv.push_str(",j,rank");
-    for e in 0..tuner.envs.values.len() {
+    for e in 0..tuner.envs.len() {
         let _ = write!(csv, ",j_env{e}");
     }
     csv.push('\n');
@@ -163,7 +209,7 @@ pub fn write(
     let hist_path = dir.join("history.csv");
     std::fs::write(&hist_path, csv).map_err(|e| io(&hist_path, e))?;
     let conv = dir.join("convergence.png");
-    let mut files = vec![PathBuf::from(&tuned_name), PathBuf::from("history.csv")];
+    files.push(PathBuf::from("history.csv"));
     match pneuflex_viz::write_convergence(
         &conv,
         &format!(
@@ -183,6 +229,14 @@ pub fn write(
     // The report.
     let mut r = String::new();
     let _ = writeln!(r, "# pneuflex tune: {}\n", tuner.base_scene.name);
+    if let Some(sig) = interrupted {
+        let _ = writeln!(
+            r,
+            "**Interrupted by {sig}: a partial search of {} candidate(s), not the result of the budget asked \
+             for. No tuned scene is written.**\n",
+            history.len()
+        );
+    }
     let _ = writeln!(r, "Command: `{command}`\n");
     let _ = writeln!(r, "Objective: {objective}.\n");
     let _ = writeln!(
@@ -191,7 +245,7 @@ pub fn write(
         opts.seed,
         opts.budget,
         history.len(),
-        tuner.envs.values.len()
+        tuner.envs.len()
     );
     let _ = writeln!(r, "| key | box | before | after |\n|---|---|---|---|");
     for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(&after)) {
@@ -206,16 +260,47 @@ pub fn write(
     }
     let _ = writeln!(
         r,
-        "\nWorst-case J of `{run_name}`: **{} → {}**.\n",
+        "\nWorst-case J of `{run_name}`: **{} → {}**{}.\n",
         j_text(j_before),
-        j_text(j_after)
+        j_text(j_after),
+        if interrupted.is_some() {
+            " (the first candidate's and the best one's, as the search evaluated them)"
+        } else {
+            ""
+        }
     );
+    match &kept_start {
+        Some(why) => {
+            let _ = writeln!(r, "**No tuned scene: {why}.**\n");
+        }
+        None => {
+            let _ = writeln!(r, "Tuned scene: `{tuned_name}`.\n");
+        }
+    }
+    if interrupted.is_some() {
+        let rep = dir.join("report.md");
+        std::fs::write(&rep, r).map_err(|e| io(&rep, e))?;
+        files.push(PathBuf::from("report.md"));
+        return finish(
+            dir,
+            tuner,
+            history,
+            before,
+            after,
+            j_before,
+            j_after,
+            generations,
+            None,
+            kept_start,
+            interrupted,
+        );
+    }
     let _ = writeln!(r, "## J_e of `{run_name}` per environment\n");
     let _ = writeln!(
         r,
         "| environment | J_e before | J_e after | after: status |\n|---|---|---|---|"
     );
-    for e in 0..tuner.envs.values.len() {
+    for e in 0..tuner.envs.len() {
         let _ = writeln!(
             r,
             "| {} | {} | {} | {} |",
@@ -233,7 +318,7 @@ pub fn write(
         rule.push_str("---|");
     }
     let _ = writeln!(r, "{head}\n{rule}");
-    for e in 0..tuner.envs.values.len() {
+    for e in 0..tuner.envs.len() {
         for (k, run) in tuner.base_scene.runs.iter().enumerate() {
             let (b, a) = (&all_before[e][k], &all_after[e][k]);
             let mut line = format!(
@@ -257,6 +342,40 @@ pub fn write(
     std::fs::write(&rep, r).map_err(|e| io(&rep, e))?;
     files.push(PathBuf::from("report.md"));
 
+    let tuned = kept_start.is_none().then_some(tuned_name);
+    finish(
+        dir,
+        tuner,
+        history,
+        before,
+        after,
+        j_before,
+        j_after,
+        generations,
+        tuned,
+        kept_start,
+        None,
+    )
+}
+
+/// Writes tune.json and returns the summary.
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    dir: &Path,
+    tuner: &Tuner,
+    history: &[HistoryRow],
+    before: Vec<f64>,
+    after: Vec<f64>,
+    j_before: f64,
+    j_after: f64,
+    generations: usize,
+    tuned_scene: Option<String>,
+    kept_start: Option<String>,
+    interrupted: Option<&str>,
+) -> Result<TuneSummary, SweepError> {
+    let io = |p: &Path, e: std::io::Error| {
+        SweepError::Other(format!("{}: cannot write: {e}", p.display()))
+    };
     let summary = TuneSummary {
         keys: tuner.free.iter().map(|f| f.key.text.clone()).collect(),
         before,
@@ -265,7 +384,9 @@ pub fn write(
         j_after,
         evaluations: history.len(),
         generations,
-        tuned_scene: tuned_name,
+        tuned_scene,
+        kept_start,
+        interrupted: interrupted.map(str::to_string),
     };
     let json = dir.join("tune.json");
     let text =

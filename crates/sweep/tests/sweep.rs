@@ -1,6 +1,7 @@
 //! The sweep engine: determinism across thread counts, the closed form of impedance control on the ideal
 //! plant, clean errors before anything runs, a diverged point as a row.
 
+use pneuflex_sweep::spec::DEFAULT_MAX_POINTS;
 use std::path::{Path, PathBuf};
 
 use pneuflex_sweep::{SetArg, Status, Sweep, SweepError};
@@ -24,7 +25,7 @@ fn sets(args: &[&str]) -> Vec<SetArg> {
 }
 
 fn sweep(scene: &Path, args: &[&str]) -> Result<Sweep, SweepError> {
-    Sweep::new(scene, &sets(args), None, 0)
+    Sweep::new(scene, &sets(args), None, 0, DEFAULT_MAX_POINTS)
 }
 
 fn table(s: &Sweep, threads: usize) -> String {
@@ -94,7 +95,7 @@ fn a_stiffness_sweep_on_the_ideal_plant_matches_the_closed_form() {
     );
     let w = std::f64::consts::TAU * 0.8;
     for p in &res {
-        let k_e = s.points.values[p.index][0].as_f64().unwrap();
+        let k_e = s.points.row(p.index)[0].as_f64().unwrap();
         let r = &p.runs[0];
         assert_eq!(r.status, Status::Ok, "{r:?}");
         let (ratio_cf, lag_cf) = closed_form(w, k_e);
@@ -262,15 +263,35 @@ fn samples_are_deterministic_and_inside_their_bounds() {
         "environment.stiffness_n_per_m=lhs-log:100:10000",
         "runs[impedance].impedance.b_d_ns_per_m=rand:20:80",
     ];
-    let a = Sweep::new(&data("ideal-impedance.toml"), &sets(&args), Some(8), 7).unwrap();
-    let b = Sweep::new(&data("ideal-impedance.toml"), &sets(&args), Some(8), 7).unwrap();
-    let c = Sweep::new(&data("ideal-impedance.toml"), &sets(&args), Some(8), 8).unwrap();
+    let a = Sweep::new(
+        &data("ideal-impedance.toml"),
+        &sets(&args),
+        Some(8),
+        7,
+        DEFAULT_MAX_POINTS,
+    )
+    .unwrap();
+    let b = Sweep::new(
+        &data("ideal-impedance.toml"),
+        &sets(&args),
+        Some(8),
+        7,
+        DEFAULT_MAX_POINTS,
+    )
+    .unwrap();
+    let c = Sweep::new(
+        &data("ideal-impedance.toml"),
+        &sets(&args),
+        Some(8),
+        8,
+        DEFAULT_MAX_POINTS,
+    )
+    .unwrap();
     assert_eq!(a.points, b.points);
     assert_ne!(a.points, c.points);
     // Latin hypercube: one sample in each eighth of the log range.
-    let mut bins: Vec<usize> = a
-        .points
-        .values
+    let rows: Vec<_> = (0..a.len()).map(|i| a.points.row(i)).collect();
+    let mut bins: Vec<usize> = rows
         .iter()
         .map(|v| {
             let k = v[0].as_f64().unwrap();
@@ -279,7 +300,7 @@ fn samples_are_deterministic_and_inside_their_bounds() {
         .collect();
     bins.sort_unstable();
     assert_eq!(bins, (0..8).collect::<Vec<_>>());
-    for v in &a.points.values {
+    for v in &rows {
         let b = v[1].as_f64().unwrap();
         assert!((20.0..80.0).contains(&b));
     }
@@ -298,18 +319,21 @@ fn a_key_can_follow_another() {
     )
     .unwrap();
     assert_eq!(s.len(), 4);
-    let follow: Vec<f64> = s
-        .points
-        .values
-        .iter()
-        .map(|v| v[1].as_f64().unwrap())
+    let follow: Vec<f64> = (0..s.len())
+        .map(|i| s.points.row(i)[1].as_f64().unwrap())
         .collect();
     assert_eq!(follow, [700.0, 700.0, 1400.0, 1400.0]);
     // The grid's axes are the two swept keys, not the follower.
     let grid = s.points.grid.as_ref().unwrap();
     assert_eq!(grid.iter().map(|g| g.0).collect::<Vec<_>>(), [0, 2]);
     let e = match SetArg::parse("events[0].stiffness_n_per_m=@nothing.swept") {
-        Ok(a) => match Sweep::new(&repo("scenes/paper-fig3-ideal.toml"), &[a], None, 0) {
+        Ok(a) => match Sweep::new(
+            &repo("scenes/paper-fig3-ideal.toml"),
+            &[a],
+            None,
+            0,
+            DEFAULT_MAX_POINTS,
+        ) {
             Ok(_) => panic!("a follower of nothing must be refused"),
             Err(e) => e.to_string(),
         },
@@ -328,7 +352,7 @@ fn the_chunked_run_writes_the_same_table() {
     let idx: Vec<usize> = (0..s.len()).collect();
     let whole = table(&s, 2);
     let mut streamed = s.header();
-    s.run_chunked(&idx, 1, None, &|| {}, &mut |chunk| {
+    s.run_chunked(&idx, 1, None, None, &|| {}, &mut |chunk| {
         streamed.push_str(&s.table(chunk)[s.header().len()..]);
         Ok(())
     })
