@@ -61,7 +61,9 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
         .iter()
         .map(|s| Term::parse(s))
         .collect::<Result<Vec<_>, _>>()?;
-    // The scene at the box's corners and at its own values, in every environment: checked before anything runs.
+    // The size of the search from the arguments alone, then the scene at the box's corners and at its own
+    // values in every environment: checked before anything runs.
+    pneuflex_sweep::tune::check_plan(free.len(), &over, &args.options)?;
     let tuner = Tuner::new(
         scene_path,
         free,

@@ -50,6 +50,9 @@ pub enum IdentifyError {
         /// What is wrong.
         message: String,
     },
+    /// The output directory is refused or cannot be made (the message names it).
+    #[error(transparent)]
+    OutputDir(#[from] pneuflex_files::OutputError),
     /// Writing an output failed.
     #[error("{}: {message}", file.display())]
     Output {

@@ -237,9 +237,24 @@ pub fn parse_log_limited(
                 ),
             ));
         }
-        if let Some(&t0) = log.t.first()
+        if let (Some(&t0), Some(&prev)) = (log.t.first(), log.t.last())
             && v[0] - t0 > limits.max_span_s
         {
+            // A jump out of an even log is named as a jump, not as the span it makes.
+            let mean_dt = (prev - t0) / (log.t.len() - 1).max(1) as f64;
+            let gap = v[0] - prev;
+            if log.t.len() > 1 && gap > MAX_GAP_PERIODS * mean_dt && gap > MIN_GAP_S {
+                return Err(err(
+                    Some(line_no),
+                    Some("t"),
+                    format!(
+                        "time jumps by {gap} s, from {prev} to {} s, where the mean sample period is {mean_dt} s: \
+                         identification replays a log as one continuous recording; cut it at the gap and give \
+                         each part as its own --log",
+                        v[0]
+                    ),
+                ));
+            }
             return Err(err(
                 Some(line_no),
                 Some("t"),

@@ -242,12 +242,11 @@ pub fn identify_stoppable(
 pub fn stage_output(req: &Request, out: &Path) -> Result<OutputDir, IdentifyError> {
     let mut protect: Vec<&Path> = req.logs.iter().map(PathBuf::as_path).collect();
     protect.push(&req.actuator);
-    OutputDir::create(out, &protect, Writer::simulation("identify")).map_err(|e| {
-        IdentifyError::Output {
-            file: out.to_path_buf(),
-            message: e.to_string(),
-        }
-    })
+    Ok(OutputDir::create(
+        out,
+        &protect,
+        Writer::simulation("identify"),
+    )?)
 }
 
 /// Writes the fitted sheet set, `report.json`, `report.md` and `validation-<i>.png` into `out` (staged
@@ -263,11 +262,6 @@ pub fn write_staged(
     req: &Request,
     stage: OutputDir,
 ) -> Result<PathBuf, IdentifyError> {
-    let out = stage.dest().to_path_buf();
-    let oerr = |e: pneuflex_files::OutputError| IdentifyError::Output {
-        file: out.clone(),
-        message: e.to_string(),
-    };
     let dir = stage.path().to_path_buf();
     let f = &id.report.fit;
     let mut header = String::from("Fitted by `pneuflex identify` from the logs:\n");
@@ -344,6 +338,6 @@ pub fn write_staged(
             .map_err(|e| werr(req.actuator.clone(), e.to_string()))?,
     );
     let manifest = Manifest::new("identify", env!("CARGO_PKG_VERSION"), inputs);
-    let dest = stage.commit(manifest).map_err(oerr)?;
+    let dest = stage.commit(manifest)?;
     Ok(dest.join(sheet.file_name().unwrap_or_default()))
 }

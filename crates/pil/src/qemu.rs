@@ -77,9 +77,30 @@ pub fn check_firmware(elf: &Path) -> Result<(), PilError> {
     if n < 52 || &head[..4] != b"\x7fELF" {
         return Err(bad("not an ELF file".into()));
     }
+    // e_type and e_machine sit at the same offsets in 32- and 64-bit ELF files.
+    let u16_at = |i: usize| {
+        if head[5] == 2 {
+            u16::from_be_bytes([head[i], head[i + 1]])
+        } else {
+            u16::from_le_bytes([head[i], head[i + 1]])
+        }
+    };
+    let (e_type, e_machine) = (u16_at(16), u16_at(18));
+    if e_machine != EM_ARM {
+        let name = match e_machine {
+            3 => " (x86)",
+            62 => " (x86-64)",
+            183 => " (AArch64)",
+            243 => " (RISC-V)",
+            _ => "",
+        };
+        return Err(bad(format!(
+            "an ELF for machine {e_machine}{name}, not ARM ({EM_ARM}): built for another target"
+        )));
+    }
     if head[4] != 1 || head[5] != 1 {
         return Err(bad(format!(
-            "a {}-bit {} ELF; the board runs 32-bit little-endian ARM",
+            "a {}-bit {} ARM ELF; the board runs 32-bit little-endian ARM",
             if head[4] == 2 { 64 } else { 32 },
             if head[5] == 2 {
                 "big-endian"
@@ -88,14 +109,7 @@ pub fn check_firmware(elf: &Path) -> Result<(), PilError> {
             }
         )));
     }
-    let u16_at = |i: usize| u16::from_le_bytes([head[i], head[i + 1]]);
-    let (e_type, e_machine) = (u16_at(16), u16_at(18));
     let e_flags = u32::from_le_bytes([head[36], head[37], head[38], head[39]]);
-    if e_machine != EM_ARM {
-        return Err(bad(format!(
-            "an ELF for machine {e_machine}, not ARM ({EM_ARM}): built for another target"
-        )));
-    }
     if e_type != 2 {
         return Err(bad(format!(
             "an ELF of type {e_type}, not an executable (2): an object or a library, not a firmware image"

@@ -176,6 +176,17 @@ impl Default for TuneOptions {
     }
 }
 
+/// Checks a tune's size from its arguments alone, before any scene is built: the environments' grid of
+/// `over` (refused past `--max-runs` before it is expanded) and the options for `n_free` free keys over it.
+pub fn check_plan(n_free: usize, over: &[SetArg], opts: &TuneOptions) -> Result<(), SweepError> {
+    let environments = if over.is_empty() {
+        1
+    } else {
+        crate::spec::points(over, None, 0, opts.max_runs, "--max-runs")?.len()
+    };
+    opts.check(n_free, environments)
+}
+
 impl TuneOptions {
     /// CMA-ES's population for `n` free keys: the one given, else 4 + 3 ln n (the cmaes crate's default).
     pub fn population_for(&self, n: usize) -> usize {
@@ -287,8 +298,10 @@ pub struct Tuner {
     /// The objective's terms.
     pub terms: Vec<Term>,
     /// The free keys' values in the scene as written (the box's middle where the file has none), clamped
-    /// into the box.
+    /// into the box: where the search starts.
     pub initial: Vec<f64>,
+    /// The free keys' numbers as the file writes them (None: the file leaves the key to its default).
+    pub as_written: Vec<Option<f64>>,
     base: Base,
 }
 
@@ -377,13 +390,11 @@ impl Tuner {
                 )));
             }
         }
+        let as_written: Vec<Option<f64>> = free.iter().map(|f| base.number(&f.key)).collect();
         let initial = free
             .iter()
-            .map(|f| {
-                base.number(&f.key)
-                    .unwrap_or(0.5 * (f.lo + f.hi))
-                    .clamp(f.lo, f.hi)
-            })
+            .zip(&as_written)
+            .map(|(f, w)| w.unwrap_or(0.5 * (f.lo + f.hi)).clamp(f.lo, f.hi))
             .collect();
         let mut tuner = Tuner {
             scene_path: scene_path.to_path_buf(),
@@ -397,6 +408,7 @@ impl Tuner {
             run,
             terms,
             initial,
+            as_written,
             base,
         };
         tuner.find_integer_keys()?;
@@ -470,7 +482,12 @@ impl Tuner {
 
     /// The scene with the free keys at `x` in environment `e`; `only_run` keeps just the tuned run.
     pub fn scene(&self, x: &[f64], e: usize, only_run: bool) -> Result<Scene, SweepError> {
-        let xv = self.values(x);
+        self.scene_with(Some(x), e, only_run)
+    }
+
+    /// [`Tuner::scene`], or with `x` None the scene as written (its own values at the free keys).
+    fn scene_with(&self, x: Option<&[f64]>, e: usize, only_run: bool) -> Result<Scene, SweepError> {
+        let xv = x.map(|x| self.values(x)).unwrap_or_default();
         let env = self.envs.row(e);
         let mut edits: Vec<(&KeyPath, &Value)> =
             self.free.iter().map(|f| &f.key).zip(&xv).collect();
@@ -480,12 +497,15 @@ impl Tuner {
             .edit(&edits)
             .map_err(|err| SweepError::key(&self.base, "--free/--over", err))?;
         let point = || {
-            let kv: Vec<String> = self
-                .free
-                .iter()
-                .zip(x)
-                .map(|(f, v)| format!("{} = {v}", f.key.text))
-                .collect();
+            let kv: Vec<String> = match x {
+                Some(x) => self
+                    .free
+                    .iter()
+                    .zip(x)
+                    .map(|(f, v)| format!("{} = {v}", f.key.text))
+                    .collect(),
+                None => vec!["the scene's own values".into()],
+            };
             format!("{} in {}", kv.join(", "), self.describe_env(e))
         };
         let mut scene =
@@ -638,7 +658,8 @@ impl Tuner {
     }
 
     /// Every run of the scene at `x` in every environment: `[env][run]` evaluations (for the report).
-    pub fn evaluate_all_runs(&self, x: &[f64]) -> Vec<Vec<EnvEval>> {
+    /// `x` None: the scene as written (the start a tuned scene must not be worse than).
+    pub fn evaluate_all_runs(&self, x: Option<&[f64]>) -> Vec<Vec<EnvEval>> {
         (0..self.envs.len())
             .into_par_iter()
             .map(|e| {
@@ -653,7 +674,7 @@ impl Tuner {
                         n
                     ]
                 };
-                let scene = match self.scene(x, e, false) {
+                let scene = match self.scene_with(x, e, false) {
                     Ok(s) => s,
                     Err(err) => return fail(err.to_string()),
                 };

@@ -74,7 +74,14 @@ pub fn write(
         SweepError::Other(format!("{}: cannot write: {e}", p.display()))
     };
     let best = best(history);
-    let before = tuner.initial.clone();
+    // The start as the file writes it (the search starts from it clamped into the box; a key the file
+    // leaves to its default starts at the box's middle).
+    let before: Vec<f64> = tuner
+        .as_written
+        .iter()
+        .zip(&tuner.initial)
+        .map(|(w, i)| w.unwrap_or(*i))
+        .collect();
     let after: Vec<f64> = best.map_or(before.clone(), |b| b.x.iter().map(|v| round4(*v)).collect());
     let worst = |all: &[Vec<EnvEval>]| {
         all.iter()
@@ -85,8 +92,8 @@ pub fn write(
     // interrupted search: the user asked it to stop).
     let (all_before, all_after) = if interrupted.is_none() {
         (
-            tuner.evaluate_all_runs(&before),
-            tuner.evaluate_all_runs(&after),
+            tuner.evaluate_all_runs(None),
+            tuner.evaluate_all_runs(Some(&after)),
         )
     } else {
         (Vec::new(), Vec::new())
