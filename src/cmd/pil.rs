@@ -204,7 +204,7 @@ fn interrupted(
     Err(super::interrupted(
         signal,
         format!(
-            "stopped at t = {time_reached_s:.3} s of run `{cut_name}` on the board; what ran is in {}              (marked incomplete in summary.json); {} is untouched",
+            "stopped at t = {time_reached_s:.3} s of run `{cut_name}` on the board; what ran is in {} (marked incomplete in summary.json); {} is untouched",
             to.display(),
             dest.display()
         ),

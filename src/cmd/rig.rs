@@ -265,7 +265,7 @@ pub fn excite(
     }
     if a.signal != "chirp" && a.hold_s > a.duration_s {
         bail!(
-            "--hold {} s: longer than --duration {} s: the {} would hold one level for the whole run and              excite nothing",
+            "--hold {} s: longer than --duration {} s: the {} would hold one level for the whole run and excite nothing",
             a.hold_s,
             a.duration_s,
             a.signal

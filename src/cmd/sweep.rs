@@ -71,9 +71,8 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
         .iter()
         .map(|s| SetArg::parse(s))
         .collect::<Result<Vec<_>, _>>()?;
-    if args.threads > 1024 {
-        anyhow::bail!("--threads {}: at most 1024 (0: one per core)", args.threads);
-    }
+    // The pool is made after the points are checked; its size is refused before that.
+    pneuflex_sweep::engine::thread_pool(args.threads)?;
     let stop = super::stop_flag()?;
     let checking = Instant::now();
     // Every point's scene is parsed and validated here, before anything runs (and before an output

@@ -93,9 +93,16 @@ pub fn loop_margins(
 ) -> anyhow::Result<String> {
     use pneuflex_scene::loop_analysis::{analyse, limit_cycle_onset};
     anyhow::ensure!(
-        margin_db.is_finite() && margin_db >= 0.0,
-        "--margin-db: expected a finite number >= 0, got {margin_db}"
+        margin_db.is_finite() && (0.0..=60.0).contains(&margin_db),
+        "--margin-db: a gain margin in [0, 60] dB, got {margin_db}"
     );
+    if pneuflex_pneumatics::ActuatorSheet::load(path).is_ok() {
+        anyhow::bail!(
+            "{}: an actuator sheet; --loop analyses a scene's loop: give a scene file (scenes/*.toml), or drop \
+             --loop for the sheet's transfer function",
+            path.display()
+        );
+    }
     let scene = pneuflex_scene::Scene::load(path)?;
     // Never write over a file pneuflex did not make: the plot goes beside and is renamed in only if the
     // name is free.

@@ -109,12 +109,21 @@ pub fn parse_bounds(
             }
         })
         .collect();
+    let mut bounded: Vec<Key> = Vec::new();
     for b in bounds {
         let (name, range) = b
             .split_once('=')
             .ok_or_else(|| key_err("--bounds", b, "expected KEY=[lo,hi]".into()))?;
         let k = Key::parse(name)
             .ok_or_else(|| key_err("--bounds", name, "no such parameter".into()))?;
+        if bounded.contains(&k) {
+            return Err(key_err(
+                "--bounds",
+                name,
+                "given twice: one key, one box".into(),
+            ));
+        }
+        bounded.push(k);
         let f = free
             .iter_mut()
             .find(|f| f.key == k)
@@ -178,6 +187,20 @@ pub fn identify_stoppable(
     if req.logs.is_empty() {
         return Err(IdentifyError::Fit("no --log given".into()));
     }
+    // The same log twice would count its rows twice and narrow every interval for nothing.
+    for (i, p) in req.logs.iter().enumerate() {
+        let c = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if let Some(q) = req.logs[..i]
+            .iter()
+            .find(|q| std::fs::canonicalize(q).unwrap_or_else(|_| (*q).clone()) == c)
+        {
+            return Err(IdentifyError::Fit(format!(
+                "--log {}: the same file as --log {}: give each log once",
+                p.display(),
+                q.display()
+            )));
+        }
+    }
     let mut options = req.options;
     options.replay.stroke_m = Some(base.actuator.cylinder.stroke_m);
     let mut data = Vec::new();
@@ -188,6 +211,15 @@ pub fn identify_stoppable(
         if options.replay.segment_s > span {
             return Err(IdentifyError::Fit(format!(
                 "--segment {} s: longer than the log {} ({span} s)",
+                options.replay.segment_s,
+                p.display()
+            )));
+        }
+        // A segment of a few samples restarts the replay so often that nothing is left to compare.
+        let dt = log.dt();
+        if options.replay.segment_s < 5.0 * dt {
+            return Err(IdentifyError::Fit(format!(
+                "--segment {} s: shorter than 5 sample periods of {} (its period is {dt} s)",
                 options.replay.segment_s,
                 p.display()
             )));

@@ -527,10 +527,7 @@ impl Sweep {
         traces: Option<&Path>,
         tick: &(dyn Fn() + Sync),
     ) -> Result<Vec<PointResult>, SweepError> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
+        let pool = thread_pool(threads)?;
         Ok(pool.install(|| {
             indices
                 .par_iter()
@@ -558,10 +555,7 @@ impl Sweep {
         tick: &(dyn Fn() + Sync),
         on_chunk: &mut dyn FnMut(&[PointResult]) -> Result<(), SweepError>,
     ) -> Result<(), SweepError> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
+        let pool = thread_pool(threads)?;
         let stopped = || stop.is_some_and(|s| s.load(Ordering::Relaxed) != 0);
         // Big enough to keep every thread busy (the chunk's slowest point idles the others at its end).
         let chunk = (64 * pool.current_num_threads()).max(64);
@@ -671,6 +665,22 @@ impl Sweep {
             .map(|w| format!("{}.rms_force_error_n", w.name));
         sine.or_else(|| self.columns.first().map(MetricColumn::name))
     }
+}
+
+/// The most worker threads a sweep or a tune starts (`--threads`): past a few per core they only cost memory.
+pub const MAX_THREADS: usize = 1024;
+
+/// A pool of `threads` workers (0: one per core), refused past [`MAX_THREADS`].
+pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, SweepError> {
+    if threads > MAX_THREADS {
+        return Err(SweepError::Other(format!(
+            "--threads {threads}: at most {MAX_THREADS} (0: one per core)"
+        )));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))
 }
 
 fn digits(n: usize) -> usize {

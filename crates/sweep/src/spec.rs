@@ -197,6 +197,12 @@ impl SetArg {
                 {
                     return Err(bad("empty value in the list".into()));
                 }
+                if let Some(v) = vals
+                    .iter()
+                    .find(|v| matches!(v, Value::Float(x) if !x.is_finite()))
+                {
+                    return Err(bad(format!("every value must be finite, got {v}")));
+                }
                 Spec::List(vals)
             }
         };

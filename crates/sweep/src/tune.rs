@@ -197,6 +197,13 @@ impl TuneOptions {
     /// Checks the options against a problem of `n` free keys over `environments`, before anything runs:
     /// each refusal names the option and the value that would work.
     pub fn check(&self, n: usize, environments: usize) -> Result<(), SweepError> {
+        if self.threads > crate::engine::MAX_THREADS {
+            return Err(SweepError::Other(format!(
+                "--threads {}: at most {} (0: one per core)",
+                self.threads,
+                crate::engine::MAX_THREADS
+            )));
+        }
         if !(self.sigma0.is_finite() && self.sigma0 > 0.0 && self.sigma0 <= 1.0) {
             return Err(SweepError::Other(format!(
                 "--sigma0: the initial step is a fraction of each box, in (0, 1]; got {}",
@@ -339,6 +346,15 @@ impl Tuner {
             return Err(SweepError::Other(
                 "nothing to tune: give at least one --free KEY=[LO,HI]".into(),
             ));
+        }
+        // The tuned values are written into a copy of the scene: a sheet's value has nowhere to go.
+        if let Some(f) = free.iter().find(|f| !f.key.in_scene()) {
+            return Err(SweepError::Other(format!(
+                "--free {}: an actuator-sheet value; the tuned values are written into a copy of the scene, so \
+                 tune scene keys (copy the sheet and point the scene at it to tune the sheet's values), or \
+                 sweep the sheet key with `pneuflex sweep --set`",
+                f.key.text
+            )));
         }
         for s in over {
             if matches!(s.spec, Spec::Sample { .. }) {
@@ -748,10 +764,7 @@ impl Tuner {
     ) -> Result<Vec<HistoryRow>, SweepError> {
         opts.check(self.free.len(), self.envs.len())?;
         let stopped = || stop.is_some_and(|s| s.load(Ordering::Relaxed) != 0);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(opts.threads)
-            .build()
-            .map_err(|e| SweepError::Other(format!("cannot start the thread pool: {e}")))?;
+        let pool = crate::engine::thread_pool(opts.threads)?;
         let generation_rows: Mutex<Vec<Evaluation>> = Mutex::new(Vec::new());
         let objective = |y: &DVector<f64>| -> f64 {
             if stopped() {
