@@ -96,6 +96,12 @@ enum Command {
         /// Largest output `--traces` may write, MiB (default 4096); the sweep is refused beyond.
         #[arg(long, value_name = "MIB", default_value_t = cmd::sweep::DEFAULT_MAX_OUTPUT_MB)]
         max_output_mb: u64,
+        /// Largest number of integration steps one run of a point may take (default 1e9), as `run`'s.
+        #[arg(long, value_name = "N")]
+        max_steps: Option<u64>,
+        /// Largest memory the traces of one point's runs may take, MiB (default 2048), as `run`'s.
+        #[arg(long, value_name = "MIB")]
+        max_trace_mb: Option<u64>,
     },
     /// Find the gains that minimise the worst case, over a list of environments, of a weighted sum of a
     /// run's RMS error, phase lag and recovery overshoot (CMA-ES, in parallel, with a budget and a seed);
@@ -141,6 +147,12 @@ enum Command {
         /// Largest number of scene runs (budget x environments; default 1,000,000, at most 100,000,000).
         #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::spec::DEFAULT_MAX_POINTS)]
         max_runs: u64,
+        /// Largest number of integration steps one run of a candidate may take (default 1e9), as `run`'s.
+        #[arg(long, value_name = "N")]
+        max_steps: Option<u64>,
+        /// Largest memory of one candidate's traces, MiB (default 2048), as `run`'s.
+        #[arg(long, value_name = "MIB")]
+        max_trace_mb: Option<u64>,
     },
     /// Fit actuator-sheet parameters to rig logs (docs/identification.md): replay the logged valve command
     /// through the 1-DOF model, Levenberg-Marquardt, 95 % intervals, report, fitted sheet.
@@ -374,6 +386,8 @@ fn main() -> ExitCode {
             quiet,
             max_points,
             max_output_mb,
+            max_steps,
+            max_trace_mb,
         } => cmd::sweep::sweep(
             &scene,
             out.as_deref(),
@@ -387,6 +401,7 @@ fn main() -> ExitCode {
                 quiet,
                 max_points,
                 max_output_mb,
+                limits: cmd::run::limits(max_steps, max_trace_mb),
             },
         ),
         Command::Tune {
@@ -403,6 +418,8 @@ fn main() -> ExitCode {
             out,
             quiet,
             max_runs,
+            max_steps,
+            max_trace_mb,
         } => cmd::tune::tune(
             &scene,
             out.as_deref(),
@@ -420,6 +437,7 @@ fn main() -> ExitCode {
                     max_runs,
                 },
                 quiet,
+                limits: cmd::run::limits(max_steps, max_trace_mb),
             },
         ),
         Command::Rig {

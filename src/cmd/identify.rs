@@ -56,8 +56,13 @@ pub fn identify(
             a.validation
         );
     }
-    if a.limits.max_rows < 10 {
-        bail!("--max-rows: at least 10, got {}", a.limits.max_rows);
+    // Memory: a row is ~60 bytes of columns, held a few times over by the fit's segments.
+    const MAX_ROWS_CEILING: usize = 10_000_000;
+    if !(10..=MAX_ROWS_CEILING).contains(&a.limits.max_rows) {
+        bail!(
+            "--max-rows: in 10 ..= {MAX_ROWS_CEILING}, got {}",
+            a.limits.max_rows
+        );
     }
     if !(a.limits.max_span_s.is_finite() && a.limits.max_span_s > 0.0) {
         bail!("--max-log-s: must be > 0 s, got {}", a.limits.max_span_s);

@@ -95,12 +95,16 @@ pub fn pil(
             &elf,
             &mut |_| {},
             view.observer(),
-            Some(&stop),
+            Some(stop.clone()),
         ) {
             Ok(r) => r,
             Err(pneuflex_pil::PilError::Interrupted(cut)) => {
                 let _ = view.finish();
-                return interrupted(stage, &scene, &indices, &runs, *cut, &dest, &stop);
+                return interrupted(stage, &scene, &indices, &runs, Some(*cut), &dest, &stop);
+            }
+            Err(pneuflex_pil::PilError::Stopped) => {
+                let _ = view.finish();
+                return interrupted(stage, &scene, &indices, &runs, None, &dest, &stop);
             }
             Err(e) => {
                 return Err(anyhow::Error::new(e)
@@ -175,21 +179,25 @@ fn interrupted(
     scene: &Scene,
     indices: &[usize],
     runs: &[PilRun],
-    cut: pneuflex_scene::RunResult,
+    cut: Option<pneuflex_scene::RunResult>,
     dest: &Path,
     stop: &std::sync::atomic::AtomicUsize,
 ) -> anyhow::Result<()> {
     let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
     let mut done = scene.clone();
-    done.runs = indices[..=runs.len()]
+    let ran = runs.len() + usize::from(cut.is_some());
+    done.runs = indices[..ran]
         .iter()
         .map(|&i| scene.runs[i].clone())
         .collect();
     done.claims.clear();
     let mut results: Vec<_> = runs.iter().map(|r| r.firmware.clone()).collect();
-    let time_reached_s = cut.trace.t().last().copied().unwrap_or(0.0);
-    let cut_name = cut.name.clone();
-    results.push(cut);
+    let time_reached_s = cut
+        .as_ref()
+        .and_then(|c| c.trace.t().last().copied())
+        .unwrap_or(0.0);
+    let cut_name = scene.runs[indices[runs.len()]].name.clone();
+    results.extend(cut);
     write_results(stage.path(), &done, &results)?;
     let summary = pneuflex_scene::summary(&done, &results);
     let reason = pneuflex_scene::runner::signal_name(signal);

@@ -123,31 +123,7 @@ pub fn run(
         &mut clock,
         observer,
     )?;
-    for r in &rec.recovered {
-        errln!(
-            "note: the recording of an earlier run that died was kept in {}",
-            r.display()
-        );
-    }
-    outln!("{}", rec.report);
-    let trace = rec.dir.join("trace.csv");
-    if rec.partial {
-        bail!(
-            "interrupted by a signal at t = {} s; the valve was put in its safe state; partial trace: {}",
-            rec.report.time_reached_s,
-            trace.display()
-        );
-    }
-    if let Some(f) = &rec.report.fault {
-        bail!(
-            "run ended on a fault: {}: {} (tick {}); trace: {}",
-            f.kind,
-            f.message,
-            f.tick,
-            trace.display()
-        );
-    }
-    outln!("trace: {}", trace.display());
+    finished(&rec)?;
     Ok(rec.report)
 }
 
@@ -277,6 +253,29 @@ pub fn excite(
             a.amplitude
         );
     }
+    // Full command for 1 mm off centre: a stiffer centring only chatters the valve.
+    if !(a.centring_per_m.is_finite() && (0.0..=1000.0).contains(&a.centring_per_m)) {
+        bail!(
+            "--centring: in [0, 1000] 1/m (1000: the full command 1 mm off the centre), got {}",
+            a.centring_per_m
+        );
+    }
+    // The centre must lie inside the supervisor's position limits, with room to move both ways.
+    let limits = RigFile::load(rig_file)?.limits.position_m;
+    let room = 0.1 * (limits[1] - limits[0]);
+    if !(a.centre_m.is_finite() && a.centre_m >= limits[0] + room && a.centre_m <= limits[1] - room)
+    {
+        bail!(
+            "--centre {} m: outside the rig's position limits [{}, {}] m less 10 % at each end ({}: \
+             limits.position_m); give a centre in [{}, {}] m",
+            a.centre_m,
+            limits[0],
+            limits[1],
+            rig_file.display(),
+            limits[0] + room,
+            limits[1] - room
+        );
+    }
     let signal = match a.signal.as_str() {
         "prbs" => Signal::Prbs {
             bit_s: a.hold_s,
@@ -331,7 +330,7 @@ pub fn excite(
     let mut clock = pneuflex_rig::clock::SimClock::new();
     let (link, _log) = session::lockstep_emulator(&rig, rig_file, clock.clone())?;
     let mut link_clock = clock.clone();
-    let stop = std::sync::atomic::AtomicBool::new(false);
+    let stop = session::install_ctrl_c()?;
     let rec = record::record(
         record::EXCITE,
         &rig,
@@ -344,8 +343,30 @@ pub fn excite(
         &stop,
         &mut clock,
     )?;
+    finished(&rec)
+}
+
+/// What a recorded run's end prints, and its exit: 128 + the signal after an interruption (the
+/// recording is committed as `<dest>.partial`), an error after a fault, success otherwise.
+fn finished(rec: &record::Recording) -> anyhow::Result<()> {
+    for r in &rec.recovered {
+        errln!(
+            "note: the recording of an earlier run that died was kept in {}",
+            r.display()
+        );
+    }
     outln!("{}", rec.report);
     let trace = rec.dir.join("trace.csv");
+    if rec.partial {
+        return Err(super::interrupted(
+            session::last_signal().max(2),
+            format!(
+                "stopped at t = {} s; the valve was put in its safe state; partial trace: {}",
+                rec.report.time_reached_s,
+                trace.display()
+            ),
+        ));
+    }
     if let Some(f) = &rec.report.fault {
         bail!(
             "run ended on a fault: {}: {} (tick {}); trace: {}",

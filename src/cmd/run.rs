@@ -46,17 +46,23 @@ pub(super) fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// The limits of one run from `--max-steps` and `--max-trace-mb` (the defaults where absent).
+pub fn limits(max_steps: Option<u64>, max_trace_mb: Option<u64>) -> Limits {
+    let mut limits = Limits::default();
+    if let Some(n) = max_steps {
+        limits.max_steps_per_run = n;
+    }
+    if let Some(mb) = max_trace_mb {
+        limits.max_trace_bytes = mb.saturating_mul(1 << 20);
+    }
+    limits
+}
+
 /// Runs a scene file and writes its outputs; Err on bad input, on a write failure, when a run diverged
 /// (the outputs are still written, with the run marked diverged in summary.json) or on a signal.
 pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Result<()> {
     let scene = Scene::load(scene_path)?;
-    let mut limits = Limits::default();
-    if let Some(n) = args.max_steps {
-        limits.max_steps_per_run = n;
-    }
-    if let Some(mb) = args.max_trace_mb {
-        limits.max_trace_bytes = mb.saturating_mul(1 << 20);
-    }
+    let limits = limits(args.max_steps, args.max_trace_mb);
     scene.check_budget(&limits)?;
     // The scene's warnings (the inner-loop margin analysis among them costs as much as a short simulation)
     // are worked out beside the runs and printed as soon as they are known, before the command ends.

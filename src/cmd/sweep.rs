@@ -38,6 +38,8 @@ pub struct SweepArgs {
     pub max_points: u64,
     /// `--max-output-mb`: the most `--traces` may write, MiB.
     pub max_output_mb: u64,
+    /// `--max-steps`, `--max-trace-mb`: what one run of a point may cost.
+    pub limits: pneuflex_scene::Limits,
 }
 
 /// The default of `--max-output-mb`: what `--traces` may write unless raised, MiB.
@@ -98,6 +100,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
             args.samples,
             args.seed,
             args.max_points,
+            args.limits,
             Some(&stop),
             &tick,
         );

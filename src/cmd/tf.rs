@@ -107,11 +107,8 @@ pub fn loop_margins(
     // Never write over a file pneuflex did not make: the plot goes beside and is renamed in only if the
     // name is free.
     if let Some(b) = bode {
-        anyhow::ensure!(
-            !b.exists(),
-            "--bode {}: the file exists; choose another name (pneuflex does not overwrite it)",
-            b.display()
-        );
+        pneuflex_files::output::check_file_destination(b)
+            .map_err(|e| anyhow::anyhow!("--bode: {e}"))?;
     }
     let mut analyses = Vec::new();
     let mut out = Vec::new();

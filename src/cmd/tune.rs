@@ -31,6 +31,8 @@ pub struct TuneArgs {
     pub options: TuneOptions,
     /// No progress bar and no summary.
     pub quiet: bool,
+    /// `--max-steps`, `--max-trace-mb`: what one run of a candidate may cost.
+    pub limits: pneuflex_scene::Limits,
 }
 
 fn shell_word(s: &str) -> String {
@@ -64,13 +66,14 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
     // The size of the search from the arguments alone, then the scene at the box's corners and at its own
     // values in every environment: checked before anything runs.
     pneuflex_sweep::tune::check_plan(free.len(), &over, &args.options)?;
-    let tuner = Tuner::new(
+    let tuner = Tuner::with_limits(
         scene_path,
         free,
         &over,
         args.run.as_deref(),
         terms,
         args.options.max_runs,
+        args.limits,
     )?;
     args.options.check(tuner.free.len(), tuner.envs.len())?;
     let scene = &tuner.base_scene;

@@ -5,10 +5,12 @@
 //! - [`position`]: the line and column of a TOML key path, so that every error names file, line and key;
 //! - [`output`]: output directories written beside and renamed into place, marked by a manifest, never
 //!   replacing what pneuflex did not create; interrupted outputs kept under a name that says so;
-//! - [`provenance`]: content hashes of the inputs that produced a result.
+//! - [`provenance`]: content hashes of the inputs that produced a result;
+//! - [`path`]: a file's path as seen from another folder.
 
 pub mod input;
 pub mod output;
+pub mod path;
 pub mod position;
 pub mod provenance;
 

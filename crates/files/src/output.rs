@@ -204,6 +204,8 @@ const RECORDING_COMMANDS: [&str; 2] = ["rig run", "rig excite"];
 pub struct OutputDir {
     dest: PathBuf,
     tmp: PathBuf,
+    /// Where an interrupted command commits what it has (see [`OutputDir::partial_dest`]).
+    partial: PathBuf,
     done: bool,
     writer: Writer,
     /// Staging directories of dead processes that were kept (irreplaceable data), for the caller to report.
@@ -329,6 +331,15 @@ fn list_files(dir: &Path) -> Result<Vec<String>, OutputError> {
     Ok(out)
 }
 
+/// Whether a manifest's file entry is a plain relative path (no `..`, no root, no drive): the only kind
+/// pneuflex writes, and the only kind it ever removes.
+fn is_plain_entry(entry: &str) -> bool {
+    let p = Path::new(entry);
+    !entry.is_empty()
+        && p.components()
+            .all(|c| matches!(c, std::path::Component::Normal(_)))
+}
+
 /// Reads the manifest of an existing output directory, if it has one.
 pub fn read_manifest(dir: &Path) -> Option<Manifest> {
     let path = dir.join(MANIFEST);
@@ -428,6 +439,19 @@ pub fn check_replaceable(dest: &Path, writer: &Writer) -> Result<(), OutputError
     }
     match manifest {
         Some(m) if m.tool == "pneuflex" => {
+            // A manifest that lists a path leaving its directory was not written by pneuflex: replacing
+            // the directory would remove that file.
+            if let Some(e) = m.files.iter().find(|e| !is_plain_entry(e)) {
+                return Err(OutputError::Foreign {
+                    dest: dest.to_path_buf(),
+                    foreign: dest.join(MANIFEST),
+                    why: if e.contains("..") || Path::new(e).is_absolute() {
+                        "its manifest lists a file outside the directory"
+                    } else {
+                        "its manifest lists an entry that is not a plain file name"
+                    },
+                });
+            }
             if let Some(f) = files.iter().find(|f| !m.files.contains(f)) {
                 return Err(OutputError::Foreign {
                     dest: dest.to_path_buf(),
@@ -466,6 +490,36 @@ pub fn check_replaceable(dest: &Path, writer: &Writer) -> Result<(), OutputError
             why: "the directory has no valid .pneuflex-output.json",
         }),
     }
+}
+
+/// Checks that a single output file (a plot) may be written at `path`: not inside a pneuflex output
+/// directory (a recording or another command's output, whose manifest would not list it) and not over an
+/// existing file.
+pub fn check_file_destination(path: &Path) -> Result<(), OutputError> {
+    if fs::symlink_metadata(path).is_ok() {
+        return Err(OutputError::Refused {
+            path: path.to_path_buf(),
+            why: "the file exists; choose another name (pneuflex does not overwrite it)".into(),
+        });
+    }
+    let abs = absolute(path);
+    for up in abs.ancestors().skip(1) {
+        if let Some(m) = read_manifest(up) {
+            let what = match recording_evidence(up, Some(&m)) {
+                Some(_) => "the rig recording",
+                None => "the output",
+            };
+            return Err(OutputError::Refused {
+                path: path.to_path_buf(),
+                why: format!(
+                    "it is inside {}, {what} of `pneuflex {}`; choose a place outside it",
+                    up.display(),
+                    m.command
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The first free destination for a recording made without `--out`: `default` when it is absent or an empty
@@ -556,9 +610,18 @@ fn remove_listed(dir: &Path) -> Result<(), OutputError> {
     let Some(m) = read_manifest(dir) else {
         return Ok(());
     };
-    for f in &m.files {
+    // Only plain relative entries, and only what resolves inside the directory (a listed folder that is
+    // a link to elsewhere is not followed).
+    let root = fs::canonicalize(dir).map_err(io(dir, "inspect"))?;
+    for f in m.files.iter().filter(|f| is_plain_entry(f)) {
         let p = dir.join(f);
-        if fs::symlink_metadata(&p).is_ok_and(|m| m.is_file() || m.file_type().is_symlink()) {
+        let inside = p
+            .parent()
+            .and_then(|parent| fs::canonicalize(parent).ok())
+            .is_some_and(|parent| parent.starts_with(&root));
+        if inside
+            && fs::symlink_metadata(&p).is_ok_and(|m| m.is_file() || m.file_type().is_symlink())
+        {
             fs::remove_file(&p).map_err(io(&p, "remove"))?;
         }
     }
@@ -585,6 +648,18 @@ impl OutputDir {
     pub fn create(dest: &Path, protect: &[&Path], writer: Writer) -> Result<Self, OutputError> {
         check_not_protected(dest, protect)?;
         check_replaceable(dest, &writer)?;
+        // Where an interrupted command keeps what it did, refused now rather than after the work. A
+        // recording's goes beside an earlier interrupted recording (`.partial-2`, ...), never over it.
+        let partial = match writer.recoverable {
+            Recoverable::Regenerable => {
+                let p = parent_of(dest).join(format!("{}.partial", name_of(dest)));
+                check_replaceable(&p, &writer)?;
+                p
+            }
+            Recoverable::Irreplaceable => {
+                fresh_destination(&parent_of(dest).join(format!("{}.partial", name_of(dest))))
+            }
+        };
         let parent = parent_of(dest);
         fs::create_dir_all(&parent).map_err(io(&parent, "create"))?;
         let name = name_of(dest);
@@ -603,6 +678,7 @@ impl OutputDir {
         Ok(Self {
             dest: dest.to_path_buf(),
             tmp,
+            partial,
             done: false,
             writer,
             recovered,
@@ -619,9 +695,9 @@ impl OutputDir {
         &self.dest
     }
 
-    /// Where a partial (interrupted) output goes: `<dest>.partial`.
+    /// Where a partial (interrupted) output goes: `<dest>.partial` (a recording: the first free of `<dest>.partial`, `<dest>.partial-2`, ...).
     pub fn partial_dest(&self) -> PathBuf {
-        parent_of(&self.dest).join(format!("{}.partial", name_of(&self.dest)))
+        self.partial.clone()
     }
 
     /// Writes the manifest (listing every staged file) and renames the staged directory to `dest`,
@@ -922,5 +998,51 @@ mod tests {
         assert_eq!(fresh_destination(&dest), dest);
         record_one(&dest);
         assert_eq!(fresh_destination(&dest), d.path().join("adaptive-2"));
+    }
+
+    #[test]
+    fn a_manifest_entry_outside_its_directory_deletes_nothing() {
+        let d = scratch("escape");
+        let dest = d.path().join("o");
+        write_one(&dest, "1").unwrap();
+        let victim = d.path().join("victim.txt");
+        fs::write(&victim, "mine").unwrap();
+        let abs_victim = d.path().join("victim2.txt");
+        fs::write(&abs_victim, "mine too").unwrap();
+        for entry in [
+            "../victim.txt".to_string(),
+            abs_victim.display().to_string(),
+        ] {
+            let mut m = read_manifest(&dest).unwrap();
+            m.files.push(entry.clone());
+            fs::write(dest.join(MANIFEST), serde_json::to_string(&m).unwrap()).unwrap();
+            let e = write_one(&dest, "2").unwrap_err();
+            assert!(
+                e.to_string().contains("outside the directory"),
+                "{entry}: {e}"
+            );
+            m.files.pop();
+            fs::write(dest.join(MANIFEST), serde_json::to_string(&m).unwrap()).unwrap();
+        }
+        // A stale moved-aside output of a dead process whose manifest lists a file outside it.
+        let dead = 4_194_399u32;
+        let old = d.path().join(format!(".o.old-{dead}"));
+        fs::create_dir_all(&old).unwrap();
+        let mut m = Manifest::new("test", "0", vec![]);
+        m.files = vec!["../victim.txt".into()];
+        fs::write(old.join(MANIFEST), serde_json::to_string(&m).unwrap()).unwrap();
+        write_one(&dest, "3").unwrap();
+        assert_eq!(fs::read_to_string(&victim).unwrap(), "mine");
+        assert_eq!(fs::read_to_string(&abs_victim).unwrap(), "mine too");
+    }
+
+    #[test]
+    fn a_foreign_partial_is_refused_before_the_work() {
+        let d = scratch("partialfirst");
+        let dest = d.path().join("o");
+        fs::create_dir_all(d.path().join("o.partial")).unwrap();
+        fs::write(d.path().join("o.partial/notes.txt"), "mine").unwrap();
+        let e = OutputDir::create(&dest, &[], Writer::simulation("test")).unwrap_err();
+        assert!(e.to_string().contains("notes.txt"), "{e}");
     }
 }

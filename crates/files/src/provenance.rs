@@ -20,7 +20,10 @@ pub struct InputDigest {
 
 /// Lower-case hex SHA-256 of `bytes`.
 pub fn sha256_hex(bytes: &[u8]) -> String {
-    let d = Sha256::digest(bytes);
+    hex(&Sha256::digest(bytes))
+}
+
+fn hex(d: &[u8]) -> String {
     let mut s = String::with_capacity(64);
     for b in d {
         s.push_str(&format!("{b:02x}"));
@@ -28,15 +31,46 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     s
 }
 
+/// SHA-256 of bytes that come in pieces (a file read line by line).
+#[derive(Clone, Debug, Default)]
+pub struct Sha256Hasher(Sha256);
+
+impl Sha256Hasher {
+    /// An empty hash.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Adds `bytes`.
+    pub fn update(&mut self, bytes: &[u8]) {
+        self.0.update(bytes);
+    }
+    /// The lower-case hex digest of everything added.
+    pub fn finish(self) -> String {
+        hex(&self.0.finalize())
+    }
+}
+
 impl InputDigest {
-    /// Hashes a file (read whole; inputs are size-limited when they are parsed).
+    /// Hashes a file, in blocks (a large log is never held whole).
     pub fn of_file(path: &Path, role: &str) -> std::io::Result<Self> {
-        let bytes = std::fs::read(path)?;
+        use std::io::Read;
+        let mut f = std::fs::File::open(path)?;
+        let mut h = Sha256Hasher::new();
+        let mut buf = vec![0u8; 1 << 16];
+        let mut bytes = 0u64;
+        loop {
+            let n = f.read(&mut buf)?;
+            if n == 0 {
+                break;
+            }
+            h.update(&buf[..n]);
+            bytes += n as u64;
+        }
         Ok(Self {
             path: path.display().to_string(),
             role: role.to_string(),
-            sha256: sha256_hex(&bytes),
-            bytes: bytes.len() as u64,
+            sha256: h.finish(),
+            bytes,
         })
     }
 }
@@ -49,5 +83,9 @@ mod tests {
             super::sha256_hex(b"abc"),
             "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
         );
+        let mut h = super::Sha256Hasher::new();
+        h.update(b"a");
+        h.update(b"bc");
+        assert_eq!(h.finish(), super::sha256_hex(b"abc"));
     }
 }

@@ -96,32 +96,78 @@ pub const MAX_GAP_PERIODS: f64 = 50.0;
 /// Gaps shorter than this are accepted whatever the sample period.
 pub const MIN_GAP_S: f64 = 0.05;
 
+/// The longest line a log may have, bytes: a rig trace's row is ~120 bytes; a longer line is not a row.
+pub const MAX_LINE_BYTES: usize = 64 << 10;
+
 /// Reads a trace file. Errors name the file and, where a row or column is to blame, the line and the column.
 pub fn read_log(path: &Path) -> Result<Log, IdentifyError> {
     read_log_limited(path, &LogLimits::default())
 }
 
-/// [`read_log`] within `limits`: the file's size is checked against the rows limit before it is read.
+/// [`read_log`] within `limits`: the file's size is checked against the rows limit before it is read, and
+/// it is read line by line (memory holds the columns identification uses, never the text).
 pub fn read_log_limited(path: &Path, limits: &LogLimits) -> Result<Log, IdentifyError> {
+    use std::io::BufRead;
     let size = pneuflex_files::input::check_regular(path, pneuflex_files::InputKind::Trace)
         .map_err(|e| IdentifyError::Input(e.to_string()))?;
     let max_bytes = (limits.max_rows as u64).saturating_mul(MAX_BYTES_PER_ROW) + 65_536;
+    let err = |line: Option<usize>, message: String| IdentifyError::Log {
+        file: path.to_path_buf(),
+        line,
+        column: None,
+        message,
+    };
     if size > max_bytes {
-        return Err(IdentifyError::Log {
-            file: path.to_path_buf(),
-            line: None,
-            column: None,
-            message: format!(
+        return Err(err(
+            None,
+            format!(
                 "{size} bytes: more than a log of {} rows takes ({max_bytes} bytes); cut the log, or raise \
                  --max-rows",
                 limits.max_rows
             ),
-        });
+        ));
     }
-    let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Trace)
-        .map_err(|e| IdentifyError::Input(e.to_string()))?;
-    let sha256 = pneuflex_files::sha256_hex(text.as_bytes());
-    parse_log_limited(path, &text, sha256, limits)
+    let file = std::fs::File::open(path)
+        .map_err(|e| IdentifyError::Input(format!("{}: cannot read: {e}", path.display())))?;
+    let mut reader = std::io::BufReader::new(file);
+    let mut hasher = pneuflex_files::provenance::Sha256Hasher::new();
+    let mut parser = LogParser::new(path, *limits);
+    let mut buf = Vec::new();
+    let mut line_no = 0;
+    loop {
+        buf.clear();
+        line_no += 1;
+        // At most MAX_LINE_BYTES + 1 bytes of one line: a file of one endless line is refused, not read.
+        let n = std::io::Read::take(&mut reader, MAX_LINE_BYTES as u64 + 1)
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| IdentifyError::Input(format!("{}: cannot read: {e}", path.display())))?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buf);
+        if n > MAX_LINE_BYTES && buf.last() != Some(&b'\n') {
+            return Err(err(
+                Some(line_no),
+                format!("a line longer than {MAX_LINE_BYTES} bytes: not a row of a trace"),
+            ));
+        }
+        let text = std::str::from_utf8(&buf).map_err(|e| {
+            err(
+                Some(line_no),
+                format!("not UTF-8 text (byte {})", e.valid_up_to()),
+            )
+        })?;
+        let line = text.trim_end_matches(['\n', '\r']);
+        let line = if line_no == 1 {
+            line.trim_start_matches('\u{feff}')
+        } else {
+            line
+        };
+        if !parser.line(line_no, line)? {
+            break;
+        }
+    }
+    parser.finish(hasher.finish())
 }
 
 /// Parses trace text (see [`read_log`]); `path` is used in messages.
@@ -137,54 +183,111 @@ pub fn parse_log_limited(
     sha256: String,
     limits: &LogLimits,
 ) -> Result<Log, IdentifyError> {
-    let err = |line: Option<usize>, column: Option<&str>, message: String| IdentifyError::Log {
-        file: path.to_path_buf(),
-        line,
-        column: column.map(str::to_string),
-        message,
-    };
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.starts_with('#'));
-    let Some((header_no, header)) = lines.next() else {
-        return Err(err(None, None, "no column header (an empty trace?)".into()));
-    };
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
-    let mut idx = [0usize; COLUMNS.len()];
-    for (i, c) in COLUMNS.iter().enumerate() {
-        idx[i] = names.iter().position(|n| n == c).ok_or_else(|| {
-            err(
-                Some(header_no + 1),
-                Some(c),
-                format!(
-                    "missing column `{c}` (identification needs {}; the header has {})",
-                    COLUMNS.join(", "),
-                    names.join(", ")
-                ),
-            )
-        })?;
+    let mut parser = LogParser::new(path, *limits);
+    for (i, line) in text.lines().enumerate() {
+        if !parser.line(i + 1, line)? {
+            break;
+        }
     }
-    let fault = names.iter().position(|n| *n == "fault");
-    let mut log = Log {
-        path: path.to_path_buf(),
-        sha256,
-        t: Vec::new(),
-        u: Vec::new(),
-        x: Vec::new(),
-        p_a: Vec::new(),
-        p_b: Vec::new(),
-        f_e: Vec::new(),
-        note: None,
-    };
-    for (no, line) in lines {
-        let line_no = no + 1;
+    parser.finish(sha256)
+}
+
+/// The range a reading of a pneumatic actuator can take, per column, far wider than any rig's (a value
+/// beyond is a corrupt row, and would only make the replay blow up later without a line to blame).
+fn plausible(column: &str) -> Option<(f64, f64, &'static str)> {
+    match column {
+        "u" => Some((-1.5, 1.5, "(the valve command)")),
+        "x" => Some((-10.0, 10.0, "m")),
+        "p_a" | "p_b" => Some((0.0, 1e8, "Pa absolute")),
+        "f_e" => Some((-1e6, 1e6, "N")),
+        _ => None,
+    }
+}
+
+/// A column header as a message shows it: its first names, each cut short (a garbage header stays short).
+fn header_text(names: &[String]) -> String {
+    let shown: Vec<String> = names
+        .iter()
+        .take(16)
+        .map(|n| {
+            if n.chars().count() > 40 {
+                format!("{}…", n.chars().take(40).collect::<String>())
+            } else {
+                n.clone()
+            }
+        })
+        .collect();
+    let more = names.len().saturating_sub(16);
+    if more > 0 {
+        format!("{} and {more} more", shown.join(", "))
+    } else {
+        shown.join(", ")
+    }
+}
+
+/// A log read line by line: the header, then the rows, checked as they come.
+struct LogParser<'a> {
+    path: &'a Path,
+    limits: LogLimits,
+    /// The header's column names, once read.
+    names: Option<Vec<String>>,
+    idx: [usize; COLUMNS.len()],
+    fault: Option<usize>,
+    /// Line number of each row (for the gap check's message).
+    row_lines: Vec<usize>,
+    end_marker: bool,
+    log: Log,
+}
+
+impl<'a> LogParser<'a> {
+    fn new(path: &'a Path, limits: LogLimits) -> Self {
+        Self {
+            path,
+            limits,
+            names: None,
+            idx: [0; COLUMNS.len()],
+            fault: None,
+            row_lines: Vec::new(),
+            end_marker: false,
+            log: Log {
+                path: path.to_path_buf(),
+                sha256: String::new(),
+                t: Vec::new(),
+                u: Vec::new(),
+                x: Vec::new(),
+                p_a: Vec::new(),
+                p_b: Vec::new(),
+                f_e: Vec::new(),
+                note: None,
+            },
+        }
+    }
+
+    fn err(&self, line: Option<usize>, column: Option<&str>, message: String) -> IdentifyError {
+        IdentifyError::Log {
+            file: self.path.to_path_buf(),
+            line,
+            column: column.map(str::to_string),
+            message,
+        }
+    }
+
+    /// Takes one line; false once the rest of the log is not used (after a fault row).
+    fn line(&mut self, line_no: usize, line: &str) -> Result<bool, IdentifyError> {
+        if line.starts_with('#') {
+            self.end_marker |= line.starts_with("# end:");
+            return Ok(true);
+        }
+        let Some(names) = &self.names else {
+            self.header(line_no, line)?;
+            return Ok(true);
+        };
         if line.trim().is_empty() {
-            continue;
+            return Ok(true);
         }
         let fields: Vec<&str> = line.split(',').collect();
         if fields.len() != names.len() {
-            return Err(err(
+            return Err(self.err(
                 Some(line_no),
                 None,
                 format!(
@@ -194,57 +297,114 @@ pub fn parse_log_limited(
                 ),
             ));
         }
-        if let Some(f) = fault
+        if let Some(f) = self.fault
             && !fields[f].trim().is_empty()
         {
-            log.note = Some(format!(
+            self.log.note = Some(format!(
                 "rows from line {line_no} on not used: fault `{}` (the valve was safe, not at u)",
-                fields[f].trim()
+                fields[f].trim().chars().take(80).collect::<String>()
             ));
-            break;
+            return Ok(false);
         }
         let mut v = [0.0; COLUMNS.len()];
         for (i, c) in COLUMNS.iter().enumerate() {
-            let s = fields[idx[i]].trim();
-            let x: f64 = s
-                .parse()
-                .map_err(|_| err(Some(line_no), Some(c), format!("`{s}` is not a number")))?;
+            let s = fields[self.idx[i]].trim();
+            let x: f64 = s.parse().map_err(|_| {
+                self.err(
+                    Some(line_no),
+                    Some(c),
+                    format!(
+                        "`{}` is not a number",
+                        s.chars().take(40).collect::<String>()
+                    ),
+                )
+            })?;
             if !x.is_finite() {
-                return Err(err(
+                return Err(self.err(
                     Some(line_no),
                     Some(c),
                     format!("{x}: every value must be finite (a NaN row?)"),
                 ));
             }
+            if let Some((lo, hi, what)) = plausible(c)
+                && !(lo..=hi).contains(&x)
+            {
+                return Err(self.err(
+                    Some(line_no),
+                    Some(c),
+                    format!("{x}: outside [{lo:e}, {hi:e}] {what}: not a reading of a pneumatic cylinder"),
+                ));
+            }
             v[i] = x;
         }
+        self.row(line_no, v)?;
+        Ok(true)
+    }
+
+    fn header(&mut self, line_no: usize, line: &str) -> Result<(), IdentifyError> {
+        let names: Vec<String> = line.split(',').map(|n| n.trim().to_string()).collect();
+        for (i, c) in COLUMNS.iter().enumerate() {
+            let found: Vec<usize> = (0..names.len()).filter(|&k| names[k] == *c).collect();
+            match found.as_slice() {
+                [k] => self.idx[i] = *k,
+                [] => {
+                    return Err(self.err(
+                        Some(line_no),
+                        Some(c),
+                        format!(
+                            "missing column `{c}` (identification needs {}; the header has {})",
+                            COLUMNS.join(", "),
+                            header_text(&names)
+                        ),
+                    ));
+                }
+                [a, b, ..] => {
+                    return Err(self.err(
+                        Some(line_no),
+                        Some(c),
+                        format!(
+                            "the header names `{c}` twice (columns {} and {}): which one is the signal?",
+                            a + 1,
+                            b + 1
+                        ),
+                    ));
+                }
+            }
+        }
+        self.fault = names.iter().position(|n| n == "fault");
+        self.names = Some(names);
+        Ok(())
+    }
+
+    fn row(&mut self, line_no: usize, v: [f64; COLUMNS.len()]) -> Result<(), IdentifyError> {
+        let log = &self.log;
         if let Some(&prev) = log.t.last()
             && v[0] <= prev
         {
-            return Err(err(
+            return Err(self.err(
                 Some(line_no),
                 Some("t"),
                 format!("time must increase: {} after {prev}", v[0]),
             ));
         }
-        if log.t.len() >= limits.max_rows {
-            return Err(err(
+        if log.t.len() >= self.limits.max_rows {
+            return Err(self.err(
                 Some(line_no),
                 None,
                 format!(
                     "more than {} data rows; cut the log, or raise --max-rows",
-                    limits.max_rows
+                    self.limits.max_rows
                 ),
             ));
         }
         if let (Some(&t0), Some(&prev)) = (log.t.first(), log.t.last())
-            && v[0] - t0 > limits.max_span_s
+            && v[0] - t0 > self.limits.max_span_s
         {
             // A jump out of an even log is named as a jump, not as the span it makes.
             let mean_dt = (prev - t0) / (log.t.len() - 1).max(1) as f64;
             let gap = v[0] - prev;
             if log.t.len() > 1 && gap > MAX_GAP_PERIODS * mean_dt && gap > MIN_GAP_S {
-                return Err(err(
+                return Err(self.err(
                     Some(line_no),
                     Some("t"),
                     format!(
@@ -255,65 +415,64 @@ pub fn parse_log_limited(
                     ),
                 ));
             }
-            return Err(err(
+            return Err(self.err(
                 Some(line_no),
                 Some("t"),
                 format!(
                     "t = {} s: the log spans more than {} s from its first row (t = {t0} s); cut the log, or \
                      raise --max-log-s",
-                    v[0], limits.max_span_s
+                    v[0], self.limits.max_span_s
                 ),
             ));
         }
+        let log = &mut self.log;
         log.t.push(v[0]);
         log.u.push(v[1]);
         log.x.push(v[2]);
         log.p_a.push(v[3]);
         log.p_b.push(v[4]);
         log.f_e.push(v[5]);
+        self.row_lines.push(line_no);
+        Ok(())
     }
-    if log.t.len() < 10 {
-        return Err(err(
-            None,
-            None,
-            format!(
-                "{} data rows; identification needs a log of many ticks",
-                log.t.len()
-            ),
-        ));
-    }
-    // A gap: the replay would integrate across it with the last command held, at the log's step.
-    let dt = log.dt();
-    if let Some(k) = (1..log.t.len()).find(|&k| {
-        let gap = log.t[k] - log.t[k - 1];
-        gap > MAX_GAP_PERIODS * dt && gap > MIN_GAP_S
-    }) {
-        let line = data_line_number(text, k);
-        return Err(err(
-            line,
-            Some("t"),
-            format!(
-                "time jumps by {} s, from {} to {} s, where the median sample period is {dt} s: identification \
-                 replays a log as one continuous recording; cut it at the gap and give each part as its own --log",
-                log.t[k] - log.t[k - 1],
-                log.t[k - 1],
-                log.t[k]
-            ),
-        ));
-    }
-    if log.note.is_none() && !text.lines().any(|l| l.starts_with("# end:")) {
-        log.note = Some("no end marker: the trace was cut (its rows are used)".into());
-    }
-    Ok(log)
-}
 
-/// The 1-based line of the `k`-th data row (comments, the header and blank lines skipped).
-fn data_line_number(text: &str, k: usize) -> Option<usize> {
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.starts_with('#'))
-        .skip(1)
-        .filter(|(_, l)| !l.trim().is_empty())
-        .nth(k)
-        .map(|(i, _)| i + 1)
+    fn finish(mut self, sha256: String) -> Result<Log, IdentifyError> {
+        if self.names.is_none() {
+            return Err(self.err(None, None, "no column header (an empty trace?)".into()));
+        }
+        if self.log.t.len() < 10 {
+            return Err(self.err(
+                None,
+                None,
+                format!(
+                    "{} data rows; identification needs a log of many ticks",
+                    self.log.t.len()
+                ),
+            ));
+        }
+        // A gap: the replay would integrate across it with the last command held, at the log's step.
+        let dt = self.log.dt();
+        let t = &self.log.t;
+        if let Some(k) = (1..t.len()).find(|&k| {
+            let gap = t[k] - t[k - 1];
+            gap > MAX_GAP_PERIODS * dt && gap > MIN_GAP_S
+        }) {
+            return Err(self.err(
+                Some(self.row_lines[k]),
+                Some("t"),
+                format!(
+                    "time jumps by {} s, from {} to {} s, where the median sample period is {dt} s: identification \
+                     replays a log as one continuous recording; cut it at the gap and give each part as its own --log",
+                    t[k] - t[k - 1],
+                    t[k - 1],
+                    t[k]
+                ),
+            ));
+        }
+        if self.log.note.is_none() && !self.end_marker {
+            self.log.note = Some("no end marker: the trace was cut (its rows are used)".into());
+        }
+        self.log.sha256 = sha256;
+        Ok(self.log)
+    }
 }

@@ -40,6 +40,9 @@ pub enum PilError {
     /// The scene.
     #[error(transparent)]
     Scene(#[from] pneuflex_scene::SceneError),
+    /// A signal came while the host waited for the board (before any tick, or in one).
+    #[error("stopped by a signal while waiting for the board")]
+    Stopped,
     /// A signal stopped the run: what the board ran until then.
     #[error("interrupted: {}", .0.interrupted.as_deref().unwrap_or("by a signal"))]
     Interrupted(Box<RunResult>),
@@ -108,6 +111,11 @@ pub fn run_pil(
     run_pil_observed(scene, index, elf, progress, &mut (), None)
 }
 
+fn is_set(stop: &Option<std::sync::Arc<std::sync::atomic::AtomicUsize>>) -> bool {
+    stop.as_ref()
+        .is_some_and(|s| s.load(std::sync::atomic::Ordering::Relaxed) != 0)
+}
+
 /// [`run_pil`] with an observer of the firmware run's rows, which also get the link's quality and the
 /// board's update cost ([`observe::PIL_SIGNALS`]); the observer sees the run tick by tick as it happens.
 pub fn run_pil_observed(
@@ -116,7 +124,7 @@ pub fn run_pil_observed(
     elf: &Path,
     progress: &mut dyn FnMut(f64),
     observer: &mut dyn pneuflex_control::RowObserver,
-    stop: Option<&std::sync::atomic::AtomicUsize>,
+    stop: Option<std::sync::Arc<std::sync::atomic::AtomicUsize>>,
 ) -> Result<PilRun, PilError> {
     qemu::check_firmware(elf)?;
     let run = scene
@@ -130,7 +138,9 @@ pub fn run_pil_observed(
 
     let (mut board, stdin, stdout) = qemu::Board::start(elf)?;
     let mut link = Link::new(stdin, stdout);
-    controller::start(&mut link, &setup, &setpoints, scene.dt_s, PIL_WATCHDOG_MS)?;
+    link.stop = stop.clone();
+    controller::start(&mut link, &setup, &setpoints, scene.dt_s, PIL_WATCHDOG_MS)
+        .map_err(|e| if is_set(&stop) { PilError::Stopped } else { e })?;
     let mut fw = FirmwareController::new(link, signals);
     let mut plant = build_plant(scene)?;
     let live = fw.live();
@@ -143,7 +153,7 @@ pub fn run_pil_observed(
         &setpoints,
         progress,
         &mut rows,
-        stop,
+        stop.as_deref(),
     )?;
     // simulate_observed leaves the run's end to its caller (run_scene_with calls it).
     rows.end_run(&firmware);
@@ -157,8 +167,14 @@ pub fn run_pil_observed(
             e => e,
         });
     }
-    if firmware.interrupted.is_some() {
+    // A signal: at the next tick (the run comes back interrupted), or while the host waited for the
+    // board in a tick (the link gave up at once).
+    if firmware.interrupted.is_some() || is_set(&stop) {
         drop(board);
+        if firmware.interrupted.is_none() {
+            let t = firmware.trace.t().last().copied().unwrap_or(0.0);
+            firmware.interrupted = Some(format!("stopped by a signal at t = {t} s"));
+        }
         return Err(PilError::Interrupted(Box::new(firmware)));
     }
     let end = fw.finish()?;

@@ -3,6 +3,8 @@
 
 use std::collections::VecDeque;
 use std::io::{Read, Write};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::{Duration, Instant};
 
@@ -39,6 +41,8 @@ pub struct Link {
     closed: bool,
     /// How long `recv` waits for a frame (wall clock): a dead or hung emulator is an error, not a hang.
     pub timeout: Duration,
+    /// A signal's number once one came: a wait for the board ends at once with [`PilError::Stopped`].
+    pub stop: Option<Arc<AtomicUsize>>,
 }
 
 impl Link {
@@ -68,6 +72,7 @@ impl Link {
             stats: LinkStats::default(),
             closed: false,
             timeout: Duration::from_secs(20),
+            stop: None,
         }
     }
 
@@ -127,16 +132,27 @@ impl Link {
                     "the board closed the link (QEMU exited)".into(),
                 ));
             }
-            let left = deadline.saturating_duration_since(Instant::now());
+            if self
+                .stop
+                .as_ref()
+                .is_some_and(|s| s.load(Ordering::Relaxed) != 0)
+            {
+                return Err(PilError::Stopped);
+            }
+            // In slices, so that a signal is seen while the board is silent.
+            let left = deadline
+                .saturating_duration_since(Instant::now())
+                .min(Duration::from_millis(50));
+            if left.is_zero() {
+                return Err(PilError::Link(format!(
+                    "no frame from the board within {:.1} s",
+                    wait.as_secs_f64()
+                )));
+            }
             match self.rx.recv_timeout(left) {
                 Ok(bytes) => self.take(&bytes),
                 Err(RecvTimeoutError::Disconnected) => self.closed = true,
-                Err(RecvTimeoutError::Timeout) => {
-                    return Err(PilError::Link(format!(
-                        "no frame from the board within {:.1} s",
-                        wait.as_secs_f64()
-                    )));
-                }
+                Err(RecvTimeoutError::Timeout) => {}
             }
         }
     }

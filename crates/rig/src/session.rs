@@ -137,22 +137,38 @@ pub fn spawn_pty_emulator(rig: &RigFile, file: &Path) -> Result<EmulatorHandle, 
     Ok(Emulator::new(plant, link, rig.cal(), cfg).spawn(Some(path)))
 }
 
-/// Installs a handler for SIGINT (Ctrl-C), SIGTERM and SIGHUP (ctrlc's `termination` feature) that sets the
-/// returned flag; the loop polls it every tick and latches an `Interrupted` fault, which puts the valve in
-/// its safe state in that tick and syncs the trace. A process can install one handler only: a second call
-/// returns an error.
+/// The number of the last SIGINT, SIGTERM or SIGHUP that [`install_ctrl_c`]'s handler saw (0: none).
+static LAST_SIGNAL: std::sync::OnceLock<std::sync::Arc<std::sync::atomic::AtomicUsize>> =
+    std::sync::OnceLock::new();
+
+/// Installs a handler for SIGINT (Ctrl-C), SIGTERM and SIGHUP that sets the returned flag; the loop polls it
+/// every tick and latches an `Interrupted` fault, which puts the valve in its safe state in that tick and
+/// syncs the trace. A second signal does not end the process: the recording is committed first.
+/// [`last_signal`] tells which signal came (for the exit code, 128 + the signal).
 pub fn install_ctrl_c() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, RigError> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let f = flag.clone();
-    ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::Relaxed)).map_err(
-        |e| {
-            RigError::new(
-                ErrorKind::Io,
-                format!("cannot install the SIGINT/SIGTERM/SIGHUP handler: {e}"),
-            )
-        },
-    )?;
+    let number = LAST_SIGNAL
+        .get_or_init(|| std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0)))
+        .clone();
+    let err = |e: std::io::Error| {
+        RigError::new(
+            ErrorKind::Io,
+            format!("cannot install the SIGINT/SIGTERM/SIGHUP handler: {e}"),
+        )
+    };
+    for sig in [SIGINT, SIGTERM, SIGHUP] {
+        signal_hook::flag::register(sig, flag.clone()).map_err(err)?;
+        signal_hook::flag::register_usize(sig, number.clone(), sig as usize).map_err(err)?;
+    }
     Ok(flag)
+}
+
+/// The number of the last signal the handler of [`install_ctrl_c`] saw (0: none yet).
+pub fn last_signal() -> usize {
+    LAST_SIGNAL
+        .get()
+        .map_or(0, |n| n.load(std::sync::atomic::Ordering::Relaxed))
 }
 
 /// Starts the emulator of `rig` serving an existing serial port (e.g. one end of a null-modem pair).

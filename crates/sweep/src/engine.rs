@@ -232,6 +232,8 @@ pub struct Sweep {
     pub specs: Vec<String>,
     /// Seed of the sampled keys.
     pub seed: u64,
+    /// What one run of a point may cost (`--max-steps`, `--max-trace-mb`); a point beyond is refused.
+    pub limits: Limits,
     base: Base,
 }
 
@@ -259,7 +261,16 @@ impl Sweep {
         seed: u64,
         max_points: u64,
     ) -> Result<Sweep, SweepError> {
-        Self::new_checked(scene_path, sets, samples, seed, max_points, None, &|| {})
+        Self::new_checked(
+            scene_path,
+            sets,
+            samples,
+            seed,
+            max_points,
+            Limits::default(),
+            None,
+            &|| {},
+        )
     }
 
     /// [`Sweep::new`] with a stop flag (a signal's number; the check ends early with
@@ -270,10 +281,12 @@ impl Sweep {
         samples: Option<usize>,
         seed: u64,
         max_points: u64,
+        limits: Limits,
         stop: Option<&AtomicUsize>,
         tick: &(dyn Fn() + Sync),
     ) -> Result<Sweep, SweepError> {
-        let sweep = Self::new_unchecked(scene_path, sets, samples, seed, max_points)?;
+        let mut sweep = Self::new_unchecked(scene_path, sets, samples, seed, max_points)?;
+        sweep.limits = limits;
         // Structural key errors are the same at every point: the first point says them once.
         sweep.scene_at(0)?;
         tick();
@@ -331,6 +344,7 @@ impl Sweep {
                 .map(|s| format!("{}={}", s.key.text, s.spec_text))
                 .collect(),
             seed,
+            limits: Limits::default(),
             base,
         };
         Ok(sweep)
@@ -431,7 +445,7 @@ impl Sweep {
                 error: Box::new(e),
             })?;
         }
-        scene.check_budget(&Limits::default()).map_err(located)?;
+        scene.check_budget(&self.limits).map_err(located)?;
         Ok(scene)
     }
 

@@ -226,8 +226,8 @@ fn write_maps(
     files: &mut Vec<PathBuf>,
 ) -> Result<(), SweepError> {
     if let Some(grid) = sweep.points.grid.as_ref().filter(|g| g.len() == 2) {
-        let xt: Vec<String> = grid[0].1.iter().map(tick).collect();
-        let yt: Vec<String> = grid[1].1.iter().map(tick).collect();
+        let xt: Vec<String> = grid[0].1.values().iter().map(tick).collect();
+        let yt: Vec<String> = grid[1].1.values().iter().map(tick).collect();
         for (file, title, cells, marked, diverging) in maps {
             let path = dir.join(file);
             pneuflex_viz::write_heatmap(

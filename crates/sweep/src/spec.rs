@@ -9,11 +9,68 @@
 
 use crate::key::{KeyPath, Value};
 
+/// The values of one grid axis: given one by one, or a range worked out from its index (a range of a
+/// hundred million values costs nothing until its values are asked for).
+#[derive(Clone, Debug, PartialEq)]
+pub enum AxisValues {
+    /// These values, in this order.
+    Given(Vec<Value>),
+    /// `n` values from `lo` to `hi`, both included, evenly in the value or its logarithm.
+    Range {
+        /// First value.
+        lo: f64,
+        /// Last value.
+        hi: f64,
+        /// Number of values.
+        n: usize,
+        /// Evenly in the logarithm.
+        log: bool,
+    },
+}
+
+impl AxisValues {
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        match self {
+            AxisValues::Given(v) => v.len(),
+            AxisValues::Range { n, .. } => *n,
+        }
+    }
+
+    /// Whether the axis has no value (never, once parsed).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The `i`-th value.
+    pub fn get(&self, i: usize) -> Value {
+        match self {
+            AxisValues::Given(v) => v[i].clone(),
+            AxisValues::Range { lo, hi, n, log } => {
+                Value::Float(range_value(*lo, *hi, *n, *log, i))
+            }
+        }
+    }
+
+    /// Every value (for a heatmap's ticks: a small axis).
+    pub fn values(&self) -> Vec<Value> {
+        (0..self.len()).map(|i| self.get(i)).collect()
+    }
+
+    /// The first value that is not a number, if any.
+    fn first_non_number(&self) -> Option<Value> {
+        match self {
+            AxisValues::Given(v) => v.iter().find(|v| v.as_f64().is_none()).cloned(),
+            AxisValues::Range { .. } => None,
+        }
+    }
+}
+
 /// How one key is swept.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Spec {
-    /// These values, in this order.
-    List(Vec<Value>),
+    /// These values, in this order (a list, or a `lin:`/`log:` range).
+    List(AxisValues),
     /// Sampled between `lo` and `hi`.
     Sample {
         /// Lower bound.
@@ -72,25 +129,23 @@ fn number(arg: &str, what: &str, s: &str) -> Result<f64, SpecError> {
 
 /// A range's values: `n` points from `lo` to `hi`, evenly in the value or its logarithm.
 pub fn range(lo: f64, hi: f64, n: usize, log: bool) -> Vec<f64> {
-    if n == 1 {
-        return vec![lo];
+    (0..n).map(|i| range_value(lo, hi, n, log, i)).collect()
+}
+
+/// The `i`-th of `n` values from `lo` to `hi` (both ends exact).
+pub fn range_value(lo: f64, hi: f64, n: usize, log: bool, i: usize) -> f64 {
+    if i == 0 || n == 1 {
+        return lo;
     }
-    (0..n)
-        .map(|i| {
-            if i == 0 {
-                return lo;
-            }
-            if i == n - 1 {
-                return hi;
-            }
-            let f = i as f64 / (n - 1) as f64;
-            if log {
-                (lo.ln() + f * (hi.ln() - lo.ln())).exp()
-            } else {
-                lo + f * (hi - lo)
-            }
-        })
-        .collect()
+    if i == n - 1 {
+        return hi;
+    }
+    let f = i as f64 / (n - 1) as f64;
+    if log {
+        (lo.ln() + f * (hi.ln() - lo.ln())).exp()
+    } else {
+        lo + f * (hi - lo)
+    }
 }
 
 impl SetArg {
@@ -140,8 +195,11 @@ impl SetArg {
                     .trim()
                     .parse()
                     .map_err(|_| bad(format!("N `{}` is not a whole number", words[3])))?;
-                if n == 0 || n > 100_000 {
-                    return Err(bad(format!("N must be in 1 ..= 100000, got {n}")));
+                if n == 0 || n as u64 > HARD_MAX_POINTS {
+                    return Err(bad(format!(
+                        "N must be in 1 ..= {HARD_MAX_POINTS} (the points of all keys together are bounded by \
+                         --max-points), got {n}"
+                    )));
                 }
                 if n > 1 && lo == hi {
                     return Err(bad(format!(
@@ -154,12 +212,7 @@ impl SetArg {
                         "a log range needs LO > 0 and HI > 0, got {lo} and {hi}"
                     )));
                 }
-                Spec::List(
-                    range(lo, hi, n, log)
-                        .into_iter()
-                        .map(Value::Float)
-                        .collect(),
-                )
+                Spec::List(AxisValues::Range { lo, hi, n, log })
             }
             w @ ("rand" | "rand-log" | "lhs" | "lhs-log") => {
                 if words.len() != 3 {
@@ -203,7 +256,7 @@ impl SetArg {
                 {
                     return Err(bad(format!("every value must be finite, got {v}")));
                 }
-                Spec::List(vals)
+                Spec::List(AxisValues::Given(vals))
             }
         };
         Ok(SetArg {
@@ -256,7 +309,7 @@ pub const HARD_MAX_POINTS: u64 = 100_000_000;
 #[derive(Clone, Debug, PartialEq)]
 enum Axis {
     /// The key's index among the keys, and its values.
-    List(usize, Vec<Value>),
+    List(usize, AxisValues),
     /// The sampled keys' indices and each one's values, `[key][sample]`.
     Samples(Vec<usize>, Vec<Vec<f64>>),
 }
@@ -278,7 +331,7 @@ pub struct Points {
     pub keys: Vec<KeyPath>,
     /// The grid's axes (the key's index among `keys`, its values), first varying slowest, when no key is
     /// sampled; keys that follow another (`@KEY`) are not axes.
-    pub grid: Option<Vec<(usize, Vec<Value>)>>,
+    pub grid: Option<Vec<(usize, AxisValues)>>,
     axes: Vec<Axis>,
     /// Followers: (key, the key it follows, factor).
     follows: Vec<(usize, usize, f64)>,
@@ -316,7 +369,7 @@ impl Points {
             let k = rest % n;
             rest /= n;
             match axis {
-                Axis::List(key, v) => row[*key] = v[k].clone(),
+                Axis::List(key, v) => row[*key] = v.get(k),
                 Axis::Samples(keys, v) => {
                     for (j, &key) in keys.iter().enumerate() {
                         row[key] = Value::Float(v[j][k]);
@@ -420,7 +473,7 @@ pub fn points(
             }
             if *factor != 1.0
                 && let Spec::List(v) = &sets[j].spec
-                && let Some(bad) = v.iter().find(|v| v.as_f64().is_none())
+                && let Some(bad) = v.first_non_number()
             {
                 return Err(SpecError {
                     arg,

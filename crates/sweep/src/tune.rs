@@ -309,6 +309,9 @@ pub struct Tuner {
     pub initial: Vec<f64>,
     /// The free keys' numbers as the file writes them (None: the file leaves the key to its default).
     pub as_written: Vec<Option<f64>>,
+    /// What one run may cost (`--max-steps`, `--max-trace-mb`): a candidate beyond is refused, and so is a box
+    /// whose corner is.
+    pub limits: pneuflex_scene::Limits,
     base: Base,
 }
 
@@ -329,6 +332,27 @@ impl Tuner {
         run: Option<&str>,
         terms: Vec<Term>,
         max_runs: u64,
+    ) -> Result<Tuner, SweepError> {
+        Self::with_limits(
+            scene_path,
+            free,
+            over,
+            run,
+            terms,
+            max_runs,
+            pneuflex_scene::Limits::default(),
+        )
+    }
+
+    /// [`Tuner::new`] with the limits of one run (`--max-steps`, `--max-trace-mb`).
+    pub fn with_limits(
+        scene_path: &Path,
+        free: Vec<FreeArg>,
+        over: &[SetArg],
+        run: Option<&str>,
+        terms: Vec<Term>,
+        max_runs: u64,
+        limits: pneuflex_scene::Limits,
     ) -> Result<Tuner, SweepError> {
         let base_scene = Scene::load(scene_path)?;
         let base = Base::load(scene_path).map_err(|e| SweepError::Other(e.to_string()))?;
@@ -425,6 +449,7 @@ impl Tuner {
             terms,
             initial,
             as_written,
+            limits,
             base,
         };
         tuner.find_integer_keys()?;
@@ -553,7 +578,40 @@ impl Tuner {
             scene.runs = vec![keep];
             scene.claims.clear();
         }
+        scene
+            .check_budget(&self.limits)
+            .map_err(|err| SweepError::Point {
+                point: point(),
+                error: Box::new(err),
+            })?;
         Ok(scene)
+    }
+
+    /// The scene keys that name files, with each file's path as seen from `dir`.
+    fn named_files(&self, dir: &Path) -> Vec<(KeyPath, Value)> {
+        use pneuflex_scene::PlantSpec;
+        let mut files: Vec<(&str, &Path)> = Vec::new();
+        match &self.base_scene.plant {
+            PlantSpec::Pneumatic { actuator, .. } => files.push(("plant.actuator", actuator)),
+            PlantSpec::Linear {
+                actuator: Some(a), ..
+            } => files.push(("plant.actuator", a)),
+            PlantSpec::Multibody(mb) => {
+                files.push(("plant.actuator", &mb.actuator));
+                files.push(("plant.urdf", &mb.urdf));
+            }
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => {}
+        }
+        files
+            .into_iter()
+            .filter_map(|(key, p)| {
+                let rel = pneuflex_files::path::relative_to(&self.base_scene.resolve(p), dir);
+                Some((
+                    KeyPath::parse(key).ok()?,
+                    Value::Str(rel.to_string_lossy().replace('\\', "/")),
+                ))
+            })
+            .collect()
     }
 
     /// The values written at the free keys for `x`: integers for integer keys.
@@ -817,10 +875,14 @@ impl Tuner {
     }
 
     /// The scene's text with the free keys at `x` (the environments as the file has them) and a comment at
-    /// the top saying how they were found.
-    pub fn tuned_text(&self, x: &[f64], comment: &str) -> Result<String, SweepError> {
+    /// the top saying how they were found, to be written into the folder `dir`: the files the scene names
+    /// (its actuator sheet, its URDF) are named relative to `dir`, so the copy loads where it is written.
+    pub fn tuned_text(&self, x: &[f64], comment: &str, dir: &Path) -> Result<String, SweepError> {
         let xv = self.values(x);
-        let edits: Vec<(&KeyPath, &Value)> = self.free.iter().map(|f| &f.key).zip(&xv).collect();
+        let mut edits: Vec<(&KeyPath, &Value)> =
+            self.free.iter().map(|f| &f.key).zip(&xv).collect();
+        let named = self.named_files(dir);
+        edits.extend(named.iter().map(|(k, v)| (k, v)));
         if self.free.iter().any(|f| !f.key.in_scene()) {
             return Err(SweepError::Other(
                 "a tuned actuator-sheet value cannot be written into the scene: tune scene keys, or copy the sheet"

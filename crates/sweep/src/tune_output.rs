@@ -153,18 +153,19 @@ pub fn write(
         j_text(j_before),
         j_text(j_after)
     );
-    let text = tuner.tuned_text(&after, &comment)?;
+    let text = tuner.tuned_text(&after, &comment, dir)?;
     // Written only if it loads and is no worse than the start.
     let kept_start = if let Some(sig) = interrupted {
         Some(format!(
             "the search was interrupted by {sig} after {} candidate(s): no tuned scene",
             history.len()
         ))
-    } else if let Err(e) = pneuflex_scene::Scene::from_toml_str(
-        &text,
-        &tuner.scene_path,
-        tuner.scene_path.parent().unwrap_or(Path::new("")),
-    ) {
+    } else if let Err(e) = pneuflex_scene::Scene::from_toml_str(&text, &dir.join(&tuned_name), dir)
+        .and_then(|s| {
+            // Loading the sheet (and the URDF) is part of loading: a plant that cannot be built does not load.
+            pneuflex_scene::build_plant(&s).map(|_| ())
+        })
+    {
         Some(format!(
             "the best candidate's scene does not load ({e}); the start is kept"
         ))
