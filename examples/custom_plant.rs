@@ -9,9 +9,7 @@
 use std::path::Path;
 
 use pneuflex::control::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
-use pneuflex::scene::{
-    EventSpec, Plant, Scene, build_controller, build_setpoints, run_scene, simulate,
-};
+use pneuflex::scene::{EventSpec, Plant, Scene, run_scene, simulate};
 
 /// x' = (x_r - x) / tau: a position servo that follows the controller's x_r, against a spring
 /// f_e = k_e (x - x_e) while in contact (eq. 21).
@@ -61,7 +59,7 @@ impl Plant for FirstOrderServo {
         self.x_m = self.x_r_m + (self.x_m - self.x_r_m) * (-dt / self.tau_s).exp();
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), pneuflex::scene::plant::PlantError> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), pneuflex::scene::plants::PlantError> {
         match event {
             EventSpec::Stiffness {
                 stiffness_n_per_m, ..
@@ -69,7 +67,7 @@ impl Plant for FirstOrderServo {
                 self.k_n_per_m = *stiffness_n_per_m;
                 Ok(())
             }
-            other => Err(pneuflex::scene::plant::PlantError::unsupported(format!(
+            other => Err(pneuflex::scene::plants::PlantError::unsupported(format!(
                 "a first-order servo cannot apply {other:?}"
             ))),
         }
@@ -145,12 +143,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let shipped = run_scene(&scene, &mut |_| {})?;
 
     // Each of the scene's controllers on the custom plant.
-    let setpoints = build_setpoints(&scene)?;
+    let setpoints = scene.setpoints()?;
     let mut servo = FirstOrderServo::new(tau_s, env.stiffness_n_per_m, env.x_e_m);
     let mut custom = Vec::new();
     for i in 0..scene.runs.len() {
         servo.reset();
-        let mut c = RmsMeter::new(build_controller(&scene, i)?, &scene);
+        let mut c = RmsMeter::new(scene.controller(i)?, &scene);
         let r = simulate(&scene, i, &mut servo, &mut c, &setpoints, &mut |_| {})?;
         if let Some(why) = &r.diverged {
             println!("{} on the servo diverged: {why}", r.name);

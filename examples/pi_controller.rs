@@ -10,7 +10,7 @@
 use std::path::Path;
 
 use pneuflex::control::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
-use pneuflex::scene::{Scene, build_plant, build_setpoints, run_scene, simulate};
+use pneuflex::scene::{Scene, build_plant, run_scene, simulate};
 
 /// u = kp e + ki ∫e on the force error e = f_ref - f_e, straight to the valve (no impedance filter,
 /// no inner position loop). It drives the valve, so it needs a plant with one (pneumatic or multibody).
@@ -127,7 +127,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // The PI controller on a fresh plant of the same scene; the result is filed under run 0's name.
     let mut plant = build_plant(&scene)?;
-    let setpoints = build_setpoints(&scene)?;
+    let setpoints = scene.setpoints()?;
     let mut pi = RmsMeter::new(PiForce::new(kp, ki), &scene);
     let result = simulate(&scene, 0, plant.as_mut(), &mut pi, &setpoints, &mut |_| {})?;
     if let Some(why) = &result.diverged {

@@ -133,8 +133,8 @@ fn lockstep_rig_run(
     let (link, _log) = session::lockstep_emulator(&rig, &rig_file, clock.clone()).unwrap();
     let link = serial::connect_link(link, &rig, &mut clock).unwrap();
     let mut sup = session::supervised(link, &rig);
-    let mut controller = pneuflex::scene::build_controller(scene, 0).unwrap();
-    let setpoints = pneuflex::scene::build_setpoints(scene).unwrap();
+    let mut controller = scene.controller(0).unwrap();
+    let setpoints = scene.setpoints().unwrap();
     let mut reference = |t: f64| setpoints.at(t);
     let mut trace = TraceWriter::new(Vec::new(), rig.rt.trace_flush_every).unwrap();
     let opts = session::run_options(&rig, 0.5);

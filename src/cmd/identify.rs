@@ -180,7 +180,7 @@ fn interrupted(
     reached: &[(String, f64)],
     pass: &str,
 ) -> anyhow::Result<()> {
-    let reason = pneuflex_scene::runner::signal_name(signal);
+    let reason = pneuflex_scene::signal_name(signal);
     let mut md = format!(
         "# pneuflex identify: INTERRUPTED by {reason}\n\nThe fit was stopped during {pass}, before it \
          converged: the values below are where it was, with no intervals, and no fitted sheet was written. \

@@ -74,10 +74,7 @@ pub fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicUsi
 pub fn interrupted(signal: usize, what: String) -> anyhow::Error {
     Exit {
         code: 128 + signal.clamp(1, 64) as u8,
-        message: format!(
-            "{}: {what}",
-            pneuflex_scene::runner::signal_name(signal.max(1))
-        ),
+        message: format!("{}: {what}", pneuflex_scene::signal_name(signal.max(1))),
     }
     .into()
 }

@@ -87,7 +87,7 @@ pub fn pil(
             indices.len(),
             super::live::Timeline::Sim,
             scene.dt_s,
-            pneuflex_scene::runner::pwm_period_s(&scene),
+            pneuflex_scene::build_plant(&scene)?.pwm_period_s(),
         )?;
         let r = match pneuflex_pil::run_pil_observed(
             &scene,
@@ -200,7 +200,7 @@ fn interrupted(
     results.extend(cut);
     write_results(stage.path(), &done, &results)?;
     let summary = pneuflex_scene::summary(&done, &results);
-    let reason = pneuflex_scene::runner::signal_name(signal);
+    let reason = pneuflex_scene::signal_name(signal);
     let to = stage.commit_partial(
         Manifest::new("rig pil", env!("CARGO_PKG_VERSION"), summary.inputs.clone()),
         Partial {

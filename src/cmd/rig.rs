@@ -149,8 +149,8 @@ pub fn run_scene(
         None => 0,
         Some(name) => scene.run_index(name)?,
     };
-    let mut controller = pneuflex_scene::runner::build_controller(&scene, index)?;
-    let setpoints = pneuflex_scene::runner::build_setpoints(&scene)?;
+    let mut controller = scene.controller(index)?;
+    let setpoints = scene.setpoints()?;
     let mut reference = |t: f64| setpoints.at(t);
     let out_dir = match out {
         Some(dir) => dir.to_path_buf(),
@@ -178,7 +178,7 @@ pub fn run_scene(
         1,
         super::live::Timeline::Wall,
         scene.dt_s,
-        pneuflex_scene::runner::pwm_period_s(&scene),
+        pneuflex_scene::build_plant(&scene)?.pwm_period_s(),
     )?;
     let result = run(
         record::COMMAND,

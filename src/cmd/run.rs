@@ -68,7 +68,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
     // are worked out beside the runs and printed as soon as they are known, before the command ends.
     std::thread::scope(|s| {
         s.spawn(|| {
-            for w in pneuflex_scene::advice::warnings(&scene) {
+            for w in pneuflex_scene::analysis::advice::warnings(&scene) {
                 let at = pneuflex_files::toml_key_position(&scene.text, &w.key)
                     .map(|p| format!(":{p}"))
                     .unwrap_or_default();
@@ -243,7 +243,7 @@ fn run_scene_file(
     let manifest = Manifest::new("run", env!("CARGO_PKG_VERSION"), summary.inputs.clone());
     let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
     if !summary.complete {
-        let reason = pneuflex_scene::runner::signal_name(signal.max(2));
+        let reason = pneuflex_scene::signal_name(signal.max(2));
         let time_reached_s = results
             .last()
             .and_then(|r| r.trace.t().last().copied())
@@ -278,7 +278,7 @@ fn run_scene_file(
         for w in results.iter().flat_map(|r| &r.warnings) {
             outln!("warning: {w}");
         }
-        let claims = pneuflex_scene::claims::check_all(scene, &results);
+        let claims = pneuflex_scene::analysis::claims::check_all(scene, &results);
         if !claims.is_empty() {
             outln!("{}", claims_table(&claims));
         }
@@ -310,7 +310,7 @@ fn run_scene_file(
 }
 
 /// The scene's claims: the statement, the two values and the verdict.
-fn claims_table(claims: &[pneuflex_scene::claims::ClaimResult]) -> String {
+fn claims_table(claims: &[pneuflex_scene::analysis::claims::ClaimResult]) -> String {
     let mut s = String::from("claims:\n");
     for c in claims {
         let v = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{x:.4}"));

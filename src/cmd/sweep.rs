@@ -213,7 +213,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     if let Some(signal) = interrupted {
         // The rows done so far, marked: no heatmaps of a grid with holes.
         pneuflex_sweep::output::write_record(stage.path(), &sweep, Vec::new(), Some(done))?;
-        let reason = pneuflex_scene::runner::signal_name(signal);
+        let reason = pneuflex_scene::signal_name(signal);
         let to = stage.commit_partial(
             manifest,
             Partial {

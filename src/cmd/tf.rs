@@ -91,7 +91,7 @@ pub fn loop_margins(
     json: bool,
     bode: Option<&Path>,
 ) -> anyhow::Result<String> {
-    use pneuflex_scene::loop_analysis::{analyse, limit_cycle_onset};
+    use pneuflex_scene::analysis::loop_margins::{analyse, limit_cycle_onset};
     anyhow::ensure!(
         margin_db.is_finite() && (0.0..=60.0).contains(&margin_db),
         "--margin-db: a gain margin in [0, 60] dB, got {margin_db}"

@@ -114,7 +114,7 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
     bar.finish_and_clear();
     let search_s = start.elapsed().as_secs_f64();
     let signal = stop.load(Ordering::Relaxed);
-    let reason = (signal != 0).then(|| pneuflex_scene::runner::signal_name(signal));
+    let reason = (signal != 0).then(|| pneuflex_scene::signal_name(signal));
     let summary = pneuflex_sweep::tune_output::write(
         stage.path(),
         &tuner,

@@ -8,6 +8,7 @@
 //! - [`provenance`]: content hashes of the inputs that produced a result;
 //! - [`path`]: a file's path as seen from another folder.
 
+pub mod check;
 pub mod input;
 pub mod output;
 pub mod path;

@@ -610,6 +610,11 @@ fn remove_listed(dir: &Path) -> Result<(), OutputError> {
     let Some(m) = read_manifest(dir) else {
         return Ok(());
     };
+    // A manifest that names anything but plain files inside its directory is not one pneuflex wrote:
+    // nothing of that directory is touched.
+    if !m.files.iter().all(|f| is_plain_entry(f)) {
+        return Ok(());
+    }
     // Only plain relative entries, and only what resolves inside the directory (a listed folder that is
     // a link to elsewhere is not followed).
     let root = fs::canonicalize(dir).map_err(io(dir, "inspect"))?;
@@ -1032,6 +1037,10 @@ mod tests {
         m.files = vec!["../victim.txt".into()];
         fs::write(old.join(MANIFEST), serde_json::to_string(&m).unwrap()).unwrap();
         write_one(&dest, "3").unwrap();
+        assert!(
+            old.join(MANIFEST).exists(),
+            "a directory with a foreign manifest is left alone"
+        );
         assert_eq!(fs::read_to_string(&victim).unwrap(), "mine");
         assert_eq!(fs::read_to_string(&abs_victim).unwrap(), "mine too");
     }

@@ -11,12 +11,9 @@ pub mod qemu;
 
 use std::path::Path;
 
-use pneuflex_scene::runner::{
-    compute_windows_with, lyapunov_summary, pinned_parameters, pwm_period_s,
-};
-use pneuflex_scene::{
-    RunResult, Scene, StepObserver, build_controller, build_plant, build_setpoints, run_scene,
-};
+use pneuflex_scene::analysis::adaptation::{lyapunov_summary, pinned_parameters};
+use pneuflex_scene::analysis::windows::compute_windows;
+use pneuflex_scene::{RunResult, Scene, StepObserver, build_plant, run_scene};
 
 pub use controller::{Cost, FirmwareController};
 pub use link::{Link, LinkStats};
@@ -132,9 +129,9 @@ pub fn run_pil_observed(
         .get(index)
         .ok_or_else(|| PilError::Setup(format!("no run {index}")))?;
     let setup = controller::setup_of(run)?;
-    let setpoints = build_setpoints(scene)?;
+    let setpoints = scene.setpoints()?;
     // The host controller of the same kind declares the recorded signals (g, p, d for adaptive).
-    let signals = build_controller(scene, index)?.signals();
+    let signals = scene.controller(index)?.signals();
 
     let (mut board, stdin, stdout) = qemu::Board::start(elf)?;
     let mut link = Link::new(stdin, stdout);
@@ -145,7 +142,7 @@ pub fn run_pil_observed(
     let mut plant = build_plant(scene)?;
     let live = fw.live();
     let mut rows = observe::LinkRows::new(observer, live);
-    let mut firmware = pneuflex_scene::runner::simulate_stoppable(
+    let mut firmware = pneuflex_scene::run::simulate_stoppable(
         scene,
         index,
         plant.as_mut(),
@@ -179,9 +176,9 @@ pub fn run_pil_observed(
     }
     let end = fw.finish()?;
     drop(board);
-    let pwm = pwm_period_s(scene);
+    let pwm = firmware.pwm_period_s;
     if firmware.diverged.is_none() {
-        firmware.windows = compute_windows_with(scene, &firmware.trace, pwm);
+        firmware.windows = compute_windows(scene, &firmware.trace, pwm);
     }
     if firmware.is_adaptive() {
         firmware.lyapunov = lyapunov_summary(scene, run);

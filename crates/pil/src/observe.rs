@@ -6,7 +6,7 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 use pneuflex_control::{RowObserver, Signal};
-use pneuflex_scene::trace::Row;
+use pneuflex_scene::run::trace::Row;
 use pneuflex_scene::{Plant, RunResult, StepObserver};
 
 use crate::link::LinkStats;

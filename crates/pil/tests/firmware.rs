@@ -16,7 +16,7 @@ use pneuflex_pil::controller::{await_safe, setup_of, start};
 use pneuflex_pil::{Link, qemu};
 use pneuflex_protocol::ctrl::{SensorsPayload, StartPayload, ready, status};
 use pneuflex_protocol::{MAX_FRAME, Message, RESET_MAGIC, ValveMode, encode, fault_code};
-use pneuflex_scene::{Scene, build_setpoints};
+use pneuflex_scene::Scene;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -131,7 +131,7 @@ fn started(elf: &Path) -> (qemu::Board, Link) {
     start(
         &mut link,
         &setup,
-        &build_setpoints(&scene).unwrap(),
+        &scene.setpoints().unwrap(),
         scene.dt_s,
         WATCHDOG_MS,
     )

@@ -146,27 +146,13 @@ impl Check<'_> {
         }
     }
     fn finite(&self, field: &str, v: f64) -> Result<f64, ComponentError> {
-        if v.is_finite() {
-            Ok(v)
-        } else {
-            Err(self.err(field, format!("must be a finite number, got {v}")))
-        }
+        pneuflex_files::check::finite(v).map_err(|m| self.err(field, m))
     }
     fn positive(&self, field: &str, v: f64) -> Result<f64, ComponentError> {
-        self.finite(field, v)?;
-        if v > 0.0 {
-            Ok(v)
-        } else {
-            Err(self.err(field, format!("must be > 0, got {v}")))
-        }
+        pneuflex_files::check::positive(v).map_err(|m| self.err(field, m))
     }
     fn non_negative(&self, field: &str, v: f64) -> Result<f64, ComponentError> {
-        self.finite(field, v)?;
-        if v >= 0.0 {
-            Ok(v)
-        } else {
-            Err(self.err(field, format!("must be >= 0, got {v}")))
-        }
+        pneuflex_files::check::non_negative(v).map_err(|m| self.err(field, m))
     }
     fn range(
         &self,

@@ -94,6 +94,16 @@ fn sanitize(u: f64) -> f64 {
 }
 
 impl ValveModel {
+    /// The period of the PWM carrier, s, for an on/off valve switched by PWM; None for a proportional valve.
+    pub fn pwm_period_s(&self) -> Option<f64> {
+        match self.kind {
+            ValveKind::OnOffPwm {
+                pwm_frequency_hz, ..
+            } => Some(1.0 / pwm_frequency_hz),
+            ValveKind::Proportional { .. } => None,
+        }
+    }
+
     /// The ISO 6358 characteristics of path `i` (as [`PATHS`]).
     #[inline]
     pub fn path(&self, i: usize) -> Orifice {

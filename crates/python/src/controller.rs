@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use pneuflex_control::{Controller, Sensors, Setpoint, SetpointSchedule};
-use pneuflex_scene::schema::{ControllerKind, RunSpec};
-use pneuflex_scene::{Scene, build_setpoints};
+use pneuflex_scene::Scene;
+use pneuflex_scene::spec::{ControllerKind, RunSpec};
 use pyo3::prelude::*;
 use pyo3::types::{PyAny, PyDict};
 
@@ -175,7 +175,7 @@ impl PySetpoints {
     fn new(scene_path: PathBuf) -> PyResult<Self> {
         let scene = Scene::load(&scene_path).map_err(errors::scene)?;
         Ok(Self {
-            schedule: build_setpoints(&scene).map_err(errors::scene)?,
+            schedule: scene.setpoints().map_err(errors::scene)?,
         })
     }
 

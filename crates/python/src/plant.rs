@@ -22,10 +22,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
-use pneuflex_scene::plant::{PlantError, PlantErrorKind};
-use pneuflex_scene::runner::{compute_windows, lyapunov_summary};
-use pneuflex_scene::schema::{ControllerKind, EventSpec, Limits};
-use pneuflex_scene::{Plant, Scene, build_controller, build_setpoints, simulate, summary};
+use pneuflex_scene::analysis::{adaptation::lyapunov_summary, windows::compute_windows};
+use pneuflex_scene::plants::{PlantError, PlantErrorKind};
+use pneuflex_scene::spec::{ControllerKind, EventSpec, Limits};
+use pneuflex_scene::{Plant, Scene, simulate, summary};
 use pyo3::exceptions::{PyException, PyTypeError};
 use pyo3::intern;
 use pyo3::prelude::*;
@@ -263,8 +263,8 @@ pub fn run_plant<'py>(
         .check_budget(&Limits::default())
         .map_err(errors::scene)?;
     let index = crate::controller::run_index(&scene, run)?;
-    let setpoints = build_setpoints(&scene).map_err(errors::scene)?;
-    let mut controller = build_controller(&scene, index).map_err(errors::scene)?;
+    let setpoints = scene.setpoints().map_err(errors::scene)?;
+    let mut controller = scene.controller(index).map_err(errors::scene)?;
     let mut plant = PyPlant::new(plant)?;
     plant.reset();
     if let Some(e) = plant.exception() {
@@ -298,7 +298,11 @@ pub fn run_plant<'py>(
     let status = match &r.diverged {
         Some(reason) => reason.clone().into_pyobject(py)?.into_any(),
         None => {
-            r.windows = compute_windows(&scene, &r.trace);
+            // A plant written in Python reports no valve: the period is the scene's own valve's.
+            if r.pwm_period_s.is_none() {
+                r.pwm_period_s = scene_pwm_period(&scene);
+            }
+            r.windows = compute_windows(&scene, &r.trace, r.pwm_period_s);
             if r.controller == ControllerKind::Adaptive {
                 r.lyapunov = lyapunov_summary(&scene, &scene.runs[index]);
             }
@@ -306,4 +310,10 @@ pub fn run_plant<'py>(
         }
     };
     Ok((trace_to_dict(py, r.trace)?, status, wall))
+}
+
+/// The PWM period of the scene's valve as its own (Rust) plant reports it: for traces made elsewhere
+/// (MuJoCo, a plant written in Python), whose metrics average over the same period as `pneuflex run`'s.
+pub(crate) fn scene_pwm_period(scene: &pneuflex_scene::Scene) -> Option<f64> {
+    pneuflex_scene::build_plant(scene).ok()?.pwm_period_s()
 }

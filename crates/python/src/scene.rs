@@ -6,11 +6,9 @@ use std::time::Instant;
 
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use pneuflex_multibody::{MultibodyConfig, RigWorld};
-use pneuflex_scene::runner::{compute_windows, lyapunov_summary};
-use pneuflex_scene::schema::ControllerKind;
-use pneuflex_scene::{
-    RunResult, Scene, Trace, build_controller, build_plant, build_setpoints, run_scene, summary,
-};
+use pneuflex_scene::analysis::{adaptation::lyapunov_summary, windows::compute_windows};
+use pneuflex_scene::spec::ControllerKind;
+use pneuflex_scene::{RunResult, Scene, Trace, build_plant, run_scene, summary};
 use pyo3::exceptions::{PyKeyError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyAny, PyDict};
@@ -79,7 +77,7 @@ fn trace_from_dict(d: &Bound<'_, PyDict>, what: &str) -> PyResult<Trace> {
     for s in pneuflex_control::LOOP_SIGNALS.iter() {
         let v = column(d, s.name, what)?
             .ok_or_else(|| PyKeyError::new_err(format!("{what}: missing column `{}`", s.name)))?;
-        cols.push((pneuflex_scene::trace::Column::from(s), v));
+        cols.push((pneuflex_scene::run::trace::Column::from(s), v));
     }
     for key in d.keys() {
         let key: String = key.extract()?;
@@ -88,7 +86,7 @@ fn trace_from_dict(d: &Bound<'_, PyDict>, what: &str) -> PyResult<Trace> {
         }
         let v = column(d, &key, what)?.unwrap_or_default();
         cols.push((
-            pneuflex_scene::trace::Column {
+            pneuflex_scene::run::trace::Column {
                 name: key,
                 unit: String::new(),
                 group: String::new(),
@@ -165,8 +163,9 @@ pub fn summarize<'py>(
             None => None,
         };
         let run = &scene.runs[i];
+        let pwm_period_s = crate::plant::scene_pwm_period(&scene);
         let windows = if reason.is_none() {
-            compute_windows(&scene, &trace)
+            compute_windows(&scene, &trace, pwm_period_s)
         } else {
             Vec::new()
         };
@@ -182,6 +181,7 @@ pub fn summarize<'py>(
             diverged: reason,
             interrupted: None,
             warnings: Vec::new(),
+            pwm_period_s,
         });
     }
     to_py(py, &summary(&scene, &results))
@@ -230,6 +230,7 @@ pub fn write_figures<'py>(
             diverged: None,
             interrupted: None,
             warnings: Vec::new(),
+            pwm_period_s: crate::plant::scene_pwm_period(&scene),
         });
     }
     std::fs::create_dir_all(&out_dir).map_err(|e| {
@@ -306,9 +307,9 @@ pub fn bench_scene_ticks<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let scene = load(&scene_path)?;
     let index = crate::controller::run_index(&scene, run)?;
-    let setpoints = build_setpoints(&scene).map_err(errors::scene)?;
+    let setpoints = scene.setpoints().map_err(errors::scene)?;
     let mut plant = build_plant(&scene).map_err(errors::scene)?;
-    let mut ctrl = build_controller(&scene, index).map_err(errors::scene)?;
+    let mut ctrl = scene.controller(index).map_err(errors::scene)?;
     let dt = scene.dt_s;
     let settle = if settle_s > 0.0 {
         (settle_s / dt).round() as usize

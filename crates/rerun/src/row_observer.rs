@@ -5,7 +5,7 @@
 //! `signals/timing/period_error`) and its fault as an event.
 
 use pneuflex_control::{RowObserver, Signal};
-use pneuflex_scene::trace::{Column, Row};
+use pneuflex_scene::run::trace::{Column, Row};
 
 use crate::error::RerunError;
 use crate::layout::Layout;

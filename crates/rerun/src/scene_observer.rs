@@ -12,9 +12,9 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use pneuflex_control::signal::index;
-use pneuflex_scene::plant::{ActuatorGeometry, VisualRole};
-use pneuflex_scene::schema::{EventSpec, ForcePiece, PlantSpec, RunSpec};
-use pneuflex_scene::trace::{Column, Row, Trace};
+use pneuflex_scene::plants::{ActuatorGeometry, VisualRole};
+use pneuflex_scene::run::trace::{Column, Row, Trace};
+use pneuflex_scene::spec::{EventSpec, ForcePiece, PlantSpec, RunSpec};
 use pneuflex_scene::{Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape};
 
 use crate::layout::{Eye, Layout};
@@ -493,7 +493,7 @@ pub(crate) struct SignalLog {
 }
 
 /// Mean of one column over one PWM period of `n` samples, centred on each sample and with whole windows
-/// at both ends: the averaging of the metrics and figures (`pneuflex_scene::metrics::moving_average`),
+/// at both ends: the averaging of the metrics and figures (`pneuflex_scene::analysis::metrics::moving_average`),
 /// computed as the samples arrive. A sample's mean is logged once the half period after it is in.
 struct PeriodMean {
     column: usize,
@@ -1115,7 +1115,7 @@ mod tests {
                 m.push(k as f64, v, &mut out);
             }
             m.flush(&mut out);
-            let expected = pneuflex_scene::metrics::moving_average(&y, n);
+            let expected = pneuflex_scene::analysis::metrics::moving_average(&y, n);
             assert_eq!(out.len(), y.len(), "n = {n}");
             for (k, ((t, got), want)) in out.iter().zip(&expected).enumerate() {
                 assert_eq!(*t, k as f64, "n = {n}");

@@ -454,19 +454,14 @@ impl Check<'_> {
         }
     }
     fn finite(&self, field: &str, v: f64) -> Result<(), RigFileError> {
-        if v.is_finite() {
-            Ok(())
-        } else {
-            Err(self.err(field, format!("expected a finite number, got {v}")))
-        }
+        pneuflex_files::check::finite(v)
+            .map(drop)
+            .map_err(|m| self.err(field, m))
     }
     fn positive(&self, field: &str, v: f64) -> Result<(), RigFileError> {
-        self.finite(field, v)?;
-        if v > 0.0 {
-            Ok(())
-        } else {
-            Err(self.err(field, format!("expected a positive number, got {v}")))
-        }
+        pneuflex_files::check::positive(v)
+            .map(drop)
+            .map_err(|m| self.err(field, m))
     }
     fn within(
         &self,
@@ -476,11 +471,9 @@ impl Check<'_> {
         hi: f64,
         unit: &str,
     ) -> Result<(), RigFileError> {
-        if v.is_finite() && (lo..=hi).contains(&v) {
-            Ok(())
-        } else {
-            Err(self.err(field, format!("expected {lo}..={hi} {unit}, got {v}")))
-        }
+        pneuflex_files::check::within(v, lo, hi, unit)
+            .map(drop)
+            .map_err(|m| self.err(field, m))
     }
     fn range(&self, field: &str, r: [f64; 2]) -> Result<(), RigFileError> {
         self.finite(field, r[0])?;

@@ -10,7 +10,7 @@ use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use pneuflex_control::Controller;
-use pneuflex_scene::{MultibodyPlant, Plant, Scene, build_controller, build_setpoints, run_scene};
+use pneuflex_scene::{MultibodyPlant, Plant, Scene, run_scene};
 
 fn load(name: &str) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -26,11 +26,11 @@ fn bench(c: &mut Criterion) {
         .iter()
         .position(|r| r.name == "adaptive")
         .expect("the fig7 scene has an adaptive run");
-    let setpoints = build_setpoints(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let setpoints = scene.setpoints().unwrap_or_else(|e| panic!("{e}"));
 
     let mut plant = MultibodyPlant::from_scene(&scene).unwrap_or_else(|e| panic!("{e}"));
     let mut ctrl: Box<dyn Controller> =
-        build_controller(&scene, adaptive).unwrap_or_else(|e| panic!("{e}"));
+        scene.controller(adaptive).unwrap_or_else(|e| panic!("{e}"));
     let dt = scene.dt_s;
     // Settle into steady contact on wood first (1 s).
     let mut t = 0.0;

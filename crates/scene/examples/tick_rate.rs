@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use pneuflex_scene::{Scene, build_controller, build_plant, build_setpoints};
+use pneuflex_scene::{Scene, build_plant};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -26,9 +26,9 @@ fn main() {
     let settle_s: f64 = args
         .get(4)
         .map_or(1.0, |s| s.parse().expect("SETTLE_S: seconds"));
-    let setpoints = build_setpoints(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let setpoints = scene.setpoints().unwrap_or_else(|e| panic!("{e}"));
     let mut plant = build_plant(&scene).unwrap_or_else(|e| panic!("{e}"));
-    let mut ctrl = build_controller(&scene, run).unwrap_or_else(|e| panic!("{e}"));
+    let mut ctrl = scene.controller(run).unwrap_or_else(|e| panic!("{e}"));
     let dt = scene.dt_s;
     let mut t = 0.0;
     let mut tick = |t: &mut f64| {

@@ -1,5 +1,6 @@
-//! Scenes for pneuflex: the scene file (TOML, validated), the plants a controller drives, the run loop
-//! `sense → controller.update → actuate → advance(dt)`, metrics, and the trace.csv / summary.json writers.
+//! Scenes for pneuflex, one folder per concept: the scene file and its checks ([`spec`]), the plants a
+//! controller drives ([`plants`]), running a scene through the one loop and writing its traces and summary
+//! ([`run`]), and what the runs are judged by ([`analysis`]: metrics, claims, loop margins, advice).
 //!
 //! ```no_run
 //! use pneuflex_scene::{Scene, run_scene};
@@ -8,33 +9,24 @@
 //! for r in &results { println!("{}: {:?}", r.name, r.window("sine").map(|w| w.rms_force_error_n)); }
 //! ```
 
-pub mod advice;
-pub mod claims;
+pub mod analysis;
 pub mod error;
-pub mod linear;
-mod locate;
-pub mod loop_analysis;
-pub mod metrics;
-pub mod multibody;
-pub mod output;
-pub mod plant;
-pub mod pneumatic;
-pub mod runner;
-pub mod schema;
-pub mod trace;
+pub mod plants;
+pub mod run;
+pub mod spec;
 
 pub use error::SceneError;
-pub use multibody::{FlangeDrive, MultibodyPlant};
-pub use output::{Summary, scene_inputs, summary, write_results, write_summary, write_trace};
-pub use plant::{IdealLoop, LinearSpring, Plant, Visual, VisualPose, VisualShape};
-pub use pneumatic::OneDofPneumatic;
-pub use runner::{
-    LyapunovSummary, Observers, Rows, RunOptions, RunResult, StepObserver, WindowMetrics,
-    build_controller, build_plant, build_setpoints, run_scene, run_scene_observed, run_scene_with,
-    signal_name, simulate, simulate_observed,
+pub use plants::{
+    IdealLoop, LinearSpring, MultibodyPlant, OneDofPneumatic, Plant, Visual, VisualPose,
+    VisualShape, build_plant,
 };
-pub use schema::{
+pub use run::output::{Summary, scene_inputs, summary, write_results, write_summary, write_trace};
+pub use run::trace::Trace;
+pub use run::{
+    LyapunovSummary, Observers, Rows, RunOptions, RunResult, StepObserver, WindowMetrics,
+    run_scene, run_scene_observed, run_scene_with, signal_name, simulate, simulate_observed,
+};
+pub use spec::{
     Budget, ControllerKind, EventSpec, Limits, MaterialSpec, MultibodySpec, PlantSpec,
     SCENE_SCHEMA_VERSION, Scene, WindowKind,
 };
-pub use trace::Trace;

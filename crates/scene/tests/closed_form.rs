@@ -99,9 +99,13 @@ fn check(k_d: f64) {
         hw.abs()
     );
     // Static force error: the bias of f_e against the bias of f_r (10 N), from the same least-squares fit.
-    let (i0, i1) = pneuflex_scene::metrics::window_indices(r.trace.t(), 5.0, 10.0);
-    let (_, _, bias) =
-        pneuflex_scene::metrics::fit_sine(&r.trace.t()[i0..i1], &r.trace.f_e()[i0..i1], w).unwrap();
+    let (i0, i1) = pneuflex_scene::analysis::metrics::window_indices(r.trace.t(), 5.0, 10.0);
+    let (_, _, bias) = pneuflex_scene::analysis::metrics::fit_sine(
+        &r.trace.t()[i0..i1],
+        &r.trace.f_e()[i0..i1],
+        w,
+    )
+    .unwrap();
     let static_err = 10.0 - bias;
     let static_cf = 10.0 * k_d / (k_d + k_e);
     assert!(

@@ -5,7 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use pneuflex_scene::{Limits, RunOptions, Scene, StepObserver, advice, run_scene, run_scene_with};
+use pneuflex_scene::analysis::advice;
+use pneuflex_scene::{Limits, RunOptions, Scene, StepObserver, run_scene, run_scene_with};
 
 fn shipped(name: &str) -> (String, PathBuf) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -211,7 +212,11 @@ struct StopAt<'a> {
 }
 
 impl StepObserver for StopAt<'_> {
-    fn on_step(&mut self, row: &pneuflex_scene::trace::Row, _plant: &dyn pneuflex_scene::Plant) {
+    fn on_step(
+        &mut self,
+        row: &pneuflex_scene::run::trace::Row,
+        _plant: &dyn pneuflex_scene::Plant,
+    ) {
         if row.t() >= self.at_s {
             self.flag.store(15, Ordering::Relaxed);
         }

@@ -16,7 +16,10 @@ fn proportional_fig3(kp: f64) -> Vec<RunResult> {
     run_scene(&scene, &mut |_| {}).unwrap()
 }
 
-fn stiffness_change(res: &[RunResult], run: &str) -> pneuflex_scene::metrics::EventResponse {
+fn stiffness_change(
+    res: &[RunResult],
+    run: &str,
+) -> pneuflex_scene::analysis::metrics::EventResponse {
     res.iter()
         .find(|r| r.name == run)
         .unwrap()

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use pneuflex_scene::linear::LinearPlant;
+use pneuflex_scene::plants::LinearPlant;
 use pneuflex_scene::{LinearSpring, Plant, PlantSpec, Scene, run_scene};
 
 /// A complex number, enough for a transfer function at s = jω.

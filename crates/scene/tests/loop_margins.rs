@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use pneuflex_scene::loop_analysis::{analyse, limit_cycle_onset};
+use pneuflex_scene::analysis::loop_margins::{analyse, limit_cycle_onset};
 use pneuflex_scene::{LinearSpring, OneDofPneumatic, Scene, run_scene};
 
 fn proportional_fig3(kp: f64) -> Scene {

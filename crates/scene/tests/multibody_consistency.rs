@@ -14,11 +14,8 @@
 
 use std::path::{Path, PathBuf};
 
-use pneuflex_scene::schema::PlantSpec;
-use pneuflex_scene::{
-    LinearSpring, MultibodyPlant, OneDofPneumatic, RunResult, Scene, build_controller,
-    build_setpoints, simulate,
-};
+use pneuflex_scene::spec::PlantSpec;
+use pneuflex_scene::{LinearSpring, MultibodyPlant, OneDofPneumatic, RunResult, Scene, simulate};
 
 fn repo(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -78,8 +75,8 @@ fn plants(sheet: Option<&str>) -> (Scene, MultibodyPlant, OneDofPneumatic) {
 
 fn run(scene: &Scene, name: &str, plant: &mut dyn pneuflex_scene::Plant) -> RunResult {
     let i = scene.runs.iter().position(|r| r.name == name).expect("run");
-    let sp = build_setpoints(scene).unwrap();
-    let mut c = build_controller(scene, i).unwrap();
+    let sp = scene.setpoints().unwrap();
+    let mut c = scene.controller(i).unwrap();
     let r = simulate(scene, i, plant, c.as_mut(), &sp, &mut |_| {}).unwrap();
     assert!(r.diverged.is_none(), "{:?}", r.diverged);
     r

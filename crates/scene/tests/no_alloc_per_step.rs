@@ -8,7 +8,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;
 
-use pneuflex_scene::{Scene, Trace, build_controller, build_plant, build_setpoints};
+use pneuflex_scene::{Scene, Trace, build_plant};
 
 /// The system allocator, counting the calls made on a thread while that thread's counting is on (the test
 /// harness allocates on its own threads meanwhile).
@@ -66,13 +66,13 @@ fn per_step_allocations(scene_file: &str) -> Vec<(String, u64, u64)> {
         .join("../../scenes")
         .join(scene_file);
     let scene = Scene::load(&path).unwrap();
-    let setpoints = build_setpoints(&scene).unwrap();
+    let setpoints = scene.setpoints().unwrap();
     let dt = scene.dt_s;
     let n_loop = pneuflex_control::LOOP_SIGNALS.len();
     (0..scene.runs.len())
         .map(|i| {
             let mut plant = build_plant(&scene).unwrap();
-            let mut controller = build_controller(&scene, i).unwrap();
+            let mut controller = scene.controller(i).unwrap();
             let (c_sig, p_sig) = (controller.signals(), plant.signals());
             let columns = Trace::loop_columns(&[c_sig, p_sig]);
             let mut values = vec![0.0; columns.len()];

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use pneuflex_scene::claims::{ClaimResult, check_all};
+use pneuflex_scene::analysis::claims::{ClaimResult, check_all};
 use pneuflex_scene::{RunResult, Scene, run_scene};
 
 fn run(file: &str) -> (Vec<RunResult>, Vec<ClaimResult>) {

@@ -179,6 +179,12 @@ impl Default for TuneOptions {
 /// Checks a tune's size from its arguments alone, before any scene is built: the environments' grid of
 /// `over` (refused past `--max-runs` before it is expanded) and the options for `n_free` free keys over it.
 pub fn check_plan(n_free: usize, over: &[SetArg], opts: &TuneOptions) -> Result<(), SweepError> {
+    if let Some(s) = over.iter().find(|s| matches!(s.spec, Spec::Sample { .. })) {
+        return Err(SweepError::Other(format!(
+            "--over {}={}: a list or a range (the environments), not a sample",
+            s.key.text, s.spec_text
+        )));
+    }
     let environments = if over.is_empty() {
         1
     } else {

@@ -16,9 +16,8 @@ use plotters::element::{DashedPathElement, Drawable, PointCollection};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 use plotters_backend::{BackendCoord, DrawingErrorKind};
-use pneuflex_scene::metrics::moving_average;
-use pneuflex_scene::runner::pwm_period_s;
-use pneuflex_scene::schema::{EventSpec, WindowKind};
+use pneuflex_scene::analysis::metrics::moving_average;
+use pneuflex_scene::spec::{EventSpec, WindowKind};
 use pneuflex_scene::{RunResult, Scene, WindowMetrics};
 
 /// DejaVu Sans (fonts-dejavu-core; free license in assets/DejaVuSans-LICENSE.txt).
@@ -758,7 +757,8 @@ pub fn write_figures(
     if ok.is_empty() {
         return Err(VizError::Empty);
     }
-    let period_s = pwm_period_s(scene);
+    // The valve's PWM period as the plant that ran reports it (every run of a scene has the same plant).
+    let period_s = results.iter().find_map(|r| r.pwm_period_s);
     let events: Vec<f64> = scene.events.iter().map(|e| e.t_s()).collect();
     let t_end = ok
         .iter()
@@ -945,11 +945,11 @@ fn event_label(ev: &EventSpec) -> String {
 /// One Bode line: its label and its points (Hz, |L| dB, arg L degrees).
 type BodeLine<'a> = (String, &'a [(f64, f64, f64)]);
 
-/// A Bode plot of inner-loop analyses (`pneuflex_scene::loop_analysis`): |L| in dB above, arg L in degrees
+/// A Bode plot of inner-loop analyses (`pneuflex_scene::analysis::loop_margins`): |L| in dB above, arg L in degrees
 /// below, one line per run and stiffness, against frequency on a log axis; the 0 dB and −180° lines dashed.
 pub fn write_bode(
     path: &Path,
-    analyses: &[pneuflex_scene::loop_analysis::LoopAnalysis],
+    analyses: &[pneuflex_scene::analysis::loop_margins::LoopAnalysis],
 ) -> Result<(), VizError> {
     ensure_font()?;
     let lines: Vec<BodeLine<'_>> = analyses

@@ -6,7 +6,7 @@ use std::path::Path;
 fn the_bode_plot_of_the_linear_scene_is_written() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3-linear.toml");
     let scene = pneuflex_scene::Scene::load(&path).unwrap();
-    let a = pneuflex_scene::loop_analysis::analyse(&scene, 0, 6.0).unwrap();
+    let a = pneuflex_scene::analysis::loop_margins::analyse(&scene, 0, 6.0).unwrap();
     assert!(a.margins.iter().all(|m| m.bode.len() > 100));
     let out = std::env::temp_dir().join(format!("pneuflex-bode-{}.png", std::process::id()));
     pneuflex_viz::write_bode(&out, &[a]).unwrap();

@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use plotters::prelude::*;
-use pneuflex_scene::runner::compute_windows;
-use pneuflex_scene::trace::Column;
+use pneuflex_scene::analysis::windows::compute_windows;
+use pneuflex_scene::run::trace::Column;
 use pneuflex_scene::{ControllerKind, RunResult, Scene, Trace};
 use pneuflex_viz::{Format, column_index, decimate, envelope, write_figures};
 
@@ -219,7 +219,8 @@ fn figures_of_a_long_trace_are_written() {
     ] {
         let sc = scene(file);
         let trace = synthetic_trace(100_001);
-        let windows = compute_windows(&sc, &trace);
+        let pwm = pneuflex_scene::build_plant(&sc).unwrap().pwm_period_s();
+        let windows = compute_windows(&sc, &trace, pwm);
         let results = vec![RunResult {
             name: "impedance".into(),
             controller: ControllerKind::Impedance,
@@ -229,6 +230,7 @@ fn figures_of_a_long_trace_are_written() {
             diverged: None,
             interrupted: None,
             warnings: Vec::new(),
+            pwm_period_s: pwm,
         }];
         let dir = out_dir(file);
         let dir = dir.path().to_path_buf();
@@ -259,7 +261,8 @@ fn figures_of_a_long_trace_are_written() {
 fn a_swap_has_one_figure_with_the_settling_times() {
     let sc = scene("paper-fig7-wood-to-iron.toml");
     let trace = synthetic_trace(8_001);
-    let windows = compute_windows(&sc, &trace);
+    let pwm = pneuflex_scene::build_plant(&sc).unwrap().pwm_period_s();
+    let windows = compute_windows(&sc, &trace, pwm);
     let results = vec![RunResult {
         name: "impedance".into(),
         controller: ControllerKind::Impedance,
@@ -269,6 +272,7 @@ fn a_swap_has_one_figure_with_the_settling_times() {
         diverged: None,
         interrupted: None,
         warnings: Vec::new(),
+        pwm_period_s: pwm,
     }];
     let dir = out_dir("fig7-swap");
     let dir = dir.path().to_path_buf();

@@ -3,7 +3,7 @@
 
 use pneuflex_pneumatics::{ChamberState, OneDofModel};
 
-use crate::schema::{EventSpec, PlantSpec, Scene};
+use crate::spec::{EventSpec, PlantSpec, Scene};
 
 /// RK4's stability limit on the negative real axis (|λh| below ≈ 2.785) and on the imaginary axis
 /// (|ωh| below 2√2 ≈ 2.83); a step is resolved, not just stable, well inside: these are the warning lines.
@@ -74,13 +74,14 @@ pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
     // Runs with the same inner loop share one analysis (the margins depend on the plant and the PID only).
     let mut done: Vec<(
         pneuflex_control::PidParams,
-        crate::loop_analysis::LoopAnalysis,
+        crate::analysis::loop_margins::LoopAnalysis,
     )> = Vec::new();
     for (i, run) in scene.runs.iter().enumerate() {
         let a = match done.iter().find(|(pid, _)| *pid == run.inner) {
             Some((_, a)) => a.clone(),
             None => {
-                let Ok(a) = crate::loop_analysis::analyse(scene, i, MIN_GAIN_MARGIN_DB) else {
+                let Ok(a) = crate::analysis::loop_margins::analyse(scene, i, MIN_GAIN_MARGIN_DB)
+                else {
                     return out;
                 };
                 done.push((run.inner, a.clone()));
@@ -191,7 +192,7 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
 /// solver_iterations: Rapier's implicit motor damps with c + k h, and pneuflex-multibody gives the motor
 /// c - k h but never less than c / 10 (`RigWorld::update_mount`), so a mount with k h > 0.9 c is damped with
 /// more than its material's c (by k h - 0.9 c): its impacts and ripple then depend on the step.
-pub fn mount_damping_warnings(scene: &Scene, mb: &crate::schema::MultibodySpec) -> Vec<Warning> {
+pub fn mount_damping_warnings(scene: &Scene, mb: &crate::spec::MultibodySpec) -> Vec<Warning> {
     let h = mb.physics_dt_s / mb.solver_iterations.max(1) as f64;
     let mut mounts: Vec<(String, f64, f64)> = mb
         .materials

@@ -28,10 +28,10 @@ use pneuflex_multibody::{
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
 
 use crate::error::SceneError;
-use crate::plant::{
+use crate::plants::{
     ActuatorGeometry, LinearSpring, Plant, Visual, VisualPose, VisualRole, VisualShape,
 };
-use crate::schema::{EventSpec, MultibodySpec, PlantSpec, Scene};
+use crate::spec::{EventSpec, MultibodySpec, PlantSpec, Scene};
 
 /// The pneumatic force element plus the sheet's Coulomb friction, acting between cylinder and flange.
 #[derive(Debug, Clone)]
@@ -278,7 +278,7 @@ impl MultibodyPlant {
         }
     }
 
-    fn event_error(&self, e: MultibodyError) -> crate::plant::PlantError {
+    fn event_error(&self, e: MultibodyError) -> crate::plants::PlantError {
         format!("{} (URDF {})", e, self.urdf_file.display()).into()
     }
 }
@@ -329,7 +329,7 @@ fn multibody_field(mb: &MultibodySpec, e: &MultibodyError) -> String {
 
 impl Plant for MultibodyPlant {
     fn signals(&self) -> &'static [pneuflex_control::Signal] {
-        &crate::plant::VALVE_SIGNALS
+        &crate::plants::VALVE_SIGNALS
     }
 
     fn record(&self, out: &mut [f64]) {
@@ -383,7 +383,7 @@ impl Plant for MultibodyPlant {
         }
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plant::PlantError> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plants::PlantError> {
         match event {
             EventSpec::Stiffness {
                 stiffness_n_per_m,
@@ -487,13 +487,13 @@ impl Plant for MultibodyPlant {
                 .world
                 .material_x_e(&self.config.initial_material)
                 .unwrap_or(self.config.initial_x_m),
-            pwm_period_s: crate::plant::pwm_period_s(&self.drive.element.actuator.valve),
+            pwm_period_s: self.drive.element.actuator.valve.pwm_period_s(),
         })
     }
 
-    fn check_invariants(&self) -> Result<(), crate::plant::PlantError> {
+    fn check_invariants(&self) -> Result<(), crate::plants::PlantError> {
         let el = &self.drive.element;
-        crate::plant::chamber_invariants(
+        crate::plants::chamber_invariants(
             &el.chambers,
             &el.actuator.supply,
             self.sensed.x,
@@ -523,7 +523,7 @@ impl Plant for MultibodyPlant {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plant::VisualRole;
+    use crate::plants::VisualRole;
 
     fn plant(scene: &str) -> MultibodyPlant {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -6,8 +6,8 @@ use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState};
 
 use crate::error::SceneError;
-use crate::plant::{ActuatorGeometry, LinearSpring, Plant};
-use crate::schema::{EventSpec, PlantSpec, Scene};
+use crate::plants::{ActuatorGeometry, LinearSpring, Plant};
+use crate::spec::{EventSpec, PlantSpec, Scene};
 
 /// The pneumatic actuator against a linear spring, integrated with `substeps` RK4 steps per control period.
 #[derive(Clone, Debug, PartialEq)]
@@ -101,7 +101,7 @@ impl OneDofPneumatic {
     }
 }
 
-impl crate::loop_analysis::Linearisable for OneDofPneumatic {
+impl crate::plants::Linearisable for OneDofPneumatic {
     fn state_vector(&self) -> Vec<f64> {
         let s = &self.state;
         let c = &s.chambers;
@@ -176,7 +176,7 @@ impl crate::loop_analysis::Linearisable for OneDofPneumatic {
 
 impl Plant for OneDofPneumatic {
     fn signals(&self) -> &'static [pneuflex_control::Signal] {
-        &crate::plant::VALVE_SIGNALS
+        &crate::plants::VALVE_SIGNALS
     }
 
     fn record(&self, out: &mut [f64]) {
@@ -211,7 +211,7 @@ impl Plant for OneDofPneumatic {
         }
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plant::PlantError> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plants::PlantError> {
         match *event {
             EventSpec::Stiffness {
                 stiffness_n_per_m, ..
@@ -219,7 +219,7 @@ impl Plant for OneDofPneumatic {
                 self.env.stiffness_n_per_m = stiffness_n_per_m;
                 Ok(())
             }
-            EventSpec::SwapEnvironment { .. } => Err(crate::plant::PlantError::unsupported(
+            EventSpec::SwapEnvironment { .. } => Err(crate::plants::PlantError::unsupported(
                 "swap_environment needs the multibody plant: the 1-DOF pneumatic plant has one linear-spring environment and no carriage",
             )),
             EventSpec::Alpha { alpha_deg, .. } => {
@@ -230,10 +230,10 @@ impl Plant for OneDofPneumatic {
         }
     }
 
-    fn check_invariants(&self) -> Result<(), crate::plant::PlantError> {
+    fn check_invariants(&self) -> Result<(), crate::plants::PlantError> {
         let a = &self.model.actuator;
         let stroke = a.cylinder.stroke_m;
-        crate::plant::chamber_invariants(&self.state.chambers, &a.supply, self.state.x, stroke)?;
+        crate::plants::chamber_invariants(&self.state.chambers, &a.supply, self.state.x, stroke)?;
         // Energy has one source, the supply: the flange's kinetic energy plus the spring's can never exceed
         // the spring charged across the whole stroke plus the largest piston and gravity force working
         // over it (twice that, for margin). Beyond, the integrator is creating energy.
@@ -245,7 +245,7 @@ impl Plant for OneDofPneumatic {
         let e = 0.5 * m.moving_mass_kg * self.state.x_dot.powi(2)
             + 0.5 * self.env.stiffness_n_per_m * d * d;
         if e > e_max {
-            return Err(crate::plant::PlantError::invariant(format!(
+            return Err(crate::plants::PlantError::invariant(format!(
                 "mechanical energy {e:.3e} J (flange and environment spring) above the {e_max:.3e} J the supply \
                  can have put in over the stroke: energy grows without a source"
             )));
@@ -260,7 +260,7 @@ impl Plant for OneDofPneumatic {
             bore_m: c.bore_m,
             alpha_rad: self.alpha0_rad,
             x_e_m: self.env0.x_e_m,
-            pwm_period_s: crate::plant::pwm_period_s(&self.model.actuator.valve),
+            pwm_period_s: self.model.actuator.valve.pwm_period_s(),
         })
     }
 
@@ -319,7 +319,7 @@ mod tests {
         p.check_invariants().unwrap();
         p.state.x_dot = 1.1 * v_limit;
         let e = p.check_invariants().unwrap_err();
-        assert_eq!(e.kind, crate::plant::PlantErrorKind::Invariant);
+        assert_eq!(e.kind, crate::plants::PlantErrorKind::Invariant);
         assert!(e.message.contains("energy grows without a source"), "{e}");
     }
 

@@ -1,9 +1,74 @@
-//! Plants: what the controller drives. Every plant is stepped the same way,
-//! `sense → controller.update → actuate → advance(dt)`.
+//! Plants: what the controller drives, one file per kind. Every plant is stepped the same way,
+//! `sense → controller.update → actuate → advance(dt)`; [`build_plant`] is the one place a scene's plant
+//! spec becomes a plant.
+
+mod chambers;
+pub mod ideal;
+pub mod linear;
+pub mod multibody;
+pub mod pneumatic;
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 
-use crate::schema::EventSpec;
+use crate::error::SceneError;
+use crate::spec::{EventSpec, PlantSpec, Scene};
+pub use chambers::{PRESSURE_MARGIN, VALVE_SIGNALS, chamber_invariants};
+pub use ideal::IdealLoop;
+pub use linear::LinearPlant;
+pub use multibody::{FlangeDrive, MultibodyPlant};
+pub use pneumatic::OneDofPneumatic;
+
+/// Builds the plant a scene describes, at its initial state.
+pub fn build_plant(scene: &Scene) -> Result<Box<dyn Plant>, SceneError> {
+    let env = LinearSpring {
+        stiffness_n_per_m: scene.environment.stiffness_n_per_m,
+        x_e_m: scene.environment.x_e_m,
+    };
+    match &scene.plant {
+        PlantSpec::Ideal {
+            omega_rad_per_s,
+            zeta,
+            x0_m,
+        } => Ok(Box::new(IdealLoop::new(
+            *omega_rad_per_s,
+            *zeta,
+            *x0_m,
+            env,
+        ))),
+        PlantSpec::Pneumatic { .. } => Ok(Box::new(OneDofPneumatic::from_scene(scene, env)?)),
+        PlantSpec::Multibody(_) => Ok(Box::new(MultibodyPlant::from_scene(scene)?)),
+        PlantSpec::Linear { .. } => Ok(Box::new(LinearPlant::from_scene(scene, env)?)),
+    }
+}
+
+/// What a plant gives the analysis: its continuous state as a vector, and back.
+pub trait Linearisable: Plant {
+    /// The state (position first).
+    fn state_vector(&self) -> Vec<f64>;
+    /// Sets the state from a vector of the same layout.
+    fn set_state_vector(&mut self, v: &[f64]);
+    /// A perturbation size per state component for the finite differences.
+    fn perturbation_scales(&self) -> Vec<f64>;
+    /// Whether the valve switches (PWM): then the analysis uses its period-averaged model.
+    fn switching(&self) -> bool {
+        false
+    }
+    /// Replaces a switching valve by its average over one PWM period: the spool's duty d = (1 + u)/2 opens
+    /// supply→A and B→exhaust for d of the period and the other paths for 1 − d, i.e. a proportional valve
+    /// open both ways at the centre (underlap 1), lagging by the switching delay plus half a period.
+    fn average_switching(&mut self) {}
+    /// Leaves out Coulomb friction: linearised at rest its tanh or stick band is a steep viscous damping
+    /// (F_c/v_s, 600 N·s/m on the shipped sheet) that an oscillation of any size never sees — its describing
+    /// function falls as 4 F_c/(π ω A) — so a small-signal margin with it would promise far more than the
+    /// loop has. The viscous K_v stays.
+    fn without_coulomb_friction(&mut self) {}
+    /// The Coulomb friction force F_c, N (0 without), for its describing function.
+    fn coulomb_n(&self) -> f64 {
+        0.0
+    }
+    /// Adds a viscous damping c, N·s/m (the describing function of Coulomb friction at an amplitude).
+    fn add_viscous(&mut self, _c: f64) {}
+}
 
 /// What kind of thing went wrong in a plant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -93,6 +158,11 @@ pub trait Plant {
     fn actuator_geometry(&self) -> Option<ActuatorGeometry> {
         None
     }
+    /// The period of the valve's PWM carrier, s (an on/off valve under PWM), which the metrics average
+    /// over; None for a proportional valve or a plant without one. The plant knows it once built.
+    fn pwm_period_s(&self) -> Option<f64> {
+        self.actuator_geometry().and_then(|g| g.pwm_period_s)
+    }
 }
 
 /// What a drawn shape is to the experiment, set by the plant that builds it: viewers colour by it and
@@ -123,16 +193,6 @@ pub struct ActuatorGeometry {
     pub x_e_m: f64,
     /// Period of the valve's PWM carrier, s (an on/off valve under PWM); None for a proportional valve.
     pub pwm_period_s: Option<f64>,
-}
-
-/// The PWM period of `valve`, s, if it is an on/off valve switched by PWM.
-pub fn pwm_period_s(valve: &pneuflex_pneumatics::ValveModel) -> Option<f64> {
-    match valve.kind {
-        pneuflex_pneumatics::ValveKind::OnOffPwm {
-            pwm_frequency_hz, ..
-        } => Some(1.0 / pwm_frequency_hz),
-        pneuflex_pneumatics::ValveKind::Proportional { .. } => None,
-    }
 }
 
 /// One drawable collision shape of a plant's link.
@@ -195,167 +255,5 @@ impl LinearSpring {
         } else {
             0.0
         }
-    }
-}
-
-/// An ideal inner position loop: x'' = ω² (x_r - x) - 2 ζ ω x', with x_r from the controller's telemetry.
-///
-/// The loop is a position servo that holds x_r whatever the contact force, so the closed force loop is
-/// the paper's linear analysis with x ≈ x_r (Section III-A). Integrated with fixed-step RK4.
-#[derive(Clone, Debug, PartialEq)]
-pub struct IdealLoop {
-    omega: f64,
-    zeta: f64,
-    x0: f64,
-    env0: LinearSpring,
-    env: LinearSpring,
-    x: f64,
-    v: f64,
-    x_r: f64,
-}
-
-impl IdealLoop {
-    /// A loop at rest at `x0_m` (x_r = x0) against `env`.
-    pub fn new(omega_rad_per_s: f64, zeta: f64, x0_m: f64, env: LinearSpring) -> Self {
-        Self {
-            omega: omega_rad_per_s,
-            zeta,
-            x0: x0_m,
-            env0: env,
-            env,
-            x: x0_m,
-            v: 0.0,
-            x_r: x0_m,
-        }
-    }
-
-    fn accel(&self, x: f64, v: f64) -> f64 {
-        self.omega * self.omega * (self.x_r - x) - 2.0 * self.zeta * self.omega * v
-    }
-
-    /// The current environment.
-    pub fn environment(&self) -> LinearSpring {
-        self.env
-    }
-}
-
-impl Plant for IdealLoop {
-    fn sense(&self) -> Sensors {
-        // No chambers: pressures are NaN (written as empty cells in trace.csv).
-        Sensors {
-            t: 0.0,
-            x: self.x,
-            x_dot: self.v,
-            f_e: self.env.force(self.x),
-            p_a: f64::NAN,
-            p_b: f64::NAN,
-        }
-    }
-
-    fn actuate(&mut self, _command: ValveCommand, telemetry: &Telemetry) {
-        self.x_r = telemetry.x_r;
-    }
-
-    fn advance(&mut self, dt: f64) {
-        // Classical RK4 on (x, v) with x_r held.
-        let (x, v) = (self.x, self.v);
-        let (k1x, k1v) = (v, self.accel(x, v));
-        let (k2x, k2v) = (
-            v + 0.5 * dt * k1v,
-            self.accel(x + 0.5 * dt * k1x, v + 0.5 * dt * k1v),
-        );
-        let (k3x, k3v) = (
-            v + 0.5 * dt * k2v,
-            self.accel(x + 0.5 * dt * k2x, v + 0.5 * dt * k2v),
-        );
-        let (k4x, k4v) = (v + dt * k3v, self.accel(x + dt * k3x, v + dt * k3v));
-        self.x = x + dt / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-        self.v = v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-    }
-
-    fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError> {
-        match *event {
-            EventSpec::Stiffness {
-                stiffness_n_per_m, ..
-            } => {
-                self.env.stiffness_n_per_m = stiffness_n_per_m;
-                Ok(())
-            }
-            EventSpec::SwapEnvironment { .. } => Err(PlantError::unsupported(
-                "swap_environment needs the multibody plant: the ideal loop has one linear-spring environment",
-            )),
-            EventSpec::Alpha { .. } => Err(PlantError::unsupported(
-                "alpha has no effect on the ideal loop (it has no gravity)",
-            )),
-        }
-    }
-
-    fn reset(&mut self) {
-        self.env = self.env0;
-        self.x = self.x0;
-        self.v = 0.0;
-        self.x_r = self.x0;
-    }
-}
-
-/// The valve's recorded signal, for plants with a pneumatic valve: its spool, which under PWM is the
-/// energised side (+1 / -1) — the valve's PWM state.
-pub const VALVE_SIGNALS: [pneuflex_control::Signal; 1] = [pneuflex_control::Signal::new(
-    "spool",
-    "1",
-    "valve",
-    "valve spool position in [-1, 1] (on/off valve under PWM: the energised side, +1 or -1)",
-)];
-
-/// How far above the supply pressure a chamber may go before the state is impossible: a closed chamber
-/// compressed by the piston can exceed supply, but not double it in any case the model is meant for.
-pub const PRESSURE_MARGIN: f64 = 2.0;
-
-/// The physical invariants of a two-chamber actuator: 0 < p <= PRESSURE_MARGIN · p_supply (absolute),
-/// 0 < T < 2000 K, and the piston within the stroke plus 1 mm + 1 % (the end stops are inelastic).
-pub fn chamber_invariants(
-    ch: &pneuflex_pneumatics::ChamberState,
-    supply: &pneuflex_pneumatics::Supply,
-    x_m: f64,
-    stroke_m: f64,
-) -> Result<(), PlantError> {
-    let p_max = PRESSURE_MARGIN * supply.supply_pressure_pa;
-    for (name, p) in [("p_a", ch.p_a), ("p_b", ch.p_b)] {
-        if !(p > 0.0 && p <= p_max) {
-            return Err(PlantError::invariant(format!(
-                "chamber pressure {name} = {p:.6e} Pa (absolute) outside (0, {p_max:.3e}] Pa \
-                 ({PRESSURE_MARGIN} x supply)"
-            )));
-        }
-    }
-    for (name, t) in [("T_a", ch.t_a), ("T_b", ch.t_b)] {
-        if !(t > 0.0 && t < 2000.0) {
-            return Err(PlantError::invariant(format!(
-                "chamber temperature {name} = {t:.6e} K outside (0, 2000) K"
-            )));
-        }
-    }
-    let tol = 1e-3 + 0.01 * stroke_m;
-    if !(x_m >= -tol && x_m <= stroke_m + tol) {
-        return Err(PlantError::invariant(format!(
-            "piston position x = {x_m:.6e} m outside the stroke [0, {stroke_m}] m (+/- {tol:.4} m)"
-        )));
-    }
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_ideal_loop_has_no_actuator_to_draw() {
-        let env = LinearSpring {
-            stiffness_n_per_m: 700.0,
-            x_e_m: 0.0,
-        };
-        let p = IdealLoop::new(100.0, 0.7, 0.0, env);
-        assert!(p.actuator_geometry().is_none());
-        assert!(p.visuals().is_empty());
     }
 }

@@ -7,8 +7,8 @@
 use pneuflex_control::{Sensors, Signal, Telemetry, ValveCommand};
 
 use crate::error::SceneError;
-use crate::plant::{LinearSpring, Plant};
-use crate::schema::{EventSpec, PlantSpec, Scene};
+use crate::plants::{LinearSpring, Plant};
+use crate::spec::{EventSpec, PlantSpec, Scene};
 
 /// The load pressure the plant is driven with (its own recorded signal).
 const LINEAR_SIGNALS: [Signal; 1] = [Signal::new(
@@ -137,7 +137,7 @@ impl LinearPlant {
     }
 }
 
-impl crate::loop_analysis::Linearisable for LinearPlant {
+impl crate::plants::Linearisable for LinearPlant {
     fn state_vector(&self) -> Vec<f64> {
         self.state.to_vec()
     }
@@ -183,7 +183,7 @@ impl Plant for LinearPlant {
         }
     }
 
-    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plant::PlantError> {
+    fn apply(&mut self, event: &EventSpec) -> Result<(), crate::plants::PlantError> {
         match *event {
             EventSpec::Stiffness {
                 stiffness_n_per_m, ..
@@ -191,7 +191,7 @@ impl Plant for LinearPlant {
                 self.env.stiffness_n_per_m = stiffness_n_per_m;
                 Ok(())
             }
-            _ => Err(crate::plant::PlantError::unsupported(format!(
+            _ => Err(crate::plants::PlantError::unsupported(format!(
                 "the linear plant supports only stiffness events, not {}",
                 event.kind()
             ))),

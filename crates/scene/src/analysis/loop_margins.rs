@@ -14,37 +14,8 @@
 use serde::Serialize;
 
 use crate::error::SceneError;
-use crate::plant::{LinearSpring, Plant};
-use crate::schema::{EventSpec, PlantSpec, Scene};
-
-/// What a plant gives the analysis: its continuous state as a vector, and back.
-pub trait Linearisable: Plant {
-    /// The state (position first).
-    fn state_vector(&self) -> Vec<f64>;
-    /// Sets the state from a vector of the same layout.
-    fn set_state_vector(&mut self, v: &[f64]);
-    /// A perturbation size per state component for the finite differences.
-    fn perturbation_scales(&self) -> Vec<f64>;
-    /// Whether the valve switches (PWM): then the analysis uses its period-averaged model.
-    fn switching(&self) -> bool {
-        false
-    }
-    /// Replaces a switching valve by its average over one PWM period: the spool's duty d = (1 + u)/2 opens
-    /// supply→A and B→exhaust for d of the period and the other paths for 1 − d, i.e. a proportional valve
-    /// open both ways at the centre (underlap 1), lagging by the switching delay plus half a period.
-    fn average_switching(&mut self) {}
-    /// Leaves out Coulomb friction: linearised at rest its tanh or stick band is a steep viscous damping
-    /// (F_c/v_s, 600 N·s/m on the shipped sheet) that an oscillation of any size never sees — its describing
-    /// function falls as 4 F_c/(π ω A) — so a small-signal margin with it would promise far more than the
-    /// loop has. The viscous K_v stays.
-    fn without_coulomb_friction(&mut self) {}
-    /// The Coulomb friction force F_c, N (0 without), for its describing function.
-    fn coulomb_n(&self) -> f64 {
-        0.0
-    }
-    /// Adds a viscous damping c, N·s/m (the describing function of Coulomb friction at an amplitude).
-    fn add_viscous(&mut self, _c: f64) {}
-}
+use crate::plants::{LinearSpring, Linearisable};
+use crate::spec::{EventSpec, PlantSpec, Scene};
 
 /// Margins of the inner loop at one environment stiffness.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -305,7 +276,7 @@ pub fn analyse(scene: &Scene, index: usize, target_db: f64) -> Result<LoopAnalys
         };
         let m = match &scene.plant {
             PlantSpec::Pneumatic { .. } => {
-                let mut p = crate::pneumatic::OneDofPneumatic::from_scene(scene, env)?;
+                let mut p = crate::plants::pneumatic::OneDofPneumatic::from_scene(scene, env)?;
                 if p.switching() {
                     p.average_switching();
                     valve_model = "the on/off valve averaged over its PWM period (duty (1+u)/2, both \
@@ -314,7 +285,7 @@ pub fn analyse(scene: &Scene, index: usize, target_db: f64) -> Result<LoopAnalys
                 at_stiffness(&mut p, scene, run, k_e, target_db)
             }
             PlantSpec::Linear { .. } => {
-                let mut p = crate::linear::LinearPlant::from_scene(scene, env)?;
+                let mut p = crate::plants::linear::LinearPlant::from_scene(scene, env)?;
                 at_stiffness(&mut p, scene, run, k_e, target_db)
             }
             _ => {
@@ -349,7 +320,7 @@ fn frequencies(dt: f64) -> Vec<f64> {
 fn at_stiffness<P: Linearisable>(
     p: &mut P,
     scene: &Scene,
-    run: &crate::schema::RunSpec,
+    run: &crate::spec::RunSpec,
     k_e: f64,
     target_db: f64,
 ) -> Margins {
@@ -357,9 +328,7 @@ fn at_stiffness<P: Linearisable>(
     p.without_coulomb_friction();
     // Operating point: the inner loop alone holding the position that presses the scene's first reference
     // force into the environment, settled for 2 s.
-    let f_op = crate::runner::build_setpoints(scene)
-        .map(|sp| sp.at(0.0).f_ref)
-        .unwrap_or(0.0);
+    let f_op = scene.setpoints().map(|sp| sp.at(0.0).f_ref).unwrap_or(0.0);
     let x_op = scene.environment.x_e_m + if k_e > 0.0 { f_op / k_e } else { 0.0 };
     let mut pid = pneuflex_control::Pid::new(run.inner).expect("validated with the scene");
     let mut u = 0.0;
@@ -423,7 +392,7 @@ fn at_stiffness<P: Linearisable>(
 pub fn limit_cycle_onset<P: Linearisable + Clone>(
     plant: &P,
     scene: &Scene,
-    run: &crate::schema::RunSpec,
+    run: &crate::spec::RunSpec,
     k_e: f64,
 ) -> Option<(f64, f64, f64)> {
     let dt = scene.dt_s;
@@ -496,9 +465,7 @@ fn settle<P: Linearisable>(
     k_e: f64,
 ) -> f64 {
     let dt = scene.dt_s;
-    let f_op = crate::runner::build_setpoints(scene)
-        .map(|sp| sp.at(0.0).f_ref)
-        .unwrap_or(0.0);
+    let f_op = scene.setpoints().map(|sp| sp.at(0.0).f_ref).unwrap_or(0.0);
     let x_op = scene.environment.x_e_m + if k_e > 0.0 { f_op / k_e } else { 0.0 };
     let mut c = pneuflex_control::Pid::new(*pid).expect("validated with the scene");
     let mut u = 0.0;

@@ -11,8 +11,8 @@ use pneuflex_files::InputDigest;
 use serde::Serialize;
 
 use crate::error::SceneError;
-use crate::runner::{LyapunovSummary, RunResult, WindowMetrics};
-use crate::schema::Scene;
+use crate::run::result::{LyapunovSummary, RunResult, WindowMetrics};
+use crate::spec::Scene;
 
 fn werr(path: &Path) -> impl FnOnce(std::io::Error) -> SceneError + '_ {
     move |os_error| SceneError::Write {
@@ -57,7 +57,7 @@ pub struct Summary {
     pub runs: Vec<RunSummary>,
     /// The scene's claims, each with the two values and whether it holds.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub claims: Vec<crate::claims::ClaimResult>,
+    pub claims: Vec<crate::analysis::claims::ClaimResult>,
 }
 
 /// One run in summary.json.
@@ -112,14 +112,12 @@ pub fn scene_inputs(scene: &Scene) -> Vec<InputDigest> {
     };
     add(&scene.source, "scene");
     let (actuator, urdf) = match &scene.plant {
-        crate::schema::PlantSpec::Ideal { .. } => (None, None),
-        crate::schema::PlantSpec::Linear { actuator, .. } => {
+        crate::spec::PlantSpec::Ideal { .. } => (None, None),
+        crate::spec::PlantSpec::Linear { actuator, .. } => {
             (actuator.as_ref().map(|a| scene.resolve(a)), None)
         }
-        crate::schema::PlantSpec::Pneumatic { actuator, .. } => {
-            (Some(scene.resolve(actuator)), None)
-        }
-        crate::schema::PlantSpec::Multibody(mb) => (
+        crate::spec::PlantSpec::Pneumatic { actuator, .. } => (Some(scene.resolve(actuator)), None),
+        crate::spec::PlantSpec::Multibody(mb) => (
             Some(scene.resolve(&mb.actuator)),
             Some(scene.resolve(&mb.urdf)),
         ),
@@ -153,7 +151,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
         schema_version: SUMMARY_SCHEMA_VERSION,
         scene_schema_version: scene
             .schema_version
-            .unwrap_or(crate::schema::SCENE_SCHEMA_VERSION),
+            .unwrap_or(crate::spec::SCENE_SCHEMA_VERSION),
         inputs: scene_inputs(scene),
         complete: interrupted.is_none() && results.len() == scene.runs.len(),
         interrupted,
@@ -162,10 +160,10 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
         duration_s: scene.duration_s,
         dt_s: scene.dt_s,
         plant: match scene.plant {
-            crate::schema::PlantSpec::Ideal { .. } => "ideal".into(),
-            crate::schema::PlantSpec::Pneumatic { .. } => "pneumatic".into(),
-            crate::schema::PlantSpec::Multibody(_) => "multibody".into(),
-            crate::schema::PlantSpec::Linear { .. } => "linear".into(),
+            crate::spec::PlantSpec::Ideal { .. } => "ideal".into(),
+            crate::spec::PlantSpec::Pneumatic { .. } => "pneumatic".into(),
+            crate::spec::PlantSpec::Multibody(_) => "multibody".into(),
+            crate::spec::PlantSpec::Linear { .. } => "linear".into(),
         },
         runs: results
             .iter()
@@ -182,7 +180,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
                 warnings: r.warnings.clone(),
             })
             .collect(),
-        claims: crate::claims::check_all(scene, results),
+        claims: crate::analysis::claims::check_all(scene, results),
     }
 }
 

@@ -3,8 +3,8 @@
 
 use serde::Serialize;
 
-use crate::runner::{RunResult, WindowMetrics};
-use crate::schema::{ClaimSpec, Scene};
+use crate::run::result::{RunResult, WindowMetrics};
+use crate::spec::{ClaimSpec, Scene};
 
 /// One claim checked on a scene's results.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -78,7 +78,7 @@ pub fn check(c: &ClaimSpec, results: &[RunResult]) -> ClaimResult {
             };
             Some(format!(
                 "the verdict flips with the settling band {:.0} % narrower or wider ({} {}, {} {})",
-                100.0 * crate::metrics::SETTLING_BAND_PROBE,
+                100.0 * crate::analysis::metrics::SETTLING_BAND_PROBE,
                 c.better,
                 show(rb),
                 c.than,
@@ -132,8 +132,8 @@ pub fn check_all(scene: &Scene, results: &[RunResult]) -> Vec<ClaimResult> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::metrics::{Steady, event_response};
-    use crate::schema::{ControllerKind, WindowKind};
+    use crate::analysis::metrics::{Steady, event_response};
+    use crate::spec::{ControllerKind, WindowKind};
 
     /// A run whose only window, `change`, is the event response of f_e = 10 + e(t) on a 10 N reference.
     fn run(name: &str, e: impl Fn(f64) -> f64) -> RunResult {
@@ -143,7 +143,7 @@ mod tests {
         RunResult {
             name: name.into(),
             controller: ControllerKind::Impedance,
-            trace: crate::trace::Trace::with_capacity(0, Vec::new()),
+            trace: crate::run::trace::Trace::with_capacity(0, Vec::new()),
             windows: vec![WindowMetrics {
                 name: "change".into(),
                 kind: WindowKind::Event,
@@ -160,6 +160,7 @@ mod tests {
             diverged: None,
             interrupted: None,
             warnings: Vec::new(),
+            pwm_period_s: None,
         }
     }
 

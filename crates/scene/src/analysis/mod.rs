@@ -1,0 +1,9 @@
+//! What a scene's runs are judged by: the metrics of each window, the claims, the inner loop's margins and
+//! limit cycle, the advice given before a run, and what the adaptive law did.
+
+pub mod adaptation;
+pub mod advice;
+pub mod claims;
+pub mod loop_margins;
+pub mod metrics;
+pub mod windows;

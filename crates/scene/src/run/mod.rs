@@ -1,0 +1,252 @@
+//! Running a scene: for every controller it lists, the one loop on a fresh plant, recording a preallocated
+//! trace, then the metrics of every window; the runs in parallel when nothing watches them.
+
+mod host;
+pub mod observe;
+pub mod output;
+pub mod result;
+pub mod trace;
+
+use pneuflex_control as control;
+
+use crate::analysis::adaptation::{lyapunov_summary, pinned_parameters};
+use crate::analysis::windows::compute_windows;
+use crate::error::SceneError;
+use crate::plants::build_plant;
+use crate::spec::{ControllerKind, Scene};
+pub use host::{simulate, simulate_observed, simulate_stoppable};
+pub use observe::{NoObserver, Observers, Rows, StepObserver};
+pub use result::{LyapunovSummary, RunResult, WindowMetrics};
+
+/// Runs every controller the scene lists, each on a fresh plant. `progress` receives the completed
+/// fraction in [0, 1]. A diverged run is returned with `diverged` set; errors are only for bad input.
+pub fn run_scene(
+    scene: &Scene,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Vec<RunResult>, SceneError> {
+    run_scene_observed(scene, progress, &mut NoObserver)
+}
+
+/// [`run_scene`] with an observer called at every tick of every run.
+pub fn run_scene_observed(
+    scene: &Scene,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn StepObserver,
+) -> Result<Vec<RunResult>, SceneError> {
+    run_scene_with(scene, &RunOptions::default(), progress, observer)
+}
+
+/// How a scene is run: the limits it must stay within, a flag a signal handler sets to stop it, and who
+/// is told when a run's trace is complete.
+#[derive(Clone, Copy, Default)]
+pub struct RunOptions<'a> {
+    /// Refuse scenes beyond these before anything runs.
+    pub limits: crate::spec::Limits,
+    /// Non-zero stops the current run at the next tick (the value is the signal number, e.g. 2 = SIGINT);
+    /// later runs are not started.
+    pub stop: Option<&'a std::sync::atomic::AtomicUsize>,
+    /// Called once per run that ran, as soon as its trace, window metrics and warnings are final (its
+    /// Lyapunov check may still be under way), on the thread that ran it, in any order: `pneuflex run`
+    /// writes the run's trace there while the other runs are still simulating.
+    pub on_run: Option<&'a (dyn Fn(&RunResult) + Sync)>,
+}
+
+impl std::fmt::Debug for RunOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunOptions")
+            .field("limits", &self.limits)
+            .field("stop", &self.stop)
+            .field("on_run", &self.on_run.map(|_| "Fn(&RunResult)"))
+            .finish()
+    }
+}
+
+/// The conventional name of a signal number, for messages.
+pub fn signal_name(signal: usize) -> String {
+    match signal {
+        1 => "SIGHUP".into(),
+        2 => "SIGINT".into(),
+        15 => "SIGTERM".into(),
+        n => format!("signal {n}"),
+    }
+}
+
+/// [`run_scene_observed`] with limits and a stop flag. Runs stopped by the flag come back with
+/// `interrupted` set; runs not started are absent (the runs started are always the first ones, in order).
+///
+/// When the observer watches nothing ([`StepObserver::watches`]) and there are several runs and cores,
+/// the runs execute in parallel (rayon's pool), each on its own plant from [`build_plant`]; the results
+/// are the same, bit for bit, as one after another. A stop flag then stops every run in progress and no
+/// further run starts.
+pub fn run_scene_with(
+    scene: &Scene,
+    opts: &RunOptions<'_>,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn StepObserver,
+) -> Result<Vec<RunResult>, SceneError> {
+    scene.validate()?;
+    scene.check_budget(&opts.limits)?;
+    let setpoints = scene.setpoints()?;
+    let parallel = !observer.watches()
+        && scene.runs.len() > 1
+        && rayon::current_num_threads() > 1
+        // A pool thread must not block on the progress channel below.
+        && rayon::current_thread_index().is_none();
+    if parallel {
+        return run_parallel(scene, opts, &setpoints, progress);
+    }
+    let mut plant = build_plant(scene)?;
+    let n_runs = scene.runs.len();
+    let mut out = Vec::with_capacity(n_runs);
+    for i in 0..n_runs {
+        if stopped(opts) {
+            break;
+        }
+        let mut controller = scene.controller(i)?;
+        plant.reset();
+        let mut sub = |f: f64| progress((i as f64 + f) / n_runs as f64);
+        observer.begin_run(&scene.runs[i], plant.as_ref());
+        let mut r = host::simulate_loop(
+            scene,
+            i,
+            plant.as_mut(),
+            controller.as_mut(),
+            &setpoints,
+            &mut sub,
+            observer,
+            opts.stop,
+        )?;
+        observer.end_run(&r);
+        finish_run(scene, i, &mut r);
+        if let Some(f) = opts.on_run {
+            f(&r);
+        }
+        out.push(r);
+    }
+    progress(1.0);
+    Ok(out)
+}
+
+fn stopped(opts: &RunOptions<'_>) -> bool {
+    opts.stop
+        .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed) != 0)
+}
+
+/// A simulated run's metrics, Lyapunov check and warnings.
+fn finish_run(scene: &Scene, i: usize, r: &mut RunResult) {
+    finish_metrics(scene, i, r);
+    if r.controller == ControllerKind::Adaptive {
+        r.lyapunov = lyapunov_summary(scene, &scene.runs[i]);
+    }
+}
+
+/// A simulated run's window metrics and warnings (what needs its trace).
+fn finish_metrics(scene: &Scene, i: usize, r: &mut RunResult) {
+    if r.diverged.is_none() && r.interrupted.is_none() {
+        r.windows = compute_windows(scene, &r.trace, r.pwm_period_s);
+    }
+    r.warnings = pinned_parameters(&scene.runs[i], &r.trace);
+}
+
+/// The runs of a scene on the pool's threads: each worker takes the next run in the scene's order (so the
+/// runs started are a prefix), builds its plant and controller, simulates and computes its metrics. The
+/// calling thread makes the Lyapunov checks of the adaptive runs (they need the scene, not the trace; 2 ms
+/// each on paper-fig7) while the workers simulate, where it would only wait for their messages: taken after
+/// the runs, a check held back the outputs that wait for this function. A run stopped by a signal is still
+/// checked, as in the sequential path. The calling thread reports progress from what the workers send. The
+/// first error in run order is returned.
+fn run_parallel(
+    scene: &Scene,
+    opts: &RunOptions<'_>,
+    setpoints: &control::SetpointSchedule,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Vec<RunResult>, SceneError> {
+    use std::sync::Mutex;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let n_runs = scene.runs.len();
+    let next = AtomicUsize::new(0);
+    let slots: Vec<Mutex<Option<Result<RunResult, SceneError>>>> =
+        (0..n_runs).map(|_| Mutex::new(None)).collect();
+    let workers = n_runs.min(rayon::current_num_threads());
+    let (tx, rx) = std::sync::mpsc::channel::<(usize, f64)>();
+    let lyapunov = rayon::in_place_scope(|s| {
+        for _ in 0..workers {
+            let tx = tx.clone();
+            let (next, slots) = (&next, &slots);
+            s.spawn(move |_| {
+                loop {
+                    if stopped(opts) {
+                        break;
+                    }
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= n_runs {
+                        break;
+                    }
+                    let run = || -> Result<RunResult, SceneError> {
+                        let mut plant = build_plant(scene)?;
+                        let mut controller = scene.controller(i)?;
+                        // Progress in steps of 1 % of the run (each message wakes the caller).
+                        let mut sent = 0.0;
+                        let mut sub = |f: f64| {
+                            if f - sent >= 0.01 || (f >= 1.0 && sent < 1.0) {
+                                sent = f;
+                                let _ = tx.send((i, f));
+                            }
+                        };
+                        let mut r = host::simulate_loop(
+                            scene,
+                            i,
+                            plant.as_mut(),
+                            controller.as_mut(),
+                            setpoints,
+                            &mut sub,
+                            &mut NoObserver,
+                            opts.stop,
+                        )?;
+                        finish_metrics(scene, i, &mut r);
+                        if let Some(f) = opts.on_run {
+                            f(&r);
+                        }
+                        Ok(r)
+                    };
+                    let r = run();
+                    let failed = r.is_err();
+                    *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
+                    if failed {
+                        // Later runs would be discarded: start none.
+                        next.fetch_max(n_runs, Ordering::Relaxed);
+                    }
+                }
+            });
+        }
+        drop(tx);
+        let lyapunov: Vec<Option<LyapunovSummary>> = (0..n_runs)
+            .map(|i| {
+                (scene.runs[i].controller == ControllerKind::Adaptive)
+                    .then(|| lyapunov_summary(scene, &scene.runs[i]))
+                    .flatten()
+            })
+            .collect();
+        let mut done = vec![0.0; n_runs];
+        let mut total = 0.0;
+        for (i, f) in rx {
+            total += f - done[i];
+            done[i] = f;
+            progress(total / n_runs as f64);
+        }
+        lyapunov
+    });
+    progress(1.0);
+    let mut out = Vec::with_capacity(n_runs);
+    for (slot, lyap) in slots.into_iter().zip(lyapunov) {
+        match slot.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            Some(r) => {
+                let mut r = r?;
+                r.lyapunov = lyap;
+                out.push(r);
+            }
+            None => break,
+        }
+    }
+    Ok(out)
+}
