@@ -14,7 +14,7 @@ use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pneuflex_files::OutputDir;
 use pneuflex_files::output::{Manifest, Partial, Writer};
-use pneuflex_scene::{Limits, PlantSpec, RunOptions, RunResult, Scene, WindowKind, run_scene_with};
+use pneuflex_scene::{Limits, RunOptions, RunResult, Scene, WindowKind, run_scene_with};
 
 use super::Exit;
 
@@ -34,15 +34,7 @@ pub struct RunArgs {
 /// The input files a run must never write over: the scene, and the sheet and URDF it names.
 pub(super) fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
     let mut v = vec![scene_path.to_path_buf()];
-    match &scene.plant {
-        PlantSpec::Ideal { .. } => {}
-        PlantSpec::Pneumatic { actuator, .. } => v.push(scene.resolve(actuator)),
-        PlantSpec::Linear { actuator, .. } => v.extend(actuator.iter().map(|a| scene.resolve(a))),
-        PlantSpec::Multibody(mb) => {
-            v.push(scene.resolve(&mb.actuator));
-            v.push(scene.resolve(&mb.urdf));
-        }
-    }
+    v.extend(scene.input_files().into_iter().skip(1).map(|(_, p)| p));
     v
 }
 

@@ -91,7 +91,7 @@ pub fn loop_margins(
     json: bool,
     bode: Option<&Path>,
 ) -> anyhow::Result<String> {
-    use pneuflex_scene::analysis::loop_margins::{analyse, limit_cycle_onset};
+    use pneuflex_scene::analysis::loop_margins::{analyse, onset_at};
     anyhow::ensure!(
         margin_db.is_finite() && (0.0..=60.0).contains(&margin_db),
         "--margin-db: a gain margin in [0, 60] dB, got {margin_db}"
@@ -123,17 +123,7 @@ pub fn loop_margins(
         let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
         let mut onsets = Vec::new();
         for m in &a.margins {
-            let onset = match &scene.plant {
-                pneuflex_scene::PlantSpec::Pneumatic { .. } => {
-                    let env = pneuflex_scene::LinearSpring {
-                        stiffness_n_per_m: m.stiffness_n_per_m,
-                        x_e_m: scene.environment.x_e_m,
-                    };
-                    let p = pneuflex_scene::OneDofPneumatic::from_scene(&scene, env)?;
-                    limit_cycle_onset(&p, &scene, &scene.runs[i], m.stiffness_n_per_m)
-                }
-                _ => None,
-            };
+            let onset = onset_at(&scene, i, m.stiffness_n_per_m)?;
             writeln!(
                 s,
                 "  k_e = {:>8} N/m: crossover {} Hz, phase margin {} deg; phase crossover {} Hz, gain margin {} dB; kp for {margin_db} dB: {} /m{}",

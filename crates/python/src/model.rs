@@ -7,7 +7,7 @@ use pneuflex_multibody::{AxialActuator, PneumaticForceElement};
 use pneuflex_pneumatics::{
     ActuatorSheet, ChamberState, Friction, OneDofModel, OneDofState, ValveKind,
 };
-use pneuflex_scene::{PlantSpec, Scene};
+use pneuflex_scene::Scene;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -72,19 +72,11 @@ impl PyActuator {
     #[staticmethod]
     fn from_scene(scene_path: PathBuf) -> PyResult<Self> {
         let scene = Scene::load(&scene_path).map_err(errors::scene)?;
-        let (actuator, alpha_deg) = match &scene.plant {
-            PlantSpec::Pneumatic {
-                actuator,
-                alpha_deg,
-                ..
-            } => (actuator, *alpha_deg),
-            PlantSpec::Multibody(mb) => (&mb.actuator, mb.alpha_deg),
-            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => {
-                return Err(errors::other(format!(
-                    "{}: plant: the ideal and linear plants have no actuator model to couple (kind must be \"pneumatic\" or \"multibody\")",
-                    scene_path.display()
-                )));
-            }
+        let Some((actuator, alpha_deg)) = scene.plant.force_element() else {
+            return Err(errors::other(format!(
+                "{}: plant: the ideal and linear plants have no actuator model to couple (kind must be \"pneumatic\" or \"multibody\")",
+                scene_path.display()
+            )));
         };
         Self::new(scene.resolve(actuator), alpha_deg)
     }

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use pneuflex_control::signal::index;
 use pneuflex_scene::plants::{ActuatorGeometry, VisualRole};
 use pneuflex_scene::run::trace::{Column, Row, Trace};
-use pneuflex_scene::spec::{EventSpec, ForcePiece, PlantSpec, RunSpec};
+use pneuflex_scene::spec::{EventSpec, ForcePiece, RunSpec};
 use pneuflex_scene::{Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape};
 
 use crate::layout::{Eye, Layout};
@@ -707,14 +707,12 @@ impl SceneRecorder {
             }
             Sink::Spawn => {}
         }
-        let materials = match &scene.plant {
-            PlantSpec::Multibody(m) => m
-                .materials
+        let materials = scene.plant.multibody().map_or_else(Vec::new, |m| {
+            m.materials
                 .iter()
                 .map(|m| (m.name.clone(), m.stiffness_n_per_m))
-                .collect(),
-            _ => Vec::new(),
-        };
+                .collect()
+        });
         Ok(Self {
             sink,
             options,
@@ -1244,10 +1242,7 @@ mod tests {
             let geometry = plant.actuator_geometry();
             let visuals = plant.visuals();
             let x0 = plant.sense().x;
-            let multibody = match &scene.plant {
-                PlantSpec::Multibody(mb) => Some(mb),
-                _ => None,
-            };
+            let multibody = scene.plant.multibody();
             match (&geometry, multibody) {
                 (None, _) => {
                     kinds.insert("no actuator (ideal loop)");

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use pneuflex_scene::{Limits, PlantSpec, RunResult, Scene, SceneError, WindowKind, WindowMetrics};
+use pneuflex_scene::{Limits, RunResult, Scene, SceneError, WindowKind, WindowMetrics};
 use rayon::prelude::*;
 
 use crate::key::{Base, KeyError, KeyPath, Value};
@@ -428,13 +428,7 @@ impl Sweep {
         scene.text = self.base.scene.text.clone();
         scene.overlay = edited.overlay;
         if !scene.overlay.is_empty() {
-            let sheet = match &scene.plant {
-                PlantSpec::Pneumatic { actuator, .. } => Some(scene.resolve(actuator)),
-                PlantSpec::Multibody(mb) => Some(scene.resolve(&mb.actuator)),
-                PlantSpec::Linear { actuator, .. } => actuator.as_ref().map(|a| scene.resolve(a)),
-                PlantSpec::Ideal { .. } => None,
-            };
-            let Some(sheet) = sheet else {
+            let Some(sheet) = scene.actuator_sheet_path() else {
                 return Err(SweepError::Other(format!(
                     "sweep point {}: the plant of this scene has no actuator sheet",
                     self.describe(i)

@@ -564,15 +564,11 @@ impl Tuner {
         scene.text = self.base.scene.text.clone();
         scene.overlay = edited.overlay;
         if !scene.overlay.is_empty() {
-            let sheet = match &scene.plant {
-                pneuflex_scene::PlantSpec::Pneumatic { actuator, .. } => scene.resolve(actuator),
-                pneuflex_scene::PlantSpec::Multibody(mb) => scene.resolve(&mb.actuator),
-                _ => {
-                    return Err(SweepError::Other(format!(
-                        "{}: this plant has no actuator sheet",
-                        point()
-                    )));
-                }
+            let Some(sheet) = scene.actuator_sheet_path() else {
+                return Err(SweepError::Other(format!(
+                    "{}: this plant has no actuator sheet",
+                    point()
+                )));
             };
             scene.load_sheet(&sheet).map_err(|err| SweepError::Sheet {
                 point: point(),
@@ -595,20 +591,9 @@ impl Tuner {
 
     /// The scene keys that name files, with each file's path as seen from `dir`.
     fn named_files(&self, dir: &Path) -> Vec<(KeyPath, Value)> {
-        use pneuflex_scene::PlantSpec;
-        let mut files: Vec<(&str, &Path)> = Vec::new();
-        match &self.base_scene.plant {
-            PlantSpec::Pneumatic { actuator, .. } => files.push(("plant.actuator", actuator)),
-            PlantSpec::Linear {
-                actuator: Some(a), ..
-            } => files.push(("plant.actuator", a)),
-            PlantSpec::Multibody(mb) => {
-                files.push(("plant.actuator", &mb.actuator));
-                files.push(("plant.urdf", &mb.urdf));
-            }
-            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => {}
-        }
-        files
+        self.base_scene
+            .plant
+            .files()
             .into_iter()
             .filter_map(|(key, p)| {
                 let rel = pneuflex_files::path::relative_to(&self.base_scene.resolve(p), dir);

@@ -3,7 +3,7 @@
 
 use pneuflex_pneumatics::{ChamberState, OneDofModel};
 
-use crate::spec::{EventSpec, PlantSpec, Scene};
+use crate::spec::{EventSpec, Scene};
 
 /// RK4's stability limit on the negative real axis (|λh| below ≈ 2.785) and on the imaginary axis
 /// (|ωh| below 2√2 ≈ 2.83); a step is resolved, not just stable, well inside: these are the warning lines.
@@ -111,29 +111,17 @@ pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
 /// Warnings for a validated scene (Err only when its actuator sheet cannot be read; building the plant
 /// reports that with its key anyway, so callers may ignore it).
 pub fn warnings(scene: &Scene) -> Vec<Warning> {
-    let mut out = Vec::new();
-    let (sheet, h, steps_key, steps_now) = match &scene.plant {
-        PlantSpec::Ideal { .. } => return out,
-        PlantSpec::Linear { .. } => return margin_warnings(scene),
-        PlantSpec::Pneumatic {
-            actuator, substeps, ..
-        } => (
-            scene.resolve(actuator),
-            scene.dt_s / f64::from(*substeps),
-            "plant.substeps",
-            f64::from(*substeps),
-        ),
-        PlantSpec::Multibody(mb) => (
-            scene.resolve(&mb.actuator),
-            mb.chamber_substep_s(scene.dt_s),
-            "plant.chamber_substeps",
-            f64::from(mb.chamber_substeps),
-        ),
-    };
-    out.extend(margin_warnings(scene));
-    if let PlantSpec::Multibody(mb) = &scene.plant {
+    // The inner loop's margins where it can be analysed (empty on the ideal loop and the multibody rig).
+    let mut out = margin_warnings(scene);
+    if let Some(mb) = scene.plant.multibody() {
         out.extend(mount_damping_warnings(scene, mb));
     }
+    let (Some(sheet), Some((h, steps_key, steps_now))) = (
+        scene.actuator_sheet_path(),
+        scene.plant.chamber_step(scene.dt_s),
+    ) else {
+        return out;
+    };
     let Ok(sheet) = scene.load_sheet(&sheet) else {
         return out;
     };
@@ -153,7 +141,7 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
         });
     }
     // The 1-DOF plant holds the spring force over a substep: the contact mode must be resolved by it.
-    if let PlantSpec::Pneumatic { .. } = &scene.plant {
+    if scene.plant.contact_in_substeps() {
         let mut k_max = (
             scene.environment.stiffness_n_per_m,
             "environment.stiffness_n_per_m".to_string(),

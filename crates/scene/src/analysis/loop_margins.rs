@@ -288,7 +288,7 @@ pub fn analyse(scene: &Scene, index: usize, target_db: f64) -> Result<LoopAnalys
                 let mut p = crate::plants::linear::LinearPlant::from_scene(scene, env)?;
                 at_stiffness(&mut p, scene, run, k_e, target_db)
             }
-            _ => {
+            PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => {
                 return Err(scene.invalid(
                     "plant.kind",
                     "loop analysis needs a plant the valve command drives continuously: \"pneumatic\" \
@@ -381,6 +381,27 @@ fn at_stiffness<P: Linearisable>(
             .iter()
             .map(|&(f, m, ph)| (f, 20.0 * m.log10(), ph.to_degrees()))
             .collect(),
+    }
+}
+
+/// The limit-cycle onset of run `index` at stiffness `k_e` on the scene's plant (see [`limit_cycle_onset`]);
+/// None on a plant whose valve and friction this prediction does not model (the linear model has neither,
+/// the ideal loop and the multibody rig are not analysed).
+pub fn onset_at(
+    scene: &Scene,
+    index: usize,
+    k_e: f64,
+) -> Result<Option<(f64, f64, f64)>, SceneError> {
+    match &scene.plant {
+        PlantSpec::Pneumatic { .. } => {
+            let env = LinearSpring {
+                stiffness_n_per_m: k_e,
+                x_e_m: scene.environment.x_e_m,
+            };
+            let p = crate::plants::OneDofPneumatic::from_scene(scene, env)?;
+            Ok(limit_cycle_onset(&p, scene, &scene.runs[index], k_e))
+        }
+        PlantSpec::Linear { .. } | PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => Ok(None),
     }
 }
 

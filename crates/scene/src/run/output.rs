@@ -111,17 +111,14 @@ pub fn scene_inputs(scene: &Scene) -> Vec<InputDigest> {
         }
     };
     add(&scene.source, "scene");
-    let (actuator, urdf) = match &scene.plant {
-        crate::spec::PlantSpec::Ideal { .. } => (None, None),
-        crate::spec::PlantSpec::Linear { actuator, .. } => {
-            (actuator.as_ref().map(|a| scene.resolve(a)), None)
-        }
-        crate::spec::PlantSpec::Pneumatic { actuator, .. } => (Some(scene.resolve(actuator)), None),
-        crate::spec::PlantSpec::Multibody(mb) => (
-            Some(scene.resolve(&mb.actuator)),
-            Some(scene.resolve(&mb.urdf)),
-        ),
-    };
+    let (actuator, urdf) = (
+        scene.actuator_sheet_path(),
+        scene
+            .input_files()
+            .into_iter()
+            .find(|(role, _)| *role == "urdf")
+            .map(|(_, p)| p),
+    );
     if let Some(a) = actuator {
         add(&a, "actuator");
         // The component sheets the actuator sheet names in [components].
@@ -159,12 +156,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
         source: scene.source.display().to_string(),
         duration_s: scene.duration_s,
         dt_s: scene.dt_s,
-        plant: match scene.plant {
-            crate::spec::PlantSpec::Ideal { .. } => "ideal".into(),
-            crate::spec::PlantSpec::Pneumatic { .. } => "pneumatic".into(),
-            crate::spec::PlantSpec::Multibody(_) => "multibody".into(),
-            crate::spec::PlantSpec::Linear { .. } => "linear".into(),
-        },
+        plant: scene.plant.kind().into(),
         runs: results
             .iter()
             .map(|r| RunSummary {

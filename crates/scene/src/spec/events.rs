@@ -4,7 +4,6 @@ use serde::{Deserialize, Serialize};
 
 use super::Scene;
 use super::check::Check;
-use super::plant::PlantSpec;
 use crate::error::SceneError;
 
 /// A timed change of the scene, applied at the first control tick at or after `t_s`.
@@ -78,10 +77,7 @@ pub(crate) fn validate(scene: &Scene, v: &Check<'_>) -> Result<(), SceneError> {
                 ),
             ));
         }
-        let mb = match &scene.plant {
-            PlantSpec::Multibody(mb) => Some(mb),
-            _ => None,
-        };
+        let mb = scene.plant.multibody();
         match ev {
             EventSpec::Stiffness {
                 stiffness_n_per_m,
@@ -133,10 +129,7 @@ pub(crate) fn validate(scene: &Scene, v: &Check<'_>) -> Result<(), SceneError> {
             }
             EventSpec::Alpha { alpha_deg, .. } => {
                 v.within(&at("alpha_deg"), *alpha_deg, -90.0, 90.0)?;
-                if matches!(
-                    scene.plant,
-                    PlantSpec::Ideal { .. } | PlantSpec::Linear { .. }
-                ) {
+                if !scene.plant.has_gravity() {
                     return Err(v.err(
                         &at("kind"),
                         "\"alpha\" has no effect on plant.kind = \"ideal\" or \"linear\" (no gravity in those models)".into(),

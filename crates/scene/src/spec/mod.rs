@@ -163,6 +163,26 @@ impl Scene {
         }
     }
 
+    /// The scene's input files, resolved: the scene itself, then the files its plant names (the actuator
+    /// sheet, the URDF), each with its role.
+    pub fn input_files(&self) -> Vec<(&'static str, PathBuf)> {
+        let mut v = vec![("scene", self.source.clone())];
+        for (key, p) in self.plant.files() {
+            let role = if key == "plant.urdf" {
+                "urdf"
+            } else {
+                "actuator"
+            };
+            v.push((role, self.resolve(p)));
+        }
+        v
+    }
+
+    /// The actuator sheet the plant runs, resolved against the scene's folder, if it has one.
+    pub fn actuator_sheet_path(&self) -> Option<PathBuf> {
+        self.plant.actuator_sheet().map(|a| self.resolve(a))
+    }
+
     /// An error about the value at `path` (a dotted key path), with the line of that key when the text
     /// of the file is known.
     pub fn invalid(&self, path: &str, message: String) -> SceneError {

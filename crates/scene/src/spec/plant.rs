@@ -121,6 +121,67 @@ impl PlantSpec {
         }
     }
 
+    /// The multibody rig's spec, for a multibody plant.
+    pub fn multibody(&self) -> Option<&MultibodySpec> {
+        match self {
+            PlantSpec::Multibody(mb) => Some(mb),
+            PlantSpec::Ideal { .. } | PlantSpec::Pneumatic { .. } | PlantSpec::Linear { .. } => {
+                None
+            }
+        }
+    }
+
+    /// The actuator whose force comes from the two-chamber model (the pneumatic and multibody plants): its
+    /// sheet as written and the incline the scene sets (None: the sheet's). A force element coupled to
+    /// another engine (MuJoCo) simulates this actuator.
+    pub fn force_element(&self) -> Option<(&Path, Option<f64>)> {
+        match self {
+            PlantSpec::Pneumatic {
+                actuator,
+                alpha_deg,
+                ..
+            } => Some((actuator, *alpha_deg)),
+            PlantSpec::Multibody(mb) => Some((&mb.actuator, mb.alpha_deg)),
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => None,
+        }
+    }
+
+    /// The chambers' integration step for a plant with chambers: the step h, s, the key that sets it, and
+    /// its current number of substeps.
+    pub fn chamber_step(&self, dt_s: f64) -> Option<(f64, &'static str, f64)> {
+        match self {
+            PlantSpec::Pneumatic { substeps, .. } => Some((
+                dt_s / f64::from(*substeps),
+                "plant.substeps",
+                f64::from(*substeps),
+            )),
+            PlantSpec::Multibody(mb) => Some((
+                mb.chamber_substep_s(dt_s),
+                "plant.chamber_substeps",
+                f64::from(mb.chamber_substeps),
+            )),
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => None,
+        }
+    }
+
+    /// Whether the environment's spring is integrated inside the chambers' substeps (the 1-DOF pneumatic
+    /// plant), so that the contact mode must be resolved by that step; the multibody plant leaves contact
+    /// to Rapier.
+    pub fn contact_in_substeps(&self) -> bool {
+        match self {
+            PlantSpec::Pneumatic { .. } => true,
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } | PlantSpec::Multibody(_) => false,
+        }
+    }
+
+    /// Whether gravity acts in the plant (an incline event changes something).
+    pub fn has_gravity(&self) -> bool {
+        match self {
+            PlantSpec::Pneumatic { .. } | PlantSpec::Multibody(_) => true,
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => false,
+        }
+    }
+
     /// The key that sets the plant's finest step: what to change when a run needs too many steps.
     pub fn step_key(&self) -> &'static str {
         match self {
