@@ -65,7 +65,10 @@ pub enum VelocitySource {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(from = "crate::spec::AdaptiveFile", into = "crate::spec::AdaptiveFile")
+    serde(
+        from = "crate::file_forms::AdaptiveFile",
+        into = "crate::file_forms::AdaptiveFile"
+    )
 )]
 pub struct AdaptiveParams {
     /// λp, weight of the force error in χ.

@@ -10,14 +10,14 @@
 pub mod adaptive;
 pub mod controllers;
 pub mod error;
+#[cfg(feature = "serde")]
+pub mod file_forms;
 pub mod impedance;
 pub mod io;
 pub mod lyapunov;
 pub mod pid;
 pub mod reference;
 pub mod signal;
-#[cfg(feature = "serde")]
-pub mod spec;
 pub mod tick;
 
 pub use adaptive::{AdaptiveLaw, AdaptiveParams, LambdaDSign, Sigma1Sign, VelocitySource};

@@ -21,7 +21,10 @@ pub enum AntiWindup {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(from = "crate::spec::PidFile", into = "crate::spec::PidFile")
+    serde(
+        from = "crate::file_forms::PidFile",
+        into = "crate::file_forms::PidFile"
+    )
 )]
 pub struct PidParams {
     /// Proportional gain, 1/m (valve command per metre of position error).

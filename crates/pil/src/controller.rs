@@ -62,7 +62,7 @@ pub struct FirmwareController {
 }
 
 /// The setup a scene run describes.
-pub fn setup_of(run: &pneuflex_scene::spec::RunSpec) -> Result<ControllerSetup, PilError> {
+pub fn setup_of(run: &pneuflex_scene::schema::RunSpec) -> Result<ControllerSetup, PilError> {
     use pneuflex_scene::ControllerKind;
     match (run.controller, run.adaptive) {
         (ControllerKind::Impedance, _) => Ok(ControllerSetup::Impedance {

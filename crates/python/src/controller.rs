@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use pneuflex_control::{Controller, Sensors, Setpoint, SetpointSchedule};
 use pneuflex_scene::Scene;
-use pneuflex_scene::spec::{ControllerKind, RunSpec};
+use pneuflex_scene::schema::{ControllerKind, RunSpec};
 use pyo3::prelude::*;
 use pyo3::types::{PyAny, PyDict};
 

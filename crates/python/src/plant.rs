@@ -24,7 +24,7 @@ use std::time::Instant;
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 use pneuflex_scene::analysis::{adaptation::lyapunov_summary, windows::compute_windows};
 use pneuflex_scene::plants::{PlantError, PlantErrorKind};
-use pneuflex_scene::spec::{ControllerKind, EventSpec, Limits};
+use pneuflex_scene::schema::{ControllerKind, EventSpec, Limits};
 use pneuflex_scene::{Plant, Scene, simulate, summary};
 use pyo3::exceptions::{PyException, PyTypeError};
 use pyo3::intern;
@@ -300,7 +300,7 @@ pub fn run_plant<'py>(
         None => {
             // A plant written in Python reports no valve: the period is the scene's own valve's.
             if r.pwm_period_s.is_none() {
-                r.pwm_period_s = scene_pwm_period(&scene);
+                r.pwm_period_s = crate::scene::scene_pwm_period(&scene);
             }
             r.windows = compute_windows(&scene, &r.trace, r.pwm_period_s);
             if r.controller == ControllerKind::Adaptive {
@@ -310,10 +310,4 @@ pub fn run_plant<'py>(
         }
     };
     Ok((trace_to_dict(py, r.trace)?, status, wall))
-}
-
-/// The PWM period of the scene's valve as its own (Rust) plant reports it: for traces made elsewhere
-/// (MuJoCo, a plant written in Python), whose metrics average over the same period as `pneuflex run`'s.
-pub(crate) fn scene_pwm_period(scene: &pneuflex_scene::Scene) -> Option<f64> {
-    pneuflex_scene::build_plant(scene).ok()?.pwm_period_s()
 }

@@ -7,7 +7,7 @@ use std::time::Instant;
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use pneuflex_multibody::{MultibodyConfig, RigWorld};
 use pneuflex_scene::analysis::{adaptation::lyapunov_summary, windows::compute_windows};
-use pneuflex_scene::spec::ControllerKind;
+use pneuflex_scene::schema::ControllerKind;
 use pneuflex_scene::{RunResult, Scene, Trace, build_plant, run_scene, summary};
 use pyo3::exceptions::{PyKeyError, PyValueError};
 use pyo3::prelude::*;
@@ -163,7 +163,7 @@ pub fn summarize<'py>(
             None => None,
         };
         let run = &scene.runs[i];
-        let pwm_period_s = crate::plant::scene_pwm_period(&scene);
+        let pwm_period_s = scene_pwm_period(&scene);
         let windows = if reason.is_none() {
             compute_windows(&scene, &trace, pwm_period_s)
         } else {
@@ -230,7 +230,7 @@ pub fn write_figures<'py>(
             diverged: None,
             interrupted: None,
             warnings: Vec::new(),
-            pwm_period_s: crate::plant::scene_pwm_period(&scene),
+            pwm_period_s: scene_pwm_period(&scene),
         });
     }
     std::fs::create_dir_all(&out_dir).map_err(|e| {
@@ -345,4 +345,10 @@ pub fn bench_scene_ticks<'py>(
     d.set_item("x", s.x)?;
     d.set_item("f_e", s.f_e)?;
     Ok(d)
+}
+
+/// The PWM period of the scene's valve as its own (Rust) plant reports it: for traces made elsewhere
+/// (MuJoCo, a plant written in Python), whose metrics average over the same period as `pneuflex run`'s.
+pub(crate) fn scene_pwm_period(scene: &pneuflex_scene::Scene) -> Option<f64> {
+    pneuflex_scene::build_plant(scene).ok()?.pwm_period_s()
 }

@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use pneuflex_sweep::spec::DEFAULT_MAX_POINTS;
+use pneuflex_sweep::points::DEFAULT_MAX_POINTS;
 use pneuflex_sweep::tune::{Evaluation, FreeArg, Term, TuneOptions, Tuner};
 use pneuflex_sweep::{SetArg, Sweep, SweepError};
 use pyo3::prelude::*;

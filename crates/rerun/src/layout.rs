@@ -11,7 +11,7 @@ use rerun::log::LogMsg;
 use rerun::{ApplicationId, EntityPath, RecordingStream, RecordingStreamBuilder};
 
 use crate::paths;
-use crate::recorder::Clock;
+use crate::paths::Clock;
 use crate::units;
 
 /// A time-series plot: its title and the entity it shows with everything below it.

@@ -86,3 +86,23 @@ pub const EVENTS: &str = "events";
 pub fn link(name: &str) -> String {
     format!("{LINKS}/{name}")
 }
+
+/// Which timeline the per-step samples go on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Clock {
+    /// `sim_time`: a duration timeline; `t_s` is seconds since the simulation start.
+    Sim,
+    /// `wall_time`: a timestamp timeline for real-rig runs; `t_s` is seconds since the Unix epoch
+    /// (see [`crate::recorder::wall_clock_s`]).
+    Wall,
+}
+
+impl Clock {
+    /// Name of the Rerun timeline for this clock.
+    pub fn timeline(self) -> &'static str {
+        match self {
+            Clock::Sim => SIM_TIME,
+            Clock::Wall => WALL_TIME,
+        }
+    }
+}

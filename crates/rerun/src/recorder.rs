@@ -12,27 +12,8 @@ use rerun::{
 use crate::RerunError;
 use crate::layout::Layout;
 use crate::paths;
+pub use crate::paths::Clock;
 use crate::sink::{self, CONNECT_PROBE_TIMEOUT, RERUN_VERSION, Sink};
-
-/// Which timeline the per-step samples go on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Clock {
-    /// `sim_time`: a duration timeline; `t_s` is seconds since the simulation start.
-    Sim,
-    /// `wall_time`: a timestamp timeline for real-rig runs; `t_s` is seconds since the Unix epoch
-    /// (see [`wall_clock_s`]).
-    Wall,
-}
-
-impl Clock {
-    /// Name of the Rerun timeline for this clock.
-    pub fn timeline(self) -> &'static str {
-        match self {
-            Clock::Sim => paths::SIM_TIME,
-            Clock::Wall => paths::WALL_TIME,
-        }
-    }
-}
 
 /// Seconds since the Unix epoch now, for [`Clock::Wall`] recordings.
 pub fn wall_clock_s() -> f64 {

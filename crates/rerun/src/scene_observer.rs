@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use pneuflex_control::signal::index;
 use pneuflex_scene::plants::{ActuatorGeometry, VisualRole};
 use pneuflex_scene::run::trace::{Column, Row, Trace};
-use pneuflex_scene::spec::{EventSpec, ForcePiece, RunSpec};
+use pneuflex_scene::schema::{EventSpec, ForcePiece, RunSpec};
 use pneuflex_scene::{Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape};
 
 use crate::layout::{Eye, Layout};

@@ -9,6 +9,21 @@ use crate::error::{ErrorKind, RigError};
 use crate::protocol::SamplePayload;
 use crate::rigfile::{Calibration, LimitsConfig, SafeState, WatchdogConfig};
 
+/// Link-quality counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkStats {
+    /// Decoder counters.
+    pub decoder: pneuflex_protocol::DecoderStats,
+    /// Samples received.
+    pub samples: u64,
+    /// Samples received but superseded by a newer one before the loop read them.
+    pub superseded: u64,
+    /// Samples missing according to the sequence numbers.
+    pub seq_gaps: u64,
+    /// Frames sent.
+    pub sent: u64,
+}
+
 /// A raw sample as the board sent it, stamped with host and board time.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RawSample {
@@ -53,7 +68,7 @@ pub trait Rig {
     fn reset(&mut self) -> Result<(), RigError>;
 
     /// The link's counters (frames, CRC errors, sequence gaps), for a rig behind a serial link.
-    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+    fn link_stats(&self) -> Option<LinkStats> {
         None
     }
 }
@@ -72,7 +87,7 @@ impl<R: Rig + ?Sized> Rig for &mut R {
     fn reset(&mut self) -> Result<(), RigError> {
         (**self).reset()
     }
-    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+    fn link_stats(&self) -> Option<LinkStats> {
         (**self).link_stats()
     }
 }
@@ -121,7 +136,7 @@ impl<R: Rig<Sample = RawSample>> Watchdog<R> {
 impl<R: Rig<Sample = RawSample>> Rig for Watchdog<R> {
     type Sample = RawSample;
 
-    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+    fn link_stats(&self) -> Option<LinkStats> {
         self.inner.link_stats()
     }
 
@@ -242,7 +257,7 @@ impl<R: Rig<Sample = RawSample>> Calibrated<R> {
 impl<R: Rig<Sample = RawSample>> Rig for Calibrated<R> {
     type Sample = SiSample;
 
-    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+    fn link_stats(&self) -> Option<LinkStats> {
         self.inner.link_stats()
     }
 
@@ -337,7 +352,7 @@ impl<R: Rig<Sample = SiSample>> Limited<R> {
 impl<R: Rig<Sample = SiSample>> Rig for Limited<R> {
     type Sample = SiSample;
 
-    fn link_stats(&self) -> Option<crate::serial::LinkStats> {
+    fn link_stats(&self) -> Option<LinkStats> {
         self.inner.link_stats()
     }
 

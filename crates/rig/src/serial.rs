@@ -9,10 +9,10 @@ use pneuflex_control::ValveCommand;
 use crate::clock::{Clock, WallClock};
 use crate::error::{ErrorKind, RigError};
 use crate::protocol::{
-    ConfigPayload, DecodeEvent, Decoder, DecoderStats, MAX_FRAME, Message, RESET_MAGIC, ValveMode,
-    ValvePayload, encode, fault_code, status, to_q15,
+    ConfigPayload, DecodeEvent, Decoder, MAX_FRAME, Message, RESET_MAGIC, ValveMode, ValvePayload,
+    encode, fault_code, status, to_q15,
 };
-use crate::rig::{RawSample, Rig};
+use crate::rig::{LinkStats, RawSample, Rig};
 use crate::rigfile::{RigFile, SafeState};
 
 /// A byte link to the board: non-blocking reads, whole-frame writes.
@@ -112,21 +112,6 @@ pub const LINK_SIGNALS: [pneuflex_control::Signal; 4] = [
         description: "|this tick's start - the last tick's start - dt|",
     },
 ];
-
-/// Link-quality counters.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LinkStats {
-    /// Decoder counters.
-    pub decoder: DecoderStats,
-    /// Samples received.
-    pub samples: u64,
-    /// Samples received but superseded by a newer one before the loop read them.
-    pub superseded: u64,
-    /// Samples missing according to the sequence numbers.
-    pub seq_gaps: u64,
-    /// Frames sent.
-    pub sent: u64,
-}
 
 /// The serial host driver: decodes samples, sends valve commands, counts CRC errors against a threshold.
 pub struct SerialRig<L: Link> {

@@ -1,4 +1,4 @@
-//! Scenes for pneuflex, one folder per concept: the scene file and its checks ([`spec`]), the plants a
+//! Scenes for pneuflex, one folder per concept: the scene file and its checks ([`schema`]), the plants a
 //! controller drives ([`plants`]), running a scene through the one loop and writing its traces and summary
 //! ([`run`]), and what the runs are judged by ([`analysis`]: metrics, claims, loop margins, advice).
 //!
@@ -13,7 +13,7 @@ pub mod analysis;
 pub mod error;
 pub mod plants;
 pub mod run;
-pub mod spec;
+pub mod schema;
 
 pub use error::SceneError;
 pub use plants::{
@@ -26,7 +26,7 @@ pub use run::{
     LyapunovSummary, Observers, Rows, RunOptions, RunResult, StepObserver, WindowMetrics,
     run_scene, run_scene_observed, run_scene_with, signal_name, simulate, simulate_observed,
 };
-pub use spec::{
+pub use schema::{
     Budget, ControllerKind, EventSpec, Limits, MaterialSpec, MultibodySpec, PlantSpec,
     SCENE_SCHEMA_VERSION, Scene, WindowKind,
 };

@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pneuflex_scene::spec::PlantSpec;
+use pneuflex_scene::schema::PlantSpec;
 use pneuflex_scene::{LinearSpring, MultibodyPlant, OneDofPneumatic, RunResult, Scene, simulate};
 
 fn repo(rel: &str) -> PathBuf {

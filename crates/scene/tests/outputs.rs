@@ -140,7 +140,7 @@ struct Count {
 }
 
 impl pneuflex_scene::StepObserver for Count {
-    fn begin_run(&mut self, _: &pneuflex_scene::spec::RunSpec, _: &dyn pneuflex_scene::Plant) {
+    fn begin_run(&mut self, _: &pneuflex_scene::schema::RunSpec, _: &dyn pneuflex_scene::Plant) {
         self.runs += 1;
     }
     fn on_step(&mut self, row: &pneuflex_scene::run::trace::Row, _: &dyn pneuflex_scene::Plant) {

@@ -26,7 +26,7 @@ fn main() {
         &[set],
         None,
         0,
-        pneuflex_sweep::spec::DEFAULT_MAX_POINTS,
+        pneuflex_sweep::points::DEFAULT_MAX_POINTS,
     )
     .unwrap_or_else(|e| panic!("{e}"));
     let check_s = t.elapsed().as_secs_f64();

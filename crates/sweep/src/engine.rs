@@ -9,7 +9,7 @@ use pneuflex_scene::{Limits, RunResult, Scene, SceneError, WindowKind, WindowMet
 use rayon::prelude::*;
 
 use crate::key::{Base, KeyError, KeyPath, Value};
-use crate::spec::{Points, SetArg, SpecError};
+use crate::points::{Points, SetArg, SpecError};
 
 /// Everything that stops a sweep before it runs.
 #[derive(Debug, thiserror::Error)]
@@ -323,7 +323,7 @@ impl Sweep {
         let keys: Vec<(&str, &KeyPath)> = sets.iter().map(|s| ("--set", &s.key)).collect();
         base.check_distinct(&keys)
             .map_err(|e| SweepError::key(&base, "--set", e))?;
-        let points = crate::spec::points(sets, samples, seed, max_points, "--max-points")?;
+        let points = crate::points::points(sets, samples, seed, max_points, "--max-points")?;
         let columns = base_scene
             .metrics
             .iter()

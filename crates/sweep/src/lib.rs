@@ -1,7 +1,7 @@
 //! Sweeps, robustness maps and automatic tuning of pneuflex scenes.
 //!
 //! A sweep sets scene keys (and actuator-sheet values) to the values of a grid or a sample
-//! ([`spec`]), writes each point's values into a copy of the scene's text ([`key`]) so that the scene's
+//! ([`points`]), writes each point's values into a copy of the scene's text ([`key`]) so that the scene's
 //! own parser and validation judge every point before anything runs, then runs the points on a rayon pool
 //! ([`engine`]): one table row per point and run, the same bytes whatever the number of threads.
 //! `docs/sweeps.md` describes the command line, the key paths and the table.
@@ -9,10 +9,10 @@
 pub mod engine;
 pub mod key;
 pub mod output;
-pub mod spec;
+pub mod points;
 pub mod tune;
 pub mod tune_output;
 
 pub use engine::{MetricColumn, PointResult, RunRow, Status, Sweep, SweepError};
 pub use key::{KeyPath, Value};
-pub use spec::{SetArg, Spec};
+pub use points::{SetArg, Spec};

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use crate::engine::{SweepError, metric_of};
 use crate::key::{Base, KeyPath, Value};
-use crate::spec::{Points, SetArg, Spec};
+use crate::points::{Points, SetArg, Spec};
 
 /// A `--free KEY=[LO,HI]`: a key the optimiser moves within a box.
 #[derive(Clone, Debug, PartialEq)]
@@ -171,7 +171,7 @@ impl Default for TuneOptions {
             population: None,
             sigma0: 0.3,
             threads: 0,
-            max_runs: crate::spec::DEFAULT_MAX_POINTS,
+            max_runs: crate::points::DEFAULT_MAX_POINTS,
         }
     }
 }
@@ -188,7 +188,7 @@ pub fn check_plan(n_free: usize, over: &[SetArg], opts: &TuneOptions) -> Result<
     let environments = if over.is_empty() {
         1
     } else {
-        crate::spec::points(over, None, 0, opts.max_runs, "--max-runs")?.len()
+        crate::points::points(over, None, 0, opts.max_runs, "--max-runs")?.len()
     };
     opts.check(n_free, environments)
 }
@@ -246,14 +246,14 @@ impl TuneOptions {
             )));
         }
         let runs = (self.budget as u64).checked_mul(environments as u64);
-        let max = self.max_runs.min(crate::spec::HARD_MAX_POINTS);
+        let max = self.max_runs.min(crate::points::HARD_MAX_POINTS);
         if runs.is_none_or(|r| r > max) {
             return Err(SweepError::Other(format!(
                 "--budget {} over {environments} environment(s): {} scene runs, more than the limit of {max}; \
                  lower --budget or the --over grid, or raise --max-runs (up to {})",
                 self.budget,
                 runs.map_or("more than 2^64".into(), |r| r.to_string()),
-                crate::spec::HARD_MAX_POINTS
+                crate::points::HARD_MAX_POINTS
             )));
         }
         Ok(())
@@ -397,7 +397,7 @@ impl Tuner {
         let envs = if over.is_empty() {
             Points::none()
         } else {
-            crate::spec::points(over, None, 0, max_runs, "--max-runs")?
+            crate::points::points(over, None, 0, max_runs, "--max-runs")?
         };
         let run = match run {
             Some(name) => base_scene.run_index(name)?,

@@ -1,7 +1,7 @@
 //! The sweep engine: determinism across thread counts, the closed form of impedance control on the ideal
 //! plant, clean errors before anything runs, a diverged point as a row.
 
-use pneuflex_sweep::spec::DEFAULT_MAX_POINTS;
+use pneuflex_sweep::points::DEFAULT_MAX_POINTS;
 use std::path::{Path, PathBuf};
 
 use pneuflex_sweep::{SetArg, Status, Sweep, SweepError};

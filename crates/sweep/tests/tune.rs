@@ -81,7 +81,7 @@ fn tune_recovers_the_damping_that_minimises_the_step_error() {
         &[SetArg::parse("environment.stiffness_n_per_m=700").unwrap()],
         None,
         vec![Term::parse("step.rms_force_error_n=1").unwrap()],
-        pneuflex_sweep::spec::DEFAULT_MAX_POINTS,
+        pneuflex_sweep::points::DEFAULT_MAX_POINTS,
     )
     .unwrap();
     let opts = TuneOptions {
@@ -121,7 +121,7 @@ fn a_bad_free_key_or_box_is_refused_before_anything_runs() {
         &[],
         None,
         terms.iter().map(|t| Term::parse(t).unwrap()).collect(),
-        pneuflex_sweep::spec::DEFAULT_MAX_POINTS,
+        pneuflex_sweep::points::DEFAULT_MAX_POINTS,
     ) {
         Ok(_) => panic!("{free} must be refused"),
         Err(e) => e.to_string(),

@@ -17,7 +17,7 @@ use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 use plotters_backend::{BackendCoord, DrawingErrorKind};
 use pneuflex_scene::analysis::metrics::moving_average;
-use pneuflex_scene::spec::{EventSpec, WindowKind};
+use pneuflex_scene::schema::{EventSpec, WindowKind};
 use pneuflex_scene::{RunResult, Scene, WindowMetrics};
 
 /// DejaVu Sans (fonts-dejavu-core; free license in assets/DejaVuSans-LICENSE.txt).

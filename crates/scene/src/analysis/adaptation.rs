@@ -5,7 +5,7 @@ use pneuflex_control as control;
 
 use crate::run::result::LyapunovSummary;
 use crate::run::trace::Trace;
-use crate::spec::{RunSpec, Scene};
+use crate::schema::{RunSpec, Scene};
 
 /// The Lyapunov check (Section III-D) for an adaptive run: the control crate's reference model and Q,
 /// started from the run's impedance loop at the scene's initial stiffness (eq. (28) with p = d = g = 0)

@@ -3,7 +3,7 @@
 
 use pneuflex_pneumatics::{ChamberState, OneDofModel};
 
-use crate::spec::{EventSpec, Scene};
+use crate::schema::{EventSpec, Scene};
 
 /// RK4's stability limit on the negative real axis (|λh| below ≈ 2.785) and on the imaginary axis
 /// (|ωh| below 2√2 ≈ 2.83); a step is resolved, not just stable, well inside: these are the warning lines.
@@ -180,7 +180,7 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
 /// solver_iterations: Rapier's implicit motor damps with c + k h, and pneuflex-multibody gives the motor
 /// c - k h but never less than c / 10 (`RigWorld::update_mount`), so a mount with k h > 0.9 c is damped with
 /// more than its material's c (by k h - 0.9 c): its impacts and ripple then depend on the step.
-pub fn mount_damping_warnings(scene: &Scene, mb: &crate::spec::MultibodySpec) -> Vec<Warning> {
+pub fn mount_damping_warnings(scene: &Scene, mb: &crate::schema::MultibodySpec) -> Vec<Warning> {
     let h = mb.physics_dt_s / mb.solver_iterations.max(1) as f64;
     let mut mounts: Vec<(String, f64, f64)> = mb
         .materials

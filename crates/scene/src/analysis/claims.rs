@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use crate::run::result::{RunResult, WindowMetrics};
-use crate::spec::{ClaimSpec, Scene};
+use crate::schema::{ClaimSpec, Scene};
 
 /// One claim checked on a scene's results.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -133,7 +133,7 @@ pub fn check_all(scene: &Scene, results: &[RunResult]) -> Vec<ClaimResult> {
 mod tests {
     use super::*;
     use crate::analysis::metrics::{Steady, event_response};
-    use crate::spec::{ControllerKind, WindowKind};
+    use crate::schema::{ControllerKind, WindowKind};
 
     /// A run whose only window, `change`, is the event response of f_e = 10 + e(t) on a 10 N reference.
     fn run(name: &str, e: impl Fn(f64) -> f64) -> RunResult {

@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use crate::error::SceneError;
 use crate::plants::{LinearSpring, Linearisable};
-use crate::spec::{EventSpec, PlantSpec, Scene};
+use crate::schema::{EventSpec, PlantSpec, Scene};
 
 /// Margins of the inner loop at one environment stiffness.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -320,7 +320,7 @@ fn frequencies(dt: f64) -> Vec<f64> {
 fn at_stiffness<P: Linearisable>(
     p: &mut P,
     scene: &Scene,
-    run: &crate::spec::RunSpec,
+    run: &crate::schema::RunSpec,
     k_e: f64,
     target_db: f64,
 ) -> Margins {
@@ -413,7 +413,7 @@ pub fn onset_at(
 pub fn limit_cycle_onset<P: Linearisable + Clone>(
     plant: &P,
     scene: &Scene,
-    run: &crate::spec::RunSpec,
+    run: &crate::schema::RunSpec,
     k_e: f64,
 ) -> Option<(f64, f64, f64)> {
     let dt = scene.dt_s;

@@ -3,7 +3,7 @@
 use crate::analysis::metrics;
 use crate::run::result::WindowMetrics;
 use crate::run::trace::Trace;
-use crate::spec::{ForcePiece, Scene, WindowKind};
+use crate::schema::{ForcePiece, Scene, WindowKind};
 
 /// The metrics of every window of the scene on a trace, the event metrics averaged over the valve's PWM
 /// period (the run's [`RunResult::pwm_period_s`](crate::RunResult); None: no averaging).

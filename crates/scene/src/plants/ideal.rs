@@ -3,7 +3,7 @@
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 
 use super::{LinearSpring, Plant, PlantError};
-use crate::spec::EventSpec;
+use crate::schema::EventSpec;
 
 /// An ideal inner position loop: x'' = ω² (x_r - x) - 2 ζ ω x', with x_r from the controller's telemetry.
 ///

@@ -8,7 +8,7 @@ use pneuflex_control::{Sensors, Signal, Telemetry, ValveCommand};
 
 use crate::error::SceneError;
 use crate::plants::{LinearSpring, Plant};
-use crate::spec::{EventSpec, PlantSpec, Scene};
+use crate::schema::{EventSpec, PlantSpec, Scene};
 
 /// The load pressure the plant is driven with (its own recorded signal).
 const LINEAR_SIGNALS: [Signal; 1] = [Signal::new(

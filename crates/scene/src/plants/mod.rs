@@ -11,7 +11,7 @@ pub mod pneumatic;
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 
 use crate::error::SceneError;
-use crate::spec::{EventSpec, PlantSpec, Scene};
+use crate::schema::{EventSpec, PlantSpec, Scene};
 pub use chambers::{PRESSURE_MARGIN, VALVE_SIGNALS, chamber_invariants};
 pub use ideal::IdealLoop;
 pub use linear::LinearPlant;

@@ -31,7 +31,7 @@ use crate::error::SceneError;
 use crate::plants::{
     ActuatorGeometry, LinearSpring, Plant, Visual, VisualPose, VisualRole, VisualShape,
 };
-use crate::spec::{EventSpec, MultibodySpec, PlantSpec, Scene};
+use crate::schema::{EventSpec, MultibodySpec, PlantSpec, Scene};
 
 /// The pneumatic force element plus the sheet's Coulomb friction, acting between cylinder and flange.
 #[derive(Debug, Clone)]

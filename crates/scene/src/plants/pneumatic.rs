@@ -7,7 +7,7 @@ use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState};
 
 use crate::error::SceneError;
 use crate::plants::{ActuatorGeometry, LinearSpring, Plant};
-use crate::spec::{EventSpec, PlantSpec, Scene};
+use crate::schema::{EventSpec, PlantSpec, Scene};
 
 /// The pneumatic actuator against a linear spring, integrated with `substeps` RK4 steps per control period.
 #[derive(Clone, Debug, PartialEq)]

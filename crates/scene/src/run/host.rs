@@ -10,7 +10,7 @@ use super::signal_name;
 use super::trace::{Row, Trace};
 use crate::error::SceneError;
 use crate::plants::Plant;
-use crate::spec::Scene;
+use crate::schema::Scene;
 
 /// Simulates run `index` of the scene with the given plant and controller (both at their initial state).
 pub fn simulate(
@@ -81,7 +81,7 @@ pub(super) fn simulate_loop(
     let dt = scene.dt_s;
     let n = scene.n_steps();
     // Event order by time, keeping each event's index in the file for messages.
-    let mut events: Vec<(usize, &crate::spec::EventSpec)> =
+    let mut events: Vec<(usize, &crate::schema::EventSpec)> =
         scene.events.iter().enumerate().collect();
     events.sort_by(|a, b| a.1.t_s().total_cmp(&b.1.t_s()));
     // The row: the loop's signals, then the controller's and the plant's, as each declares them.
@@ -138,7 +138,7 @@ struct SimulationHost<'a> {
     scene: &'a Scene,
     plant: &'a mut dyn Plant,
     /// The scene's events by time, each with its index in the file (for messages).
-    events: Vec<(usize, &'a crate::spec::EventSpec)>,
+    events: Vec<(usize, &'a crate::schema::EventSpec)>,
     next_event: usize,
     trace: Trace,
     observer: &'a mut dyn StepObserver,
@@ -242,7 +242,7 @@ fn divergence(
     x: f64,
     f_e: f64,
     x_r: f64,
-    lim: &crate::spec::DivergenceSpec,
+    lim: &crate::schema::DivergenceSpec,
 ) -> Option<String> {
     if !x.is_finite() || !f_e.is_finite() || !x_r.is_finite() {
         return Some(format!(

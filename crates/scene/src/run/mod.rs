@@ -13,7 +13,7 @@ use crate::analysis::adaptation::{lyapunov_summary, pinned_parameters};
 use crate::analysis::windows::compute_windows;
 use crate::error::SceneError;
 use crate::plants::build_plant;
-use crate::spec::{ControllerKind, Scene};
+use crate::schema::{ControllerKind, Scene};
 pub use host::{simulate, simulate_observed, simulate_stoppable};
 pub use observe::{NoObserver, Observers, Rows, StepObserver};
 pub use result::{LyapunovSummary, RunResult, WindowMetrics};
@@ -41,7 +41,7 @@ pub fn run_scene_observed(
 #[derive(Clone, Copy, Default)]
 pub struct RunOptions<'a> {
     /// Refuse scenes beyond these before anything runs.
-    pub limits: crate::spec::Limits,
+    pub limits: crate::schema::Limits,
     /// Non-zero stops the current run at the next tick (the value is the signal number, e.g. 2 = SIGINT);
     /// later runs are not started.
     pub stop: Option<&'a std::sync::atomic::AtomicUsize>,

@@ -8,7 +8,7 @@ use crate::plants::Plant;
 /// sample is recorded, with the plant in the state that sample was read from.
 pub trait StepObserver {
     /// A run starts; the plant is at its initial state.
-    fn begin_run(&mut self, _run: &crate::spec::RunSpec, _plant: &dyn Plant) {}
+    fn begin_run(&mut self, _run: &crate::schema::RunSpec, _plant: &dyn Plant) {}
     /// The run's columns as their producers declare them (the loop's, the controller's, the plant's),
     /// before its first tick.
     fn columns(&mut self, _columns: &[pneuflex_control::Signal]) {}
@@ -54,7 +54,7 @@ impl StepObserver for Rows<'_> {
 pub struct Observers<'a>(pub Vec<&'a mut dyn StepObserver>);
 
 impl StepObserver for Observers<'_> {
-    fn begin_run(&mut self, run: &crate::spec::RunSpec, plant: &dyn Plant) {
+    fn begin_run(&mut self, run: &crate::schema::RunSpec, plant: &dyn Plant) {
         for o in &mut self.0 {
             o.begin_run(run, plant);
         }

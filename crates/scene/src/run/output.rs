@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::error::SceneError;
 use crate::run::result::{LyapunovSummary, RunResult, WindowMetrics};
-use crate::spec::Scene;
+use crate::schema::Scene;
 
 fn werr(path: &Path) -> impl FnOnce(std::io::Error) -> SceneError + '_ {
     move |os_error| SceneError::Write {
@@ -148,7 +148,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
         schema_version: SUMMARY_SCHEMA_VERSION,
         scene_schema_version: scene
             .schema_version
-            .unwrap_or(crate::spec::SCENE_SCHEMA_VERSION),
+            .unwrap_or(crate::schema::SCENE_SCHEMA_VERSION),
         inputs: scene_inputs(scene),
         complete: interrupted.is_none() && results.len() == scene.runs.len(),
         interrupted,

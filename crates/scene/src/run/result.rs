@@ -4,7 +4,7 @@ use serde::Serialize;
 
 use super::trace::Trace;
 use crate::analysis::metrics::EventResponse;
-use crate::spec::{ControllerKind, WindowKind};
+use crate::schema::{ControllerKind, WindowKind};
 
 /// The outcome of one controller run: its trace, metrics, Lyapunov check and divergence state.
 #[derive(Clone, Debug)]
