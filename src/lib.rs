@@ -20,13 +20,14 @@ pub use pneuflex_control as control;
 pub use pneuflex_files as files;
 /// URDF → Rapier multibody rig and the pneumatic force element.
 pub use pneuflex_multibody as multibody;
+/// PNG figures of a scene's runs.
+pub use pneuflex_plot as plot;
 /// The pneumatic actuator model: cylinder, valves, friction, the linearised transfer function.
 pub use pneuflex_pneumatics as pneumatics;
 /// Real-rig mode: the `Rig` trait, serial protocol, safety supervisor, emulator.
 pub use pneuflex_rig as rig;
 /// Scene files, plants, the run loop, metrics, trace.csv and summary.json.
 pub use pneuflex_scene as scene;
-/// PNG figures of a scene's runs.
 pub use pneuflex_viz as viz;
 
 /// Rerun recording (with the `rerun` feature).

@@ -91,7 +91,7 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
         /// Largest number of points (default 1,000,000; at most 100,000,000); the sweep is refused beyond.
-        #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::spec::DEFAULT_MAX_POINTS)]
+        #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::points::DEFAULT_MAX_POINTS)]
         max_points: u64,
         /// Largest output `--traces` may write, MiB (default 4096); the sweep is refused beyond.
         #[arg(long, value_name = "MIB", default_value_t = cmd::sweep::DEFAULT_MAX_OUTPUT_MB)]
@@ -145,7 +145,7 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
         /// Largest number of scene runs (budget x environments; default 1,000,000, at most 100,000,000).
-        #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::spec::DEFAULT_MAX_POINTS)]
+        #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::points::DEFAULT_MAX_POINTS)]
         max_runs: u64,
         /// Largest number of integration steps one run of a candidate may take (default 1e9), as `run`'s.
         #[arg(long, value_name = "N")]

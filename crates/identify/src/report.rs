@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use pneuflex_viz::overlay::{Panel, Series, write_overlay};
+use pneuflex_plot::overlay::{Panel, Series, write_overlay};
 
 use crate::IdentifyError;
 use crate::fit::FitResult;

@@ -230,9 +230,9 @@ fn write_maps(
         let yt: Vec<String> = grid[1].1.values().iter().map(tick).collect();
         for (file, title, cells, marked, diverging) in maps {
             let path = dir.join(file);
-            pneuflex_viz::write_heatmap(
+            pneuflex_plot::write_heatmap(
                 &path,
-                &pneuflex_viz::Heatmap {
+                &pneuflex_plot::Heatmap {
                     title,
                     x_label: &sweep.points.keys[grid[0].0].text,
                     x_ticks: &xt,

@@ -218,7 +218,7 @@ pub fn write(
     std::fs::write(&hist_path, csv).map_err(|e| io(&hist_path, e))?;
     let conv = dir.join("convergence.png");
     files.push(PathBuf::from("history.csv"));
-    match pneuflex_viz::write_convergence(
+    match pneuflex_plot::write_convergence(
         &conv,
         &format!(
             "tune {}: run `{run_name}`, worst case over the environments",
@@ -230,7 +230,7 @@ pub fn write(
     ) {
         Ok(()) => files.push(PathBuf::from("convergence.png")),
         // Every candidate infinite: nothing to draw; the report says so.
-        Err(pneuflex_viz::VizError::Empty) => {}
+        Err(pneuflex_plot::PlotError::Empty) => {}
         Err(e) => return Err(SweepError::Other(e.to_string())),
     }
 

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::{FAMILY, PALETTE, VizError, decimate, ensure_font};
+use crate::{FAMILY, PALETTE, PlotError, decimate, ensure_font};
 
 /// One line: its label, times (s) and values; non-finite values are gaps.
 #[derive(Clone, Debug)]
@@ -30,10 +30,10 @@ pub struct Panel<'a> {
 }
 
 /// Writes `panels` stacked vertically into a PNG at `path` (1200 px wide, 300 px per panel).
-pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), VizError> {
+pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), PlotError> {
     ensure_font()?;
     if panels.is_empty() || panels.iter().all(|p| p.series.is_empty()) {
-        return Err(VizError::Empty);
+        return Err(PlotError::Empty);
     }
     let draw = || -> Result<(), String> {
         let height = 300 * panels.len() as u32;
@@ -95,7 +95,7 @@ pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), VizError> 
         }
         root.present().map_err(|e| e.to_string())
     };
-    draw().map_err(|message| VizError::Draw {
+    draw().map_err(|message| PlotError::Draw {
         path: path.to_path_buf(),
         message,
     })
