@@ -343,7 +343,7 @@ impl PyOneDof {
     }
 }
 
-/// The pneumatic force element between cylinder and flange (`pneuflex_multibody::PneumaticForceElement`, the
+/// The pneumatic force element between cylinder and flange (`pneuflex_pneumatics::PneumaticForceElement`, the
 /// element the Rapier rig uses): chamber states and valve, advanced by `step(x, x_dot, u, dt)` along a flange
 /// motion given by an external rigid-body engine.
 #[pyclass(name = "ForceElement", module = "pneuflex")]

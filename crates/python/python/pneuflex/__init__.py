@@ -5,7 +5,7 @@ The classes and functions come from the Rust crates through the native module ``
 - ``Actuator(path, alpha_deg=None)``: an actuator sheet (cylinder, valve, supply, gas, mechanics);
   ``params()``, ``piston_force(p_a, p_b)``, ``transfer_function(x_m=None, f_ext_n=0)`` (eqs. (16)-(17)).
 - ``OneDof(actuator, x0_m, p_a=None, p_b=None, f_ext_n=0)``: the 1-DOF model of eq. (1); ``step(u, f_ext_n, dt_s)``.
-- ``ForceElement(actuator, p_a=None, p_b=None, substeps=1, ...)``: the multibody crate's pneumatic force
+- ``ForceElement(actuator, p_a=None, p_b=None, substeps=1, ...)``: the pneumatics crate's pneumatic force
   element (chambers + valve); ``step(x, x_dot, u, dt_s) -> force`` on the flange, for an external
   rigid-body engine (MuJoCo in crossval/).
 - ``Controller(kind, impedance, inner, adaptive=None)`` / ``Controller.from_scene(path, run)``;
