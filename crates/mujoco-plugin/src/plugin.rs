@@ -121,8 +121,8 @@ unsafe fn make(api: &Api, m: Model, instance: c_int) -> Result<Instance, String>
     if unsafe { m.integrator() } == MJ_INT_RK4 {
         return Err(format!(
             "{}: {who}: option integrator=\"RK4\" is not supported: RK4 evaluates the actuator force at \
-             four stages of a step while the chamber state advances once per step (use Euler, implicit or \
-             implicitfast)",
+             four stages of a step while the chamber state advances once per step (use Euler, implicit, \
+             implicitfast or discrete)",
             NAME.to_string_lossy()
         ));
     }

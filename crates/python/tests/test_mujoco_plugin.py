@@ -103,7 +103,7 @@ def the_plugin_equals_the_python_coupling_bit_for_bit():
     load_plugin()
     n = 5000
     act = pneuflex.Actuator(SHEET)
-    for integrator in ("Euler", "implicit", "implicitfast"):
+    for integrator in ("Euler", "implicit", "implicitfast", "discrete"):
         m = mujoco.MjModel.from_xml_string(rig(integrator=integrator, plugin=False))
         d = mujoco.MjData(m)
         d.qpos[0] = 0.02
@@ -235,6 +235,28 @@ def several_actuators_share_an_instance_each_with_its_state():
     assert d.plugin_state[4] > 0.99, d.plugin_state[:5]  # the spool followed u = 1 with its 2 ms lag
     e = load_error(xml.replace('value="0.002"', 'value="-1"'))
     assert "pneuflex.cylinder: actuator 'c': config key 'valve.response_time_s'" in e, e
+
+
+@test
+def the_documented_mjcf_loads_and_pushes():
+    """docs/mujoco-plugin.md's complete MJCF, as written (its relative sheet from the repository root): it loads,
+    starts from its inline chamber B pressure, and under u = 0.5 the rod extends onto the wall and presses it."""
+    load_plugin()
+    text = (ROOT / "docs" / "mujoco-plugin.md").read_text()
+    xml = text.split("## A complete MJCF", 1)[1].split("```xml\n", 1)[1].split("```", 1)[0]
+    cwd = os.getcwd()
+    try:
+        os.chdir(ROOT)
+        m = mujoco.MjModel.from_xml_string(xml)
+    finally:
+        os.chdir(cwd)
+    d = mujoco.MjData(m)
+    assert d.plugin_state[1] == 351325.0, d.plugin_state[:2]
+    d.ctrl[0] = 0.5
+    mujoco.mj_step(m, d, nstep=5000)  # 0.5 s
+    rod, wall = m.joint("extension").qposadr[0], m.joint("mount").qposadr[0]
+    assert d.qpos[rod] > 0.02 and d.qpos[wall] > 1e-4, (d.qpos[rod], d.qpos[wall])
+    assert d.sensor("cylinder_force").data[0] > 1.0, d.sensor("cylinder_force").data
 
 
 @test
