@@ -12,7 +12,8 @@ Each round times, in alternating order:
   fixed valve command, no controller) + `mj_step`, as crossval couples them;
 - MuJoCo with the native plugin `pneuflex.cylinder` (C loop, the same chambers, substeps and command), against
   its parts timed alone: the bare `mj_step` of the rig under the plugin's settled force as a constant push, and
-  the chamber model's steps in a Rust loop (`ForceElement.bench_steps`); their ratio is taken per round.
+  the chamber model's steps in a Rust loop (`ForceElement.bench_steps`); the three and the Python coupling
+  alternate in ten slices per round, and the ratios are taken per round.
 Both sides settle into steady contact (1 s) before timing. Rates are simulated steps (control ticks for
 pneuflex, mj_steps for MuJoCo; equal at the scene's 1 ms) per wall-clock second; the ratio is taken per round.
 Then the peak RSS of whole `pneuflex run` processes (fig3, fig7; GNU time's %M). Nothing here asserts anything about speed.
@@ -148,6 +149,19 @@ class MujocoPlugin:
     def chambers(self, n: int) -> float:
         return self.fe.bench_steps(n, self.x, 0.0, self.u, self.h)
 
+    def slices(self, n: int, coupling=None, chunks: int = 10, reverse: bool = False) -> list[float]:
+        """Wall times of n steps each of the plugin, the bare model, the chambers alone and (when given) the
+        Python coupling, taken in `chunks` alternating slices so that a burst of another process's load falls
+        on all of them alike (a 2-core machine shared with builds)."""
+        parts = [self.c_loop, self.bare.c_loop, self.chambers] + ([coupling] if coupling else [])
+        t = [0.0] * len(parts)
+        order = list(range(len(parts)))[:: -1 if reverse else 1]
+        k = n // chunks
+        for _ in range(chunks):
+            for i in order:
+                t[i] += parts[i](k)
+        return t
+
     def warned(self) -> bool:
         d = self.data
         return any(d.warning[i].number for i in range(int(mujoco.mjtWarning.mjNWARNING))) or self.bare.warned()
@@ -254,7 +268,8 @@ def main() -> int:
     # A warm-up round (caches, lazy loading), not counted.
     pf(), mj.c_loop(n_mj)
     for r in range(args.rounds):
-        order = ["pf", "mj_c", "mj_py", "mj_fe"] + (["mj_plugin", "mj_bare", "chambers"] if plugin else [])
+        # With the plugin the Python coupling is timed in its slices (the two are compared).
+        order = ["pf", "mj_c", "mj_py"] + (["plugin"] if plugin else ["mj_fe"])
         if r % 2:
             order.reverse()
         t = {}
@@ -265,12 +280,11 @@ def main() -> int:
                 t[k] = mj.c_loop(n_mj)
             elif k == "mj_py":
                 t[k] = mj.python_loop(n_mj)
-            elif k == "mj_plugin":
-                t[k] = plugin.c_loop(n_mj)
-            elif k == "mj_bare":
-                t[k] = plugin.bare.c_loop(n_mj)
-            elif k == "chambers":
-                t[k] = plugin.chambers(n_mj)
+            elif k == "plugin":
+                ts = plugin.slices(n_mj - n_mj % 10, mjfe.run if mjfe else None, reverse=bool(r % 2))
+                t["mj_plugin"], t["mj_bare"], t["chambers"] = ts[:3]
+                if mjfe is not None:
+                    t["mj_fe"] = ts[3] * n_mj / (n_mj - n_mj % 10)
             elif mjfe is not None:
                 t[k] = mjfe.run(n_mj)
         rates["pneuflex"].append(args.ticks / t["pf"])
@@ -280,7 +294,7 @@ def main() -> int:
             rates["mj_fe"].append(n_mj / t["mj_fe"])
         if plugin:
             for k in ("mj_plugin", "mj_bare", "chambers"):
-                rates[k].append(n_mj / t[k])
+                rates[k].append((n_mj - n_mj % 10) / t[k])
             # A step with the plugin over the bare step plus the chamber model's own step: 1 = no overhead.
             plugin_ratios.append(t["mj_plugin"] / (t["mj_bare"] + t["chambers"]))
         # pneuflex tick rate over MuJoCo's, both per simulated second: > 1 means pneuflex is faster.
