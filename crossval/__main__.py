@@ -2,6 +2,7 @@
 
 For each scene: run it with the pneuflex runner (Rust plant) and in MuJoCo with the same Rust force element
 and controller through the bindings; compare f_e and x, every summary.json metric, and the step rates;
+and once more with the cylinder as the native plugin (`pneuflex.cylinder`), compared with the Python coupling;
 write crossval/out/<scene>/{report.json, report.md, force.png, position.png, event-*.png}; exit 1 when a run
 diverges or the RMS difference of f_e exceeds the tolerance. See docs/crossval.md.
 """
@@ -33,6 +34,15 @@ TOLERANCES = {"pneumatic": {"raw": 0.03, "pwm_avg": 0.03}, "multibody": {"raw": 
 # impulses, MuJoCo's soft constraints) resolve these impacts differently and the 40 Hz PWM ripple leaves
 # them out of phase. Measured on the impedance run: 8.95% raw, 5.1% over one PWM period (1.8% before the swap).
 SCENE_TOLERANCES = {"paper-fig7-wood-to-iron": {"raw": 0.10, "pwm_avg": 0.06}}
+# The native plugin (docs/mujoco-plugin.md) against the Python coupling of the same element in the same model:
+# the same integrators with the same steps, so they agree to rounding except where MuJoCo's mj_forward runs
+# between steps (the 1-DOF load cell read at t = 0 and after an event): there the coupling's contact solve sees
+# the force of the previous step (or none), the plugin's the force of the coming one. Measured on paper-fig3
+# (docs/mujoco-plugin.md): RMS Δf_e 5e-5 N = 5e-6 of the force level, Δp 0.09 Pa RMS, Δx 1.4e-5 um RMS; the
+# multibody scenes (no such read) bit-identical. The bounds leave ~20x and fail on small real differences
+# (measured on paper-fig3 impedance: the seal friction left out, 2.5e-3 of f_e and 200 Pa; chamber A starting
+# 1 kPa higher, 2.3e-4 and 25 Pa).
+PLUGIN_TOLERANCES = {"rms_f_e_rel": 1e-4, "rms_p_pa": 10.0, "rms_x_m": 1e-6}
 DEFAULT_SCENES = ["scenes/paper-fig3.toml", "scenes/paper-fig3-multibody.toml", "scenes/paper-fig7-wood-to-iron.toml"]
 
 
@@ -134,6 +144,27 @@ def compare_traces(ref: dict, mj: dict, avg_samples: int) -> dict:
     }
 
 
+def compare_plugin(coupled: dict, native: dict) -> dict:
+    """The native plugin's trace against the Python coupling's (same model, loop and controller)."""
+    n = min(len(coupled["t"]), len(native["t"]))
+    level = float(np.mean(np.abs(coupled["f_ref"][:n])))
+    e = {"samples": n, "rows_equal": len(coupled["t"]) == len(native["t"]), "force_level_n": level}
+    for k in ("f_e", "p_a", "p_b", "x", "u"):
+        d = native[k][:n] - coupled[k][:n]
+        e[f"rms_{k}_diff"] = float(np.sqrt(np.mean(d**2)))
+        e[f"max_abs_{k}_diff"] = float(np.max(np.abs(d)))
+    e["identical"] = all(np.array_equal(native[k], coupled[k]) for k in coupled)
+    e["rms_f_e_diff_rel"] = e["rms_f_e_diff"] / level if level > 0 else math.inf
+    t = PLUGIN_TOLERANCES
+    e["pass"] = bool(
+        e["rows_equal"]
+        and e["rms_f_e_diff_rel"] <= t["rms_f_e_rel"]
+        and max(e["rms_p_a_diff"], e["rms_p_b_diff"]) <= t["rms_p_pa"]
+        and e["rms_x_diff"] <= t["rms_x_m"]
+    )
+    return e
+
+
 def crossval_scene(scene: Path, args) -> dict:
     name = pneuflex.load_scene(str(scene))["name"]
     out_dir = Path(args.out) / name
@@ -159,6 +190,7 @@ def crossval_scene(scene: Path, args) -> dict:
         tol["raw"] = args.tolerance
     (out_dir / "model.xml").write_text(c.xml)
     mj_traces, diverged, mj_stats, mj_runs = {}, {}, {}, []
+    ok = True
     for run in ref_traces:
         print(f"[{name}] MuJoCo run {run!r} ...", flush=True)
         try:
@@ -169,13 +201,28 @@ def crossval_scene(scene: Path, args) -> dict:
             mj_stats[run] = {k: r[k] for k in ("wall_s", "ticks", "physics_steps")}
         except couple.DivergedError as e:
             diverged[run] = str(e)
+    plugin = None
+    if not args.no_plugin:
+        plugin = {"library": pneuflex.mujoco_plugin_path(), "tolerance": PLUGIN_TOLERANCES, "runs": {}}
+        for run, coupled in mj_traces.items():
+            print(f"[{name}] MuJoCo run {run!r} with the native plugin ...", flush=True)
+            try:
+                r = couple.simulate_plugin(c, run, plugin["library"])
+            except couple.DivergedError as e:
+                plugin["runs"][run] = {"diverged": str(e), "pass": False}
+                ok = False
+                continue
+            e = compare_plugin(coupled, r["trace"])
+            e["wall_s"], e["coupled_wall_s"] = r["wall_s"], mj_stats[run]["wall_s"]
+            plugin["runs"][run] = e
     # The metrics of each MuJoCo run, computed by the scene crate as the loop ended (summary.json's runs).
     mj_summary = {"runs": mj_runs}
     act = pneuflex.Actuator.from_scene(str(used)).params()
     pwm_hz = act.get("pwm_frequency_hz")
     avg_samples = max(1, round(1.0 / (pwm_hz * float(scene_dict["dt_s"])))) if pwm_hz else 1
     runs = {}
-    ok = True
+    if plugin is not None:
+        ok &= all(e["pass"] for e in plugin["runs"].values())
     for run, ref in ref_traces.items():
         entry = {"reference_diverged": next((r.get("reason") for r in ref_summary["runs"] if r["name"] == run and r["diverged"]), None)}
         if entry["reference_diverged"] is not None:
@@ -254,6 +301,7 @@ def crossval_scene(scene: Path, args) -> dict:
         "tolerance_rms_f_e_pwm_avg_rel": tol["pwm_avg"],
         "pass": ok,
         "runs": runs,
+        "plugin": plugin,
         "metrics": metrics,
         "speed": speed,
         "figures": figures,
@@ -293,6 +341,29 @@ def markdown(r: dict) -> str:
             f"{100 * e['rms_f_e_diff_pwm_avg_rel']:.2f}% | {e['max_abs_f_e_diff_n']:.3f} | "
             f"{1e3 * e['rms_x_diff_m']:.4f} | {e['mean_f_e_ref_n']:.3f} / {e['mean_f_e_mujoco_n']:.3f} | {'yes' if e['pass'] else 'NO'} |"
         )
+    p = r.get("plugin")
+    if p:
+        t = p["tolerance"]
+        out += [
+            "",
+            "## The native plugin against the Python coupling",
+            "",
+            f"The same model with the cylinder as MuJoCo's actuator (`pneuflex.cylinder`, {p['library']}), the same loop and",
+            f"controller. Tolerance: RMS Δf_e <= {t['rms_f_e_rel']:.0e} of the force level, RMS Δp <= {t['rms_p_pa']:g} Pa,",
+            f"RMS Δx <= {1e6 * t['rms_x_m']:g} µm (docs/mujoco-plugin.md).",
+            "",
+            "| run | identical | RMS Δf_e [N] | rel. | RMS Δp_a / Δp_b [Pa] | RMS Δx [µm] | wall plugin / coupling [s] | pass |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        ]
+        for name, e in p["runs"].items():
+            if "diverged" in e:
+                out.append(f"| {name} | – | – | – | – | – | – | FAIL: diverged: {e['diverged']} |")
+                continue
+            out.append(
+                f"| {name} | {'yes' if e['identical'] else 'no'} | {e['rms_f_e_diff']:.3g} | {e['rms_f_e_diff_rel']:.2g} | "
+                f"{e['rms_p_a_diff']:.3g} / {e['rms_p_b_diff']:.3g} | {1e6 * e['rms_x_diff']:.3g} | "
+                f"{e['wall_s']:.2f} / {e['coupled_wall_s']:.2f} | {'yes' if e['pass'] else 'NO'} |"
+            )
     out += ["", "## Metrics (summary.json)", "", "| run | window | metric | reference | MuJoCo | difference |", "| --- | --- | --- | --- | --- | --- |"]
     for m in r["metrics"]:
         out.append(f"| {m['run']} | {m['window']} | {m['metric']} | {_fmt(m['reference'])} | {_fmt(m['mujoco'])} | {_fmt(m['diff'])} |")
@@ -322,6 +393,7 @@ def main(argv=None) -> int:
     ap.add_argument("--face-mass", type=float, default=0.001, help="mass of the environment face for 1-DOF scenes, kg")
     ap.add_argument("--tolerance", type=float, default=None, help="override the largest raw RMS(f_e diff) / force level")
     ap.add_argument("--mb-refine", type=int, default=10, help="MuJoCo steps per Rapier physics step (multibody scenes)")
+    ap.add_argument("--no-plugin", action="store_true", help="skip the native plugin's runs (pneuflex.mujoco_plugin_path())")
     ap.add_argument("--bench-steps", type=int, default=20000, help="steps of the step-rate probes")
     args = ap.parse_args(argv)
     scenes = [Path(s) for s in (args.scenes or [str(ROOT / p) for p in DEFAULT_SCENES])]
@@ -330,7 +402,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         try:
             r = crossval_scene(s, args)
-        except (OSError, ValueError, NotImplementedError, couple.DivergedError) as e:
+        except (OSError, ValueError, NotImplementedError, couple.DivergedError) as e:  # FileNotFoundError: no plugin
             print(f"crossval: {s}: {e}", file=sys.stderr)
             failed.append(str(s))
             continue
@@ -345,6 +417,15 @@ def main(argv=None) -> int:
                       + (f", reference diverged: {e['reference_diverged']}" if e.get("reference_diverged") else "")
                       + "  "
                       f"{'ok' if e['pass'] else 'FAIL'}")
+        for run, e in ((r.get("plugin") or {}).get("runs") or {}).items():
+            if "diverged" in e:
+                print(f"[{r['scene']}] {run}: native plugin diverged: {e['diverged']}  FAIL")
+            else:
+                print(f"[{r['scene']}] {run}: native plugin vs Python coupling: "
+                      + ("bit-identical" if e["identical"] else
+                         f"RMS Δf_e = {e['rms_f_e_diff']:.2e} N ({e['rms_f_e_diff_rel']:.1e} of the force level), "
+                         f"RMS Δp = {e['rms_p_a_diff']:.2g} / {e['rms_p_b_diff']:.2g} Pa, RMS Δx = {1e6 * e['rms_x_diff']:.2g} µm")
+                      + f"  {'ok' if e['pass'] else 'FAIL'}")
         sp = r["speed"]
         print(f"[{r['scene']}] mj_step {sp['mujoco_mj_step_per_s']:.3g}/s"
               + (f"; rig at {sp['rig_step_s']} s: MuJoCo {sp['rig_mujoco_mj_step_per_s']:.3g}/s, Rapier {sp['rig_rapier_step_per_s']:.3g}/s" if "rig_rapier_step_per_s" in sp else "")

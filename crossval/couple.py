@@ -146,9 +146,9 @@ def prepare(
 class Sim:
     """One MuJoCo model + data of a coupled scene, with helpers to sense and apply events."""
 
-    def __init__(self, c: Coupled):
+    def __init__(self, c: Coupled, xml: str | None = None):
         self.c = c
-        self.model = mujoco.MjModel.from_xml_string(c.xml)
+        self.model = mujoco.MjModel.from_xml_string(xml if xml is not None else c.xml)
         self.data = mujoco.MjData(self.model)
         m = self.model
         self.flange_jnt = m.joint("flange_slide").id
@@ -319,6 +319,73 @@ class MujocoPlant:
         self.ticks += 1
         sim.check(self.ticks * dt)
         self.f_e = sim.contact_force()
+
+
+def plugin_config(c: Coupled) -> dict[str, str]:
+    """The `pneuflex.cylinder` configuration equal to the force element MujocoPlant couples: the scene's
+    actuator sheet, the same initial chambers (exact, repr) and chamber substeps per MuJoCo step."""
+    act = pneuflex.Actuator.from_scene(c.scene_path)
+    init = pneuflex.initial_state(c.scene_path)
+    return {
+        "sheet": str(Path(act.path).resolve()),
+        "initial_p_a_pa": repr(float(init["p_a"])),
+        "initial_p_b_pa": repr(float(init["p_b"])),
+        "chamber_substeps": str(c.chamber_substeps),
+    }
+
+
+class PluginPlant(MujocoPlant):
+    """The same rig with the cylinder as MuJoCo's native actuator, the `pneuflex.cylinder` plugin
+    (docs/mujoco-plugin.md): the chambers live in MuJoCo's plugin_state and MuJoCo steps them itself;
+    Python only sets ctrl and steps (one `mj_step(nstep=...)` call per tick when no carriage moves).
+    Same loop, sensing and events as MujocoPlant, so the two runs differ only in who couples the element."""
+
+    def __init__(self, c: Coupled, library: str | None = None):
+        mujoco.mj_loadPluginLibrary(library or pneuflex.mujoco_plugin_path())
+        self.xml = mjcf.with_cylinder_plugin(c.xml, plugin_config(c))
+        super().__init__(c)
+
+    def reset(self) -> None:
+        c = self.c
+        self.sim = Sim(c, self.xml)
+        self._state = int(self.sim.model.plugin_stateadr[0])
+        self._gravity_drive()
+        self.u = 0.0
+        self.ticks = 0
+        self.f_e = self.sim.contact_force()
+
+    def pressures(self) -> tuple[float, float]:
+        s = self.sim.data.plugin_state
+        return float(s[self._state]), float(s[self._state + 1])
+
+    def sense(self) -> tuple[float, float, float, float, float]:
+        x, xd = self.sim.x()
+        return (x, xd, self.f_e, *self.pressures())
+
+    def advance(self, dt: float) -> None:
+        sim = self.sim
+        sim.data.ctrl[0] = self.u
+        n = self.c.substeps
+        h = dt / n
+        if sim.mocap is None:
+            mujoco.mj_step(sim.model, sim.data, nstep=n)
+            for _ in range(n):
+                sim.time += h  # as Sim.step sums it
+        else:
+            for _ in range(n):
+                sim.step(h)
+        self.ticks += 1
+        sim.check(self.ticks * dt)
+        self.f_e = sim.contact_force()
+
+
+def simulate_plugin(c: Coupled, run, library: str | None = None) -> dict:
+    """As `simulate`, with PluginPlant: the cylinder stepped by MuJoCo through the native plugin."""
+    trace, status, wall = pneuflex.run_plant(c.scene_path, run, PluginPlant(c, library))
+    if isinstance(status, str):
+        raise DivergedError(status)
+    rows = len(trace["t"])
+    return {"trace": trace, "summary": status, "wall_s": wall, "ticks": rows, "physics_steps": (rows - 1) * c.substeps}
 
 
 def simulate(c: Coupled, run) -> dict:

@@ -218,3 +218,30 @@ def spec_from_urdf(
         axis_z_m=cyl_origin[2],
         carriage=True,
     )
+
+
+# ---------------------------------------------------------------- the native plugin (docs/mujoco-plugin.md)
+
+
+def with_cylinder_plugin(xml: str, config: dict[str, str], joint: str = "flange_slide", name: str = "cylinder") -> str:
+    """The rig's MJCF with the pneumatic cylinder as MuJoCo's own actuator: the `pneuflex.cylinder` plugin
+    (crates/mujoco-plugin) on the flange slide (gear 1: length = extension in m, force in N), command in
+    ctrl[0] within [-1, 1]. `config` is the plugin's `<config>` (sheet, inline values, initial chambers)."""
+    from xml.sax.saxutils import quoteattr
+
+    cfg = "".join(f"\n        <config key={quoteattr(k)} value={quoteattr(str(v))}/>" for k, v in config.items())
+    ext = (
+        '  <extension>\n    <plugin plugin="pneuflex.cylinder">\n'
+        f'      <instance name="{name}">{cfg}\n      </instance>\n    </plugin>\n  </extension>\n'
+    )
+    act = (
+        "  <actuator>\n"
+        f'    <plugin name="{name}" joint="{joint}" plugin="pneuflex.cylinder" instance="{name}" gear="1"'
+        ' ctrlrange="-1 1" ctrllimited="true" forcelimited="false"/>\n'
+        "  </actuator>\n"
+    )
+    head, sep, rest = xml.partition("\n")
+    if not rest.rstrip().endswith("</mujoco>"):
+        raise ValueError("not an MJCF ending in </mujoco>")
+    body = rest.rstrip()[: -len("</mujoco>")]
+    return head + sep + ext + body + act + "</mujoco>\n"

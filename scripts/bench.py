@@ -9,7 +9,11 @@ Each round times, in alternating order:
 - MuJoCo (Python loop): the same, one `mujoco.mj_step` call per step from Python (what a Python-side coupling
   pays before it does anything);
 - MuJoCo + Rust force element from Python: per step `ForceElement.step` (the pneuflex chambers and valve,
-  fixed valve command, no controller) + `mj_step`, as crossval couples them.
+  fixed valve command, no controller) + `mj_step`, as crossval couples them;
+- MuJoCo with the native plugin `pneuflex.cylinder` (C loop, the same chambers, substeps and command), against
+  its parts timed alone: the bare `mj_step` of the rig under the plugin's settled force as a constant push, and
+  the chamber model's steps in a Rust loop (`ForceElement.bench_steps`); the three and the Python coupling
+  alternate in ten slices per round, and the ratios are taken per round.
 Both sides settle into steady contact (1 s) before timing. Rates are simulated steps (control ticks for
 pneuflex, mj_steps for MuJoCo; equal at the scene's 1 ms) per wall-clock second; the ratio is taken per round.
 Then the peak RSS of whole `pneuflex run` processes (fig3, fig7; GNU time's %M). Nothing here asserts anything about speed.
@@ -105,6 +109,64 @@ class MujocoForceElement:
         return time.perf_counter() - t0
 
 
+class MujocoPlugin:
+    """The same rig with the cylinder as MuJoCo's native actuator (`pneuflex.cylinder`, crossval's plugin MJCF,
+    the scene's chamber substeps per step, fixed valve command), next to what it is made of: the rig without
+    the actuator under a constant push equal to the plugin's settled force (the same contact), and the chamber
+    model's own steps in a Rust loop (`ForceElement.bench_steps`, the same substeps and command)."""
+
+    def __init__(self, c: couple.Coupled, u: float, library: str):
+        from crossval import mjcf
+
+        mujoco.mj_loadPluginLibrary(library)
+        self.model = mujoco.MjModel.from_xml_string(mjcf.with_cylinder_plugin(c.xml, couple.plugin_config(c)))
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        jnt = m.joint("flange_slide").id
+        self.data.qpos[int(m.jnt_qposadr[jnt])] = c.spec.x0_m
+        self.data.ctrl[0] = u
+        n = round(1.0 / m.opt.timestep)
+        self.c_loop(n)
+        # The bare model's push: the plugin's mean force over the next settled second (its PWM ripple
+        # averages out), so that both press the face alike.
+        forces = []
+        for _ in range(n):
+            mujoco.mj_step(self.model, self.data)
+            forces.append(float(self.data.actuator_force[0]))
+        self.push = sum(forces) / len(forces)
+        self.bare = Mujoco(c, self.push)
+        act = pneuflex.Actuator.from_scene(c.scene_path)
+        init = pneuflex.initial_state(c.scene_path)
+        self.fe = pneuflex.ForceElement(act, p_a=init["p_a"], p_b=init["p_b"], substeps=c.chamber_substeps)
+        self.x, self.u, self.h = c.spec.x0_m, u, float(m.opt.timestep)
+        self.chambers(round(1.0 / self.h))
+
+    def c_loop(self, n: int) -> float:
+        t0 = time.perf_counter()
+        mujoco.mj_step(self.model, self.data, nstep=n)
+        return time.perf_counter() - t0
+
+    def chambers(self, n: int) -> float:
+        return self.fe.bench_steps(n, self.x, 0.0, self.u, self.h)
+
+    def slices(self, n: int, coupling=None, chunks: int = 10, reverse: bool = False) -> list[float]:
+        """Wall times of n steps each of the plugin, the bare model, the chambers alone and (when given) the
+        Python coupling, taken in `chunks` alternating slices so that a burst of another process's load falls
+        on all of them alike (a 2-core machine shared with builds)."""
+        parts = [self.c_loop, self.bare.c_loop, self.chambers] + ([coupling] if coupling else [])
+        t = [0.0] * len(parts)
+        order = list(range(len(parts)))[:: -1 if reverse else 1]
+        k = n // chunks
+        for _ in range(chunks):
+            for i in order:
+                t[i] += parts[i](k)
+        return t
+
+    def warned(self) -> bool:
+        d = self.data
+        return any(d.warning[i].number for i in range(int(mujoco.mjtWarning.mjNWARNING))) or self.bare.warned()
+
+
 def stats(xs: list[float]) -> tuple[float, float, float]:
     return min(xs), statistics.median(xs), max(xs)
 
@@ -153,6 +215,7 @@ def main() -> int:
     ap.add_argument("--u", type=float, default=0.05, help="valve command of the force-element coupling")
     ap.add_argument("--rss-binary", default=None, help="pneuflex binary for the RSS runs (default target/release/pneuflex)")
     ap.add_argument("--no-rss", action="store_true")
+    ap.add_argument("--no-plugin", action="store_true", help="skip the native plugin's rows (pneuflex.mujoco_plugin_path())")
     args = ap.parse_args()
     if args.quick:
         args.rounds, args.ticks = min(args.rounds, 5), min(args.ticks, 5000)
@@ -181,9 +244,20 @@ def main() -> int:
     except Exception as e:  # informative only
         print(f"(MuJoCo + force element from Python skipped: {e})")
         mjfe = None
+    plugin, plugin_note = None, ""
+    if not args.no_plugin:
+        try:
+            library = pneuflex.mujoco_plugin_path()
+            plugin = MujocoPlugin(c, args.u, library)
+            if "debug" in Path(library).parts:
+                plugin_note = " (a debug build of the plugin: not the release figure)"
+            print(f"plugin: {library}{plugin_note}; its mean force {plugin.push:.2f} N over a settled second (the bare "
+                  f"model's push); contacts: plugin {plugin.data.ncon}, bare {plugin.bare.data.ncon}\n")
+        except (FileNotFoundError, ValueError) as e:  # informative only
+            print(f"(MuJoCo with the native plugin skipped: {e})\n")
     n_mj = args.ticks * mj_per_tick
-    rates = {"pneuflex": [], "mj_c": [], "mj_py": [], "mj_fe": []}
-    ratios = []
+    rates = {"pneuflex": [], "mj_c": [], "mj_py": [], "mj_fe": [], "mj_plugin": [], "mj_bare": [], "chambers": []}
+    ratios, plugin_ratios = [], []
     last = None
 
     def pf() -> float:
@@ -194,7 +268,8 @@ def main() -> int:
     # A warm-up round (caches, lazy loading), not counted.
     pf(), mj.c_loop(n_mj)
     for r in range(args.rounds):
-        order = ["pf", "mj_c", "mj_py", "mj_fe"]
+        # With the plugin the Python coupling is timed in its slices (the two are compared).
+        order = ["pf", "mj_c", "mj_py"] + (["plugin"] if plugin else ["mj_fe"])
         if r % 2:
             order.reverse()
         t = {}
@@ -205,6 +280,11 @@ def main() -> int:
                 t[k] = mj.c_loop(n_mj)
             elif k == "mj_py":
                 t[k] = mj.python_loop(n_mj)
+            elif k == "plugin":
+                ts = plugin.slices(n_mj - n_mj % 10, mjfe.run if mjfe else None, reverse=bool(r % 2))
+                t["mj_plugin"], t["mj_bare"], t["chambers"] = ts[:3]
+                if mjfe is not None:
+                    t["mj_fe"] = ts[3] * n_mj / (n_mj - n_mj % 10)
             elif mjfe is not None:
                 t[k] = mjfe.run(n_mj)
         rates["pneuflex"].append(args.ticks / t["pf"])
@@ -212,6 +292,11 @@ def main() -> int:
         rates["mj_py"].append(n_mj / t["mj_py"])
         if "mj_fe" in t:
             rates["mj_fe"].append(n_mj / t["mj_fe"])
+        if plugin:
+            for k in ("mj_plugin", "mj_bare", "chambers"):
+                rates[k].append((n_mj - n_mj % 10) / t[k])
+            # A step with the plugin over the bare step plus the chamber model's own step: 1 = no overhead.
+            plugin_ratios.append(t["mj_plugin"] / (t["mj_bare"] + t["chambers"]))
         # pneuflex tick rate over MuJoCo's, both per simulated second: > 1 means pneuflex is faster.
         ratios.append((args.ticks / t["pf"]) / (args.ticks / t["mj_c"]))
     if mj.warned():
@@ -224,10 +309,24 @@ def main() -> int:
     print(f"  MuJoCo mj_step (Python loop)             {fmt_rate(rates['mj_py'])}")
     if rates["mj_fe"]:
         print(f"  MuJoCo + Rust force element (Python)     {fmt_rate(rates['mj_fe'])}")
+    if plugin_ratios:
+        print(f"  MuJoCo with the native plugin (C loop)   {fmt_rate(rates['mj_plugin'])}{plugin_note}")
+        print(f"  its parts: MuJoCo bare, same push        {fmt_rate(rates['mj_bare'])}")
+        print(f"             chamber model's own step      {fmt_rate(rates['chambers'])}")
     lo, med, hi = stats(ratios)
     print(f"\nratio pneuflex tick / MuJoCo mj_step (C loop), per round: median {med:.3f}  min {lo:.3f}  max {hi:.3f}")
     print(f"  (MuJoCo's C-loop step is {1 / med:.2f}x pneuflex's coupled tick; MuJoCo has no chambers or controller here)")
     print(f"  pneuflex end state: x = {last['x'] * 1e3:.2f} mm, f_e = {last['f_e']:.2f} N; MuJoCo: x = {mj.data.qpos[mj.qadr] * 1e3:.2f} mm")
+    if plugin_ratios:
+        lo, med, hi = stats(plugin_ratios)
+        print(f"\nplugin step / (bare mj_step + chamber step), per round: median {med:.3f}  min {lo:.3f}  max {hi:.3f}"
+              f"  (the target: <= 1.10){plugin_note}")
+        if rates["mj_fe"]:
+            fe_over = [b / a for a, b in zip(rates["mj_fe"], rates["mj_plugin"])]
+            lo, med, hi = stats(fe_over)
+            print(f"  the Python coupling's step / the plugin's step, per round: median {med:.2f}  min {lo:.2f}  max {hi:.2f}")
+        if plugin.warned():
+            print("warning: MuJoCo reported a warning in the plugin's models (it reset their state)")
     m1 = os.getloadavg()
     print(f"  load average after: {m1[0]:.2f} {m1[1]:.2f} {m1[2]:.2f}")
 

@@ -1,8 +1,8 @@
 //! pneuflex-pneumatics: a lumped-parameter model of a pneumatic compliant actuator (Section II of the
 //! paper): double-acting cylinder thermodynamics (eqs. 2-10), ISO 6358 valve flow (eq. 11) and its
 //! linearisation (eq. 12), a proportional 5/3 valve and a PWM-driven 5/2 on/off valve, the mechanics of
-//! eq. (1) with friction, incline and end stops, the transfer function of eqs. (16)-(17), and component
-//! data sheets as TOML.
+//! eq. (1) with friction, incline and end stops, the transfer function of eqs. (16)-(17), component data
+//! sheets as TOML, and the cylinder as a force element for an external rigid-body engine.
 //!
 //! Units are SI throughout, pressures absolute. `x` is the piston extension from the cap end; chamber A
 //! is the cap side, chamber B the rod side; valve command `u = +1` connects supply to A and B to exhaust.
@@ -11,6 +11,7 @@
 pub mod actuator;
 pub mod components;
 pub mod flow;
+pub mod force_element;
 pub mod mechanics;
 pub mod tf;
 pub mod valve;
@@ -24,6 +25,7 @@ pub use components::{
     SupplySheet, ValveSheet, find_actuator_sheet, load_actuator_sheet,
 };
 pub use flow::Orifice;
+pub use force_element::PneumaticForceElement;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};
 pub use tf::{Linearisation, OperatingPoint, OperatingPointError, TfParams, TransferFunction};
 pub use valve::{Openings, PATHS, ValveKind, ValveModel, ValveState};

@@ -78,12 +78,59 @@ pub struct ValveState {
 }
 
 impl ValveState {
+    /// How many numbers [`ValveState::to_array`] writes.
+    pub const LEN: usize = 6;
+
     /// A valve state resting at spool position `spool` (clamped to [-1, 1]).
     pub fn at_spool(spool: f64) -> Self {
         Self {
             spool: sanitize(spool),
             ..Self::default()
         }
+    }
+
+    /// The state as numbers, for a host that keeps it in its own buffer of f64 (MuJoCo's `plugin_state`):
+    /// spool, PWM clock started (0 or 1), first period start (s), period index, latched duty, previous duty.
+    /// [`ValveState::from_array`] gives it back bit for bit (a period index is exact up to 2^53).
+    pub fn to_array(&self) -> [f64; Self::LEN] {
+        [
+            self.spool,
+            if self.started { 1.0 } else { 0.0 },
+            self.t0,
+            self.period as f64,
+            self.duty,
+            self.prev_duty,
+        ]
+    }
+
+    /// The inverse of [`ValveState::to_array`]; `None` for numbers it never writes (a spool or duty outside
+    /// [-1, 1] / [0, 1], a flag other than 0 or 1, a time that is not finite, a period index that is not a
+    /// whole number in [0, 2^53]), so that a corrupted buffer is refused rather than run.
+    pub fn from_array(a: &[f64; Self::LEN]) -> Option<Self> {
+        let [spool, started, t0, period, duty, prev_duty] = *a;
+        let started = match started {
+            0.0 => false,
+            1.0 => true,
+            _ => return None,
+        };
+        let whole = (0.0..=9_007_199_254_740_992.0).contains(&period) && period.fract() == 0.0;
+        let unit = |d: f64| (0.0..=1.0).contains(&d);
+        if !((-1.0..=1.0).contains(&spool)
+            && t0.is_finite()
+            && whole
+            && unit(duty)
+            && unit(prev_duty))
+        {
+            return None;
+        }
+        Some(Self {
+            spool,
+            started,
+            t0,
+            period: period as u64,
+            duty,
+            prev_duty,
+        })
     }
 }
 

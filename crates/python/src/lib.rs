@@ -54,6 +54,12 @@ mod _native {
             m.py().get_type::<crate::errors::PneuflexError>(),
         )?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+        // The workspace these bindings were built in: where `pneuflex.mujoco_plugin_path()` looks for
+        // the MuJoCo plugin built beside them (target/release, target/debug).
+        m.add(
+            "_workspace_dir",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
+        )?;
         Ok(())
     }
 }

@@ -335,7 +335,7 @@ impl PyOneDof {
     }
 }
 
-/// The pneumatic force element between cylinder and flange (`pneuflex_multibody::PneumaticForceElement`, the
+/// The pneumatic force element between cylinder and flange (`pneuflex_pneumatics::PneumaticForceElement`, the
 /// element the Rapier rig uses): chamber states and valve, advanced by `step(x, x_dot, u, dt)` along a flange
 /// motion given by an external rigid-body engine.
 #[pyclass(name = "ForceElement", module = "pneuflex")]
@@ -398,6 +398,35 @@ impl PyForceElement {
         self.element.set_command(u);
         self.t += dt_s;
         Ok(self.element.force(x, x_dot, dt_s))
+    }
+
+    /// Times `n` steps of `dt_s` in a Rust loop (no Python per step; the GIL released), the flange at `x`
+    /// moving at `x_dot` (the extension held: the chambers see the volume rate, not a new volume) under
+    /// command `u`; the element's state moves on. Returns the wall time, s: the chamber model's own cost
+    /// of a step, for scripts/bench against MuJoCo and the native plugin.
+    fn bench_steps(
+        &mut self,
+        py: Python<'_>,
+        n: u64,
+        x: f64,
+        x_dot: f64,
+        u: f64,
+        dt_s: f64,
+    ) -> PyResult<f64> {
+        check_positive("dt_s", dt_s)?;
+        check_finite("x", x)?;
+        check_finite("x_dot", x_dot)?;
+        self.element.set_command(u);
+        let el = &mut self.element;
+        let wall = py.detach(|| {
+            let t0 = std::time::Instant::now();
+            for _ in 0..n {
+                std::hint::black_box(el.step(std::hint::black_box(x), x_dot, dt_s));
+            }
+            t0.elapsed().as_secs_f64()
+        });
+        self.t += dt_s * n as f64;
+        Ok(wall)
     }
 
     /// Pneumatic force on the flange at the current chambers, N along +x.

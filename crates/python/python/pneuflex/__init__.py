@@ -5,7 +5,7 @@ The classes and functions come from the Rust crates through the native module ``
 - ``Actuator(path, alpha_deg=None)``: an actuator sheet (cylinder, valve, supply, gas, mechanics);
   ``params()``, ``piston_force(p_a, p_b)``, ``transfer_function(x_m=None, f_ext_n=0)`` (eqs. (16)-(17)).
 - ``OneDof(actuator, x0_m, p_a=None, p_b=None, f_ext_n=0)``: the 1-DOF model of eq. (1); ``step(u, f_ext_n, dt_s)``.
-- ``ForceElement(actuator, p_a=None, p_b=None, substeps=1, ...)``: the multibody crate's pneumatic force
+- ``ForceElement(actuator, p_a=None, p_b=None, substeps=1, ...)``: the pneumatics crate's pneumatic force
   element (chambers + valve); ``step(x, x_dot, u, dt_s) -> force`` on the flange, for an external
   rigid-body engine (MuJoCo in crossval/).
 - ``Controller(kind, impedance, inner, adaptive=None)`` / ``Controller.from_scene(path, run)``;
@@ -29,6 +29,9 @@ The classes and functions come from the Rust crates through the native module ``
   ``warnings``, ``report`` (report.json as a dict) and ``validation`` (per log: ndarrays of the held-out
   measured and model signals, NaN where not compared); writes the CLI's outputs into ``out`` when given.
 
+- ``mujoco_plugin_path() -> str``: the MuJoCo plugin library ``libpneuflex_mujoco.so`` (``pneuflex.cylinder``, an
+  actuator any MJCF can declare; docs/mujoco-plugin.md), for ``mujoco.mj_loadPluginLibrary``.
+
 SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError`` for unreadable files,
 ``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key.
 """
@@ -36,6 +39,41 @@ SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError
 from ._native import *  # noqa: F401,F403
 from ._native import PneuflexError, __version__  # noqa: F401
 from .sweeps import LocalExecutor, RayExecutor, sweep, tune  # noqa: F401,E402
+
+MUJOCO_PLUGIN_FILE = "libpneuflex_mujoco.so"
+
+
+def mujoco_plugin_path() -> str:
+    """The path of the MuJoCo plugin library (``pneuflex.cylinder``), for ``mujoco.mj_loadPluginLibrary``.
+
+    Looked up, first found: ``$PNEUFLEX_MUJOCO_PLUGIN``; ``libpneuflex_mujoco.so`` inside this package (a wheel
+    that bundles it); the cargo target directory of the workspace these bindings were built in
+    (``$CARGO_TARGET_DIR`` or ``target/``), release before debug. Raises FileNotFoundError naming the places
+    and the build command (``cargo build --release -p pneuflex-mujoco``) when there is none.
+    """
+    import os
+    from pathlib import Path
+
+    from . import _native
+
+    env = os.environ.get("PNEUFLEX_MUJOCO_PLUGIN")
+    if env:
+        if not Path(env).is_file():
+            raise FileNotFoundError(f"PNEUFLEX_MUJOCO_PLUGIN={env}: no such file")
+        return str(Path(env).resolve())
+    workspace = Path(getattr(_native, "_workspace_dir", Path(__file__).resolve().parents[3]))
+    target = Path(os.environ.get("CARGO_TARGET_DIR") or workspace / "target")
+    if not target.is_absolute():
+        target = workspace / target
+    places = [Path(__file__).resolve().parent / MUJOCO_PLUGIN_FILE] + [target / p / MUJOCO_PLUGIN_FILE for p in ("release", "debug")]
+    for p in places:
+        if p.is_file():
+            return str(p.resolve())
+    raise FileNotFoundError(
+        "the MuJoCo plugin is not built: none of " + ", ".join(str(p) for p in places)
+        + f" exists; build it with `cargo build --release -p pneuflex-mujoco` in {workspace.resolve()}"
+        " (or set PNEUFLEX_MUJOCO_PLUGIN)"
+    )
 
 
 def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settle=0.015, out=None):

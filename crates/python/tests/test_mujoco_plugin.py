@@ -1,0 +1,303 @@
+"""Tests of the native MuJoCo plugin `pneuflex.cylinder` (crates/mujoco-plugin, docs/mujoco-plugin.md): it loads
+from the path the package gives, equals the Python coupling of the same force element bit for bit, names the key
+of any bad configuration in MuJoCo's error, clamps ctrl, keeps its state in plugin_state, and loads from C.
+Plain asserts; non-zero exit on failure. Run: scripts/test_python.sh (builds the bindings and the plugin first).
+The closed-loop comparison on the shipped scenes is in scripts/crossval (crossval/__main__.py)."""
+
+from __future__ import annotations
+
+import copy
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import traceback
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+import pneuflex
+
+ROOT = Path(__file__).resolve().parents[3]
+SHEET = str(ROOT / "pneumatics" / "paper-actuator.toml")
+SHEET_PROPORTIONAL = str(ROOT / "pneumatics" / "paper-actuator-proportional.toml")
+H = 1e-4  # MuJoCo step, s
+SUBSTEPS = 4  # chamber substeps per step
+
+TESTS = []
+
+
+def test(f):
+    TESTS.append(f)
+    return f
+
+
+def load_plugin() -> str:
+    path = pneuflex.mujoco_plugin_path()
+    mujoco.mj_loadPluginLibrary(path)
+    return path
+
+
+def rig(config: dict | None = None, integrator: str = "Euler", ctrlrange: str = "-1 1", plugin: bool = True,
+        actuator_extra: str = "", flanges: int = 1) -> str:
+    """A flange (0.6 kg, K_v 20 N s/m as joint damping) on a slide joint along x, gravity along the axis, a
+    spring towards 25 mm so the flange keeps moving; with the cylinder as the plugin or (plugin=False) bare."""
+    cfg = {"sheet": SHEET, "chamber_substeps": str(SUBSTEPS), "initial_p_a_pa": "300000", "initial_p_b_pa": "350000"}
+    cfg.update(config or {})
+    conf = "".join(f'<config key="{k}" value="{v}"/>' for k, v in cfg.items() if v is not None)
+    bodies = "".join(
+        f'<body name="flange{i}" pos="0 {0.1 * i} 0"><joint name="slide{i}" type="slide" axis="1 0 0" range="0 0.05"'
+        f' damping="20" stiffness="300" springref="0.025"/><geom type="box" size="0.01 0.01 0.01" mass="0.6"/></body>'
+        for i in range(flanges)
+    )
+    acts = "".join(
+        f'<plugin name="cyl{i}" joint="slide{i}" plugin="pneuflex.cylinder" instance="cyl" ctrlrange="{ctrlrange}"'
+        f' {actuator_extra}/>'
+        for i in range(flanges)
+    )
+    ext = f'<extension><plugin plugin="pneuflex.cylinder"><instance name="cyl">{conf}</instance></plugin></extension>'
+    return (
+        f'<mujoco><option timestep="{H!r}" integrator="{integrator}" gravity="4.9 0 -8.5"/>'
+        + (ext if plugin else "")
+        + f"<worldbody>{bodies}</worldbody>"
+        + (f"<actuator>{acts}</actuator>" if plugin else "")
+        + "</mujoco>"
+    )
+
+
+def command(k: int) -> float:
+    """A valve command that moves every 7 ms, both ways, beyond the range now and then (clamped)."""
+    return 1.3 * np.sin(0.7 * (k // 70))
+
+
+def plugin_run(xml: str, n: int, ctrl=command, x0: float | None = 0.02):
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    if x0 is not None:
+        d.qpos[0] = x0
+    adr = int(m.plugin_stateadr[0])
+    out = np.zeros((n, 4))
+    for k in range(n):
+        d.ctrl[0] = ctrl(k)
+        mujoco.mj_step(m, d)
+        out[k] = d.qpos[0], d.actuator_force[0], d.plugin_state[adr], d.plugin_state[adr + 1]
+    return out
+
+
+@test
+def the_package_gives_the_path_and_loading_twice_is_harmless():
+    path = load_plugin()
+    assert Path(path).is_file() and path.endswith("libpneuflex_mujoco.so"), path
+    mujoco.mj_loadPluginLibrary(path)  # the same library again: dlopen does not register it twice
+    m = mujoco.MjModel.from_xml_string(rig())
+    assert m.nplugin == 1 and m.npluginstate == 11, (m.nplugin, m.npluginstate)
+
+
+@test
+def the_plugin_equals_the_python_coupling_bit_for_bit():
+    """The same model stepped with the force element coupled from Python (crossval/couple.py's way:
+    F = ForceElement.step(x, x_dot, u, h), qfrc_applied = F - friction(x_dot, F), mj_step) and with the plugin:
+    every position, force and pressure equal, under each integrator the plugin accepts."""
+    load_plugin()
+    n = 5000
+    act = pneuflex.Actuator(SHEET)
+    for integrator in ("Euler", "implicit", "implicitfast", "discrete"):
+        m = mujoco.MjModel.from_xml_string(rig(integrator=integrator, plugin=False))
+        d = mujoco.MjData(m)
+        d.qpos[0] = 0.02
+        fe = pneuflex.ForceElement(act, p_a=3e5, p_b=3.5e5, substeps=SUBSTEPS)
+        ref = np.zeros((n, 4))
+        for k in range(n):
+            x, v = d.qpos[0], d.qvel[0]
+            f = fe.step(x, v, float(np.clip(command(k), -1, 1)), H)
+            d.qfrc_applied[0] = f - fe.friction_force(v, f)
+            mujoco.mj_step(m, d)
+            ref[k] = d.qpos[0], d.qfrc_applied[0], fe.p_a, fe.p_b
+        got = plugin_run(rig(integrator=integrator), n)
+        assert np.array_equal(got, ref), (integrator, np.max(np.abs(got - ref), axis=0))
+        # Not a trivial run: the flange travelled and both chambers swung by > 50 kPa.
+        assert np.ptp(got[:, 0]) > 5e-3 and np.ptp(got[:, 2]) > 5e4 and np.ptp(got[:, 3]) > 5e4, np.ptp(got, axis=0)
+
+
+def load_error(xml: str) -> str:
+    try:
+        mujoco.MjModel.from_xml_string(xml)
+    except ValueError as e:
+        return str(e)
+    raise AssertionError("the model loaded")
+
+
+@test
+def bad_configuration_is_a_mujoco_error_naming_the_key():
+    load_plugin()
+    cases = [
+        ({"cylinder.bore_m": "-3"}, "config key 'cylinder.bore_m': must be"),
+        ({"cylinder.bore_m": "16 mm"}, "config key 'cylinder.bore_m': expected a number"),
+        ({"valve.kind": "magic"}, "config key 'valve.kind'"),
+        ({"supply.pressure_abs_pa": "1e12"}, "config key 'supply.pressure_abs_pa'"),
+        ({"chamber_substeps": "0"}, "config key 'chamber_substeps'"),
+        ({"initial_p_a_pa": "-1"}, "config key 'initial_p_a_pa'"),
+        ({"mechanics.friction": "stick_slip"}, "config key 'mechanics.friction'"),
+        ({"sheet": None}, "config key 'sheet': required"),
+        ({"sheet": "/no/such/sheet.toml"}, "config key 'sheet': /no/such/sheet.toml"),
+        # A key the plugin does not declare: MuJoCo's compiler names it.
+        ({"cylinder.bore": "0.016"}, "unrecognized attribute 'plugin:cylinder.bore'"),
+        ({"mechanics.moving_mass_kg": "1"}, "unrecognized attribute 'plugin:mechanics.moving_mass_kg'"),
+    ]
+    for cfg, says in cases:
+        e = load_error(rig(cfg))
+        assert says in e, (cfg, e)
+        if "config key" in says:
+            assert "pneuflex.cylinder: instance 'cyl'" in e, e
+    e = load_error(rig(integrator="RK4"))
+    assert "integrator=\"RK4\" is not supported" in e, e
+    # Each case left MuJoCo working: a good model still loads and steps.
+    assert plugin_run(rig(), 10).shape == (10, 4)
+
+
+@test
+def ctrl_is_clamped_to_ctrlrange():
+    load_plugin()
+    n = 600
+    wide = plugin_run(rig(), n, ctrl=lambda k: 5.0)
+    one = plugin_run(rig(), n, ctrl=lambda k: 1.0)
+    assert np.array_equal(wide, one), "ctrl beyond ctrlrange must act as its end"
+    half = plugin_run(rig(ctrlrange="-0.5 0.5"), n, ctrl=lambda k: 1.0)
+    half_ref = plugin_run(rig(ctrlrange="-1 1"), n, ctrl=lambda k: 0.5)
+    assert np.array_equal(half, half_ref) and not np.array_equal(half, one)
+
+
+@test
+def the_state_lives_in_plugin_state():
+    """Reset restores the configured chambers, a copied MjData continues identically, two MjData are
+    independent, a disabled actuator group gives no force, and impossible numbers written into plugin_state
+    give a zero force and no crash."""
+    load_plugin()
+    m = mujoco.MjModel.from_xml_string(rig({"initial_temperature_k": "300"}))
+    d = mujoco.MjData(m)
+    s0 = d.plugin_state.copy()
+    assert s0[0] == 3e5 and s0[1] == 3.5e5 and s0[2] == 300.0 and s0[3] == 300.0, s0
+    d.ctrl[0] = 0.7
+    mujoco.mj_step(m, d, nstep=300)
+    assert not np.array_equal(d.plugin_state, s0)
+    d2 = copy.copy(d)
+    other = mujoco.MjData(m)
+    mujoco.mj_step(m, d, nstep=200)
+    mujoco.mj_step(m, d2, nstep=200)
+    assert np.array_equal(d.plugin_state, d2.plugin_state) and d.qpos[0] == d2.qpos[0]
+    assert np.array_equal(other.plugin_state, s0), "another MjData's state moved"
+    mujoco.mj_resetData(m, d)
+    assert np.array_equal(d.plugin_state, s0)
+    d.ctrl[0] = 1.0
+    mujoco.mj_step(m, d, nstep=50)
+    assert d.actuator_force[0] != 0.0
+    m.opt.disableactuator = 1 << int(m.actuator_group[0])
+    mujoco.mj_step(m, d)
+    assert d.actuator_force[0] == 0.0
+    m.opt.disableactuator = 0
+    d.plugin_state[0] = -1.0  # a negative pressure: refused, force 0, state held
+    held = d.plugin_state.copy()
+    mujoco.mj_step(m, d, nstep=5)
+    assert d.actuator_force[0] == 0.0 and np.array_equal(d.plugin_state, held)
+    mujoco.mj_resetData(m, d)
+    mujoco.mj_step(m, d)
+    assert d.actuator_force[0] != 0.0 and np.isfinite(d.plugin_state).all()
+
+
+@test
+def several_actuators_share_an_instance_each_with_its_state():
+    """Two flanges on one instance: 22 numbers of plugin_state, each cylinder as it runs alone. An implicit
+    instance (config on the actuator) and inline values work as well."""
+    load_plugin()
+    m = mujoco.MjModel.from_xml_string(rig(flanges=2))
+    assert m.npluginstate == 22
+    d = mujoco.MjData(m)
+    d.qpos[:] = 0.02
+    alone = plugin_run(rig(), 400, ctrl=lambda k: 0.6)
+    for _ in range(400):
+        d.ctrl[:] = 0.6, -0.4
+        mujoco.mj_step(m, d)
+    assert d.plugin_state[0] == alone[-1, 2] and d.plugin_state[1] == alone[-1, 3] and d.qpos[0] == alone[-1, 0]
+    assert d.plugin_state[11] != d.plugin_state[0]
+    xml = (
+        f'<mujoco><option timestep="{H!r}"/><extension><plugin plugin="pneuflex.cylinder"/></extension><worldbody>'
+        '<body><joint name="s" type="slide" axis="1 0 0" range="0 0.05"/><geom type="box" size=".01 .01 .01" mass=".6"/>'
+        '</body></worldbody><actuator><plugin name="c" joint="s" plugin="pneuflex.cylinder" ctrlrange="-1 1">'
+        f'<config key="sheet" value="{SHEET_PROPORTIONAL}"/><config key="valve.response_time_s" value="0.002"/>'
+        "</plugin></actuator></mujoco>"
+    )
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    d.ctrl[0] = 1.0
+    mujoco.mj_step(m, d, nstep=200)
+    assert d.plugin_state[4] > 0.99, d.plugin_state[:5]  # the spool followed u = 1 with its 2 ms lag
+    e = load_error(xml.replace('value="0.002"', 'value="-1"'))
+    assert "pneuflex.cylinder: actuator 'c': config key 'valve.response_time_s'" in e, e
+
+
+@test
+def the_documented_mjcf_loads_and_pushes():
+    """docs/mujoco-plugin.md's complete MJCF, as written (its relative sheet from the repository root): it loads,
+    starts from its inline chamber B pressure, and under u = 0.5 the rod extends onto the wall and presses it."""
+    load_plugin()
+    text = (ROOT / "docs" / "mujoco-plugin.md").read_text()
+    xml = text.split("## A complete MJCF", 1)[1].split("```xml\n", 1)[1].split("```", 1)[0]
+    cwd = os.getcwd()
+    try:
+        os.chdir(ROOT)
+        m = mujoco.MjModel.from_xml_string(xml)
+    finally:
+        os.chdir(cwd)
+    d = mujoco.MjData(m)
+    assert d.plugin_state[1] == 351325.0, d.plugin_state[:2]
+    d.ctrl[0] = 0.5
+    mujoco.mj_step(m, d, nstep=5000)  # 0.5 s
+    rod, wall = m.joint("extension").qposadr[0], m.joint("mount").qposadr[0]
+    assert d.qpos[rod] > 0.02 and d.qpos[wall] > 1e-4, (d.qpos[rod], d.qpos[wall])
+    assert d.sensor("cylinder_force").data[0] > 1.0, d.sensor("cylinder_force").data
+
+
+@test
+def a_c_host_loads_the_plugin():
+    """crates/mujoco-plugin/tests/host.c, compiled against the wheel's headers and libmujoco.so.4.0.0: the
+    plugin registers (its functions found in the host's libmujoco), steps as from Python, and a bad key is
+    the load error."""
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    assert cc, "no C compiler (cc) to build the C host"
+    mj = Path(mujoco.__file__).parent
+    path = pneuflex.mujoco_plugin_path()
+    with tempfile.TemporaryDirectory() as tmp:
+        host = Path(tmp) / "host"
+        subprocess.run([cc, "-I", str(mj / "include"), str(ROOT / "crates/mujoco-plugin/tests/host.c"), "-o", str(host),
+                        "-L", str(mj), "-l:libmujoco.so.4.0.0", f"-Wl,-rpath,{mj}"], check=True)
+        good, bad = Path(tmp) / "good.xml", Path(tmp) / "bad.xml"
+        good.write_text(rig())
+        bad.write_text(rig({"valve.critical_pressure_ratio": "1.5"}))
+        r = subprocess.run([str(host), path, str(good), "300", "0.4"], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0 and r.stdout.startswith("ok "), (r.returncode, r.stdout, r.stderr)
+        vals = dict(kv.split("=") for kv in r.stdout.split()[1:])
+        py = plugin_run(rig(), 300, ctrl=lambda k: 0.4, x0=None)[-1]  # the host starts at qpos0
+        # The same library on the same model: the same numbers (printed with 17 digits).
+        assert float(vals["force"]) == py[1] and float(vals["p_a"]) == py[2] and float(vals["p_b"]) == py[3], (vals, py)
+        r = subprocess.run([str(host), path, str(bad), "1", "0"], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and "config key 'valve.critical_pressure_ratio'" in r.stdout, (r.returncode, r.stdout, r.stderr)
+
+
+def main() -> int:
+    failed = 0
+    for t in TESTS:
+        try:
+            t()
+            print(f"ok   {t.__name__}")
+        except Exception:
+            failed += 1
+            print(f"FAIL {t.__name__}")
+            traceback.print_exc()
+    print(f"{len(TESTS) - failed} passed, {failed} failed")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
