@@ -790,7 +790,7 @@ fn every_failure_names_its_cause() {
     // An ELF for this machine, not for the board: the pneuflex binary itself.
     let host_elf = Path::new(env!("CARGO_BIN_EXE_pneuflex"));
     pil(host_elf, &qemu).refused(&[s(host_elf), "not ARM"]);
-    pil(&d.path().to_path_buf(), &qemu).refused(&[s(d.path()), "not a regular file"]);
+    pil(d.path(), &qemu).refused(&[s(d.path()), "not a regular file"]);
     assert!(
         !started.exists(),
         "QEMU started on a file that is not firmware"

@@ -1,4 +1,4 @@
-//! Issue 12, item 3: one observer trait for every loop. The same `RowObserver` watches a run of the
+//! Issues 12 and 24: one sink trait for every loop. The same `Sink` watches a run of the
 //! scene runner (simulation) and a run of the rig's real-time loop (against the emulator, on a simulated
 //! clock): both announce the same declared columns — the loop's, then the controller's (g, p, d for the
 //! adaptive run) — and hand it one row per tick in that order.
@@ -6,11 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
-use pneuflex::control::{RowObserver, Signal};
+use pneuflex::control::{Signal, Sink};
 use pneuflex::rig::clock::SimClock;
 use pneuflex::rig::trace::TraceWriter;
 use pneuflex::rig::{RigFile, rtloop, serial, session};
-use pneuflex::scene::{Rows, Scene, run_scene_observed};
+use pneuflex::scene::{Scene, run_scene_observed};
 
 #[derive(Default)]
 struct Collect {
@@ -20,12 +20,13 @@ struct Collect {
     ended: usize,
 }
 
-impl RowObserver for Collect {
-    fn begin(&mut self, columns: &[Signal]) {
+/// A sink of rows: it watches any host, whatever the host shows of its world.
+impl<W: ?Sized> Sink<W> for Collect {
+    fn begin(&mut self, _run: &str, columns: &[Signal], _world: &W) {
         self.columns = columns.iter().map(|s| s.name).collect();
         self.rows.clear();
     }
-    fn row(&mut self, values: &[f64]) {
+    fn row(&mut self, values: &[f64], _world: &W) {
         assert_eq!(
             values.len(),
             self.columns.len(),
@@ -36,7 +37,7 @@ impl RowObserver for Collect {
     fn event(&mut self, t_s: f64, text: &str) {
         self.events.push((t_s, text.to_owned()));
     }
-    fn end(&mut self) {
+    fn end(&mut self, _why: Option<&str>) {
         self.ended += 1;
     }
 }
@@ -55,7 +56,7 @@ fn the_same_row_observer_watches_a_simulated_run_and_a_rig_run() {
     scene.events.clear();
     scene.runs.retain(|r| r.name == "adaptive");
     let mut sim = Collect::default();
-    let res = run_scene_observed(&scene, &mut |_| {}, &mut Rows(&mut sim)).unwrap();
+    let res = run_scene_observed(&scene, &mut |_| {}, &mut sim).unwrap();
     assert_eq!(sim.rows.len(), res[0].trace.len());
     assert_eq!(sim.ended, 1);
 

@@ -2,7 +2,7 @@
 //! view of each run's rows (`pneuflex_rerun::RowRecorder`), or nothing. Without the `rerun` feature the option
 //! is a clear error that says how to rebuild.
 
-use pneuflex_control::RowObserver;
+use pneuflex_control::Sink;
 
 /// The parsed `--rerun` option; parsed before anything runs.
 pub struct LiveSink {
@@ -88,7 +88,7 @@ pub struct LiveView {
 
 impl LiveView {
     /// The observer to hand the loop.
-    pub fn observer(&mut self) -> &mut dyn RowObserver {
+    pub fn observer(&mut self) -> &mut dyn Sink<()> {
         #[cfg(feature = "rerun")]
         return match self.rec.as_mut() {
             Some(r) => r,

@@ -94,7 +94,7 @@ pub fn run(
     reference: &mut dyn FnMut(f64) -> Setpoint,
     duration_s: f64,
     out_dir: &Path,
-    observer: &mut dyn pneuflex_control::RowObserver,
+    observer: &mut dyn pneuflex_control::Sink<()>,
 ) -> anyhow::Result<LoopReport> {
     check_duration(duration_s).map_err(|e| anyhow!("--duration: {}", e.message))?;
     let rig = RigFile::load(rig_file)?;

@@ -138,13 +138,6 @@ fn run_scene_file(
         bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
     };
     let stop = super::stop_flag()?;
-    // Watches nothing: the runs may execute in parallel.
-    struct Quiet;
-    impl pneuflex_scene::StepObserver for Quiet {
-        fn watches(&self) -> bool {
-            false
-        }
-    }
     // Each run's trace is written as soon as the run is done, while the other runs still simulate: the runs
     // end at different times, and the core that finished first would otherwise idle (docs/performance.md).
     // The last run's trace waits for the end, beside the figures: they can start only then, and queued behind
@@ -180,10 +173,10 @@ fn run_scene_file(
             #[cfg(feature = "rerun")]
             let results = match observer.as_mut() {
                 Some(obs) => run_scene_with(scene, &opts, &mut progress, obs)?,
-                None => run_scene_with(scene, &opts, &mut progress, &mut Quiet)?,
+                None => run_scene_with(scene, &opts, &mut progress, &mut ())?,
             };
             #[cfg(not(feature = "rerun"))]
-            let results = run_scene_with(scene, &opts, &mut progress, &mut Quiet)?;
+            let results = run_scene_with(scene, &opts, &mut progress, &mut ())?;
             bar.finish_and_clear();
             let sim_time = start.elapsed();
 

@@ -101,8 +101,10 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
             args.seed,
             args.max_points,
             args.limits,
-            Some(&stop),
-            &tick,
+            pneuflex_sweep::Checking {
+                stop: Some(&stop),
+                tick: &tick,
+            },
         );
         bar.finish_and_clear();
         match checked {

@@ -30,5 +30,5 @@ pub use lyapunov::{
 };
 pub use pid::{AntiWindup, Pid, PidParams};
 pub use reference::{Reference, SCHEDULE_CAPACITY, Schedule, SetpointSchedule};
-pub use signal::{LOOP_SIGNALS, RowObserver, Signal};
+pub use signal::{LOOP_SIGNALS, Signal, Sink};
 pub use tick::{control_tick, write_loop_row};

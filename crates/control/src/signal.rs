@@ -65,22 +65,34 @@ pub const LOOP_SIGNALS: [Signal; 8] = [
     Signal::new("u", "1", "valve", "valve command in [-1, 1]"),
 ];
 
-/// Something that watches the rows of a control loop — a trace, a live viewer, a progress display — in
-/// every loop alike: the simulation's runner and the rig's real-time loop call it with the same columns
-/// (`LOOP_SIGNALS`, then the controller's own) and one row of values per tick.
-pub trait RowObserver {
-    /// A run starts; these are its columns.
-    fn begin(&mut self, _columns: &[Signal]) {}
-    /// One tick's values, in the order of the columns.
-    fn row(&mut self, _values: &[f64]) {}
+/// What watches a run of the control loop without changing it — a live viewer, a progress display, a
+/// recorder — in every loop alike: the simulation host and the rig's real-time host call it with the same
+/// columns (`LOOP_SIGNALS`, then the controller's own, then the plant's or the link's) and one row of
+/// values per tick. `W` is what the host shows of the world beside the row: the simulated plant on the
+/// simulation host (a viewer draws its bodies), `()` on the rig. A sink of rows alone implements it for
+/// every `W` and watches a simulated run and a run on the real rig alike.
+pub trait Sink<W: ?Sized = ()> {
+    /// Run `run` starts: its columns as their producers declare them, the world at its initial state.
+    fn begin(&mut self, _run: &str, _columns: &[Signal], _world: &W) {}
+    /// One tick was recorded: its values in the order of the columns, the world in the state they were
+    /// read from.
+    fn row(&mut self, _values: &[f64], _world: &W) {}
     /// Something happened at `t_s` that a reader of the run should see (a fault, an event), in a sentence.
     fn event(&mut self, _t_s: f64, _text: &str) {}
-    /// The run ended.
-    fn end(&mut self) {}
+    /// The run ended; `why` when it was cut short (diverged, a fault, a signal).
+    fn end(&mut self, _why: Option<&str>) {}
+    /// Whether it watches anything: a host may run unwatched runs in parallel.
+    fn watches(&self) -> bool {
+        true
+    }
 }
 
-/// The observer that watches nothing.
-impl RowObserver for () {}
+/// The sink that watches nothing.
+impl<W: ?Sized> Sink<W> for () {
+    fn watches(&self) -> bool {
+        false
+    }
+}
 
 /// Index of each loop signal in a row.
 pub mod index {

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use pneuflex_scene::analysis::adaptation::{lyapunov_summary, pinned_parameters};
 use pneuflex_scene::analysis::windows::compute_windows;
-use pneuflex_scene::{RunResult, Scene, StepObserver, build_plant, run_scene};
+use pneuflex_scene::{RunResult, Scene, build_plant, run_scene};
 
 pub use controller::{Cost, FirmwareController};
 pub use link::{Link, LinkStats};
@@ -120,7 +120,7 @@ pub fn run_pil_observed(
     index: usize,
     elf: &Path,
     progress: &mut dyn FnMut(f64),
-    observer: &mut dyn pneuflex_control::RowObserver,
+    observer: &mut dyn pneuflex_control::Sink<()>,
     stop: Option<std::sync::Arc<std::sync::atomic::AtomicUsize>>,
 ) -> Result<PilRun, PilError> {
     qemu::check_firmware(elf)?;
@@ -153,7 +153,13 @@ pub fn run_pil_observed(
         stop.as_deref(),
     )?;
     // simulate_observed leaves the run's end to its caller (run_scene_with calls it).
-    rows.end_run(&firmware);
+    pneuflex_control::Sink::<dyn pneuflex_scene::Plant>::end(
+        &mut rows,
+        firmware
+            .diverged
+            .as_deref()
+            .or(firmware.interrupted.as_deref()),
+    );
     if let Some(e) = fw.error.take() {
         let exited = board
             .exited()

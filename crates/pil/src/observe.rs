@@ -1,13 +1,12 @@
 //! A PIL run seen live: the scene runner's rows plus the link's quality and the board's update cost,
-//! handed to a [`RowObserver`] (Rerun's `RowRecorder` on the simulated timeline in `rig pil --rerun`). The
+//! handed to a sink of rows (Rerun's `RowRecorder` on the simulated timeline in `rig pil --rerun`). The
 //! extra columns go to observers only; trace.csv and the comparison hold the run's own columns.
 
 use std::cell::Cell;
 use std::rc::Rc;
 
-use pneuflex_control::{RowObserver, Signal};
-use pneuflex_scene::run::trace::Row;
-use pneuflex_scene::{Plant, RunResult, StepObserver};
+use pneuflex_control::{Signal, Sink};
+use pneuflex_scene::Plant;
 
 use crate::link::LinkStats;
 
@@ -34,16 +33,16 @@ pub const PIL_SIGNALS: [Signal; 4] = [
     ),
 ];
 
-/// A StepObserver forwarding each row, with [`PIL_SIGNALS`] appended, to a RowObserver.
+/// A sink of the simulated run forwarding each row, with [`PIL_SIGNALS`] appended, to a sink of rows.
 pub struct LinkRows<'a> {
-    inner: &'a mut dyn RowObserver,
+    inner: &'a mut dyn Sink<()>,
     live: Rc<Cell<Live>>,
     values: Vec<f64>,
 }
 
 impl<'a> LinkRows<'a> {
     /// Watches through `live` (shared with the FirmwareController).
-    pub fn new(inner: &'a mut dyn RowObserver, live: Rc<Cell<Live>>) -> Self {
+    pub fn new(inner: &'a mut dyn Sink<()>, live: Rc<Cell<Live>>) -> Self {
         Self {
             inner,
             live,
@@ -52,29 +51,29 @@ impl<'a> LinkRows<'a> {
     }
 }
 
-impl StepObserver for LinkRows<'_> {
-    fn columns(&mut self, columns: &[Signal]) {
+impl<'p> Sink<dyn Plant + 'p> for LinkRows<'_> {
+    fn begin(&mut self, run: &str, columns: &[Signal], _plant: &(dyn Plant + 'p)) {
         let all: Vec<Signal> = columns.iter().chain(&PIL_SIGNALS).copied().collect();
-        self.inner.begin(&all);
+        self.inner.begin(run, &all, &());
     }
 
-    fn on_step(&mut self, row: &Row, _plant: &dyn Plant) {
+    fn row(&mut self, values: &[f64], _plant: &(dyn Plant + 'p)) {
         let l = self.live.get();
         self.values.clear();
-        self.values.extend_from_slice(row.values);
+        self.values.extend_from_slice(values);
         self.values.extend([
             l.link.frames_in as f64,
             l.link.crc_errors as f64,
             l.link.seq_gaps as f64,
             f64::from(l.update_ns),
         ]);
-        self.inner.row(&self.values);
+        self.inner.row(&self.values, &());
     }
 
-    fn end_run(&mut self, result: &RunResult) {
-        if let (Some(why), Some(&t)) = (&result.diverged, result.trace.t().last()) {
+    fn end(&mut self, why: Option<&str>) {
+        if let (Some(why), Some(&t)) = (why, self.values.first()) {
             self.inner.event(t, &format!("run stopped: {why}"));
         }
-        self.inner.end();
+        self.inner.end(why);
     }
 }

@@ -1,10 +1,11 @@
-//! A Rerun view of any loop that hands its rows to a [`RowObserver`]: the real rig (`rig run --rerun`)
+//! A Rerun view of any loop that hands its rows to a [`pneuflex_control::Sink`]: the real rig (`rig run --rerun`)
 //! on the `wall_time` timeline, or a loop on simulated time. The signals go to the same entity paths as a
 //! simulated run's (`signals/<group>/<name>`, in display units, with the same layout), so a rig run and
 //! its simulation read the same in the viewer; the rig adds its link's quality (`signals/link/…`,
 //! `signals/timing/period_error`) and its fault as an event.
 
-use pneuflex_control::{RowObserver, Signal};
+use pneuflex_control::Signal;
+use pneuflex_control::Sink as SinkTrait;
 use pneuflex_scene::run::trace::{Column, Row};
 
 use crate::error::RerunError;
@@ -122,8 +123,8 @@ impl RowRecorder {
     }
 }
 
-impl RowObserver for RowRecorder {
-    fn begin(&mut self, columns: &[Signal]) {
+impl<W: ?Sized> SinkTrait<W> for RowRecorder {
+    fn begin(&mut self, _run: &str, columns: &[Signal], _world: &W) {
         if self.error.is_some() {
             return;
         }
@@ -134,7 +135,7 @@ impl RowObserver for RowRecorder {
         }
     }
 
-    fn row(&mut self, values: &[f64]) {
+    fn row(&mut self, values: &[f64], _world: &W) {
         let Some(c) = self.current.as_mut() else {
             return;
         };
@@ -157,7 +158,7 @@ impl RowObserver for RowRecorder {
         }
     }
 
-    fn end(&mut self) {
+    fn end(&mut self, _why: Option<&str>) {
         self.close();
     }
 }

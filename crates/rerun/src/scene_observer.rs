@@ -11,11 +11,12 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use pneuflex_control::Sink as SinkTrait;
 use pneuflex_control::signal::index;
 use pneuflex_scene::plants::{ActuatorGeometry, VisualRole};
-use pneuflex_scene::run::trace::{Column, Row, Trace};
-use pneuflex_scene::schema::{EventSpec, ForcePiece, RunSpec};
-use pneuflex_scene::{Plant, RunResult, Scene, StepObserver, VisualPose, VisualShape};
+use pneuflex_scene::run::trace::{Column, Row};
+use pneuflex_scene::schema::{EventSpec, ForcePiece};
+use pneuflex_scene::{Plant, Scene, VisualPose, VisualShape};
 
 use crate::layout::{Eye, Layout};
 use crate::{
@@ -645,6 +646,12 @@ struct Recording {
     rec: RunRecorder,
     drawing: Drawing,
     signals: SignalLog,
+    /// The run's columns, as its producers declared them.
+    columns: Vec<Column>,
+    /// Time of the last row, s (where a divergence is marked).
+    t_last: f64,
+    /// The run's name.
+    run: String,
     /// Length of the piston rod, from the first tick (None until then, and without chambers).
     rod_length_m: Option<f64>,
 }
@@ -762,16 +769,15 @@ impl SceneRecorder {
     }
 
     /// The columns the run records, in order: the loop's, the controller's, the plant's.
-    fn run_columns(run: &RunSpec, plant: &dyn Plant) -> Vec<Column> {
-        let controller = run.build().ok();
-        let own: &[pneuflex_control::Signal] = controller.as_ref().map_or(&[], |c| c.signals());
-        Trace::loop_columns(&[own, plant.signals()])
-    }
-
-    fn begin(&mut self, run: &RunSpec, plant: &dyn Plant) -> Result<Recording, RerunError> {
-        let sink = sink_for_run(&self.sink, &run.name, self.n_runs);
+    fn begin(
+        &mut self,
+        run: &str,
+        declared: &[pneuflex_control::Signal],
+        plant: &dyn Plant,
+    ) -> Result<Recording, RerunError> {
+        let sink = sink_for_run(&self.sink, run, self.n_runs);
         self.geometry = plant.actuator_geometry();
-        let columns = Self::run_columns(run, plant);
+        let columns: Vec<Column> = declared.iter().map(Column::from).collect();
         // No chambers (the ideal loop): its pressures are not signals it has.
         let has = |c: &Column| self.geometry.is_some() || c.group != "pressure";
         let mut options = self.options.clone();
@@ -791,7 +797,7 @@ impl SceneRecorder {
             .collect();
         let mut rec = RunRecorder::with_options(
             "pneuflex",
-            &format!("{}/{}", self.scene_name, run.name),
+            &format!("{}/{}", self.scene_name, run),
             &sink,
             options,
         )?;
@@ -816,6 +822,9 @@ impl SceneRecorder {
             rec,
             drawing,
             signals,
+            columns,
+            t_last: 0.0,
+            run: run.to_string(),
             rod_length_m: None,
         })
     }
@@ -1018,17 +1027,17 @@ fn rod_radius_m(g: &ActuatorGeometry) -> f64 {
     0.15 * g.bore_m
 }
 
-impl StepObserver for SceneRecorder {
-    fn begin_run(&mut self, run: &RunSpec, plant: &dyn Plant) {
+impl<'p> SinkTrait<dyn Plant + 'p> for SceneRecorder {
+    fn begin(&mut self, run: &str, columns: &[pneuflex_control::Signal], plant: &(dyn Plant + 'p)) {
         if self.error.is_some() {
             return;
         }
         let t0 = Instant::now();
-        match self.begin(run, plant) {
+        match SceneRecorder::begin(self, run, columns, plant) {
             Ok(r) => self.current = Some(r),
             Err(e) => {
                 self.error = Some(RerunError::Run {
-                    run: run.name.clone(),
+                    run: run.to_string(),
                     source: Box::new(e),
                 })
             }
@@ -1036,12 +1045,20 @@ impl StepObserver for SceneRecorder {
         self.cost += t0.elapsed();
     }
 
-    fn on_step(&mut self, row: &Row, plant: &dyn Plant) {
+    fn row(&mut self, values: &[f64], plant: &(dyn Plant + 'p)) {
         let Some(r) = self.current.as_mut() else {
             return;
         };
         let t0 = Instant::now();
-        if let Err(e) = Self::step(self.geometry.as_ref(), r, row, plant) {
+        let columns = std::mem::take(&mut r.columns);
+        let row = Row {
+            columns: &columns,
+            values,
+        };
+        r.t_last = row.t();
+        let stepped = Self::step(self.geometry.as_ref(), r, &row, plant);
+        r.columns = columns;
+        if let Err(e) = stepped {
             self.error = Some(e);
             self.current = None;
         }
@@ -1049,14 +1066,15 @@ impl StepObserver for SceneRecorder {
         self.cost += t0.elapsed();
     }
 
-    fn end_run(&mut self, result: &RunResult) {
+    fn end(&mut self, why: Option<&str>) {
         let Some(mut r) = self.current.take() else {
             return;
         };
         let t0 = Instant::now();
+        let name = r.run.clone();
         let done = (|| -> Result<(), RerunError> {
-            if let Some(why) = &result.diverged {
-                let t_end = result.trace.t().last().copied().unwrap_or(0.0);
+            if let Some(why) = why {
+                let t_end = r.t_last;
                 r.rec.log_event(
                     t_end,
                     EventLevel::Error,
@@ -1068,7 +1086,7 @@ impl StepObserver for SceneRecorder {
         })();
         if let Err(e) = done {
             self.error = Some(RerunError::Run {
-                run: result.name.clone(),
+                run: name,
                 source: Box::new(e),
             });
         }

@@ -276,7 +276,7 @@ fn invalid_shapes_and_options_are_rejected() {
 /// the link's quality.
 #[test]
 fn a_row_observer_shows_a_rig_run_on_the_wall_clock_with_the_runs_paths_and_the_link() {
-    use pneuflex_control::{LOOP_SIGNALS, RowObserver, Signal};
+    use pneuflex_control::{LOOP_SIGNALS, Signal};
     use pneuflex_rerun::RowRecorder;
     let dir = temp_dir("rows");
     let dir = dir.path().to_path_buf();
@@ -311,7 +311,7 @@ fn a_row_observer_shows_a_rig_run_on_the_wall_clock_with_the_runs_paths_and_the_
     )
     .unwrap();
     let before = pneuflex_rerun::wall_clock_s();
-    rec.begin(&columns);
+    <RowRecorder as pneuflex_control::Sink<()>>::begin(&mut rec, "rig", &columns, &());
     let n = 250;
     for k in 0..n {
         let mut row = vec![0.0; columns.len()];
@@ -320,13 +320,14 @@ fn a_row_observer_shows_a_rig_run_on_the_wall_clock_with_the_runs_paths_and_the_
         row[columns.len() - 2] = (k / 100) as f64;
         // A tick without a value (NaN) is not drawn.
         row[columns.len() - 1] = if k == 7 { f64::NAN } else { 2e-5 };
-        rec.row(&row);
+        <RowRecorder as pneuflex_control::Sink<()>>::row(&mut rec, &row, &());
     }
-    rec.event(
+    <RowRecorder as pneuflex_control::Sink<()>>::event(
+        &mut rec,
         0.2,
         "fault at tick 200: link lost; the valve is in its safe state",
     );
-    rec.end();
+    <RowRecorder as pneuflex_control::Sink<()>>::end(&mut rec, None);
     assert_eq!(rec.finish().unwrap(), n);
     let back = read_back(&file);
     assert!(back.has_active_blueprint(), "the layout is sent and active");

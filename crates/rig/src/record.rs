@@ -119,7 +119,7 @@ pub fn record_observed<L, E, C, K>(
     duration_s: f64,
     stop: &AtomicBool,
     clock: &mut K,
-    observer: &mut dyn pneuflex_control::RowObserver,
+    observer: &mut dyn pneuflex_control::Sink<()>,
 ) -> Result<Recording, RecordError>
 where
     L: Link,

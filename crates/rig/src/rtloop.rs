@@ -262,7 +262,7 @@ struct RigHost<'a, R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> {
     sup: &'a mut Supervisor<R>,
     trace: &'a mut TraceWriter<W>,
     clock: &'a mut K,
-    observer: &'a mut dyn pneuflex_control::RowObserver,
+    observer: &'a mut dyn pneuflex_control::Sink<()>,
     stop: &'a AtomicBool,
     /// Clock reading at the loop's start, and the host time of tick 0, s.
     t0: f64,
@@ -444,7 +444,7 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
         if let Err(e) = written {
             return Err(trace_failed(self.sup, k, self.now_s, e));
         }
-        self.observer.row(row);
+        self.observer.row(row, &());
         self.report.ticks += 1;
         Ok(pneuflex_control::tick::Flow::Continue)
     }
@@ -521,7 +521,7 @@ where
     )
 }
 
-/// [`run_with_clock`] with an observer of every row — the same [`pneuflex_control::RowObserver`] the
+/// [`run_with_clock`] with an observer of every row — the same [`pneuflex_control::Sink`] the
 /// simulation's runner calls (a live viewer, a progress display): the loop's columns and the controller's,
 /// each tick's values as written to the trace (the command as applied).
 #[allow(clippy::too_many_arguments)]
@@ -533,7 +533,7 @@ pub fn run_observed<R, C, W, K>(
     opts: &RunOptions,
     stop: &AtomicBool,
     clock: &mut K,
-    observer: &mut dyn pneuflex_control::RowObserver,
+    observer: &mut dyn pneuflex_control::Sink<()>,
 ) -> std::io::Result<LoopReport>
 where
     R: Rig<Sample = SiSample>,
@@ -594,7 +594,7 @@ where
         .chain(link)
         .copied()
         .collect();
-    observer.begin(&columns);
+    observer.begin("rig", &columns, &());
 
     let start = host(clock);
     let mut rig = RigHost {
@@ -636,7 +636,7 @@ where
             host_time_s: host(clock),
         });
     }
-    observer.end();
+    observer.end(report.fault.as_ref().map(|f| f.message.as_str()));
     report.time_reached_s = k as f64 * dt;
     report.period_error = period_err.percentiles();
     report.lateness = lateness.percentiles();

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use pneuflex_scene::analysis::advice;
-use pneuflex_scene::{Limits, RunOptions, Scene, StepObserver, run_scene, run_scene_with};
+use pneuflex_scene::{Limits, Plant, RunOptions, Scene, Sink, run_scene, run_scene_with};
 
 fn shipped(name: &str) -> (String, PathBuf) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -211,13 +211,9 @@ struct StopAt<'a> {
     at_s: f64,
 }
 
-impl StepObserver for StopAt<'_> {
-    fn on_step(
-        &mut self,
-        row: &pneuflex_scene::run::trace::Row,
-        _plant: &dyn pneuflex_scene::Plant,
-    ) {
-        if row.t() >= self.at_s {
+impl Sink<dyn Plant> for StopAt<'_> {
+    fn row(&mut self, values: &[f64], _plant: &dyn Plant) {
+        if values[pneuflex_control::signal::index::T] >= self.at_s {
             self.flag.store(15, Ordering::Relaxed);
         }
     }

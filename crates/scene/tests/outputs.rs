@@ -139,13 +139,13 @@ struct Count {
     last_t: f64,
 }
 
-impl pneuflex_scene::StepObserver for Count {
-    fn begin_run(&mut self, _: &pneuflex_scene::schema::RunSpec, _: &dyn pneuflex_scene::Plant) {
+impl<W: ?Sized> pneuflex_scene::Sink<W> for Count {
+    fn begin(&mut self, _run: &str, _columns: &[pneuflex_control::Signal], _: &W) {
         self.runs += 1;
     }
-    fn on_step(&mut self, row: &pneuflex_scene::run::trace::Row, _: &dyn pneuflex_scene::Plant) {
+    fn row(&mut self, values: &[f64], _: &W) {
         self.steps += 1;
-        self.last_t = row.t();
+        self.last_t = values[pneuflex_control::signal::index::T];
     }
 }
 
@@ -153,7 +153,7 @@ impl pneuflex_scene::StepObserver for Count {
 fn every_observer_sees_every_tick_of_every_run() {
     let s = scene("");
     let (mut a, mut b) = (Count::default(), Count::default());
-    let mut all = pneuflex_scene::Observers(vec![&mut a, &mut b]);
+    let mut all = pneuflex_scene::Sinks(vec![&mut a, &mut b]);
     let res = pneuflex_scene::run_scene_observed(&s, &mut |_| {}, &mut all).unwrap();
     let rows: usize = res.iter().map(|r| r.trace.len()).sum();
     for c in [&a, &b] {

@@ -6,7 +6,7 @@ use std::path::Path;
 use std::sync::atomic::AtomicUsize;
 
 use pneuflex_scene::{
-    Limits, RunOptions, RunResult, Scene, StepObserver, run_scene, run_scene_observed,
+    Limits, Plant, RunOptions, RunResult, Scene, Sink, run_scene, run_scene_observed,
     run_scene_with,
 };
 
@@ -21,7 +21,7 @@ fn scene(file: &str) -> Scene {
 
 /// Watches (so the runs go one after another) without doing anything.
 struct Watching;
-impl StepObserver for Watching {}
+impl Sink<dyn Plant> for Watching {}
 
 /// Everything a run writes or reports, as text (NaN-safe: the trace as its CSV bytes).
 fn fingerprint(results: &[RunResult]) -> Vec<String> {
@@ -71,13 +71,7 @@ fn a_stop_flag_set_before_starts_no_run() {
         stop: Some(&stop),
         on_run: None,
     };
-    struct Quiet;
-    impl StepObserver for Quiet {
-        fn watches(&self) -> bool {
-            false
-        }
-    }
-    let r = run_scene_with(&s, &opts, &mut |_| {}, &mut Quiet).unwrap();
+    let r = run_scene_with(&s, &opts, &mut |_| {}, &mut ()).unwrap();
     assert!(r.is_empty(), "{} runs", r.len());
 }
 
@@ -94,16 +88,10 @@ fn every_run_is_handed_over_once_with_its_final_trace() {
             on_run: Some(&on_run),
             ..RunOptions::default()
         };
-        struct Quiet;
-        impl StepObserver for Quiet {
-            fn watches(&self) -> bool {
-                false
-            }
-        }
         let results = if watched {
             run_scene_with(&s, &opts, &mut |_| {}, &mut Watching).unwrap()
         } else {
-            run_scene_with(&s, &opts, &mut |_| {}, &mut Quiet).unwrap()
+            run_scene_with(&s, &opts, &mut |_| {}, &mut ()).unwrap()
         };
         let mut handed = handed.into_inner().unwrap();
         assert_eq!(handed.len(), results.len(), "watched {watched}");

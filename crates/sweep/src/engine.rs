@@ -217,6 +217,13 @@ pub fn metric_of(w: &WindowMetrics, metric: &str) -> Option<f64> {
     }
 }
 
+/// How [`Sweep::new_checked`] reports while it checks every point: a stop flag (a signal's number; the check
+/// ends early with [`SweepError::Interrupted`]) and a tick after every point checked (a progress bar).
+pub struct Checking<'a> {
+    pub stop: Option<&'a AtomicUsize>,
+    pub tick: &'a (dyn Fn() + Sync),
+}
+
 /// A sweep: the scene, its points, and the metric columns of its table.
 #[derive(Debug)]
 pub struct Sweep {
@@ -268,13 +275,14 @@ impl Sweep {
             seed,
             max_points,
             Limits::default(),
-            None,
-            &|| {},
+            Checking {
+                stop: None,
+                tick: &|| {},
+            },
         )
     }
 
-    /// [`Sweep::new`] with a stop flag (a signal's number; the check ends early with
-    /// [`SweepError::Interrupted`]) and a tick after every point checked (a progress bar).
+    /// [`Sweep::new`] with a stop flag and a progress tick ([`Checking`]).
     pub fn new_checked(
         scene_path: &Path,
         sets: &[SetArg],
@@ -282,9 +290,9 @@ impl Sweep {
         seed: u64,
         max_points: u64,
         limits: Limits,
-        stop: Option<&AtomicUsize>,
-        tick: &(dyn Fn() + Sync),
+        checking: Checking<'_>,
     ) -> Result<Sweep, SweepError> {
+        let Checking { stop, tick } = checking;
         let mut sweep = Self::new_unchecked(scene_path, sets, samples, seed, max_points)?;
         sweep.limits = limits;
         // Structural key errors are the same at every point: the first point says them once.

@@ -13,6 +13,6 @@ pub mod points;
 pub mod tune;
 pub mod tune_output;
 
-pub use engine::{MetricColumn, PointResult, RunRow, Status, Sweep, SweepError};
+pub use engine::{Checking, MetricColumn, PointResult, RunRow, Status, Sweep, SweepError};
 pub use key::{KeyPath, Value};
 pub use points::{SetArg, Spec};

@@ -169,7 +169,11 @@ pub fn write(
         Some(format!(
             "the best candidate's scene does not load ({e}); the start is kept"
         ))
-    } else if !(j_after <= j_before) || (!j_after.is_finite() && !j_before.is_finite()) {
+    } else if !matches!(
+        j_after.partial_cmp(&j_before),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    ) || (!j_after.is_finite() && !j_before.is_finite())
+    {
         Some(format!(
             "the search found nothing better than the start (worst-case J {} before, {} for the best \
              candidate as written); the start is kept",

@@ -4,19 +4,19 @@
 use pneuflex_control as control;
 use pneuflex_control::{Controller, Setpoint};
 
-use super::observe::{NoObserver, StepObserver};
+use super::observe::Sink;
 use super::result::RunResult;
 use super::signal_name;
-use super::trace::{Row, Trace};
+use super::trace::Trace;
 use crate::error::SceneError;
 use crate::plants::Plant;
 use crate::schema::Scene;
 
 /// Simulates run `index` of the scene with the given plant and controller (both at their initial state).
-pub fn simulate(
+pub fn simulate<'p>(
     scene: &Scene,
     index: usize,
-    plant: &mut dyn Plant,
+    plant: &mut (dyn Plant + 'p),
     controller: &mut dyn Controller,
     setpoints: &control::SetpointSchedule,
     progress: &mut dyn FnMut(f64),
@@ -28,19 +28,19 @@ pub fn simulate(
         controller,
         setpoints,
         progress,
-        &mut NoObserver,
+        &mut (),
     )
 }
 
-/// [`simulate`] with an observer called at every recorded tick.
-pub fn simulate_observed(
+/// [`simulate`] with a sink called at every recorded tick.
+pub fn simulate_observed<'p>(
     scene: &Scene,
     index: usize,
-    plant: &mut dyn Plant,
+    plant: &mut (dyn Plant + 'p),
     controller: &mut dyn Controller,
     setpoints: &control::SetpointSchedule,
     progress: &mut dyn FnMut(f64),
-    observer: &mut dyn StepObserver,
+    observer: &mut dyn Sink<dyn Plant + 'p>,
 ) -> Result<RunResult, SceneError> {
     simulate_loop(
         scene, index, plant, controller, setpoints, progress, observer, None,
@@ -50,14 +50,14 @@ pub fn simulate_observed(
 /// [`simulate_observed`] that a signal can stop: `stop` non-zero ends the run at the next tick, which comes
 /// back with `interrupted` set (the rows simulated so far in its trace).
 #[allow(clippy::too_many_arguments)]
-pub fn simulate_stoppable(
+pub fn simulate_stoppable<'p>(
     scene: &Scene,
     index: usize,
-    plant: &mut dyn Plant,
+    plant: &mut (dyn Plant + 'p),
     controller: &mut dyn Controller,
     setpoints: &control::SetpointSchedule,
     progress: &mut dyn FnMut(f64),
-    observer: &mut dyn StepObserver,
+    observer: &mut dyn Sink<dyn Plant + 'p>,
     stop: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<RunResult, SceneError> {
     simulate_loop(
@@ -66,14 +66,14 @@ pub fn simulate_stoppable(
 }
 
 #[allow(clippy::too_many_arguments)]
-pub(super) fn simulate_loop(
+pub(super) fn simulate_loop<'p>(
     scene: &Scene,
     index: usize,
-    plant: &mut dyn Plant,
+    plant: &mut (dyn Plant + 'p),
     controller: &mut dyn Controller,
     setpoints: &control::SetpointSchedule,
     progress: &mut dyn FnMut(f64),
-    observer: &mut dyn StepObserver,
+    observer: &mut dyn Sink<dyn Plant + 'p>,
     stop: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<RunResult, SceneError> {
     let run = &scene.runs[index];
@@ -93,7 +93,7 @@ pub(super) fn simulate_loop(
         .chain(p_sig)
         .copied()
         .collect();
-    observer.columns(&declared);
+    observer.begin(&run.name, &declared, &*plant);
     let mut values = vec![0.0; columns.len()];
     let mut host = SimulationHost {
         scene,
@@ -134,14 +134,14 @@ pub(super) fn simulate_loop(
 
 /// A simulated plant around the controller: events at their tick, the trace and the observers at every
 /// tick, the divergence and invariant checks, the integration ([`pneuflex_control::tick::run_loop`]).
-struct SimulationHost<'a> {
+struct SimulationHost<'a, 'p> {
     scene: &'a Scene,
-    plant: &'a mut dyn Plant,
+    plant: &'a mut (dyn Plant + 'p),
     /// The scene's events by time, each with its index in the file (for messages).
     events: Vec<(usize, &'a crate::schema::EventSpec)>,
     next_event: usize,
     trace: Trace,
-    observer: &'a mut dyn StepObserver,
+    observer: &'a mut dyn Sink<dyn Plant + 'p>,
     /// The tick at the run's end (the trace has `last_step + 1` rows).
     last_step: u64,
     report_every: u64,
@@ -151,7 +151,7 @@ struct SimulationHost<'a> {
     interrupted: Option<String>,
 }
 
-impl pneuflex_control::tick::LoopHost for SimulationHost<'_> {
+impl pneuflex_control::tick::LoopHost for SimulationHost<'_, '_> {
     type Error = SceneError;
 
     fn begin_tick(&mut self, _k: u64, t: f64) -> Result<pneuflex_control::tick::Flow, SceneError> {
@@ -197,13 +197,7 @@ impl pneuflex_control::tick::LoopHost for SimulationHost<'_> {
         use pneuflex_control::signal::index;
         use pneuflex_control::tick::Flow;
         self.trace.push(row);
-        self.observer.on_step(
-            &Row {
-                columns: self.trace.columns(),
-                values: row,
-            },
-            &*self.plant,
-        );
+        self.observer.row(row, &*self.plant);
         let lim = &self.scene.divergence;
         if let Some(reason) = divergence(t, row[index::X], row[index::F_E], row[index::X_R], lim) {
             self.diverged = Some(reason);

@@ -12,10 +12,10 @@ use pneuflex_control as control;
 use crate::analysis::adaptation::{lyapunov_summary, pinned_parameters};
 use crate::analysis::windows::compute_windows;
 use crate::error::SceneError;
-use crate::plants::build_plant;
+use crate::plants::{Plant, build_plant};
 use crate::schema::{ControllerKind, Scene};
 pub use host::{simulate, simulate_observed, simulate_stoppable};
-pub use observe::{NoObserver, Observers, Rows, StepObserver};
+pub use observe::{Sink, Sinks};
 pub use result::{LyapunovSummary, RunResult, WindowMetrics};
 
 /// Runs every controller the scene lists, each on a fresh plant. `progress` receives the completed
@@ -24,14 +24,14 @@ pub fn run_scene(
     scene: &Scene,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Vec<RunResult>, SceneError> {
-    run_scene_observed(scene, progress, &mut NoObserver)
+    run_scene_observed(scene, progress, &mut ())
 }
 
 /// [`run_scene`] with an observer called at every tick of every run.
 pub fn run_scene_observed(
     scene: &Scene,
     progress: &mut dyn FnMut(f64),
-    observer: &mut dyn StepObserver,
+    observer: &mut dyn Sink<dyn Plant>,
 ) -> Result<Vec<RunResult>, SceneError> {
     run_scene_with(scene, &RunOptions::default(), progress, observer)
 }
@@ -74,7 +74,7 @@ pub fn signal_name(signal: usize) -> String {
 /// [`run_scene_observed`] with limits and a stop flag. Runs stopped by the flag come back with
 /// `interrupted` set; runs not started are absent (the runs started are always the first ones, in order).
 ///
-/// When the observer watches nothing ([`StepObserver::watches`]) and there are several runs and cores,
+/// When the sink watches nothing ([`Sink::watches`]) and there are several runs and cores,
 /// the runs execute in parallel (rayon's pool), each on its own plant from [`build_plant`]; the results
 /// are the same, bit for bit, as one after another. A stop flag then stops every run in progress and no
 /// further run starts.
@@ -82,7 +82,7 @@ pub fn run_scene_with(
     scene: &Scene,
     opts: &RunOptions<'_>,
     progress: &mut dyn FnMut(f64),
-    observer: &mut dyn StepObserver,
+    observer: &mut dyn Sink<dyn Plant>,
 ) -> Result<Vec<RunResult>, SceneError> {
     scene.validate()?;
     scene.check_budget(&opts.limits)?;
@@ -105,7 +105,6 @@ pub fn run_scene_with(
         let mut controller = scene.controller(i)?;
         plant.reset();
         let mut sub = |f: f64| progress((i as f64 + f) / n_runs as f64);
-        observer.begin_run(&scene.runs[i], plant.as_ref());
         let mut r = host::simulate_loop(
             scene,
             i,
@@ -116,7 +115,7 @@ pub fn run_scene_with(
             observer,
             opts.stop,
         )?;
-        observer.end_run(&r);
+        observer.end(r.diverged.as_deref().or(r.interrupted.as_deref()));
         finish_run(scene, i, &mut r);
         if let Some(f) = opts.on_run {
             f(&r);
@@ -200,7 +199,7 @@ fn run_parallel(
                             controller.as_mut(),
                             setpoints,
                             &mut sub,
-                            &mut NoObserver,
+                            &mut (),
                             opts.stop,
                         )?;
                         finish_metrics(scene, i, &mut r);
