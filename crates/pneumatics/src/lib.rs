@@ -10,8 +10,11 @@
 
 pub mod actuator;
 pub mod components;
+pub mod effects;
+pub mod extended;
 pub mod flow;
 pub mod mechanics;
+mod spool;
 pub mod tf;
 pub mod valve;
 
@@ -23,6 +26,8 @@ pub use components::{
     ActuatorSheet, ComponentError, CylinderSheet, FileOverlay, Quantity, SensorSheet, SignalKind,
     SupplySheet, ValveSheet, find_actuator_sheet, load_actuator_sheet,
 };
+pub use effects::{Effects, LEAKS, Leaks, Lines, SpoolDynamics, WallHeat};
+pub use extended::ExtendedState;
 pub use flow::Orifice;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};
 pub use tf::{Linearisation, OperatingPoint, OperatingPointError, TfParams, TransferFunction};

@@ -105,6 +105,26 @@ impl MultibodyPlant {
         let sheet = scene
             .load_sheet(&sheet_path)
             .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
+        // The rig's force element integrates the paper's chambers and friction only.
+        let model = sheet.model();
+        if !model.is_paper_model() {
+            let mut given = sheet.effects.given();
+            if matches!(
+                sheet.mechanics.friction,
+                pneuflex_pneumatics::Friction::LuGre { .. }
+            ) {
+                given.push("mechanics.friction = \"lugre\"".into());
+            }
+            return Err(scene.invalid(
+                "plant.actuator",
+                format!(
+                    "{} gives {}: the multibody plant models the paper's chambers, valve and friction \
+                     only; use plant.kind = \"pneumatic\" (the 1-DOF model) or remove them",
+                    sheet_path.display(),
+                    given.join(", ")
+                ),
+            ));
+        }
         let urdf_file = scene.resolve(&mb.urdf);
         let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf_file)
             .map_err(|e| scene.invalid("plant.urdf", e.to_string()))?;
