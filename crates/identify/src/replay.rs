@@ -5,7 +5,8 @@
 //! `segment_s`; each starts from the measured position (the first also from the measured pressures and a
 //! velocity fitted to the measured positions), so a long log cannot drift away however wrong the start values
 //! are. Pressures (see [`ReplayOptions::reset_pressures`]), temperatures (not measured), the velocity (see
-//! [`ReplayOptions::carry_velocity`]) and the valve's PWM clock carry over from the previous segment's end.
+//! [`ReplayOptions::carry_velocity`]), the valve's PWM clock and spool schedule, and for a model with those
+//! effects the lines' gas and LuGre's bristles (not measured) carry over from the previous segment's end.
 //! The first `settle_s` of each segment, where the start's measurement noise dies out, is not compared.
 //!
 //! Timing (docs/identification.md): row k's command acts from row k to row k+1, as on the rig, where the
@@ -228,10 +229,10 @@ impl Prepared {
                     ChamberState { p_a, p_b, t_a, t_b }
                 },
                 valve,
-                // Lines (not measured) carry over with the pressures, else restart at the chambers'
-                // readings; LuGre's bristles carry over except after an impact.
+                // The lines' gas (not measured) carries over like the temperatures (the first segment's
+                // starts at its chambers'); LuGre's bristles carry over except after an impact.
                 extra: ExtendedState {
-                    lines: extra.lines.filter(|_| carry_pressures),
+                    lines: extra.lines,
                     bristle_m: if self.after_impact[seg] {
                         0.0
                     } else {
