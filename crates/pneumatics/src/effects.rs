@@ -128,8 +128,22 @@ impl Effects {
         if self.lines.is_some() {
             out.push("[lines]".into());
         }
-        if self.spool.is_some() {
-            out.push("the valve's spool dynamics (valve.release_delay_s, ...)".into());
+        if let Some(s) = self.spool {
+            let keys = [
+                ("valve.release_delay_s", s.release_delay_s.is_some()),
+                ("valve.spool_time_constant_s", s.spool_time_constant_s > 0.0),
+                (
+                    "valve.release_time_constant_s",
+                    s.release_time_constant_s.is_some(),
+                ),
+                ("valve.dead_time_s", s.dead_time_s > 0.0),
+            ];
+            let named: Vec<&str> = keys.iter().filter(|k| k.1).map(|k| k.0).collect();
+            out.push(if named.is_empty() {
+                "valve.spool_time_constant_s".into()
+            } else {
+                named.join(", ")
+            });
         }
         if self.coulomb_pressure_n_per_pa.is_some() {
             out.push("mechanics.coulomb_pressure_n_per_pa".into());
