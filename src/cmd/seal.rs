@@ -61,6 +61,16 @@ fn seal_text(r: &SealReport) -> anyhow::Result<String> {
             c.drift_n_per_s * 60.0
         )?;
     }
+    let rest: Vec<String> = r
+        .rest_minus_midline_n
+        .iter()
+        .map(|v| format!("{v:+.2}"))
+        .collect();
+    writeln!(
+        s,
+        "\nrest reading (first row, before any motion) minus the midline of the two directions, per test [N]: {}",
+        rest.join(", ")
+    )?;
     writeln!(
         s,
         "\nlaws f = s (F_c0 + k_p p) + offset, s the direction, p gauge (fitted on the cell means)\n"

@@ -226,6 +226,10 @@ pub struct SealReport {
     pub pressure_term_rms_reduction_samples: f64,
     /// Whether the pressure law explains the cell means.
     pub adequacy: Adequacy,
+    /// Per test: the rest reading `F - p A` of its first row (before any motion) minus the midline of its
+    /// two directions' means, N. Near 0: the asymmetry between the directions is a zero offset of the
+    /// reading, which the per-test offsets take up.
+    pub rest_minus_midline_n: Vec<f64>,
 }
 
 fn log_err(
@@ -653,7 +657,16 @@ pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, Ident
     let constant = fit_law(false, Offsets::PerTest, n, &cells, &samples)?;
     let pressure = fit_law(true, Offsets::PerTest, n, &cells, &samples)?;
     let adequacy = adequacy(&pressure, &cells, &samples);
+    let rest_minus_midline_n = tests
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let mid = 0.5 * (cells[2 * i].mean_friction_n + cells[2 * i + 1].mean_friction_n);
+            t.force_n[0] - t.gauge_pa[0] * o.area_m2() - mid
+        })
+        .collect();
     Ok(SealReport {
+        rest_minus_midline_n,
         area_m2: o.area_m2(),
         moving_samples: samples.len(),
         constant_no_offset: fit_law(false, Offsets::None, n, &cells, &samples)?,

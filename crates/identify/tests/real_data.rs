@@ -171,6 +171,11 @@ fn seal_errors_per_pressure_and_direction() {
             near(c.rms_samples_n, rms, 2e-3, &what);
         }
     }
+    // The rest reading before any motion sits at the midline of the two directions: an offset.
+    let rest = [0.11, 0.04, 0.36, 0.20, -0.05, 0.97, 0.71];
+    for (got, want) in r.rest_minus_midline_n.iter().zip(rest) {
+        near(*got, want, 6e-3, "rest reading - midline");
+    }
     assert!(!r.adequacy.adequate, "{}", r.adequacy.verdict);
     assert_eq!(
         (r.adequacy.worst_pa, r.adequacy.worst_direction),
