@@ -18,6 +18,9 @@
 pub use pneuflex_control as control;
 /// Safe file handling: bounded input reads, output directories, provenance hashes.
 pub use pneuflex_files as files;
+/// System identification: rig logs, the fit, the report; a seal's friction and a chamber's leak from bench
+/// tests (`identify::seal`, `identify::leak`).
+pub use pneuflex_identify as identify;
 /// URDF → Rapier multibody rig and the pneumatic force element.
 pub use pneuflex_multibody as multibody;
 /// PNG figures of a scene's runs.

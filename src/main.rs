@@ -203,6 +203,39 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Fit friction laws (constant Coulomb, and rising with the pressure) to a seal's bench tests at held
+    /// pressures: force, pressure and position logs `circle_<P>bar.csv` (docs/identification.md, "Real data").
+    Seal {
+        /// Folder of the tests (or its parent with a `friction/` folder), e.g.
+        /// data/zillen-2021-printed-cylinder.
+        #[arg(long)]
+        data: PathBuf,
+        /// Piston bore, m.
+        #[arg(long, default_value_t = 0.025)]
+        bore_m: f64,
+        /// Speed below which a sample is still and left out, m/s.
+        #[arg(long, default_value_t = 0.002)]
+        still_below: f64,
+        /// Print one JSON object (SI units) instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Fit a choked ISO 6358 leak, as a conductance per volume, to closed-chamber pressure-decay logs
+    /// (';'-separated, time in ms with '.' as the thousands separator) and rank the chambers.
+    Leak {
+        /// Decay logs; repeat for several chambers.
+        #[arg(long = "log", required = true)]
+        logs: Vec<PathBuf>,
+        /// Gas temperature in the chamber, K.
+        #[arg(long, default_value_t = pneuflex_pneumatics::T_DEFAULT)]
+        temperature_k: f64,
+        /// Atmospheric pressure, Pa absolute.
+        #[arg(long, default_value_t = pneuflex_pneumatics::P_ATM)]
+        atmosphere_pa: f64,
+        /// Print JSON (SI units) instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
     Rig {
         #[command(subcommand)]
@@ -493,6 +526,34 @@ fn main() -> ExitCode {
             seed,
             out,
         } => cmd::identify::perturb(&actuator, &keys, seed, &out),
+        Command::Seal {
+            data,
+            bore_m,
+            still_below,
+            json,
+        } => cmd::seal::seal(
+            &data,
+            &pneuflex_identify::seal::SealOptions {
+                bore_m,
+                still_below_m_per_s: still_below,
+                ..Default::default()
+            },
+            json,
+        ),
+        Command::Leak {
+            logs,
+            temperature_k,
+            atmosphere_pa,
+            json,
+        } => cmd::seal::leak(
+            &logs,
+            &pneuflex_identify::leak::LeakOptions {
+                atmosphere_pa,
+                temperature_k,
+                ..Default::default()
+            },
+            json,
+        ),
         Command::Rig {
             action:
                 RigCommand::Excite {

@@ -84,6 +84,7 @@ pub mod live;
 pub mod pil;
 pub mod rig;
 pub mod run;
+pub mod seal;
 pub mod sweep;
 pub mod tf;
 pub mod tune;

@@ -34,6 +34,14 @@ pub fn tf(
         .with_context(|| format!("{}: no operating point at mid-stroke", sheet_path.display()))?;
     let lin = model.linearise(&op);
     let [a3, a2, a1, a0] = tf.den;
+    // Eqs. (16)-(17) are the paper's model: the effects beyond it (docs/pneumatics.md) are not in them.
+    let mut ignored = sheet.effects.given();
+    if matches!(
+        sheet.mechanics.friction,
+        pneuflex_pneumatics::Friction::LuGre { .. }
+    ) {
+        ignored.push("mechanics.friction = \"lugre\"".into());
+    }
     if json {
         let v = serde_json::json!({
             "actuator": sheet_path.display().to_string(),
@@ -48,6 +56,10 @@ pub fn tf(
             },
             "k_pa": lin.k_pa, "k_pb": lin.k_pb, "k_ca": lin.k_ca, "k_cb": lin.k_cb,
         });
+        let mut v = v;
+        if !ignored.is_empty() {
+            v["effects_not_linearised"] = serde_json::json!(ignored);
+        }
         return Ok(serde_json::to_string_pretty(&v)?);
     }
     let mut s = String::new();
@@ -78,6 +90,13 @@ pub fn tf(
     writeln!(s, "{:<20} {:>14}  unit", "quantity", "value")?;
     for (name, v, unit) in rows {
         writeln!(s, "{name:<20} {v:>14.6e}  {unit}")?;
+    }
+    if !ignored.is_empty() {
+        writeln!(
+            s,
+            "not linearised (the paper's model only): {}",
+            ignored.join(", ")
+        )?;
     }
     Ok(s)
 }

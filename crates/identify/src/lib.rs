@@ -8,12 +8,14 @@
 
 pub mod excite;
 pub mod fit;
+pub mod leak;
 pub mod log;
 pub mod params;
 pub mod perturb;
 pub mod replay;
 pub mod report;
 pub mod request;
+pub mod seal;
 pub mod sheet;
 
 use std::path::PathBuf;

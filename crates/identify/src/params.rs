@@ -37,6 +37,39 @@ pub enum Key {
     PathConductance(u8),
     /// Critical pressure ratio b of one valve path (as [`Key::PathConductance`]).
     PathCritical(u8),
+    /// Wall heat transfer coefficient h, W/(m^2 K) (Newton cooling, docs/pneumatics.md).
+    WallHeat,
+    /// Wall temperature T_w, K.
+    WallTemperature,
+    /// Sonic conductance C of a leak (0 across the piston, 1 A -> atmosphere, 2 B -> atmosphere:
+    /// `pneuflex_pneumatics::LEAKS`), m^3/(s Pa).
+    LeakConductance(u8),
+    /// Critical pressure ratio b of a leak (as [`Key::LeakConductance`]).
+    LeakCritical(u8),
+    /// Gas volume of each line, m^3.
+    LineVolume,
+    /// Sonic conductance C of each line's restriction, m^3/(s Pa).
+    LineConductance,
+    /// Critical pressure ratio b of each line's restriction.
+    LineCritical,
+    /// Length of each line, m (transport delay L / c).
+    LineLength,
+    /// Speed of sound in the lines, m/s.
+    LineSoundSpeed,
+    /// Delay of a de-energising edge of an on/off valve, s.
+    ReleaseDelay,
+    /// First-order time constant of an on/off spool's travel to the energised position, s.
+    SpoolTimeConstant,
+    /// The same towards the spring position, s.
+    ReleaseTimeConstant,
+    /// Dead time of a proportional valve, s.
+    DeadTime,
+    /// Rise of the Coulomb friction with |p_a - p_b|, N/Pa.
+    CoulombPressure,
+    /// LuGre bristle stiffness sigma0, N/m.
+    BristleStiffness,
+    /// LuGre bristle damping sigma1, N s/m.
+    BristleDamping,
 }
 
 /// The per-path keys' names, in the order of `pneuflex_pneumatics::PATHS`.
@@ -53,8 +86,20 @@ const PATH_B: [&str; 4] = [
     "valve.paths.b_exhaust.critical_pressure_ratio",
 ];
 
+/// The leak keys' names, in the order of `pneuflex_pneumatics::LEAKS`.
+const LEAK_C: [&str; 3] = [
+    "cylinder.leaks.piston.sonic_conductance_m3_per_s_pa",
+    "cylinder.leaks.a_atmosphere.sonic_conductance_m3_per_s_pa",
+    "cylinder.leaks.b_atmosphere.sonic_conductance_m3_per_s_pa",
+];
+const LEAK_B: [&str; 3] = [
+    "cylinder.leaks.piston.critical_pressure_ratio",
+    "cylinder.leaks.a_atmosphere.critical_pressure_ratio",
+    "cylinder.leaks.b_atmosphere.critical_pressure_ratio",
+];
+
 /// Every key, in the order of the report.
-pub const ALL: [Key; 21] = [
+pub const ALL: [Key; 41] = [
     Key::SonicConductance,
     Key::CriticalRatio,
     Key::SwitchingDelay,
@@ -76,6 +121,26 @@ pub const ALL: [Key; 21] = [
     Key::PathCritical(1),
     Key::PathCritical(2),
     Key::PathCritical(3),
+    Key::WallHeat,
+    Key::WallTemperature,
+    Key::LeakConductance(0),
+    Key::LeakConductance(1),
+    Key::LeakConductance(2),
+    Key::LeakCritical(0),
+    Key::LeakCritical(1),
+    Key::LeakCritical(2),
+    Key::LineVolume,
+    Key::LineConductance,
+    Key::LineCritical,
+    Key::LineLength,
+    Key::LineSoundSpeed,
+    Key::ReleaseDelay,
+    Key::SpoolTimeConstant,
+    Key::ReleaseTimeConstant,
+    Key::DeadTime,
+    Key::CoulombPressure,
+    Key::BristleStiffness,
+    Key::BristleDamping,
 ];
 
 /// Sensor offsets (not in the actuator sheet; reported, and subtracted from the readings in the replay).
@@ -108,6 +173,22 @@ impl Key {
             Key::OffsetX => "offset.x_m",
             Key::PathConductance(i) => PATH_C[usize::from(i) & 3],
             Key::PathCritical(i) => PATH_B[usize::from(i) & 3],
+            Key::WallHeat => "cylinder.wall_heat_transfer_w_per_m2_k",
+            Key::WallTemperature => "cylinder.wall_temperature_k",
+            Key::LeakConductance(i) => LEAK_C[usize::from(i).min(2)],
+            Key::LeakCritical(i) => LEAK_B[usize::from(i).min(2)],
+            Key::LineVolume => "lines.volume_m3",
+            Key::LineConductance => "lines.sonic_conductance_m3_per_s_pa",
+            Key::LineCritical => "lines.critical_pressure_ratio",
+            Key::LineLength => "lines.length_m",
+            Key::LineSoundSpeed => "lines.speed_of_sound_m_per_s",
+            Key::ReleaseDelay => "valve.release_delay_s",
+            Key::SpoolTimeConstant => "valve.spool_time_constant_s",
+            Key::ReleaseTimeConstant => "valve.release_time_constant_s",
+            Key::DeadTime => "valve.dead_time_s",
+            Key::CoulombPressure => "mechanics.coulomb_pressure_n_per_pa",
+            Key::BristleStiffness => "mechanics.bristle_stiffness_n_per_m",
+            Key::BristleDamping => "mechanics.bristle_damping_n_s_per_m",
         }
     }
 
@@ -128,9 +209,29 @@ impl Key {
             | Key::SwitchingDelay
             | Key::ResponseTime
             | Key::PathConductance(_)
-            | Key::PathCritical(_) => Some("valve"),
-            Key::DeadVolumeA | Key::DeadVolumeB => Some("cylinder"),
-            Key::MovingMass | Key::Viscous | Key::Coulomb | Key::Static => Some("actuator"),
+            | Key::PathCritical(_)
+            | Key::ReleaseDelay
+            | Key::SpoolTimeConstant
+            | Key::ReleaseTimeConstant
+            | Key::DeadTime => Some("valve"),
+            Key::DeadVolumeA
+            | Key::DeadVolumeB
+            | Key::WallHeat
+            | Key::WallTemperature
+            | Key::LeakConductance(_)
+            | Key::LeakCritical(_) => Some("cylinder"),
+            Key::MovingMass
+            | Key::Viscous
+            | Key::Coulomb
+            | Key::Static
+            | Key::LineVolume
+            | Key::LineConductance
+            | Key::LineCritical
+            | Key::LineLength
+            | Key::LineSoundSpeed
+            | Key::CoulombPressure
+            | Key::BristleStiffness
+            | Key::BristleDamping => Some("actuator"),
             Key::OffsetPa | Key::OffsetPb | Key::OffsetX => None,
         }
     }
@@ -144,10 +245,71 @@ impl Key {
             (Key::ResponseTime, ValveKind::OnOffPwm { .. }, _) => {
                 Err("the valve is on/off (PWM); its lag is valve.switching_delay_s".into())
             }
-            (Key::Static, _, Friction::Smooth { .. }) => {
-                Err("mechanics.friction is \"smooth\"; static_n applies to \"stick_slip\"".into())
+            (
+                Key::ReleaseDelay | Key::SpoolTimeConstant | Key::ReleaseTimeConstant,
+                ValveKind::Proportional { .. },
+                _,
+            ) => Err(
+                "the valve is proportional; its lags are valve.response_time_s and valve.dead_time_s"
+                    .into(),
+            ),
+            (Key::DeadTime, ValveKind::OnOffPwm { .. }, _) => Err(
+                "the valve is on/off (PWM); its delays are valve.switching_delay_s and valve.release_delay_s"
+                    .into(),
+            ),
+            (Key::Static, _, Friction::Smooth { .. }) => Err(
+                "mechanics.friction is \"smooth\"; static_n applies to \"stick_slip\" and \"lugre\""
+                    .into(),
+            ),
+            (Key::BristleStiffness | Key::BristleDamping, _, f)
+                if !matches!(f, Friction::LuGre { .. }) =>
+            {
+                Err("mechanics.friction is not \"lugre\"; the bristles belong to LuGre".into())
             }
-            _ => Ok(()),
+            _ => self.given(m),
+        }
+    }
+
+    /// For an effect's key: whether the sheet gives the effect, with a value the fit can move (a factor
+    /// of 0 is 0, and a start on the bound 0 cannot leave it).
+    fn given(self, m: &OneDofModel) -> Result<(), String> {
+        let e = &m.effects;
+        let present = match self {
+            Key::WallHeat | Key::WallTemperature => e.wall_heat.is_some(),
+            Key::LeakConductance(i) | Key::LeakCritical(i) => e.leaks.get(usize::from(i)).is_some(),
+            Key::LineVolume
+            | Key::LineConductance
+            | Key::LineCritical
+            | Key::LineLength
+            | Key::LineSoundSpeed => e.lines.is_some(),
+            Key::CoulombPressure => e.coulomb_pressure_n_per_pa.is_some(),
+            // The valve's kind and the friction law are checked above; their values default.
+            Key::ReleaseDelay
+            | Key::SpoolTimeConstant
+            | Key::ReleaseTimeConstant
+            | Key::DeadTime
+            | Key::BristleStiffness
+            | Key::BristleDamping => true,
+            _ => return Ok(()),
+        };
+        let what = match self.file() {
+            Some("cylinder") => "the cylinder sheet",
+            Some("valve") => "the valve sheet",
+            _ => "the actuator sheet",
+        };
+        if !present {
+            return Err(format!(
+                "{what} does not give this effect; add {} with a start value",
+                self.name()
+            ));
+        }
+        let v = self.get(m, &Offsets::default());
+        if v > 0.0 {
+            Ok(())
+        } else {
+            Err(format!(
+                "is {v} in {what}; give a start value > 0 to fit or perturb it"
+            ))
         }
     }
 
@@ -173,13 +335,9 @@ impl Key {
             Key::DeadVolumeB => c.dead_volume_b_m3,
             Key::MovingMass => me.moving_mass_kg,
             Key::Viscous => me.viscous_n_s_per_m,
-            Key::Coulomb => match me.friction {
-                Friction::Smooth { coulomb_n, .. } | Friction::StickSlip { coulomb_n, .. } => {
-                    coulomb_n
-                }
-            },
+            Key::Coulomb => me.friction.coulomb_n(),
             Key::Static => match me.friction {
-                Friction::StickSlip { static_n, .. } => static_n,
+                Friction::StickSlip { static_n, .. } | Friction::LuGre { static_n, .. } => static_n,
                 _ => f64::NAN,
             },
             Key::OffsetPa => o.p_a,
@@ -187,6 +345,117 @@ impl Key {
             Key::OffsetX => o.x,
             Key::PathConductance(i) => v.path(usize::from(i) & 3).sonic_conductance_m3_per_s_pa,
             Key::PathCritical(i) => v.path(usize::from(i) & 3).critical_pressure_ratio,
+            _ => self.get_effect(m),
+        }
+    }
+
+    /// The value of an effect's key (NaN where the model lacks the effect).
+    fn get_effect(self, m: &OneDofModel) -> f64 {
+        let e = &m.effects;
+        let nan = f64::NAN;
+        let heat = e.wall_heat;
+        let line = e.lines;
+        let spool = e.spool.unwrap_or_default();
+        let leak = |i: u8| e.leaks.get(usize::from(i));
+        let lugre = match m.mechanics.friction {
+            Friction::LuGre {
+                bristle_stiffness_n_per_m,
+                bristle_damping_n_s_per_m,
+                ..
+            } => Some((bristle_stiffness_n_per_m, bristle_damping_n_s_per_m)),
+            _ => None,
+        };
+        let switching = match m.actuator.valve.kind {
+            ValveKind::OnOffPwm {
+                switching_delay_s, ..
+            } => switching_delay_s,
+            _ => nan,
+        };
+        match self {
+            Key::WallHeat => heat.map_or(nan, |h| h.coefficient_w_per_m2_k),
+            Key::WallTemperature => heat.map_or(nan, |h| h.wall_temperature_k),
+            Key::LeakConductance(i) => leak(i).map_or(nan, |o| o.sonic_conductance_m3_per_s_pa),
+            Key::LeakCritical(i) => leak(i).map_or(nan, |o| o.critical_pressure_ratio),
+            Key::LineVolume => line.map_or(nan, |l| l.volume_m3),
+            Key::LineConductance => line.map_or(nan, |l| l.orifice.sonic_conductance_m3_per_s_pa),
+            Key::LineCritical => line.map_or(nan, |l| l.orifice.critical_pressure_ratio),
+            Key::LineLength => line.map_or(nan, |l| l.length_m),
+            Key::LineSoundSpeed => line.map_or(nan, |l| l.speed_of_sound_m_per_s),
+            Key::ReleaseDelay => spool.release_delay_s.unwrap_or(switching),
+            Key::SpoolTimeConstant => spool.spool_time_constant_s,
+            Key::ReleaseTimeConstant => spool
+                .release_time_constant_s
+                .unwrap_or(spool.spool_time_constant_s),
+            Key::DeadTime => spool.dead_time_s,
+            Key::CoulombPressure => e.coulomb_pressure_n_per_pa.unwrap_or(nan),
+            Key::BristleStiffness => lugre.map_or(nan, |l| l.0),
+            Key::BristleDamping => lugre.map_or(nan, |l| l.1),
+            _ => nan,
+        }
+    }
+
+    /// Sets an effect's key (a key whose effect the model lacks is ignored: [`Key::applies`] refuses it).
+    fn set_effect(self, m: &mut OneDofModel, x: f64) {
+        let e = &mut m.effects;
+        match self {
+            Key::WallHeat => {
+                if let Some(h) = &mut e.wall_heat {
+                    h.coefficient_w_per_m2_k = x;
+                }
+            }
+            Key::WallTemperature => {
+                if let Some(h) = &mut e.wall_heat {
+                    h.wall_temperature_k = x;
+                }
+            }
+            Key::LeakConductance(i) | Key::LeakCritical(i) => {
+                let i = usize::from(i);
+                if let Some(mut o) = e.leaks.get(i) {
+                    if matches!(self, Key::LeakConductance(_)) {
+                        o.sonic_conductance_m3_per_s_pa = x;
+                    } else {
+                        o.critical_pressure_ratio = x;
+                    }
+                    e.leaks.set(i, Some(o));
+                }
+            }
+            Key::LineVolume
+            | Key::LineConductance
+            | Key::LineCritical
+            | Key::LineLength
+            | Key::LineSoundSpeed => {
+                if let Some(l) = &mut e.lines {
+                    match self {
+                        Key::LineVolume => l.volume_m3 = x,
+                        Key::LineConductance => l.orifice.sonic_conductance_m3_per_s_pa = x,
+                        Key::LineCritical => l.orifice.critical_pressure_ratio = x,
+                        Key::LineLength => l.length_m = x,
+                        _ => l.speed_of_sound_m_per_s = x,
+                    }
+                }
+            }
+            Key::ReleaseDelay => e.spool.get_or_insert_default().release_delay_s = Some(x),
+            Key::SpoolTimeConstant => e.spool.get_or_insert_default().spool_time_constant_s = x,
+            Key::ReleaseTimeConstant => {
+                e.spool.get_or_insert_default().release_time_constant_s = Some(x)
+            }
+            Key::DeadTime => e.spool.get_or_insert_default().dead_time_s = x,
+            Key::CoulombPressure => e.coulomb_pressure_n_per_pa = Some(x),
+            Key::BristleStiffness | Key::BristleDamping => {
+                if let Friction::LuGre {
+                    bristle_stiffness_n_per_m,
+                    bristle_damping_n_s_per_m,
+                    ..
+                } = &mut m.mechanics.friction
+                {
+                    if self == Key::BristleStiffness {
+                        *bristle_stiffness_n_per_m = x;
+                    } else {
+                        *bristle_damping_n_s_per_m = x;
+                    }
+                }
+            }
+            _ => {}
         }
     }
 
@@ -216,12 +485,14 @@ impl Key {
             Key::MovingMass => me.moving_mass_kg = x,
             Key::Viscous => me.viscous_n_s_per_m = x,
             Key::Coulomb => match &mut me.friction {
-                Friction::Smooth { coulomb_n, .. } | Friction::StickSlip { coulomb_n, .. } => {
-                    *coulomb_n = x
-                }
+                Friction::Smooth { coulomb_n, .. }
+                | Friction::StickSlip { coulomb_n, .. }
+                | Friction::LuGre { coulomb_n, .. } => *coulomb_n = x,
             },
             Key::Static => {
-                if let Friction::StickSlip { static_n, .. } = &mut me.friction {
+                if let Friction::StickSlip { static_n, .. } | Friction::LuGre { static_n, .. } =
+                    &mut me.friction
+                {
                     *static_n = x;
                 }
             }
@@ -241,6 +512,7 @@ impl Key {
                 p.critical_pressure_ratio = x;
                 v.paths[i] = Some(p);
             }
+            _ => self.set_effect(m, x),
         }
     }
 
@@ -260,9 +532,37 @@ impl Key {
                 (0.0, 0.9 * period)
             }
             Key::ResponseTime => (0.0, (5.0 * x0).max(0.05)),
+            // LuGre's bristles relax towards F_c / sigma0: F_c must stay above 0.
+            Key::Coulomb if matches!(m.mechanics.friction, Friction::LuGre { .. }) => {
+                (0.2 * x0, 5.0 * x0)
+            }
             Key::Viscous | Key::Coulomb | Key::Static => (0.0, (5.0 * x0).max(1.0)),
             Key::OffsetPa | Key::OffsetPb => (x0 - 20e3, x0 + 20e3),
             Key::OffsetX => (x0 - 2e-3, x0 + 2e-3),
+            _ => self.effect_bounds(x0, m),
+        }
+    }
+
+    /// Default bounds of an effect's key (and a factor 5 either way for the scale parameters), within
+    /// the sheets' own limits so that the fitted sheet loads.
+    fn effect_bounds(self, x0: f64, m: &OneDofModel) -> (f64, f64) {
+        let period = match m.actuator.valve.kind {
+            ValveKind::OnOffPwm {
+                pwm_frequency_hz, ..
+            } => 1.0 / pwm_frequency_hz,
+            _ => 1.0,
+        };
+        match self {
+            Key::WallHeat => (0.2 * x0, (5.0 * x0).min(1e4)),
+            Key::WallTemperature => ((x0 - 30.0).max(200.0), (x0 + 30.0).min(400.0)),
+            Key::LeakCritical(_) | Key::LineCritical => (0.01, 0.9),
+            Key::LineSoundSpeed => ((0.5 * x0).max(50.0), (2.0 * x0).min(2000.0)),
+            Key::ReleaseDelay => (0.0, 0.9 * period),
+            Key::SpoolTimeConstant | Key::ReleaseTimeConstant => (0.0, (5.0 * x0).max(0.01)),
+            Key::DeadTime => (0.0, (5.0 * x0).max(0.05)),
+            Key::CoulombPressure => (0.0, (5.0 * x0).min(1e-3)),
+            Key::BristleStiffness => (0.2 * x0, (5.0 * x0).min(1e8)),
+            Key::BristleDamping => (0.0, 5.0 * x0),
             _ => (0.2 * x0, 5.0 * x0),
         }
     }
@@ -272,8 +572,14 @@ impl Key {
         let unit = match self {
             Key::OffsetPa | Key::OffsetPb => 1e3,
             Key::OffsetX => 1e-4,
-            Key::SwitchingDelay | Key::ResponseTime => 1e-3,
-            Key::Viscous | Key::Coulomb | Key::Static => 1.0,
+            Key::SwitchingDelay
+            | Key::ResponseTime
+            | Key::ReleaseDelay
+            | Key::SpoolTimeConstant
+            | Key::ReleaseTimeConstant
+            | Key::DeadTime => 1e-3,
+            Key::Viscous | Key::Coulomb | Key::Static | Key::BristleDamping => 1.0,
+            Key::CoulombPressure => 1e-6,
             _ => 0.0,
         };
         if x0.abs() > unit {
@@ -319,6 +625,42 @@ impl Key {
                 "a stretch at rest with the valve vented (both chambers at atmosphere) at the start of a log"
             }
             Key::OffsetX => "a stretch at rest against a stop of known position",
+            Key::WallHeat | Key::WallTemperature => {
+                "fills and exhausts followed by long holds with the valve shut or the piston held: the \
+                 pressure relaxes as the gas reaches the wall's temperature (rig excite --signal steps \
+                 --hold 1)"
+            }
+            Key::LeakConductance(0) | Key::LeakCritical(0) => {
+                "a hold with A and B at different pressures and every valve path shut (closed-centre \
+                 valve): the pressures converge through the piston seal"
+            }
+            Key::LeakConductance(_) | Key::LeakCritical(_) => {
+                "a chamber filled and held shut for seconds: its pressure decay (a closed-chamber test, \
+                 pneuflex leak)"
+            }
+            Key::LineVolume | Key::LineConductance | Key::LineCritical => {
+                "fast command edges with the pressures logged at the full rate, the piston held and free \
+                 (rig excite --signal prbs --hold 0.05)"
+            }
+            Key::LineLength | Key::LineSoundSpeed => {
+                "fast command edges with the pressures logged at the full rate (rig excite --signal prbs \
+                 --hold 0.05); the length and the speed of sound act only as their ratio"
+            }
+            Key::ReleaseDelay
+            | Key::SpoolTimeConstant
+            | Key::ReleaseTimeConstant
+            | Key::DeadTime => {
+                "fast command edges in both directions with the pressures logged at the full rate (rig \
+                 excite --signal prbs --hold 0.05)"
+            }
+            Key::CoulombPressure => {
+                "slow free motion with reversals at several chamber pressures (rig excite --signal \
+                 chirp --amplitude 0.03 with different --bias)"
+            }
+            Key::BristleStiffness | Key::BristleDamping => {
+                "small reversals below the break-away force: the pre-sliding displacement (rig excite \
+                 --signal chirp --amplitude 0.01)"
+            }
         }
     }
 }

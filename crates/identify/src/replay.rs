@@ -5,13 +5,14 @@
 //! `segment_s`; each starts from the measured position (the first also from the measured pressures and a
 //! velocity fitted to the measured positions), so a long log cannot drift away however wrong the start values
 //! are. Pressures (see [`ReplayOptions::reset_pressures`]), temperatures (not measured), the velocity (see
-//! [`ReplayOptions::carry_velocity`]) and the valve's PWM clock carry over from the previous segment's end.
+//! [`ReplayOptions::carry_velocity`]), the valve's PWM clock and spool schedule, and for a model with those
+//! effects the lines' gas and LuGre's bristles (not measured) carry over from the previous segment's end.
 //! The first `settle_s` of each segment, where the start's measurement noise dies out, is not compared.
 //!
 //! Timing (docs/identification.md): row k's command acts from row k to row k+1, as on the rig, where the
 //! board applies the command of tick k during the next sample period.
 
-use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState, ValveState};
+use pneuflex_pneumatics::{ChamberState, ExtendedState, OneDofModel, OneDofState, ValveState};
 
 use crate::log::Log;
 use crate::params::Offsets;
@@ -204,12 +205,14 @@ impl Prepared {
         let (mut t_a, mut t_b) = (t_gas, t_gas);
         let mut p_end: Option<(f64, f64)> = None;
         let mut valve = ValveState::default();
+        let mut extra = ExtendedState::default();
         let mut v_end = None;
         let sub = o.substeps.max(1);
         for (seg, &(s, e)) in self.segments.iter().enumerate() {
             if s >= upto {
                 break;
             }
+            let carry_pressures = p_end.is_some() && !o.reset_pressures && !self.after_impact[seg];
             let mut st = OneDofState {
                 t: l.t[s],
                 x: self.x0[seg] - off.x,
@@ -220,12 +223,22 @@ impl Prepared {
                 },
                 chambers: {
                     let (p_a, p_b) = match p_end {
-                        Some(p) if !o.reset_pressures && !self.after_impact[seg] => p,
+                        Some(p) if carry_pressures => p,
                         _ => (l.p_a[s] - off.p_a, l.p_b[s] - off.p_b),
                     };
                     ChamberState { p_a, p_b, t_a, t_b }
                 },
                 valve,
+                // The lines' gas (not measured) carries over like the temperatures (the first segment's
+                // starts at its chambers'); LuGre's bristles carry over except after an impact.
+                extra: ExtendedState {
+                    lines: extra.lines,
+                    bristle_m: if self.after_impact[seg] {
+                        0.0
+                    } else {
+                        extra.bristle_m
+                    },
+                },
             };
             out.x[s] = st.x + off.x;
             out.p_a[s] = st.chambers.p_a + off.p_a;
@@ -248,6 +261,7 @@ impl Prepared {
             t_a = st.chambers.t_a;
             t_b = st.chambers.t_b;
             valve = st.valve;
+            extra = st.extra;
             v_end = Some(st.x_dot);
             p_end = Some((st.chambers.p_a, st.chambers.p_b));
         }

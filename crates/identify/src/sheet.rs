@@ -109,8 +109,7 @@ pub fn write_sheets(
     }
     for &(k, v) in values {
         if k.file() == Some("actuator") {
-            let (table, key) = k.name().split_once('.').unwrap_or(("", k.name()));
-            doc[table][key] = value(v);
+            set_dotted(&mut doc, k.name(), v);
         }
     }
     let mut out = String::new();

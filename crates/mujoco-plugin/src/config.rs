@@ -224,6 +224,19 @@ pub fn parse(get: impl Fn(&str) -> Option<String>) -> Result<Config, ConfigError
         Err(e) => return Err(err("sheet", e.to_string())),
         Ok(_) => overridden(&sheet_path, &overrides)?,
     };
+    // The plugin's state holds the paper's chambers and valve only (ValveState::to_array).
+    let beyond = sheet.effects_beyond_paper();
+    if !beyond.is_empty() {
+        return Err(err(
+            "sheet",
+            format!(
+                "{} gives {}: the plugin models the paper's chambers, valve and friction only; remove them \
+                 (the 1-DOF model of a pneuflex scene runs them)",
+                sheet_path.display(),
+                beyond.join(", ")
+            ),
+        ));
+    }
     let friction = sheet.mechanics.friction;
     if let Friction::StickSlip { .. } = friction {
         return Err(stick_slip());
@@ -593,6 +606,32 @@ mod tests {
         // Fixed inline, it loads.
         let c = parse(with(&[("sheet", &s), ("mechanics.coulomb_n", "0.6")]));
         assert!(c.is_ok(), "{:?}", c.err());
+    }
+
+    #[test]
+    fn a_sheet_with_effects_beyond_the_paper_is_refused_naming_them() {
+        // The plugin's state has no room for leaks, lines or a spool's pending moves: running such a sheet
+        // would silently drop them.
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        for e in std::fs::read_dir(repo("pneumatics")).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "toml") {
+                std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+            }
+        }
+        let cyl = dir.join("smc-mqm16-cylinder.toml");
+        let text = std::fs::read_to_string(&cyl).unwrap();
+        std::fs::write(
+            &cyl,
+            format!("{text}\n[cylinder.leaks.piston]\nsonic_conductance_m3_per_s_pa = 1e-11\n"),
+        )
+        .unwrap();
+        let sheet = dir.join("paper-actuator.toml");
+        let e = parse(with(&[("sheet", sheet.to_str().unwrap())])).unwrap_err();
+        assert_eq!(e.key, "sheet");
+        assert!(e.message.contains("[cylinder.leaks.piston]"), "{e}");
+        assert!(e.message.contains("paper-actuator.toml"), "{e}");
     }
 
     #[test]

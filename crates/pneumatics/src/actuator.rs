@@ -178,9 +178,9 @@ pub struct Actuator {
 }
 
 /// Lowest pressure the chamber equations evaluate, Pa (guards a diverging step, not a physical limit).
-const P_FLOOR: f64 = 1.0;
+pub(crate) const P_FLOOR: f64 = 1.0;
 /// Lowest temperature the chamber equations evaluate, K.
-const T_FLOOR: f64 = 1.0;
+pub(crate) const T_FLOOR: f64 = 1.0;
 
 impl Actuator {
     /// Net pneumatic force on the rod along +x, N: p_a S_a - p_b S_b - p_atm S_rod (eq. 1's F_1 with
@@ -290,21 +290,21 @@ impl Actuator {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ChamberStep {
     /// S_a, m^2.
-    area_a: f64,
+    pub(crate) area_a: f64,
     /// S_b, m^2.
-    area_b: f64,
+    pub(crate) area_b: f64,
     /// p_atm S_rod, N.
     atm_rod_force: f64,
     /// Stroke L, m.
-    stroke: f64,
+    pub(crate) stroke: f64,
     /// Dead volume of A, m^3.
-    dead_a: f64,
+    pub(crate) dead_a: f64,
     /// Dead volume of B, m^3.
-    dead_b: f64,
+    pub(crate) dead_b: f64,
     /// Polytropic exponent n.
-    n: f64,
+    pub(crate) n: f64,
     /// Gas constant R, J/(kg K).
-    r: f64,
+    pub(crate) r: f64,
     /// ISO 6358 constants of the paths P->A, A->R, P->B, B->R.
     or_pa: OrificeStep,
     or_ar: OrificeStep,
@@ -320,8 +320,8 @@ pub(crate) struct ChamberStep {
     ts: f64,
     t0_over_ts: f64,
     /// Exhaust pressure (Pa), temperature (K) and T0 / T_atm.
-    pr: f64,
-    tr: f64,
+    pub(crate) pr: f64,
+    pub(crate) tr: f64,
     t0_over_tr: f64,
 }
 
@@ -363,7 +363,7 @@ impl ChamberStep {
 
     /// Flows and enthalpy carriers (q T_upstream) into A and B.
     #[inline(always)]
-    fn flows_enthalpy(&self, s: &ChamberState) -> (PortFlows, (f64, f64)) {
+    pub(crate) fn flows_enthalpy(&self, s: &ChamberState) -> (PortFlows, (f64, f64)) {
         let pa = s.p_a.max(P_FLOOR);
         let pb = s.p_b.max(P_FLOOR);
         let ta = s.t_a.max(T_FLOOR);
@@ -383,9 +383,10 @@ impl ChamberStep {
         )
     }
 
-    /// Time derivatives of the chamber state (Pa/s, K/s) at extension `x` and velocity `x_dot`.
+    /// Chamber volumes and their rates (V_a, V_b, V_a', V_b') at extension `x` and velocity `x_dot`, m^3 and
+    /// m^3/s: `V_a = V_a0 + S_a x`, `V_b = V_b0 + S_b (L - x)`, x clamped to the stroke.
     #[inline(always)]
-    pub(crate) fn rates(&self, s: &ChamberState, x: f64, x_dot: f64) -> ChamberState {
+    pub(crate) fn volumes(&self, x: f64, x_dot: f64) -> (f64, f64, f64, f64) {
         let xc = x.clamp(0.0, self.stroke);
         let va = self.dead_a + self.area_a * xc;
         let vb = self.dead_b + self.area_b * (self.stroke - xc);
@@ -394,8 +395,13 @@ impl ChamberStep {
             || (x <= 0.0 && x_dot > 0.0)
             || (x >= self.stroke && x_dot < 0.0);
         let v = if inside { x_dot } else { 0.0 };
-        let dva = self.area_a * v;
-        let dvb = -self.area_b * v;
+        (va, vb, self.area_a * v, -self.area_b * v)
+    }
+
+    /// Time derivatives of the chamber state (Pa/s, K/s) at extension `x` and velocity `x_dot`.
+    #[inline(always)]
+    pub(crate) fn rates(&self, s: &ChamberState, x: f64, x_dot: f64) -> ChamberState {
+        let (va, vb, dva, dvb) = self.volumes(x, x_dot);
         let (pf, (ha, hb)) = self.flows_enthalpy(s);
         let (n, r) = (self.n, self.r);
         let pa = s.p_a.max(P_FLOOR);

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::actuator::{Actuator, Cylinder, Gas, R_AIR, STANDARD_GRAVITY, Supply};
+use crate::effects::{Effects, LEAKS, Leaks, Lines, SpoolDynamics, WallHeat};
 use crate::flow::Orifice;
 use crate::mechanics::{Friction, Mechanics, OneDofModel};
 use crate::valve::{PATHS, ValveKind, ValveModel};
@@ -315,6 +316,63 @@ const GRAVITY: Bound = Bound {
     why: "9.80665 on Earth",
 };
 
+/// Wall heat transfer coefficient: 0 (adiabatic) to 1e4 W/(m^2 K). Free convection in a cylinder is
+/// ~10-100; at 1e4 a 16 mm chamber is isothermal within a millisecond, which the 0.1 ms RK4 step still
+/// resolves (docs/pneumatics.md, "Effects beyond the paper").
+const HEAT_TRANSFER: Bound = Bound {
+    min: 0.0,
+    max: 1e4,
+    unit: "W/(m^2 K)",
+    why: "free convection is ~10-100; 1e4 is isothermal within the 0.1 ms step",
+};
+/// Leak sonic conductance: 1e-18 (a chamber that holds for days) to 1e-7 m^3/(s Pa) (a valve's).
+const LEAK_CONDUCTANCE: Bound = Bound {
+    min: 1e-18,
+    max: 1e-7,
+    unit: "m^3/(s Pa)",
+    why: "a seal leak is far below a valve's 1e-9 to 1e-7",
+};
+/// Line length: 0 to 100 m.
+const LINE_LENGTH: Bound = Bound {
+    min: 0.0,
+    max: 100.0,
+    unit: "m",
+    why: "tubing between valve and cylinder",
+};
+/// Speed of sound in a line: 50 to 2000 m/s (air at 20 degC: 343).
+const SOUND_SPEED: Bound = Bound {
+    min: 50.0,
+    max: 2000.0,
+    unit: "m/s",
+    why: "air at 20 degC is 343 m/s",
+};
+/// Rise of the Coulomb friction with the pressure difference: up to 1e-3 N/Pa (100 N/bar).
+const COULOMB_PRESSURE: Bound = Bound {
+    min: 0.0,
+    max: 1e-3,
+    unit: "N/Pa",
+    why: "a 25 mm O-ring seal measures 7.8e-6 (0.78 N/bar)",
+};
+/// LuGre bristle stiffness sigma0: 1 to 1e8 N/m.
+const BRISTLE_STIFFNESS: Bound = Bound {
+    min: 1.0,
+    max: 1e8,
+    unit: "N/m",
+    why: "pre-sliding stiffness of seals, ~1e4 to 1e6",
+};
+/// LuGre bristle damping sigma1: up to 1e6 N s/m.
+const BRISTLE_DAMPING: Bound = Bound {
+    min: 0.0,
+    max: 1e6,
+    unit: "N s/m",
+    why: "micro-damping of the bristles",
+};
+/// The ratio of the heat capacities of air, for the lines' default speed of sound `sqrt(k R T)`.
+const AIR_HEAT_CAPACITY_RATIO: f64 = 1.4;
+/// The critical pressure ratio of a leak or line restriction whose sheet gives none (an assumption: the
+/// choked flow that a leak from a pressurised chamber mostly is does not depend on it).
+const DEFAULT_RESTRICTION_B: f64 = 0.5;
+
 // ---------------------------------------------------------------- cylinder
 
 #[derive(Deserialize)]
@@ -333,16 +391,44 @@ struct CylinderSection {
     stroke_m: f64,
     dead_volume_a_m3: f64,
     dead_volume_b_m3: f64,
+    wall_heat_transfer_w_per_m2_k: Option<f64>,
+    wall_temperature_k: Option<f64>,
+    leaks: Option<LeaksSection>,
+}
+
+/// Optional `[cylinder.leaks.<path>]` tables.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LeaksSection {
+    piston: Option<RestrictionSection>,
+    a_atmosphere: Option<RestrictionSection>,
+    b_atmosphere: Option<RestrictionSection>,
+}
+
+/// An ISO 6358 restriction of a leak or a line: C required, b optional.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RestrictionSection {
+    sonic_conductance_m3_per_s_pa: f64,
+    critical_pressure_ratio: Option<f64>,
 }
 
 /// A cylinder data sheet: `[cylinder]` with `bore_m`, `rod_m`, `stroke_m`, `dead_volume_a_m3`,
-/// `dead_volume_b_m3` (all > 0, rod < bore) and an optional `name`.
+/// `dead_volume_b_m3` (all > 0, rod < bore) and an optional `name`; optionally the wall heat transfer
+/// (`wall_heat_transfer_w_per_m2_k`, `wall_temperature_k`) and leaks (`[cylinder.leaks.piston]`,
+/// `[cylinder.leaks.a_atmosphere]`, `[cylinder.leaks.b_atmosphere]`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CylinderSheet {
     /// Model name.
     pub name: String,
     /// Geometry.
     pub cylinder: Cylinder,
+    /// Wall heat transfer coefficient h, W/(m^2 K), if given.
+    pub wall_heat_transfer_w_per_m2_k: Option<f64>,
+    /// Wall temperature, K, if given (default: the atmosphere's).
+    pub wall_temperature_k: Option<f64>,
+    /// Leaks.
+    pub leaks: Leaks,
 }
 
 impl CylinderSheet {
@@ -380,8 +466,63 @@ impl CylinderSheet {
                     DEAD_VOLUME,
                 )?,
             },
+            wall_heat_transfer_w_per_m2_k: s
+                .wall_heat_transfer_w_per_m2_k
+                .map(|h| c.bounded("cylinder.wall_heat_transfer_w_per_m2_k", h, HEAT_TRANSFER))
+                .transpose()?,
+            wall_temperature_k: match (s.wall_temperature_k, s.wall_heat_transfer_w_per_m2_k) {
+                (Some(_), None) => {
+                    return Err(c.err(
+                        "cylinder.wall_temperature_k",
+                        "applies only with cylinder.wall_heat_transfer_w_per_m2_k".into(),
+                    ));
+                }
+                (t, _) => t
+                    .map(|t| c.bounded("cylinder.wall_temperature_k", t, TEMPERATURE))
+                    .transpose()?,
+            },
+            leaks: leaks(&c, s.leaks)?,
         })
     }
+}
+
+/// The `[cylinder.leaks.*]` tables.
+fn leaks(c: &Check, s: Option<LeaksSection>) -> Result<Leaks, ComponentError> {
+    let mut out = Leaks::default();
+    let Some(s) = s else { return Ok(out) };
+    for (i, r) in [s.piston, s.a_atmosphere, s.b_atmosphere]
+        .into_iter()
+        .enumerate()
+    {
+        if let Some(r) = r {
+            let key = format!("cylinder.leaks.{}", LEAKS[i]);
+            out.set(i, Some(restriction(c, &key, &r, LEAK_CONDUCTANCE)?));
+        }
+    }
+    Ok(out)
+}
+
+/// An ISO 6358 restriction under `key` (C within `bound`, b in [0, 1), default 0.5).
+fn restriction(
+    c: &Check,
+    key: &str,
+    r: &RestrictionSection,
+    bound: Bound,
+) -> Result<Orifice, ComponentError> {
+    Ok(Orifice {
+        sonic_conductance_m3_per_s_pa: c.bounded(
+            &format!("{key}.sonic_conductance_m3_per_s_pa"),
+            r.sonic_conductance_m3_per_s_pa,
+            bound,
+        )?,
+        critical_pressure_ratio: c.range(
+            &format!("{key}.critical_pressure_ratio"),
+            r.critical_pressure_ratio.unwrap_or(DEFAULT_RESTRICTION_B),
+            0.0,
+            1.0,
+            "[0, 1)",
+        )?,
+    })
 }
 
 // ---------------------------------------------------------------- valve
@@ -411,6 +552,10 @@ struct ValveSection {
     underlap: Option<f64>,
     pwm_frequency_hz: Option<f64>,
     switching_delay_s: Option<f64>,
+    release_delay_s: Option<f64>,
+    spool_time_constant_s: Option<f64>,
+    release_time_constant_s: Option<f64>,
+    dead_time_s: Option<f64>,
     #[serde(default)]
     paths: Option<PathsSection>,
 }
@@ -442,6 +587,9 @@ pub struct ValveSheet {
     pub name: String,
     /// The valve model.
     pub valve: ValveModel,
+    /// Spool dynamics beyond the switching delay / response time (`release_delay_s`,
+    /// `spool_time_constant_s`, `release_time_constant_s` on/off; `dead_time_s` proportional), if given.
+    pub spool: Option<SpoolDynamics>,
 }
 
 impl ValveSheet {
@@ -504,6 +652,13 @@ impl ValveSheet {
                     s.switching_delay_s,
                     "proportional",
                 )?;
+                for (k, v) in [
+                    ("valve.release_delay_s", s.release_delay_s),
+                    ("valve.spool_time_constant_s", s.spool_time_constant_s),
+                    ("valve.release_time_constant_s", s.release_time_constant_s),
+                ] {
+                    not_for(k, v, "proportional")?;
+                }
                 let tau = c.non_negative(
                     "valve.response_time_s",
                     required("valve.response_time_s", s.response_time_s, "proportional")?,
@@ -526,6 +681,7 @@ impl ValveSheet {
             ValveKindName::OnOffPwm => {
                 not_for("valve.response_time_s", s.response_time_s, "on_off_pwm")?;
                 not_for("valve.underlap", s.underlap, "on_off_pwm")?;
+                not_for("valve.dead_time_s", s.dead_time_s, "on_off_pwm")?;
                 let f_hz = c.positive(
                     "valve.pwm_frequency_hz",
                     required("valve.pwm_frequency_hz", s.pwm_frequency_hz, "on_off_pwm")?,
@@ -553,6 +709,25 @@ impl ValveSheet {
                 )
             }
         };
+        let time = |k: &str, v: Option<f64>| v.map(|v| c.bounded(k, v, VALVE_TIME)).transpose();
+        let spool = SpoolDynamics {
+            release_delay_s: time("valve.release_delay_s", s.release_delay_s)?,
+            spool_time_constant_s: time("valve.spool_time_constant_s", s.spool_time_constant_s)?
+                .unwrap_or(0.0),
+            release_time_constant_s: time(
+                "valve.release_time_constant_s",
+                s.release_time_constant_s,
+            )?,
+            dead_time_s: time("valve.dead_time_s", s.dead_time_s)?.unwrap_or(0.0),
+        };
+        let given = [
+            s.release_delay_s,
+            s.spool_time_constant_s,
+            s.release_time_constant_s,
+            s.dead_time_s,
+        ]
+        .iter()
+        .any(Option::is_some);
         Ok(Self {
             name: s.name,
             valve: ValveModel {
@@ -561,6 +736,7 @@ impl ValveSheet {
                 underlap,
                 kind,
             },
+            spool: given.then_some(spool),
         })
     }
 }
@@ -771,6 +947,18 @@ struct ActuatorFile {
     #[serde(default)]
     gas: Option<GasSection>,
     mechanics: MechanicsSection,
+    lines: Option<LinesSection>,
+}
+
+/// Optional `[lines]`: the tubes between the valve and the ports (both sides alike).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LinesSection {
+    volume_m3: f64,
+    sonic_conductance_m3_per_s_pa: f64,
+    critical_pressure_ratio: Option<f64>,
+    length_m: Option<f64>,
+    speed_of_sound_m_per_s: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -795,6 +983,7 @@ struct GasSection {
 enum FrictionName {
     Smooth,
     StickSlip,
+    Lugre,
 }
 
 #[derive(Deserialize)]
@@ -808,6 +997,9 @@ struct MechanicsSection {
     static_n: Option<f64>,
     stribeck_velocity_m_per_s: Option<f64>,
     stick_velocity_m_per_s: Option<f64>,
+    bristle_stiffness_n_per_m: Option<f64>,
+    bristle_damping_n_s_per_m: Option<f64>,
+    coulomb_pressure_n_per_pa: Option<f64>,
     alpha_deg: f64,
     gravity_m_per_s2: Option<f64>,
 }
@@ -834,6 +1026,8 @@ pub struct ActuatorSheet {
     pub gas: Gas,
     /// Mechanics of eq. (1).
     pub mechanics: Mechanics,
+    /// Effects beyond the paper, from the cylinder, valve and actuator sheets (none: the paper's model).
+    pub effects: Effects,
 }
 
 impl ActuatorSheet {
@@ -905,7 +1099,7 @@ impl ActuatorSheet {
             "components.position_sensor",
             Quantity::Position,
         )?;
-        let gas = match f.gas {
+        let gas = match &f.gas {
             None => Gas::default(),
             Some(g) => {
                 let n = g.polytropic_exponent.unwrap_or(1.4);
@@ -928,67 +1122,8 @@ impl ActuatorSheet {
                 }
             }
         };
-        let m = f.mechanics;
-        let coulomb = c.bounded("mechanics.coulomb_n", m.coulomb_n, FRICTION_FORCE)?;
-        let friction = match m.friction {
-            FrictionName::Smooth => {
-                for (field, v) in [
-                    ("mechanics.static_n", m.static_n),
-                    (
-                        "mechanics.stribeck_velocity_m_per_s",
-                        m.stribeck_velocity_m_per_s,
-                    ),
-                    ("mechanics.stick_velocity_m_per_s", m.stick_velocity_m_per_s),
-                ] {
-                    if v.is_some() {
-                        return Err(
-                            c.err(field, "applies only to friction = \"stick_slip\"".into())
-                        );
-                    }
-                }
-                Friction::Smooth {
-                    coulomb_n: coulomb,
-                    smooth_velocity_m_per_s: c.bounded(
-                        "mechanics.smooth_velocity_m_per_s",
-                        m.smooth_velocity_m_per_s.unwrap_or(1e-3),
-                        FRICTION_VELOCITY,
-                    )?,
-                }
-            }
-            FrictionName::StickSlip => {
-                if m.smooth_velocity_m_per_s.is_some() {
-                    return Err(c.err(
-                        "mechanics.smooth_velocity_m_per_s",
-                        "applies only to friction = \"smooth\"".into(),
-                    ));
-                }
-                let fs = c.bounded(
-                    "mechanics.static_n",
-                    m.static_n.unwrap_or(coulomb),
-                    FRICTION_FORCE,
-                )?;
-                if fs < coulomb {
-                    return Err(c.err(
-                        "mechanics.static_n",
-                        format!("must be >= mechanics.coulomb_n = {coulomb}, got {fs}"),
-                    ));
-                }
-                Friction::StickSlip {
-                    coulomb_n: coulomb,
-                    static_n: fs,
-                    stribeck_velocity_m_per_s: c.bounded(
-                        "mechanics.stribeck_velocity_m_per_s",
-                        m.stribeck_velocity_m_per_s.unwrap_or(1e-3),
-                        FRICTION_VELOCITY,
-                    )?,
-                    stick_velocity_m_per_s: c.bounded(
-                        "mechanics.stick_velocity_m_per_s",
-                        m.stick_velocity_m_per_s.unwrap_or(1e-4),
-                        FRICTION_VELOCITY,
-                    )?,
-                }
-            }
-        };
+        let m = &f.mechanics;
+        let friction = friction(&c, m)?;
         let alpha = c.finite("mechanics.alpha_deg", m.alpha_deg)?;
         if !(-90.0..=90.0).contains(&alpha) {
             return Err(c.err(
@@ -1011,6 +1146,7 @@ impl ActuatorSheet {
                 GRAVITY,
             )?,
         };
+        let effects = effects(&c, &f, &cylinder, &valve, &gas, &supply.supply)?;
         Ok(Self {
             path: path.to_path_buf(),
             name: f.name,
@@ -1021,6 +1157,7 @@ impl ActuatorSheet {
             position_sensor,
             gas,
             mechanics,
+            effects,
         })
     }
 
@@ -1039,8 +1176,200 @@ impl ActuatorSheet {
         OneDofModel {
             actuator: self.actuator(),
             mechanics: self.mechanics,
+            effects: self.effects,
         }
     }
+
+    /// The keys of the effects beyond the paper this sheet gives (wall heat, leaks, lines, spool dynamics,
+    /// seal friction, LuGre friction), as its errors spell them; empty for the paper's model. A host that
+    /// integrates the paper's model only (the multibody force element, the MuJoCo plugin) refuses a sheet
+    /// that gives any, naming them.
+    pub fn effects_beyond_paper(&self) -> Vec<String> {
+        let mut given = self.effects.given();
+        if matches!(self.mechanics.friction, Friction::LuGre { .. }) {
+            given.push("mechanics.friction = \"lugre\"".into());
+        }
+        given
+    }
+}
+
+/// Friction keys and the laws they apply to (a key given for another law is refused).
+const FRICTION_KEYS: [(&str, &[FrictionName]); 6] = [
+    ("mechanics.smooth_velocity_m_per_s", &[FrictionName::Smooth]),
+    (
+        "mechanics.static_n",
+        &[FrictionName::StickSlip, FrictionName::Lugre],
+    ),
+    (
+        "mechanics.stribeck_velocity_m_per_s",
+        &[FrictionName::StickSlip, FrictionName::Lugre],
+    ),
+    (
+        "mechanics.stick_velocity_m_per_s",
+        &[FrictionName::StickSlip],
+    ),
+    (
+        "mechanics.bristle_stiffness_n_per_m",
+        &[FrictionName::Lugre],
+    ),
+    (
+        "mechanics.bristle_damping_n_s_per_m",
+        &[FrictionName::Lugre],
+    ),
+];
+
+/// The `[mechanics]` friction law: `friction` and the keys of that law (the others' keys refused).
+fn friction(c: &Check, m: &MechanicsSection) -> Result<Friction, ComponentError> {
+    let given = [
+        m.smooth_velocity_m_per_s,
+        m.static_n,
+        m.stribeck_velocity_m_per_s,
+        m.stick_velocity_m_per_s,
+        m.bristle_stiffness_n_per_m,
+        m.bristle_damping_n_s_per_m,
+    ];
+    for ((key, laws), v) in FRICTION_KEYS.iter().zip(given) {
+        if v.is_some() && !laws.contains(&m.friction) {
+            let names: Vec<String> = laws.iter().map(|l| format!("\"{}\"", l.name())).collect();
+            return Err(c.err(
+                key,
+                format!("applies only to friction = {}", names.join(" or ")),
+            ));
+        }
+    }
+    let coulomb = c.bounded("mechanics.coulomb_n", m.coulomb_n, FRICTION_FORCE)?;
+    let velocity = |key: &str, v: Option<f64>, default: f64| {
+        c.bounded(key, v.unwrap_or(default), FRICTION_VELOCITY)
+    };
+    if m.friction == FrictionName::Smooth {
+        return Ok(Friction::Smooth {
+            coulomb_n: coulomb,
+            smooth_velocity_m_per_s: velocity(
+                "mechanics.smooth_velocity_m_per_s",
+                m.smooth_velocity_m_per_s,
+                1e-3,
+            )?,
+        });
+    }
+    let fs = c.bounded(
+        "mechanics.static_n",
+        m.static_n.unwrap_or(coulomb),
+        FRICTION_FORCE,
+    )?;
+    if fs < coulomb {
+        return Err(c.err(
+            "mechanics.static_n",
+            format!("must be >= mechanics.coulomb_n = {coulomb}, got {fs}"),
+        ));
+    }
+    let vs = velocity(
+        "mechanics.stribeck_velocity_m_per_s",
+        m.stribeck_velocity_m_per_s,
+        1e-3,
+    )?;
+    if m.friction == FrictionName::StickSlip {
+        return Ok(Friction::StickSlip {
+            coulomb_n: coulomb,
+            static_n: fs,
+            stribeck_velocity_m_per_s: vs,
+            stick_velocity_m_per_s: velocity(
+                "mechanics.stick_velocity_m_per_s",
+                m.stick_velocity_m_per_s,
+                1e-4,
+            )?,
+        });
+    }
+    if coulomb <= 0.0 {
+        return Err(c.err(
+            "mechanics.coulomb_n",
+            "must be > 0 for friction = \"lugre\" (the bristles relax towards F_c / sigma0)".into(),
+        ));
+    }
+    let required = |key: &str, v: Option<f64>, b: Bound| {
+        v.ok_or_else(|| c.err(key, "required for friction = \"lugre\"".into()))
+            .and_then(|v| c.bounded(key, v, b))
+    };
+    Ok(Friction::LuGre {
+        coulomb_n: coulomb,
+        static_n: fs,
+        stribeck_velocity_m_per_s: vs,
+        bristle_stiffness_n_per_m: required(
+            "mechanics.bristle_stiffness_n_per_m",
+            m.bristle_stiffness_n_per_m,
+            BRISTLE_STIFFNESS,
+        )?,
+        bristle_damping_n_s_per_m: required(
+            "mechanics.bristle_damping_n_s_per_m",
+            m.bristle_damping_n_s_per_m,
+            BRISTLE_DAMPING,
+        )?,
+    })
+}
+
+impl FrictionName {
+    fn name(self) -> &'static str {
+        match self {
+            FrictionName::Smooth => "smooth",
+            FrictionName::StickSlip => "stick_slip",
+            FrictionName::Lugre => "lugre",
+        }
+    }
+}
+
+/// The effects the three sheets give: wall heat and leaks (cylinder), spool dynamics (valve), lines and the
+/// pressure term of the friction (actuator sheet). The lines' speed of sound defaults to `sqrt(k R T_s)`
+/// with k = 1.4 (air) and the supply temperature; the wall temperature to the atmosphere's.
+fn effects(
+    c: &Check,
+    f: &ActuatorFile,
+    cylinder: &CylinderSheet,
+    valve: &ValveSheet,
+    gas: &Gas,
+    supply: &Supply,
+) -> Result<Effects, ComponentError> {
+    let lines = match &f.lines {
+        None => None,
+        Some(l) => Some(Lines {
+            volume_m3: c.bounded("lines.volume_m3", l.volume_m3, DEAD_VOLUME)?,
+            orifice: restriction(
+                c,
+                "lines",
+                &RestrictionSection {
+                    sonic_conductance_m3_per_s_pa: l.sonic_conductance_m3_per_s_pa,
+                    critical_pressure_ratio: l.critical_pressure_ratio,
+                },
+                SONIC_CONDUCTANCE,
+            )?,
+            length_m: c.bounded("lines.length_m", l.length_m.unwrap_or(0.0), LINE_LENGTH)?,
+            speed_of_sound_m_per_s: c.bounded(
+                "lines.speed_of_sound_m_per_s",
+                l.speed_of_sound_m_per_s.unwrap_or_else(|| {
+                    (AIR_HEAT_CAPACITY_RATIO
+                        * gas.gas_constant_j_per_kg_k
+                        * supply.supply_temperature_k)
+                        .sqrt()
+                }),
+                SOUND_SPEED,
+            )?,
+        }),
+    };
+    let coulomb_pressure_n_per_pa = f
+        .mechanics
+        .coulomb_pressure_n_per_pa
+        .map(|k| c.bounded("mechanics.coulomb_pressure_n_per_pa", k, COULOMB_PRESSURE))
+        .transpose()?;
+    Ok(Effects {
+        wall_heat: cylinder.wall_heat_transfer_w_per_m2_k.map(|h| WallHeat {
+            coefficient_w_per_m2_k: h,
+            wall_temperature_k: cylinder
+                .wall_temperature_k
+                .unwrap_or(supply.atmosphere_temperature_k),
+        }),
+        leaks: cylinder.leaks,
+        lines,
+        spool: valve.spool,
+        coulomb_pressure_n_per_pa,
+    })
 }
 
 /// The actuator sheet a file refers to: the file itself if it is an actuator sheet (has

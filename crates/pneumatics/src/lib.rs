@@ -10,9 +10,12 @@
 
 pub mod actuator;
 pub mod components;
+pub mod effects;
+pub mod extended;
 pub mod flow;
 pub mod force_element;
 pub mod mechanics;
+mod spool;
 pub mod tf;
 pub mod valve;
 
@@ -24,6 +27,8 @@ pub use components::{
     ActuatorSheet, ComponentError, CylinderSheet, FileOverlay, Quantity, SensorSheet, SignalKind,
     SupplySheet, ValveSheet, find_actuator_sheet, load_actuator_sheet,
 };
+pub use effects::{Effects, LEAKS, Leaks, Lines, SpoolDynamics, WallHeat};
+pub use extended::ExtendedState;
 pub use flow::Orifice;
 pub use force_element::PneumaticForceElement;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};

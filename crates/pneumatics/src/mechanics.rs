@@ -9,6 +9,8 @@
 //! The environment's reaction enters as the external force `f_ext = -F_2` along +x.
 
 use crate::actuator::{Actuator, ChamberState, ChamberStep};
+use crate::effects::Effects;
+use crate::extended::ExtendedState;
 use crate::valve::ValveState;
 
 /// Coulomb friction law of the piston and guide.
@@ -32,11 +34,102 @@ pub enum Friction {
         /// Half-width of the sticking band: below this speed the piston sticks if |drive| <= F_s, m/s.
         stick_velocity_m_per_s: f64,
     },
+    /// LuGre dynamic friction (Canudas de Wit, Olsson, Astrom, Lischinsky, IEEE TAC 40(3), 1995, eqs.
+    /// 2-4): bristles of deflection z, `dz/dt = v - sigma0 |v| z / g(v)`, `F = sigma0 z + sigma1 dz/dt`,
+    /// with the Stribeck curve `g(v) = F_c + (F_s - F_c) exp(-(v/v_s)^2)`; the viscous term sigma2 v is
+    /// eq. (1)'s K_v. In steady sliding dz/dt = 0 and F = g(v) sign(v): the Stribeck curve.
+    LuGre {
+        /// Coulomb (kinetic) friction force F_c > 0, N.
+        coulomb_n: f64,
+        /// Break-away (static) friction F_s >= F_c, N.
+        static_n: f64,
+        /// Stribeck velocity v_s, m/s.
+        stribeck_velocity_m_per_s: f64,
+        /// Bristle stiffness sigma0, N/m.
+        bristle_stiffness_n_per_m: f64,
+        /// Bristle damping sigma1, N s/m.
+        bristle_damping_n_s_per_m: f64,
+    },
 }
 
 impl Friction {
+    /// The Coulomb force F_c of the law, N.
+    pub fn coulomb_n(&self) -> f64 {
+        match *self {
+            Friction::Smooth { coulomb_n, .. }
+            | Friction::StickSlip { coulomb_n, .. }
+            | Friction::LuGre { coulomb_n, .. } => coulomb_n,
+        }
+    }
+
+    /// The law with its Coulomb and break-away forces raised by `extra` N: a seal pressed harder by the
+    /// pressure difference, `F_c = F_c0 + k_p |p_a - p_b|` (and `F_s` by as much; docs/pneumatics.md).
+    #[inline]
+    pub fn with_normal_force(&self, extra: f64) -> Self {
+        let mut f = *self;
+        match &mut f {
+            Friction::Smooth { coulomb_n, .. } => *coulomb_n += extra,
+            Friction::StickSlip {
+                coulomb_n,
+                static_n,
+                ..
+            }
+            | Friction::LuGre {
+                coulomb_n,
+                static_n,
+                ..
+            } => {
+                *coulomb_n += extra;
+                *static_n += extra;
+            }
+        }
+        f
+    }
+
+    /// The Stribeck curve `g(v) = F_c + (F_s - F_c) exp(-(v/v_s)^2)` of a stick-slip or LuGre law, N
+    /// (the smooth law: F_c).
+    #[inline]
+    pub fn stribeck_n(&self, v: f64) -> f64 {
+        match *self {
+            Friction::Smooth { coulomb_n, .. } => coulomb_n,
+            Friction::StickSlip {
+                coulomb_n,
+                static_n,
+                stribeck_velocity_m_per_s,
+                ..
+            }
+            | Friction::LuGre {
+                coulomb_n,
+                static_n,
+                stribeck_velocity_m_per_s,
+                ..
+            } => {
+                let z = v / stribeck_velocity_m_per_s;
+                coulomb_n + (static_n - coulomb_n) * (-z * z).exp()
+            }
+        }
+    }
+
+    /// LuGre's force (N) and bristle rate dz/dt (m/s) at velocity `v` and deflection `z`; `None` for the
+    /// other laws. (Canudas de Wit et al. 1995, eqs. 2-4.)
+    #[inline]
+    pub fn lugre(&self, v: f64, z: f64) -> Option<(f64, f64)> {
+        let Friction::LuGre {
+            bristle_stiffness_n_per_m: s0,
+            bristle_damping_n_s_per_m: s1,
+            ..
+        } = *self
+        else {
+            return None;
+        };
+        let g = self.stribeck_n(v).max(f64::MIN_POSITIVE);
+        let dz = v - s0 * v.abs() * z / g;
+        Some((s0 * z + s1 * dz, dz))
+    }
+
     /// Friction force opposing motion (positive along +x resists positive velocity), N, given the
-    /// velocity and the net driving force of everything except friction and viscosity.
+    /// velocity and the net driving force of everything except friction and viscosity. For LuGre, which
+    /// needs its bristle state ([`Friction::lugre`]), the steady-sliding force `g(v) sign(v)`.
     #[inline]
     pub fn force(&self, v: f64, drive: f64) -> f64 {
         match *self {
@@ -66,6 +159,13 @@ impl Friction {
                 } else {
                     let z = v / stribeck_velocity_m_per_s;
                     v.signum() * (coulomb_n + (static_n - coulomb_n) * (-z * z).exp())
+                }
+            }
+            Friction::LuGre { .. } => {
+                if v == 0.0 {
+                    0.0
+                } else {
+                    v.signum() * self.stribeck_n(v)
                 }
             }
         }
@@ -102,6 +202,8 @@ pub struct OneDofModel {
     pub actuator: Actuator,
     /// Mass, friction, incline.
     pub mechanics: Mechanics,
+    /// Effects beyond the paper (none: the paper's model, integrated as before).
+    pub effects: Effects,
 }
 
 /// Full state of the 1-DOF model.
@@ -117,10 +219,13 @@ pub struct OneDofState {
     pub chambers: ChamberState,
     /// Valve spool and PWM state.
     pub valve: ValveState,
+    /// Lines and LuGre bristles, for a model with those effects.
+    pub extra: ExtendedState,
 }
 
 impl OneDofState {
-    /// A state at rest at `x` with the given chambers and the valve spool at `spool`, t = 0.
+    /// A state at rest at `x` with the given chambers and the valve spool at `spool`, t = 0 (lines, if the
+    /// model has them, at their chambers' state; LuGre bristles relaxed).
     pub fn at_rest(x: f64, chambers: ChamberState, spool: f64) -> Self {
         Self {
             t: 0.0,
@@ -128,6 +233,7 @@ impl OneDofState {
             x_dot: 0.0,
             chambers,
             valve: ValveState::at_spool(spool),
+            extra: ExtendedState::default(),
         }
     }
 }
@@ -196,6 +302,13 @@ impl OneDofModel {
         (x, v, c)
     }
 
+    /// Whether the model is the paper's (no [`Effects`], no LuGre friction): [`Self::step`] then integrates
+    /// it exactly as before the effects existed; otherwise [`crate::extended`].
+    #[inline]
+    pub fn is_paper_model(&self) -> bool {
+        self.effects.is_none() && !matches!(self.mechanics.friction, Friction::LuGre { .. })
+    }
+
     /// Advances the model by one fixed step `dt` under valve command `u` in [-1, 1] and external force
     /// `f_ext` (N, along +x), with classic RK4. The step is split at every spool edge inside it
     /// ([`crate::ValveModel::segment`]: the PWM edges of an on/off valve, delayed by the switching delay):
@@ -217,6 +330,9 @@ impl OneDofModel {
         gravity_n: f64,
         dt: f64,
     ) {
+        if !self.is_paper_model() {
+            return crate::extended::step(self, state, u, f_ext, gravity_n, dt);
+        }
         // f_load = G_alpha + f_ext is held over the step.
         let f_load = gravity_n + f_ext;
         let inv_mass = 1.0 / self.mechanics.moving_mass_kg;

@@ -66,15 +66,17 @@ pub struct ValveState {
     /// Current spool position in [-1, 1].
     pub spool: f64,
     /// Whether the PWM period clock has been started.
-    started: bool,
+    pub(crate) started: bool,
     /// Time of the first PWM period start, s.
-    t0: f64,
+    pub(crate) t0: f64,
     /// Index of the current PWM period.
-    period: u64,
+    pub(crate) period: u64,
     /// Duty latched for the current period.
-    duty: f64,
+    pub(crate) duty: f64,
     /// Duty latched for the previous period (edges delayed into the current one).
-    prev_duty: f64,
+    pub(crate) prev_duty: f64,
+    /// The spool's pending moves when the model has spool dynamics or lines ([`crate::spool`]).
+    pub(crate) moves: crate::spool::PendingMoves,
 }
 
 impl ValveState {
@@ -130,13 +132,16 @@ impl ValveState {
             period: period as u64,
             duty,
             prev_duty,
+            // A host that keeps the state as numbers runs sheets without spool dynamics or lines (the
+            // force element refuses those): no moves are ever pending.
+            moves: Default::default(),
         })
     }
 }
 
 /// Clamps a command to [-1, 1]; NaN becomes 0 (never an open valve by accident).
 #[inline]
-fn sanitize(u: f64) -> f64 {
+pub(crate) fn sanitize(u: f64) -> f64 {
     if u.is_nan() { 0.0 } else { u.clamp(-1.0, 1.0) }
 }
 
@@ -299,11 +304,11 @@ impl ValveModel {
 /// The PWM clock of an on/off valve: period and switching delay, and the edge times of the latched
 /// periods. Every time is computed by one expression (`start`, `rise`, `fall`, `fall_prev`), so an edge
 /// returned by [`ValveModel::segment`] compares equal to itself when the next piece starts there.
-struct Pwm {
+pub(crate) struct Pwm {
     /// PWM period T, s.
-    period: f64,
+    pub(crate) period: f64,
     /// Switching delay, s (< T).
-    delay: f64,
+    pub(crate) delay: f64,
 }
 
 impl Pwm {
@@ -313,13 +318,13 @@ impl Pwm {
     /// would be latched from the previous tick's command or the new one's at random, and results would not
     /// converge with the step. With it, a period start at a step boundary latches the new step's command.
     #[inline]
-    fn snap(&self) -> f64 {
+    pub(crate) fn snap(&self) -> f64 {
         1e-7 * self.period
     }
 
     /// Start of period `k`, s.
     #[inline]
-    fn start(&self, st: &ValveState, k: u64) -> f64 {
+    pub(crate) fn start(&self, st: &ValveState, k: u64) -> f64 {
         st.t0 + k as f64 * self.period
     }
 

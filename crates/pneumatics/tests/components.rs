@@ -447,3 +447,150 @@ fn validation_errors_carry_the_line_of_the_key() {
         assert!(msg.contains(key), "{msg}");
     }
 }
+
+/// The scratch sheets with `edits` (file, appended text) applied.
+fn with_keys(
+    case: &str,
+    edits: &[(&str, &str)],
+) -> (Result<ActuatorSheet, ComponentError>, tempfile::TempDir) {
+    let scratch = scratch(case);
+    let dir = scratch.path().to_path_buf();
+    for (file, add) in edits {
+        let path = dir.join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(&path, format!("{text}\n{add}\n")).unwrap();
+    }
+    (
+        ActuatorSheet::load(dir.join("paper-actuator.toml")),
+        scratch,
+    )
+}
+
+/// Every effect's key (issue 26) loads into the model's effects, with its defaults; without them the
+/// shipped sheet is the paper's model.
+#[test]
+fn effect_keys_load_with_their_defaults() {
+    let shipped = ActuatorSheet::load(data_dir().join("paper-actuator.toml")).unwrap();
+    assert!(shipped.model().is_paper_model());
+    assert_eq!(shipped.effects, Effects::default());
+    let (sheet, _g) = with_keys(
+        "effects",
+        &[
+            (
+                "smc-mqm16-cylinder.toml",
+                "wall_heat_transfer_w_per_m2_k = 40.0\n[cylinder.leaks.piston]\nsonic_conductance_m3_per_s_pa = 2e-12\n\
+                 [cylinder.leaks.b_atmosphere]\nsonic_conductance_m3_per_s_pa = 1e-13\ncritical_pressure_ratio = 0.4",
+            ),
+            (
+                "a05ps25x-5-2-valve.toml",
+                "release_delay_s = 0.003\nspool_time_constant_s = 0.001",
+            ),
+            (
+                "paper-actuator.toml",
+                "[lines]\nvolume_m3 = 2e-6\nsonic_conductance_m3_per_s_pa = 2e-8\nlength_m = 0.5",
+            ),
+        ],
+    );
+    let sheet = sheet.unwrap();
+    let e = sheet.effects;
+    let h = e.wall_heat.unwrap();
+    assert_eq!(h.coefficient_w_per_m2_k, 40.0);
+    assert_eq!(h.wall_temperature_k, 293.15, "default: the atmosphere's");
+    assert_eq!(e.leaks.piston.unwrap().critical_pressure_ratio, 0.5);
+    assert_eq!(e.leaks.b_atmosphere.unwrap().critical_pressure_ratio, 0.4);
+    assert!(e.leaks.a_atmosphere.is_none());
+    let s = e.spool.unwrap();
+    assert_eq!(
+        (
+            s.release_delay_s,
+            s.spool_time_constant_s,
+            s.release_time_constant_s
+        ),
+        (Some(0.003), 0.001, None)
+    );
+    let l = e.lines.unwrap();
+    assert!((l.speed_of_sound_m_per_s - (1.4 * 287.05 * 293.15f64).sqrt()).abs() < 1e-9);
+    assert!((l.delay_s() - 0.5 / l.speed_of_sound_m_per_s).abs() < 1e-15);
+    assert!(!sheet.model().is_paper_model());
+}
+
+/// LuGre and the pressure term of the friction load; a law's key given for another law is refused.
+#[test]
+fn lugre_and_pressure_term_keys() {
+    let lugre = "[mechanics]\nmoving_mass_kg = 0.6\nviscous_n_s_per_m = 20.0\nfriction = \"lugre\"\n\
+                 coulomb_n = 3.4\nstatic_n = 4.0\nbristle_stiffness_n_per_m = 1e5\n\
+                 bristle_damping_n_s_per_m = 300.0\ncoulomb_pressure_n_per_pa = 7.8e-6\nalpha_deg = 30.0\n";
+    let scratch = scratch("lugre");
+    let dir = scratch.path().to_path_buf();
+    let path = dir.join("paper-actuator.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let head = &text[..text.find("[mechanics]").unwrap()];
+    std::fs::write(&path, format!("{head}{lugre}")).unwrap();
+    let sheet = ActuatorSheet::load(&path).unwrap();
+    assert!(matches!(
+        sheet.mechanics.friction,
+        Friction::LuGre { coulomb_n, static_n, stribeck_velocity_m_per_s, .. }
+            if coulomb_n == 3.4 && static_n == 4.0 && stribeck_velocity_m_per_s == 1e-3
+    ));
+    assert_eq!(sheet.effects.coulomb_pressure_n_per_pa, Some(7.8e-6));
+    for (from, to, key) in [
+        (
+            "bristle_stiffness_n_per_m = 1e5\n",
+            "",
+            "mechanics.bristle_stiffness_n_per_m",
+        ),
+        ("coulomb_n = 3.4", "coulomb_n = 0.0", "mechanics.coulomb_n"),
+        (
+            "friction = \"lugre\"",
+            "friction = \"smooth\"",
+            "mechanics.static_n",
+        ),
+        ("7.8e-6", "-1e-6", "mechanics.coulomb_pressure_n_per_pa"),
+    ] {
+        std::fs::write(&path, format!("{head}{}", lugre.replacen(from, to, 1))).unwrap();
+        let err = ActuatorSheet::load(&path).expect_err(key).to_string();
+        assert_names(&err, &path.display().to_string(), key);
+    }
+}
+
+/// Out-of-range effect keys name their file, line and key.
+#[test]
+fn bad_effect_keys_name_the_key() {
+    for (file, add, key) in [
+        (
+            "smc-mqm16-cylinder.toml",
+            "wall_heat_transfer_w_per_m2_k = 1e6",
+            "cylinder.wall_heat_transfer_w_per_m2_k",
+        ),
+        (
+            "smc-mqm16-cylinder.toml",
+            "wall_temperature_k = 300.0",
+            "cylinder.wall_temperature_k",
+        ),
+        (
+            "smc-mqm16-cylinder.toml",
+            "[cylinder.leaks.a_atmosphere]\nsonic_conductance_m3_per_s_pa = -1.0",
+            "cylinder.leaks.a_atmosphere.sonic_conductance_m3_per_s_pa",
+        ),
+        (
+            "a05ps25x-5-2-valve.toml",
+            "dead_time_s = 0.001",
+            "valve.dead_time_s",
+        ),
+        (
+            "a05ps25x-5-2-valve.toml",
+            "release_delay_s = 20.0",
+            "valve.release_delay_s",
+        ),
+        (
+            "paper-actuator.toml",
+            "[lines]\nvolume_m3 = 2e-6\nsonic_conductance_m3_per_s_pa = 2e-8\nlength_m = 500.0",
+            "lines.length_m",
+        ),
+    ] {
+        let (r, g) = with_keys("bad-effect", &[(file, add)]);
+        let err = r.expect_err(key).to_string();
+        assert_names(&err, &g.path().join(file).display().to_string(), key);
+        assert!(err.contains(":"), "{err}");
+    }
+}

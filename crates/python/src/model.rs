@@ -158,6 +158,20 @@ impl PyActuator {
                 d.set_item("stribeck_velocity_m_per_s", stribeck_velocity_m_per_s)?;
                 d.set_item("stick_velocity_m_per_s", stick_velocity_m_per_s)?;
             }
+            Friction::LuGre {
+                coulomb_n,
+                static_n,
+                stribeck_velocity_m_per_s,
+                bristle_stiffness_n_per_m,
+                bristle_damping_n_s_per_m,
+            } => {
+                d.set_item("friction", "lugre")?;
+                d.set_item("coulomb_n", coulomb_n)?;
+                d.set_item("static_n", static_n)?;
+                d.set_item("stribeck_velocity_m_per_s", stribeck_velocity_m_per_s)?;
+                d.set_item("bristle_stiffness_n_per_m", bristle_stiffness_n_per_m)?;
+                d.set_item("bristle_damping_n_s_per_m", bristle_damping_n_s_per_m)?;
+            }
         }
         d.set_item("alpha_rad", m.alpha_rad)?;
         d.set_item("alpha_deg", m.alpha_rad.to_degrees())?;

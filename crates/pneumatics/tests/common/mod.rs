@@ -76,6 +76,7 @@ pub fn model(valve: ValveModel, friction: Friction, alpha_deg: f64) -> OneDofMod
             alpha_rad: alpha_deg.to_radians(),
             gravity_m_per_s2: 9.80665,
         },
+        effects: Effects::default(),
     }
 }
 

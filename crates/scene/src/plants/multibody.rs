@@ -105,6 +105,19 @@ impl MultibodyPlant {
         let sheet = scene
             .load_sheet(&sheet_path)
             .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
+        // The rig's force element integrates the paper's chambers and friction only.
+        let beyond = sheet.effects_beyond_paper();
+        if !beyond.is_empty() {
+            return Err(scene.invalid(
+                "plant.actuator",
+                format!(
+                    "{} gives {}: the multibody plant models the paper's chambers, valve and friction \
+                     only; use plant.kind = \"pneumatic\" (the 1-DOF model) or remove them",
+                    sheet_path.display(),
+                    beyond.join(", ")
+                ),
+            ));
+        }
         let urdf_file = scene.resolve(&mb.urdf);
         let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf_file)
             .map_err(|e| scene.invalid("plant.urdf", e.to_string()))?;

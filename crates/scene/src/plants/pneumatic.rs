@@ -123,10 +123,7 @@ impl crate::plants::Linearisable for OneDofPneumatic {
         vec![1e-7, 1e-6, 1.0, 1.0, 1e-3, 1e-3, 1e-6]
     }
     fn coulomb_n(&self) -> f64 {
-        match self.model.mechanics.friction {
-            pneuflex_pneumatics::Friction::Smooth { coulomb_n, .. }
-            | pneuflex_pneumatics::Friction::StickSlip { coulomb_n, .. } => coulomb_n,
-        }
+        self.model.mechanics.friction.coulomb_n()
     }
     fn add_viscous(&mut self, c: f64) {
         self.model.mechanics.viscous_n_s_per_m += c;
@@ -151,7 +148,17 @@ impl crate::plants::Linearisable for OneDofPneumatic {
                 stribeck_velocity_m_per_s,
                 stick_velocity_m_per_s,
             },
+            // LuGre without Coulomb friction has no bristle force left: no friction at all.
+            Friction::LuGre {
+                stribeck_velocity_m_per_s,
+                ..
+            } => Friction::Smooth {
+                coulomb_n: 0.0,
+                smooth_velocity_m_per_s: stribeck_velocity_m_per_s,
+            },
         };
+        // The seal's pressure term is Coulomb friction too.
+        self.model.effects.coulomb_pressure_n_per_pa = None;
     }
     fn average_switching(&mut self) {
         let v = &mut self.model.actuator.valve;

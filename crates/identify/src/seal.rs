@@ -1,0 +1,681 @@
+//! Seal friction from a bench test (issue 26, item 4): a cylinder held at a gauge pressure p while a drive
+//! moves its rod back and forth, the rod force F, the pressure and the position logged (the Zillen 2021
+//! printed cylinder, `data/zillen-2021-printed-cylinder/friction/circle_<P>bar.csv`, whitespace-separated:
+//! time ms, three raw voltages, position mm, pressure bar gauge, force N).
+//!
+//! Friction per sample, the authors' reading: `f = F - p A` (A the piston area, p the sample's own
+//! pressure). Velocity from the position: a 5-point running median (the laser has single-sample glitches of
+//! 0.15-0.5 mm), then the central difference over +-3 samples on the real timestamps (the sampling is
+//! uneven). Samples faster than `still_below` in either direction are "moving"; the others are left out.
+//! Cells: (test, direction) means of f, p and v.
+//!
+//! Laws, fitted by least squares on the cell means (`s` the direction's sign, `p` the gauge pressure, which
+//! is the pressure difference across the seal here: the other side is open):
+//!
+//! ```text
+//! constant Coulomb:  f = s F_c             + o_i
+//! pressure term:     f = s (F_c0 + k_p p)  + o_i      (pneuflex: coulomb_n, coulomb_pressure_n_per_pa)
+//! ```
+//!
+//! `o_i` is a zero offset of `F - p A` per test (a force or pressure calibration offset: at rest, before
+//! any motion, each file reads its offset), or one common offset, or none ([`Offsets`]). The report gives
+//! each law's parameters, its residual per cell against the cell mean and the samples, what the pressure
+//! term buys (the RMS with and without it), and whether the law explains the cell means to their precision.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::IdentifyError;
+
+/// One bench test: a file's samples, SI.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SealTest {
+    /// The file.
+    pub file: PathBuf,
+    /// The pressure the test held, from the file name (`circle_<P>bar.csv`), Pa gauge.
+    pub nominal_pa: f64,
+    /// Time, s.
+    pub t_s: Vec<f64>,
+    /// Rod position, m.
+    pub x_m: Vec<f64>,
+    /// Chamber pressure, Pa gauge.
+    pub gauge_pa: Vec<f64>,
+    /// Rod force, N.
+    pub force_n: Vec<f64>,
+}
+
+/// How the samples are prepared.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SealOptions {
+    /// Piston bore, m (the data set's cylinder: 25 mm).
+    pub bore_m: f64,
+    /// Rows dropped at the start of each file (start-up transients; the authors drop 15).
+    pub skip_rows: usize,
+    /// Half-width of the running median of the position, samples.
+    pub median_half_width: usize,
+    /// Half-width of the central difference giving the velocity, samples.
+    pub velocity_half_width: usize,
+    /// Speed below which a sample is still (left out), m/s.
+    pub still_below_m_per_s: f64,
+}
+
+impl Default for SealOptions {
+    fn default() -> Self {
+        Self {
+            bore_m: 0.025,
+            skip_rows: 15,
+            median_half_width: 2,
+            velocity_half_width: 3,
+            still_below_m_per_s: 0.002,
+        }
+    }
+}
+
+impl SealOptions {
+    /// Piston area `pi bore^2 / 4`, m^2.
+    pub fn area_m2(&self) -> f64 {
+        0.25 * core::f64::consts::PI * self.bore_m * self.bore_m
+    }
+}
+
+/// A moving sample: friction with its pressure and velocity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Index of the test.
+    pub test: usize,
+    /// +1 (x increasing) or -1.
+    pub direction: f64,
+    /// Pressure, Pa gauge.
+    pub gauge_pa: f64,
+    /// Velocity, m/s.
+    pub velocity_m_per_s: f64,
+    /// Friction f = F - p A, N.
+    pub friction_n: f64,
+    /// Time, s.
+    pub t_s: f64,
+}
+
+/// The statistics of one (test, direction) cell.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Cell {
+    /// Index of the test.
+    pub test: usize,
+    /// The test's file name.
+    pub file: String,
+    /// The test's pressure, Pa gauge (from the file name).
+    pub nominal_pa: f64,
+    /// +1 (x increasing) or -1.
+    pub direction: f64,
+    /// Moving samples.
+    pub samples: usize,
+    /// Mean friction, N.
+    pub mean_friction_n: f64,
+    /// Sample standard deviation of the friction, N.
+    pub std_friction_n: f64,
+    /// Mean pressure, Pa gauge.
+    pub mean_gauge_pa: f64,
+    /// Mean velocity, m/s.
+    pub mean_velocity_m_per_s: f64,
+    /// Least-squares slope of the friction against time within the cell, N/s (wear-in, warming).
+    pub drift_n_per_s: f64,
+    /// Independent samples the cell's mean is worth: `n (1 - r1) / (1 + r1)`, r1 the lag-1
+    /// autocorrelation of its friction samples in time order.
+    pub effective_samples: f64,
+}
+
+impl Cell {
+    /// Standard error of the cell's mean friction (from its effective samples), N.
+    pub fn standard_error_n(&self) -> f64 {
+        self.std_friction_n / self.effective_samples.max(1.0).sqrt()
+    }
+}
+
+/// Which zero offsets of `F - p A` a law carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Offsets {
+    /// None: friction is odd in the velocity.
+    None,
+    /// One for all tests.
+    Common,
+    /// One per test (file).
+    PerTest,
+}
+
+/// A law's residual in one cell.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CellResidual {
+    /// The test's pressure, Pa gauge.
+    pub nominal_pa: f64,
+    /// +1 or -1.
+    pub direction: f64,
+    /// Cell mean minus the law at the cell's mean pressure, N.
+    pub mean_residual_n: f64,
+    /// RMS of sample minus the law at each sample's pressure, N.
+    pub rms_samples_n: f64,
+    /// The mean residual over the cell mean's standard error ([`Cell::standard_error_n`]).
+    pub standard_errors: f64,
+}
+
+/// A fitted law.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct LawFit {
+    /// Whether the law has the pressure term.
+    pub pressure_term: bool,
+    /// The offsets it carries.
+    pub offsets: Offsets,
+    /// F_c (constant law) or F_c0 (pressure law), N.
+    pub coulomb_n: f64,
+    /// k_p, N/Pa (0 for the constant law).
+    pub coulomb_pressure_n_per_pa: f64,
+    /// The offsets, N: one per test, one, or none.
+    pub offset_n: Vec<f64>,
+    /// RMS of the cell residuals, N.
+    pub rms_cell_means_n: f64,
+    /// RMS over all moving samples, N.
+    pub rms_samples_n: f64,
+    /// Per cell.
+    pub residuals: Vec<CellResidual>,
+}
+
+impl LawFit {
+    /// The Coulomb force at gauge pressure `p` (Pa), N.
+    pub fn coulomb_at(&self, p: f64) -> f64 {
+        self.coulomb_n + self.coulomb_pressure_n_per_pa * p
+    }
+}
+
+/// Whether a law explains the cell means to their precision.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Adequacy {
+    /// Every cell residual within 3 standard errors of its cell mean.
+    pub adequate: bool,
+    /// The largest |residual| / standard error, and its cell (Pa gauge, direction).
+    pub worst_standard_errors: f64,
+    /// The cell of the worst residual: pressure, Pa gauge.
+    pub worst_pa: f64,
+    /// The cell of the worst residual: direction.
+    pub worst_direction: f64,
+    /// RMS of the samples about their own cell means, N: what no law of p and direction can explain.
+    pub within_cell_rms_n: f64,
+    /// What it says, in words.
+    pub verdict: String,
+}
+
+/// The seal's report.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SealReport {
+    /// Piston area used, m^2.
+    pub area_m2: f64,
+    /// Moving samples in all.
+    pub moving_samples: usize,
+    /// The cells, by test and direction (+ first).
+    pub cells: Vec<Cell>,
+    /// Constant Coulomb and pressure law with per-test offsets.
+    pub constant: LawFit,
+    /// The pressure law with per-test offsets (the recommended law).
+    pub pressure: LawFit,
+    /// The same two laws without any offset.
+    pub constant_no_offset: LawFit,
+    /// The pressure law without any offset.
+    pub pressure_no_offset: LawFit,
+    /// 1 - RMS(pressure) / RMS(constant) on the cell means, with per-test offsets.
+    pub pressure_term_rms_reduction: f64,
+    /// The same on the samples.
+    pub pressure_term_rms_reduction_samples: f64,
+    /// Whether the pressure law explains the cell means.
+    pub adequacy: Adequacy,
+    /// Per test: the rest reading `F - p A` of its first row (before any motion) minus the midline of its
+    /// two directions' means, N. Near 0: the asymmetry between the directions is a zero offset of the
+    /// reading, which the per-test offsets take up.
+    pub rest_minus_midline_n: Vec<f64>,
+}
+
+fn log_err(
+    file: &Path,
+    line: Option<usize>,
+    column: Option<&str>,
+    message: String,
+) -> IdentifyError {
+    IdentifyError::Log {
+        file: file.to_path_buf(),
+        line,
+        column: column.map(str::to_string),
+        message,
+    }
+}
+
+/// The columns of a friction file, in order.
+const COLUMNS: [&str; 7] = [
+    "time_ms",
+    "laser_v",
+    "pressure_v",
+    "force_v",
+    "position_mm",
+    "pressure_bar",
+    "force_n",
+];
+
+/// Reads one friction file (whitespace-separated, seven numbers a row, blank lines skipped).
+pub fn read_seal_test(path: &Path, nominal_pa: f64) -> Result<SealTest, IdentifyError> {
+    let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Trace)
+        .map_err(|e| IdentifyError::Input(e.to_string()))?;
+    let mut test = SealTest {
+        file: path.to_path_buf(),
+        nominal_pa,
+        t_s: Vec::new(),
+        x_m: Vec::new(),
+        gauge_pa: Vec::new(),
+        force_n: Vec::new(),
+    };
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let row = parse_row(path, i + 1, line)?;
+        let t = row[0] * 1e-3;
+        if test.t_s.last().is_some_and(|&last| t <= last) {
+            return Err(log_err(
+                path,
+                Some(i + 1),
+                Some(COLUMNS[0]),
+                format!("time {} ms does not increase", row[0]),
+            ));
+        }
+        test.t_s.push(t);
+        test.x_m.push(row[4] * 1e-3);
+        test.gauge_pa.push(row[5] * 1e5);
+        test.force_n.push(row[6]);
+    }
+    Ok(test)
+}
+
+fn parse_row(path: &Path, line_no: usize, line: &str) -> Result<[f64; 7], IdentifyError> {
+    let fields: Vec<&str> = line.split_whitespace().collect();
+    if fields.len() != COLUMNS.len() {
+        return Err(log_err(
+            path,
+            Some(line_no),
+            None,
+            format!(
+                "expected {} whitespace-separated numbers ({}), got {}",
+                COLUMNS.len(),
+                COLUMNS.join(", "),
+                fields.len()
+            ),
+        ));
+    }
+    let mut row = [0.0; 7];
+    for (j, f) in fields.iter().enumerate() {
+        row[j] = f
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                log_err(
+                    path,
+                    Some(line_no),
+                    Some(COLUMNS[j]),
+                    format!("not a finite number: {f:?}"),
+                )
+            })?;
+    }
+    Ok(row)
+}
+
+/// The friction tests in `dir` (or its `friction/` folder): every `circle_<P>bar.csv`, by pressure.
+pub fn read_seal_tests(dir: &Path) -> Result<Vec<SealTest>, IdentifyError> {
+    let sub = dir.join("friction");
+    let dir = if sub.is_dir() { sub } else { dir.to_path_buf() };
+    let entries = std::fs::read_dir(&dir)
+        .map_err(|e| IdentifyError::Input(format!("{}: cannot read: {e}", dir.display())))?;
+    let mut found: Vec<(f64, PathBuf)> = Vec::new();
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let bar = name
+            .strip_prefix("circle_")
+            .and_then(|n| n.strip_suffix("bar.csv"))
+            .and_then(|p| p.parse::<f64>().ok());
+        if let Some(bar) = bar {
+            found.push((bar * 1e5, e.path()));
+        }
+    }
+    if found.is_empty() {
+        return Err(IdentifyError::Input(format!(
+            "{}: no friction test (circle_<P>bar.csv) in it",
+            dir.display()
+        )));
+    }
+    found.sort_by(|a, b| a.0.total_cmp(&b.0));
+    found.iter().map(|(p, f)| read_seal_test(f, *p)).collect()
+}
+
+/// The median of `w` (a short window).
+fn median(w: &[f64]) -> f64 {
+    let mut v = w.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The moving samples of test `index` (module doc).
+pub fn moving_samples(test: &SealTest, index: usize, o: &SealOptions) -> Vec<Sample> {
+    let start = o.skip_rows.min(test.t_s.len());
+    let (t, x) = (&test.t_s[start..], &test.x_m[start..]);
+    let (m, h) = (o.median_half_width, o.velocity_half_width);
+    let n = t.len();
+    if n < 2 * (m + h) + 1 {
+        return Vec::new();
+    }
+    let xm: Vec<f64> = (m..n - m).map(|i| median(&x[i - m..=i + m])).collect();
+    let area = o.area_m2();
+    let mut out = Vec::new();
+    for i in (m + h)..(n - m - h) {
+        // xm[j] is the median at row j + m.
+        let v = (xm[i + h - m] - xm[i - h - m]) / (t[i + h] - t[i - h]);
+        if v.abs() < o.still_below_m_per_s {
+            continue;
+        }
+        let k = start + i;
+        out.push(Sample {
+            test: index,
+            direction: v.signum(),
+            gauge_pa: test.gauge_pa[k],
+            velocity_m_per_s: v,
+            friction_n: test.force_n[k] - test.gauge_pa[k] * area,
+            t_s: test.t_s[k],
+        });
+    }
+    out
+}
+
+/// Mean, sample standard deviation and least-squares slope against `t` of `f`.
+fn stats(f: &[f64], t: &[f64]) -> (f64, f64, f64) {
+    let n = f.len() as f64;
+    let mean = f.iter().sum::<f64>() / n;
+    let var = f.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+    let mt = t.iter().sum::<f64>() / n;
+    let stt: f64 = t.iter().map(|v| (v - mt).powi(2)).sum();
+    let sft: f64 = t.iter().zip(f).map(|(a, b)| (a - mt) * (b - mean)).sum();
+    let slope = if stt > 0.0 { sft / stt } else { 0.0 };
+    (mean, var.sqrt(), slope)
+}
+
+fn cell(index: usize, test: &SealTest, direction: f64, s: &[&Sample]) -> Cell {
+    let f: Vec<f64> = s.iter().map(|s| s.friction_n).collect();
+    let t: Vec<f64> = s.iter().map(|s| s.t_s).collect();
+    let (mean, std, drift) = stats(&f, &t);
+    let n = s.len() as f64;
+    let cov: f64 = f.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum();
+    let r1 = (cov / (std * std * (n - 1.0))).clamp(-0.99, 0.99);
+    Cell {
+        test: index,
+        file: test
+            .file
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        nominal_pa: test.nominal_pa,
+        direction,
+        samples: s.len(),
+        mean_friction_n: mean,
+        std_friction_n: std,
+        mean_gauge_pa: s.iter().map(|s| s.gauge_pa).sum::<f64>() / n,
+        mean_velocity_m_per_s: s.iter().map(|s| s.velocity_m_per_s).sum::<f64>() / n,
+        drift_n_per_s: drift,
+        effective_samples: n * (1.0 - r1) / (1.0 + r1),
+    }
+}
+
+/// The regressors of a law at direction `s`, pressure `p` (Pa) and test `i` of `tests`: `[s, s p, offsets]`.
+fn regressors(
+    pressure: bool,
+    offsets: Offsets,
+    tests: usize,
+    s: f64,
+    p: f64,
+    i: usize,
+) -> Vec<f64> {
+    let mut r = vec![s];
+    if pressure {
+        r.push(s * p);
+    }
+    match offsets {
+        Offsets::None => {}
+        Offsets::Common => r.push(1.0),
+        Offsets::PerTest => r.extend((0..tests).map(|j| if j == i { 1.0 } else { 0.0 })),
+    }
+    r
+}
+
+/// Least squares `X b = y` with the columns scaled to unit norm (p in Pa is 1e5 times s); an error names
+/// what the data cannot separate when X is rank-deficient.
+fn least_squares(
+    x: &DMatrix<f64>,
+    y: &DVector<f64>,
+    names: &[String],
+) -> Result<DVector<f64>, IdentifyError> {
+    let scale: Vec<f64> = (0..x.ncols())
+        .map(|j| x.column(j).norm().max(f64::MIN_POSITIVE))
+        .collect();
+    let mut xs = x.clone();
+    for (j, s) in scale.iter().enumerate() {
+        xs.column_mut(j).unscale_mut(*s);
+    }
+    let svd = xs.clone().svd(true, true);
+    let (max, min) = (svd.singular_values.max(), svd.singular_values.min());
+    if x.nrows() < x.ncols() || min <= 1e-10 * max {
+        return Err(IdentifyError::Fit(format!(
+            "the friction law ({}) cannot be fitted: the cells do not separate its terms (rank-deficient: \
+             {} cells for {} terms, condition {:.1e}); a pressure term needs tests at two pressures or more, \
+             a per-test offset both directions in every test",
+            names.join(", "),
+            x.nrows(),
+            x.ncols(),
+            max / min.max(f64::MIN_POSITIVE)
+        )));
+    }
+    let b = svd
+        .solve(y, 0.0)
+        .map_err(|e| IdentifyError::Fit(e.to_string()))?;
+    Ok(DVector::from_iterator(
+        b.len(),
+        b.iter().zip(&scale).map(|(b, s)| b / s),
+    ))
+}
+
+/// Fits one law to the cells; residuals against the cells and the samples.
+pub fn fit_law(
+    pressure: bool,
+    offsets: Offsets,
+    tests: usize,
+    cells: &[Cell],
+    samples: &[Sample],
+) -> Result<LawFit, IdentifyError> {
+    let rows: Vec<Vec<f64>> = cells
+        .iter()
+        .map(|c| {
+            regressors(
+                pressure,
+                offsets,
+                tests,
+                c.direction,
+                c.mean_gauge_pa,
+                c.test,
+            )
+        })
+        .collect();
+    let x = DMatrix::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j]);
+    let y = DVector::from_iterator(cells.len(), cells.iter().map(|c| c.mean_friction_n));
+    let mut names = vec!["s F_c".to_string()];
+    if pressure {
+        names.push("s k_p p".into());
+    }
+    if offsets != Offsets::None {
+        names.push("offsets".into());
+    }
+    let b = least_squares(&x, &y, &names)?;
+    let law = |s: f64, p: f64, i: usize| {
+        regressors(pressure, offsets, tests, s, p, i)
+            .iter()
+            .zip(b.iter())
+            .map(|(r, b)| r * b)
+            .sum::<f64>()
+    };
+    let lead = if pressure { 2 } else { 1 };
+    let mut fit = LawFit {
+        pressure_term: pressure,
+        offsets,
+        coulomb_n: b[0],
+        coulomb_pressure_n_per_pa: if pressure { b[1] } else { 0.0 },
+        offset_n: b.iter().skip(lead).copied().collect(),
+        rms_cell_means_n: 0.0,
+        rms_samples_n: 0.0,
+        residuals: Vec::new(),
+    };
+    residuals(&mut fit, cells, samples, &law);
+    Ok(fit)
+}
+
+fn residuals(
+    fit: &mut LawFit,
+    cells: &[Cell],
+    samples: &[Sample],
+    law: &dyn Fn(f64, f64, usize) -> f64,
+) {
+    let (mut sum_m, mut sum_s, mut n_s) = (0.0, 0.0, 0usize);
+    for c in cells {
+        let i = c.test;
+        let r = c.mean_friction_n - law(c.direction, c.mean_gauge_pa, i);
+        let own: Vec<f64> = samples
+            .iter()
+            .filter(|s| s.test == i && s.direction == c.direction)
+            .map(|s| s.friction_n - law(s.direction, s.gauge_pa, i))
+            .collect();
+        let ss: f64 = own.iter().map(|e| e * e).sum();
+        sum_m += r * r;
+        sum_s += ss;
+        n_s += own.len();
+        fit.residuals.push(CellResidual {
+            nominal_pa: c.nominal_pa,
+            direction: c.direction,
+            mean_residual_n: r,
+            rms_samples_n: (ss / own.len().max(1) as f64).sqrt(),
+            standard_errors: r / c.standard_error_n(),
+        });
+    }
+    fit.rms_cell_means_n = (sum_m / cells.len() as f64).sqrt();
+    fit.rms_samples_n = (sum_s / n_s.max(1) as f64).sqrt();
+}
+
+/// The cells of every test, + direction first; an error names a test without motion in a direction.
+pub fn cells(tests: &[SealTest], samples: &[Sample]) -> Result<Vec<Cell>, IdentifyError> {
+    let mut out = Vec::new();
+    for (i, t) in tests.iter().enumerate() {
+        for d in [1.0, -1.0] {
+            let own: Vec<&Sample> = samples
+                .iter()
+                .filter(|s| s.test == i && s.direction == d)
+                .collect();
+            if own.len() < 2 {
+                return Err(IdentifyError::Fit(format!(
+                    "{}: {} moving samples towards {} x: a friction law needs both directions in every test",
+                    t.file.display(),
+                    own.len(),
+                    if d > 0.0 { "+" } else { "-" }
+                )));
+            }
+            out.push(cell(i, t, d, &own));
+        }
+    }
+    Ok(out)
+}
+
+/// Whether `fit` explains the cell means to their standard errors (3 sigma).
+fn adequacy(fit: &LawFit, cells: &[Cell], samples: &[Sample]) -> Adequacy {
+    let worst = fit
+        .residuals
+        .iter()
+        .max_by(|a, b| a.standard_errors.abs().total_cmp(&b.standard_errors.abs()))
+        .expect("cells");
+    let within: f64 = samples
+        .iter()
+        .map(|s| {
+            let c = cells
+                .iter()
+                .find(|c| c.test == s.test && c.direction == s.direction)
+                .expect("a cell per test and direction");
+            (s.friction_n - c.mean_friction_n).powi(2)
+        })
+        .sum();
+    let within = (within / samples.len() as f64).sqrt();
+    let drift = cells
+        .iter()
+        .max_by(|a, b| a.drift_n_per_s.abs().total_cmp(&b.drift_n_per_s.abs()))
+        .expect("cells");
+    let adequate = worst.standard_errors.abs() <= 3.0;
+    let verdict = if adequate {
+        format!(
+            "the law explains every cell mean within 3 standard errors (worst {:.1})",
+            worst.standard_errors.abs()
+        )
+    } else {
+        format!(
+            "the law does not explain the data to its precision: the cell at {:.0} bar, {} x is off by \
+             {:+.3} N, {:.0} standard errors of its mean (from its effective samples); the cell means differ from the law by {:.3} N RMS, more than \
+             pressure and direction explain. The friction drifts within a run by up to {:+.2} N/min ({:.0} \
+             bar, {} x), and the samples scatter {:.3} N RMS about their own cell means",
+            worst.nominal_pa / 1e5,
+            if worst.direction > 0.0 { "+" } else { "-" },
+            worst.mean_residual_n,
+            worst.standard_errors.abs(),
+            fit.rms_cell_means_n,
+            60.0 * drift.drift_n_per_s,
+            drift.nominal_pa / 1e5,
+            if drift.direction > 0.0 { "+" } else { "-" },
+            within
+        )
+    };
+    Adequacy {
+        adequate,
+        worst_standard_errors: worst.standard_errors.abs(),
+        worst_pa: worst.nominal_pa,
+        worst_direction: worst.direction,
+        within_cell_rms_n: within,
+        verdict,
+    }
+}
+
+/// Fits the seal's friction laws to the tests (module doc).
+pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, IdentifyError> {
+    let samples: Vec<Sample> = tests
+        .iter()
+        .enumerate()
+        .flat_map(|(i, t)| moving_samples(t, i, o))
+        .collect();
+    let cells = cells(tests, &samples)?;
+    let n = tests.len();
+    let constant = fit_law(false, Offsets::PerTest, n, &cells, &samples)?;
+    let pressure = fit_law(true, Offsets::PerTest, n, &cells, &samples)?;
+    let adequacy = adequacy(&pressure, &cells, &samples);
+    let rest_minus_midline_n = tests
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let mid = 0.5 * (cells[2 * i].mean_friction_n + cells[2 * i + 1].mean_friction_n);
+            t.force_n[0] - t.gauge_pa[0] * o.area_m2() - mid
+        })
+        .collect();
+    Ok(SealReport {
+        rest_minus_midline_n,
+        area_m2: o.area_m2(),
+        moving_samples: samples.len(),
+        constant_no_offset: fit_law(false, Offsets::None, n, &cells, &samples)?,
+        pressure_no_offset: fit_law(true, Offsets::None, n, &cells, &samples)?,
+        pressure_term_rms_reduction: 1.0 - pressure.rms_cell_means_n / constant.rms_cell_means_n,
+        pressure_term_rms_reduction_samples: 1.0 - pressure.rms_samples_n / constant.rms_samples_n,
+        cells,
+        constant,
+        pressure,
+        adequacy,
+    })
+}

@@ -1,0 +1,390 @@
+//! The 1-DOF model with the effects beyond the paper (issue 26, [`crate::Effects`]), integrated like the
+//! paper's model (classic RK4, the step split where the spool's schedule changes) on the state
+//! `(x, x', p_a, p_b, T_a, T_b, p_la, T_la, p_lb, T_lb, z)`: the lines' gas and the LuGre bristle
+//! deflection on top of the paper's state.
+//!
+//! Every gas node (chamber or line) obeys the energy and mass balance of an ideal gas with exponent n
+//! (eqs. 2-3, 9-10 generalised), with the wall heat Q' (W) added to the energy balance:
+//!
+//! ```text
+//! dp/dt = n/V (R H - p V') + (n - 1)/V Q'      (U = p V/(k-1), dU/dt = c_p H - p V' + Q', n = k)
+//! dT/dt = (T/p) (p' + (p V' - R T M')/V)       (M = p V/(R T) changes by the net inflow M')
+//! Q'    = h A_w (T_w - T)                      (Newton cooling)
+//! A_w,a = 2 S_a + pi D (x + V_a0/S_a),   A_w,b = 2 S_b + pi (D + d) (L - x + V_b0/S_b)
+//! ```
+//!
+//! The wall area is that of the chamber as a cylinder (an annulus on the rod side) of its own volume: both
+//! end faces and the barrel, the dead volume counted as barrel length (tubing's own wall is not in it: an
+//! effective h absorbs it). With the wall heat, n must be the heat-capacity ratio k (1.4 for air): the
+//! balance is then adiabatic at h = 0 and isothermal (T -> T_w) for h A_w much larger than M c_v's rate.
+//!
+//! Flows: the valve's paths connect the supply and the exhaust to the valve-side nodes (the lines, or the
+//! chambers without lines); each line reaches its chamber through its own ISO 6358 restriction; the leaks
+//! are ISO 6358 restrictions between A and B and from each chamber to the atmosphere (eq. 11 for every one,
+//! the upstream node's temperature). Friction: the sheet's law with `F_c` (and `F_s`) raised by
+//! `k_p |p_a - p_b|`, or LuGre ([`crate::Friction::LuGre`]).
+
+use crate::actuator::{Actuator, ChamberState, ChamberStep, P_FLOOR, T_FLOOR};
+use crate::flow::{ISO_T0_K, OrificeStep};
+use crate::mechanics::{Friction, OneDofModel, OneDofState};
+use crate::spool::{self, SpoolLaw, Timing};
+
+/// The state of the extended model beyond the paper's (part of [`OneDofState`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ExtendedState {
+    /// Gas in the lines to A (`p_a`, `t_a`) and to B (`p_b`, `t_b`); `None` until a step with lines:
+    /// the lines then start at their chambers' state.
+    pub lines: Option<ChamberState>,
+    /// LuGre bristle deflection z, m.
+    pub bristle_m: f64,
+}
+
+/// Wall-heat constants of a step.
+#[derive(Clone, Copy)]
+struct Heat {
+    /// h, W/(m^2 K).
+    h: f64,
+    /// T_w, K.
+    tw: f64,
+    /// End faces of A and B, 2 S_a and 2 S_b, m^2.
+    faces: (f64, f64),
+    /// Wetted perimeters of A and B, pi D and pi (D + d), m.
+    perimeter: (f64, f64),
+    /// Barrel lengths of the dead volumes, V_a0/S_a and V_b0/S_b, m.
+    dead_length: (f64, f64),
+    /// Stroke L, m.
+    stroke: f64,
+}
+
+impl Heat {
+    /// Heat flows into A and B, W, at extension `x` and gas temperatures `ta`, `tb`.
+    #[inline(always)]
+    fn inflows(&self, x: f64, ta: f64, tb: f64) -> (f64, f64) {
+        let xc = x.clamp(0.0, self.stroke);
+        let area_a = self.faces.0 + self.perimeter.0 * (xc + self.dead_length.0);
+        let area_b = self.faces.1 + self.perimeter.1 * (self.stroke - xc + self.dead_length.1);
+        (
+            self.h * area_a * (self.tw - ta),
+            self.h * area_b * (self.tw - tb),
+        )
+    }
+}
+
+/// An ISO 6358 restriction's step constants and its full-opening gain C rho0 (kg/(s Pa)).
+type Restriction = (OrificeStep, f64);
+
+/// What stays constant over one step.
+struct Fixed {
+    heat: Option<Heat>,
+    /// Leaks piston, A -> atmosphere, B -> atmosphere.
+    leaks: [Option<Restriction>; 3],
+    /// The lines' restriction and 1 / V_line.
+    line: Option<(Restriction, f64)>,
+    /// k_p, N/Pa (0 without the pressure term).
+    k_p: f64,
+    /// G_alpha + f_ext, N.
+    f_load: f64,
+    /// 1 / m, 1/kg.
+    inv_mass: f64,
+}
+
+impl Fixed {
+    fn new(m: &OneDofModel, f_load: f64) -> Self {
+        let e = &m.effects;
+        let c = &m.actuator.cylinder;
+        let restriction = |o: &crate::Orifice| {
+            let s = OrificeStep::new(o);
+            (s, s.gain(1.0))
+        };
+        let pi = core::f64::consts::PI;
+        Self {
+            heat: e
+                .wall_heat
+                .filter(|w| w.coefficient_w_per_m2_k > 0.0)
+                .map(|w| Heat {
+                    h: w.coefficient_w_per_m2_k,
+                    tw: w.wall_temperature_k,
+                    faces: (2.0 * c.area_a(), 2.0 * c.area_b()),
+                    perimeter: (pi * c.bore_m, pi * (c.bore_m + c.rod_m)),
+                    dead_length: (
+                        c.dead_volume_a_m3 / c.area_a(),
+                        c.dead_volume_b_m3 / c.area_b(),
+                    ),
+                    stroke: c.stroke_m,
+                }),
+            leaks: std::array::from_fn(|i| e.leaks.get(i).map(|o| restriction(&o))),
+            line: e
+                .lines
+                .map(|l| (restriction(&l.orifice), 1.0 / l.volume_m3)),
+            k_p: e.coulomb_pressure_n_per_pa.unwrap_or(0.0),
+            f_load,
+            inv_mass: 1.0 / m.mechanics.moving_mass_kg,
+        }
+    }
+}
+
+/// The full state integrated by RK4.
+#[derive(Clone, Copy)]
+struct Full {
+    x: f64,
+    v: f64,
+    c: ChamberState,
+    /// The lines (unused without lines).
+    l: ChamberState,
+    z: f64,
+}
+
+impl Full {
+    #[inline(always)]
+    fn axpy(&self, h: f64, d: &Self) -> Self {
+        Self {
+            x: self.x + h * d.x,
+            v: self.v + h * d.v,
+            c: axpy(&self.c, h, &d.c),
+            l: axpy(&self.l, h, &d.l),
+            z: self.z + h * d.z,
+        }
+    }
+}
+
+#[inline(always)]
+fn axpy(c: &ChamberState, h: f64, d: &ChamberState) -> ChamberState {
+    ChamberState {
+        p_a: c.p_a + h * d.p_a,
+        p_b: c.p_b + h * d.p_b,
+        t_a: c.t_a + h * d.t_a,
+        t_b: c.t_b + h * d.t_b,
+    }
+}
+
+/// The chamber constants along one piece: held, or rebuilt from the spool's law at each stage.
+struct PieceSpool<'a> {
+    actuator: &'a Actuator,
+    law: SpoolLaw,
+    held: Option<ChamberStep>,
+}
+
+impl<'a> PieceSpool<'a> {
+    fn new(actuator: &'a Actuator, law: SpoolLaw) -> Self {
+        let held = law.is_held().then(|| actuator.step_consts(law.at(0.0)));
+        Self {
+            actuator,
+            law,
+            held,
+        }
+    }
+    #[inline(always)]
+    fn at(&self, t: f64) -> ChamberStep {
+        match self.held {
+            Some(cs) => cs,
+            None => self.actuator.step_consts(self.law.at(t)),
+        }
+    }
+}
+
+/// Signed flow node 1 -> node 2 (kg/s) through a restriction of gain `k`, and its enthalpy carrier
+/// q T_upstream (kg K/s), eq. (11).
+#[inline(always)]
+fn between(r: &Restriction, p1: f64, t1: f64, p2: f64, t2: f64) -> (f64, f64) {
+    let (or, k) = r;
+    if p1 >= p2 {
+        let q = or.flow(*k, ISO_T0_K / t1, p1, p2);
+        (q, q * t1)
+    } else {
+        let q = or.flow(*k, ISO_T0_K / t2, p2, p1);
+        (-q, -q * t2)
+    }
+}
+
+/// Pressure and temperature rates of a gas node (module doc): volume 1/`inv_v`, volume rate `dv`, net mass
+/// inflow `m_in`, enthalpy carrier `h_in`, heat inflow `q_heat`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn node(
+    n: f64,
+    r: f64,
+    p: f64,
+    t: f64,
+    inv_v: f64,
+    dv: f64,
+    m_in: f64,
+    h_in: f64,
+    q_heat: f64,
+) -> (f64, f64) {
+    // eq. (9)/(10): dp/dt = n/V (R H - p V'), and the wall heat (n - 1) Q'/V.
+    let mut dp = n * inv_v * (r * h_in - p * dv);
+    if q_heat != 0.0 {
+        dp += (n - 1.0) * inv_v * q_heat;
+    }
+    // eqs. (2)-(3): M = pV/(RT), dM/dt = M'.
+    let dt = t / p * (dp + inv_v * (p * dv - r * t * m_in));
+    (dp, dt)
+}
+
+/// Friction force and bristle rate at velocity `v`, drive `drive`, chambers `c` and deflection `z`.
+#[inline(always)]
+fn friction(f: &Friction, k_p: f64, c: &ChamberState, v: f64, drive: f64, z: f64) -> (f64, f64) {
+    let law = if k_p > 0.0 {
+        f.with_normal_force(k_p * (c.p_a - c.p_b).abs())
+    } else {
+        *f
+    };
+    law.lugre(v, z)
+        .unwrap_or_else(|| (law.force(v, drive), 0.0))
+}
+
+/// Rates of the full state.
+#[inline(always)]
+fn rates(m: &OneDofModel, f: &Fixed, cs: &ChamberStep, s: &Full) -> Full {
+    let (n, r) = (cs.n, cs.r);
+    let floor = |c: &ChamberState| {
+        (
+            c.p_a.max(P_FLOOR),
+            c.t_a.max(T_FLOOR),
+            c.p_b.max(P_FLOOR),
+            c.t_b.max(T_FLOOR),
+        )
+    };
+    let (pa, ta, pb, tb) = floor(&s.c);
+    // The valve feeds the lines, or the chambers without lines.
+    let (pf, (ha, hb)) = cs.flows_enthalpy(if f.line.is_some() { &s.l } else { &s.c });
+    let (mut ma, mut ea, mut mb, mut eb) = (pf.into_a(), ha, pf.into_b(), hb);
+    let mut dl = ChamberState::with_temperature(0.0, 0.0, 0.0);
+    if let Some((line, inv_vl)) = &f.line {
+        let (pla, tla, plb, tlb) = floor(&s.l);
+        let (qa, qta) = between(line, pla, tla, pa, ta);
+        let (qb, qtb) = between(line, plb, tlb, pb, tb);
+        (dl.p_a, dl.t_a) = node(n, r, pla, tla, *inv_vl, 0.0, ma - qa, ea - qta, 0.0);
+        (dl.p_b, dl.t_b) = node(n, r, plb, tlb, *inv_vl, 0.0, mb - qb, eb - qtb, 0.0);
+        (ma, ea, mb, eb) = (qa, qta, qb, qtb);
+    }
+    if let Some(leak) = &f.leaks[0] {
+        let (q, qt) = between(leak, pa, ta, pb, tb);
+        (ma, ea, mb, eb) = (ma - q, ea - qt, mb + q, eb + qt);
+    }
+    if let Some(leak) = &f.leaks[1] {
+        let (q, qt) = between(leak, pa, ta, cs.pr, cs.tr);
+        (ma, ea) = (ma - q, ea - qt);
+    }
+    if let Some(leak) = &f.leaks[2] {
+        let (q, qt) = between(leak, pb, tb, cs.pr, cs.tr);
+        (mb, eb) = (mb - q, eb - qt);
+    }
+    let (va, vb, dva, dvb) = cs.volumes(s.x, s.v);
+    let (qa_heat, qb_heat) = f.heat.map_or((0.0, 0.0), |h| h.inflows(s.x, ta, tb));
+    let (dpa, dta) = node(n, r, pa, ta, 1.0 / va, dva, ma, ea, qa_heat);
+    let (dpb, dtb) = node(n, r, pb, tb, 1.0 / vb, dvb, mb, eb, qb_heat);
+    // eq. (1): m x'' = F_1 - F_2 + G_alpha - f - K_v x'.
+    let mech = &m.mechanics;
+    let drive = cs.piston_force(&s.c) + f.f_load;
+    let (fr, dz) = friction(&mech.friction, f.k_p, &s.c, s.v, drive, s.z);
+    Full {
+        x: s.v,
+        v: (drive - fr - mech.viscous_n_s_per_m * s.v) * f.inv_mass,
+        c: ChamberState {
+            p_a: dpa,
+            p_b: dpb,
+            t_a: dta,
+            t_b: dtb,
+        },
+        l: dl,
+        z: dz,
+    }
+}
+
+/// One classic RK4 step of length `dt` from `s0` at time `t`.
+fn rk4(m: &OneDofModel, f: &Fixed, sp: &PieceSpool, t: f64, s0: Full, dt: f64) -> Full {
+    let h = 0.5 * dt;
+    let k1 = rates(m, f, &sp.at(t), &s0);
+    let k2 = rates(m, f, &sp.at(t + h), &s0.axpy(h, &k1));
+    let k3 = rates(m, f, &sp.at(t + h), &s0.axpy(h, &k2));
+    let k4 = rates(m, f, &sp.at(t + dt), &s0.axpy(dt, &k3));
+    let w = dt / 6.0;
+    let comb = |a: f64, b: f64, c: f64, d: f64, y: f64| y + w * (a + 2.0 * b + 2.0 * c + d);
+    let chambers = |y: &ChamberState,
+                    a: &ChamberState,
+                    b: &ChamberState,
+                    c: &ChamberState,
+                    d: &ChamberState| {
+        ChamberState {
+            p_a: comb(a.p_a, b.p_a, c.p_a, d.p_a, y.p_a),
+            p_b: comb(a.p_b, b.p_b, c.p_b, d.p_b, y.p_b),
+            t_a: comb(a.t_a, b.t_a, c.t_a, d.t_a, y.t_a),
+            t_b: comb(a.t_b, b.t_b, c.t_b, d.t_b, y.t_b),
+        }
+    };
+    Full {
+        x: comb(k1.x, k2.x, k3.x, k4.x, s0.x),
+        v: comb(k1.v, k2.v, k3.v, k4.v, s0.v),
+        c: chambers(&s0.c, &k1.c, &k2.c, &k3.c, &k4.c),
+        l: chambers(&s0.l, &k1.l, &k2.l, &k3.l, &k4.l),
+        z: comb(k1.z, k2.z, k3.z, k4.z, s0.z),
+    }
+}
+
+/// [`OneDofModel::step_with_gravity`] for a model with effects: RK4 pieces between the spool's scheduled
+/// moves ([`crate::spool`]), then the paper's end stops and Karnopp sticking (with the break-away force
+/// raised by the pressure term).
+pub(crate) fn step(
+    model: &OneDofModel,
+    state: &mut OneDofState,
+    u: f64,
+    f_ext: f64,
+    gravity_n: f64,
+    dt: f64,
+) {
+    let timing = Timing::of(&model.actuator.valve, &model.effects);
+    let fixed = Fixed::new(model, gravity_n + f_ext);
+    let mut s = Full {
+        x: state.x,
+        v: state.x_dot,
+        c: state.chambers,
+        l: state.extra.lines.unwrap_or(state.chambers),
+        z: state.extra.bristle_m,
+    };
+    let t_end = state.t + dt;
+    let (mut tau, mut rest) = (state.t, dt);
+    loop {
+        let (law, edge) = spool::piece(&timing, &mut state.valve, u, tau, rest);
+        let h = edge.map_or(rest, |e| e - tau);
+        let sp = PieceSpool::new(&model.actuator, law);
+        s = rk4(model, &fixed, &sp, tau, s, h);
+        state.valve.spool = law.at(tau + h);
+        match edge {
+            Some(e) if e < t_end => {
+                tau = e;
+                rest = t_end - e;
+            }
+            _ => break,
+        }
+    }
+    let stroke = model.actuator.cylinder.stroke_m;
+    // End stops: inelastic, the stop absorbs any velocity into it.
+    if s.x <= 0.0 {
+        s.x = 0.0;
+        s.v = s.v.max(0.0);
+    } else if s.x >= stroke {
+        s.x = stroke;
+        s.v = s.v.min(0.0);
+    }
+    // Karnopp sticking: inside the band with the drive below break-away (raised by the pressure term).
+    if let Friction::StickSlip {
+        static_n,
+        stick_velocity_m_per_s,
+        ..
+    } = model.mechanics.friction
+    {
+        let break_away = static_n + fixed.k_p * (s.c.p_a - s.c.p_b).abs();
+        if s.v.abs() < stick_velocity_m_per_s
+            && (model.actuator.piston_force(&s.c) + fixed.f_load).abs() <= break_away
+        {
+            s.v = 0.0;
+        }
+    }
+    state.x = s.x;
+    state.x_dot = s.v;
+    state.chambers = s.c;
+    state.extra.lines = fixed.line.map(|_| s.l);
+    state.extra.bristle_m = s.z;
+    state.t += dt;
+}
