@@ -8,10 +8,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use pneuflex_files::OutputDir;
-use pneuflex_files::output::{Manifest, Partial, Writer};
+use pneuflex_outputs::{Outputs, Stopped};
 use pneuflex_pil::{PilRun, U_TOLERANCE};
-use pneuflex_scene::{Scene, write_results};
+use pneuflex_scene::Scene;
 
 /// Where the firmware image is looked for when --firmware is not given: beside the current directory (a
 /// checkout), then relative to this executable (target/<profile>/pneuflex in a checkout).
@@ -57,20 +56,13 @@ pub fn pil(
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out/pil").join(&scene.name));
+    let outputs = Outputs::stage(&scene, scene_path, &dest, "rig pil", &[&elf])?;
     if let Some(words) = rerun
         && words.first().map(String::as_str) == Some("save")
         && let Some(target) = words.get(1)
     {
-        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-        if abs(Path::new(target)).starts_with(abs(&dest)) {
-            bail!(
-                "--rerun save {target}: the recording would be inside the output directory {}, which is \
-                 replaced as a whole by the next run; save it elsewhere",
-                dest.display()
-            );
-        }
+        outputs.refuse_inside(Path::new(target), "--rerun save")?;
     }
-    let stage = OutputDir::create(&dest, &[scene_path, &elf], Writer::simulation("rig pil"))?;
 
     let stop = super::stop_flag()?;
     let mut runs: Vec<PilRun> = Vec::new();
@@ -100,11 +92,11 @@ pub fn pil(
             Ok(r) => r,
             Err(pneuflex_pil::PilError::Interrupted(cut)) => {
                 let _ = view.finish();
-                return interrupted(stage, &scene, &indices, &runs, Some(*cut), &dest, &stop);
+                return interrupted(outputs, &scene, &indices, &runs, Some(*cut), &stop);
             }
             Err(pneuflex_pil::PilError::Stopped) => {
                 let _ = view.finish();
-                return interrupted(stage, &scene, &indices, &runs, None, &dest, &stop);
+                return interrupted(outputs, &scene, &indices, &runs, None, &stop);
             }
             Err(e) => {
                 return Err(anyhow::Error::new(e)
@@ -121,23 +113,13 @@ pub fn pil(
     done.runs = indices.iter().map(|&i| scene.runs[i].clone()).collect();
     done.claims.clear();
     let results: Vec<_> = runs.iter().map(|r| r.firmware.clone()).collect();
-    write_results(stage.path(), &done, &results)?;
-    if results.iter().any(|r| r.diverged.is_none()) {
-        pneuflex_viz::write_figures(stage.path(), &done, &results, pneuflex_viz::Format::Png)
-            .context("writing figures")?;
-    }
     let report = comparison_json(&done, &runs);
     let json = serde_json::to_string_pretty(&report).context("comparison.json")?;
-    std::fs::write(stage.path().join("comparison.json"), json + "\n")
+    std::fs::write(outputs.dir().join("comparison.json"), json + "\n")
         .context("writing comparison.json")?;
     let table = comparison_table(&done, &runs);
-    std::fs::write(stage.path().join("comparison.md"), &table).context("writing comparison.md")?;
-    let summary = pneuflex_scene::summary(&done, &results);
-    let dest = stage.commit(Manifest::new(
-        "rig pil",
-        env!("CARGO_PKG_VERSION"),
-        summary.inputs.clone(),
-    ))?;
+    std::fs::write(outputs.dir().join("comparison.md"), &table).context("writing comparison.md")?;
+    let dest = outputs.commit(&done, &results)?;
     outln!("{table}");
     outln!("outputs in {}", dest.display());
     let bad: Vec<String> = done
@@ -175,12 +157,11 @@ pub fn pil(
 /// Commits an interrupted PIL command as `<dest>.partial`: the runs done, and the cut run's trace
 /// (`trace.interrupted.csv`), with summary.json marked incomplete; no comparison of a cut run.
 fn interrupted(
-    stage: OutputDir,
+    outputs: Outputs,
     scene: &Scene,
     indices: &[usize],
     runs: &[PilRun],
     cut: Option<pneuflex_scene::RunResult>,
-    dest: &Path,
     stop: &std::sync::atomic::AtomicUsize,
 ) -> anyhow::Result<()> {
     let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
@@ -192,23 +173,13 @@ fn interrupted(
         .collect();
     done.claims.clear();
     let mut results: Vec<_> = runs.iter().map(|r| r.firmware.clone()).collect();
-    let time_reached_s = cut
-        .as_ref()
-        .and_then(|c| c.trace.t().last().copied())
-        .unwrap_or(0.0);
     let cut_name = scene.runs[indices[runs.len()]].name.clone();
     results.extend(cut);
-    write_results(stage.path(), &done, &results)?;
-    let summary = pneuflex_scene::summary(&done, &results);
-    let reason = pneuflex_scene::signal_name(signal);
-    let to = stage.commit_partial(
-        Manifest::new("rig pil", env!("CARGO_PKG_VERSION"), summary.inputs.clone()),
-        Partial {
-            reason,
-            time_reached_s,
-            done: Some(format!("{} of {} runs", runs.len(), indices.len())),
-        },
-    )?;
+    let dest = outputs.dest().to_path_buf();
+    let done_runs = format!("{} of {} runs", runs.len(), indices.len());
+    let Stopped {
+        to, time_reached_s, ..
+    } = outputs.commit_partial(&done, &results, signal, Some(done_runs))?;
     Err(super::interrupted(
         signal,
         format!(

@@ -10,11 +10,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use pneuflex_files::OutputDir;
-use pneuflex_files::output::{Manifest, Partial, Writer};
-use pneuflex_scene::{Limits, RunOptions, RunResult, Scene, WindowKind, run_scene_with};
+use pneuflex_outputs::{Outcome, Outputs, Simulate, Simulated, Stopped, simulate_into};
+use pneuflex_scene::{Limits, RunResult, Scene, WindowKind};
 
 use super::Exit;
 
@@ -29,13 +28,6 @@ pub struct RunArgs {
     pub max_steps: Option<u64>,
     /// `--max-trace-mb`: trace memory allowed, MiB.
     pub max_trace_mb: Option<u64>,
-}
-
-/// The input files a run must never write over: the scene, and the sheet and URDF it names.
-pub(super) fn inputs_of(scene: &Scene, scene_path: &Path) -> Vec<PathBuf> {
-    let mut v = vec![scene_path.to_path_buf()];
-    v.extend(scene.input_files().into_iter().skip(1).map(|(_, p)| p));
-    v
 }
 
 /// The limits of one run from `--max-steps` and `--max-trace-mb` (the defaults where absent).
@@ -71,7 +63,8 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
     })
 }
 
-/// [`run`] once the scene is loaded and within its limits.
+/// [`run`] once the scene is loaded and within its limits: the output pipeline is
+/// [`pneuflex_outputs::simulate_into`]; here the progress bar, the Rerun view and what is printed.
 fn run_scene_file(
     scene: &Scene,
     scene_path: &Path,
@@ -84,22 +77,12 @@ fn run_scene_file(
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(&scene.name));
     // The output directory is checked and staged before anything runs: a bad --out fails at once.
-    let inputs = inputs_of(scene, scene_path);
-    let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    let stage = OutputDir::create(&dest, &protect, Writer::simulation("run"))?;
+    let outputs = Outputs::stage(scene, scene_path, &dest, "run", &[])?;
     if let Some(words) = rerun
         && words.first().map(String::as_str) == Some("save")
         && let Some(target) = words.get(1)
     {
-        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-        let t = abs(Path::new(target));
-        if t.starts_with(abs(&dest)) || t.starts_with(abs(&stage.partial_dest())) {
-            bail!(
-                "--rerun save {target}: the recording would be inside the output directory {}, which is \
-                 replaced as a whole by the next run; save it elsewhere (e.g. next to it)",
-                dest.display()
-            );
-        }
+        outputs.refuse_inside(Path::new(target), "--rerun save")?;
     }
     #[cfg(feature = "rerun")]
     let mut observer = match rerun {
@@ -138,125 +121,60 @@ fn run_scene_file(
         bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
     };
     let stop = super::stop_flag()?;
-    // Each run's trace is written as soon as the run is done, while the other runs still simulate: the runs
-    // end at different times, and the core that finished first would otherwise idle (docs/performance.md).
-    // The last run's trace waits for the end, beside the figures: they can start only then, and queued behind
-    // it they left one core alone with the last figure. The scope ends when every trace is written.
-    let dir = stage.path();
-    let trace_errors = std::sync::Mutex::new(Vec::new());
-    let write_trace_of = |r: &RunResult| {
-        if let Err(e) = pneuflex_scene::write_trace(dir, r) {
-            trace_errors
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .push((r.name.clone(), e));
+    let how = Simulate {
+        limits,
+        stop: Some(&stop),
+    };
+    #[cfg(feature = "rerun")]
+    let simulated = match observer.as_mut() {
+        Some(obs) => simulate_into(scene, outputs, how, &mut progress, obs)?,
+        None => simulate_into(scene, outputs, how, &mut progress, &mut ())?,
+    };
+    #[cfg(not(feature = "rerun"))]
+    let simulated = simulate_into(scene, outputs, how, &mut progress, &mut ())?;
+    bar.finish_and_clear();
+    let Simulated {
+        results,
+        simulation_time,
+        outcome,
+        ..
+    } = simulated;
+
+    // Rerun logging only reads the plant: the results are those of a run without it. Its cost is reported.
+    #[cfg(feature = "rerun")]
+    if let Some(obs) = observer {
+        let (cost, steps) = (obs.cost().as_secs_f64(), obs.steps());
+        obs.finish()?;
+        if !quiet {
+            let sim_s = (simulation_time.as_secs_f64() - cost).max(1e-9);
+            outln!(
+                "rerun: {steps} steps logged; {:.0} steps/s without logging, {:.0} with ({cost:.2} s of logging)",
+                steps as f64 / sim_s,
+                steps as f64 / (sim_s + cost)
+            );
+        }
+    }
+    let dest = match outcome {
+        Outcome::Committed(dest) => dest,
+        Outcome::Partial(Stopped {
+            to,
+            reason,
+            time_reached_s,
+        }) => {
+            let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
+            return Err(Exit {
+                code: 128 + signal.clamp(1, 64) as u8,
+                message: format!(
+                    "{reason}: stopped at t = {time_reached_s:.3} s of run `{}`; the partial results are in \
+                     {} (marked incomplete in summary.json); {} is untouched",
+                    results.last().map_or("", |r| r.name.as_str()),
+                    to.display(),
+                    dest.display()
+                ),
+            }
+            .into());
         }
     };
-    let ended = std::sync::atomic::AtomicUsize::new(0);
-    let last_run = std::sync::Mutex::new(None::<String>);
-    let (results, sim_time, summary, written, figures) = rayon::in_place_scope(
-        |writers| -> anyhow::Result<_> {
-            let write_trace = |r: &RunResult| {
-                if ended.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1 == scene.runs.len()
-                {
-                    *last_run.lock().unwrap_or_else(|e| e.into_inner()) = Some(r.name.clone());
-                    return;
-                }
-                let (r, write) = (r.clone(), &write_trace_of);
-                writers.spawn(move |_| write(&r));
-            };
-            let opts = RunOptions {
-                limits,
-                stop: Some(&stop),
-                on_run: Some(&write_trace),
-            };
-            #[cfg(feature = "rerun")]
-            let results = match observer.as_mut() {
-                Some(obs) => run_scene_with(scene, &opts, &mut progress, obs)?,
-                None => run_scene_with(scene, &opts, &mut progress, &mut ())?,
-            };
-            #[cfg(not(feature = "rerun"))]
-            let results = run_scene_with(scene, &opts, &mut progress, &mut ())?;
-            bar.finish_and_clear();
-            let sim_time = start.elapsed();
-
-            // Rerun logging only reads the plant: the results are those of a run without it. Its cost is
-            // reported.
-            #[cfg(feature = "rerun")]
-            if let Some(obs) = observer {
-                let (cost, steps) = (obs.cost().as_secs_f64(), obs.steps());
-                obs.finish()?;
-                if !quiet {
-                    let sim_s = (sim_time.as_secs_f64() - cost).max(1e-9);
-                    outln!(
-                        "rerun: {steps} steps logged; {:.0} steps/s without logging, {:.0} with ({cost:.2} s of logging)",
-                        steps as f64 / sim_s,
-                        steps as f64 / (sim_s + cost)
-                    );
-                }
-            }
-
-            let summary = pneuflex_scene::summary(scene, &results);
-            // summary.json beside the figures (different files), while the last traces are written. Figures
-            // only for a complete command with a run that did not diverge.
-            let figures = summary.complete && results.iter().any(|r| r.diverged.is_none());
-            let last_run = last_run.into_inner().unwrap_or_else(|e| e.into_inner());
-            let (figures, written) = rayon::join(
-                || {
-                    figures.then(|| {
-                        pneuflex_viz::write_figures(dir, scene, &results, pneuflex_viz::Format::Png)
-                    })
-                },
-                // The other core takes this first (a join's second half is what is stolen), then figures.
-                || {
-                    if let Some(r) = results.iter().find(|r| Some(&r.name) == last_run.as_ref()) {
-                        write_trace_of(r);
-                    }
-                    pneuflex_scene::write_summary(dir, scene, &results)
-                },
-            );
-            Ok((results, sim_time, summary, written, figures))
-        },
-    )?;
-    // The first failed trace in run order, then summary.json.
-    let mut trace_errors = trace_errors.into_inner().unwrap_or_else(|e| e.into_inner());
-    trace_errors.sort_by_key(|(name, _)| results.iter().position(|r| &r.name == name));
-    if let Some((_, e)) = trace_errors.into_iter().next() {
-        return Err(e.into());
-    }
-    written?;
-    let manifest = Manifest::new("run", env!("CARGO_PKG_VERSION"), summary.inputs.clone());
-    let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
-    if !summary.complete {
-        let reason = pneuflex_scene::signal_name(signal.max(2));
-        let time_reached_s = results
-            .last()
-            .and_then(|r| r.trace.t().last().copied())
-            .unwrap_or(0.0);
-        let to = stage.commit_partial(
-            manifest,
-            Partial {
-                reason: reason.clone(),
-                time_reached_s,
-                done: None,
-            },
-        )?;
-        return Err(Exit {
-            code: 128 + signal.clamp(1, 64) as u8,
-            message: format!(
-                "{reason}: stopped at t = {time_reached_s:.3} s of run `{}`; the partial results are in {} \
-                 (marked incomplete in summary.json); {} is untouched",
-                results.last().map_or("", |r| r.name.as_str()),
-                to.display(),
-                dest.display()
-            ),
-        }
-        .into());
-    }
-    if let Some(figures) = figures {
-        figures.context("writing figures")?;
-    }
-    let dest = stage.commit(manifest)?;
 
     if !quiet {
         outln!("{}", table(&results));
@@ -272,7 +190,7 @@ fn run_scene_file(
             scene.name,
             results.len(),
             scene.duration_s,
-            sim_time.as_secs_f64(),
+            simulation_time.as_secs_f64(),
             dest.display()
         );
     }

@@ -150,7 +150,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(format!("{}-sweep", scene.name)));
-    let inputs = super::run::inputs_of(scene, scene_path);
+    let inputs = pneuflex_outputs::input_files(scene, scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let stage = OutputDir::create(&dest, &protect, Writer::simulation("sweep"))?;
     let traces = args.traces.then(|| stage.path().join("points"));

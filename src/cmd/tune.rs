@@ -80,7 +80,7 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(format!("{}-tune", scene.name)));
-    let inputs = super::run::inputs_of(scene, scene_path);
+    let inputs = pneuflex_outputs::input_files(scene, scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let stage = OutputDir::create(&dest, &protect, Writer::simulation("tune"))?;
 

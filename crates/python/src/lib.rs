@@ -45,7 +45,7 @@ mod _native {
 
     #[cfg(feature = "figures")]
     #[pymodule_export]
-    use crate::scene::write_figures;
+    use crate::scene::{run_to, write_figures};
 
     #[pymodule_init]
     fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -188,6 +188,26 @@ pub fn summarize<'py>(
 }
 
 #[cfg(feature = "figures")]
+/// Runs every controller of the scene file and writes the output directory `pneuflex run --out OUT_DIR`
+/// writes (each run's trace, summary.json, the figures, the manifest), through the same pipeline
+/// (pneuflex-outputs); returns the directory. A directory pneuflex did not write is never replaced.
+#[pyfunction]
+pub fn run_to(py: Python<'_>, scene_path: PathBuf, out_dir: PathBuf) -> PyResult<String> {
+    use pneuflex_outputs::{Outcome, Outputs, Simulate, simulate_into};
+    let scene = load(&scene_path)?;
+    let outputs =
+        Outputs::stage(&scene, &scene_path, &out_dir, "run", &[]).map_err(errors::other)?;
+    let simulated = py
+        .detach(|| simulate_into(&scene, outputs, Simulate::default(), &mut |_| {}, &mut ()))
+        .map_err(errors::other)?;
+    match simulated.outcome {
+        Outcome::Committed(dest) => Ok(dest.display().to_string()),
+        // No stop flag is given: a run is never cut.
+        Outcome::Partial(s) => Err(errors::other(format!("stopped: {}", s.reason))),
+    }
+}
+
+#[cfg(feature = "figures")]
 /// Draws force.<fmt>, position.<fmt> and event-<i>.<fmt> of the scene into `out_dir` with one line per
 /// entry of `runs` ({legend label: dict of arrays}); returns the files written. `fmt` is "png" or "svg".
 #[pyfunction]

@@ -131,6 +131,36 @@ def run_returns_traces_and_summarize_reproduces_the_runner_metrics():
 
 
 @test
+def run_to_writes_what_the_cli_writes():
+    """run_to goes through the CLI's output pipeline: the same trace files and summary.json, byte for byte,
+    as `pneuflex run --out` (the debug binary the test command builds first); a directory pneuflex did not
+    write is refused, naming the file, and left as it was."""
+    import subprocess
+
+    cli = ROOT / "target" / "debug" / "pneuflex"
+    assert cli.is_file(), f"{cli}: build the CLI first (cargo build)"
+    with tempfile.TemporaryDirectory() as d:
+        ours, theirs = Path(d) / "py", Path(d) / "cli"
+        assert pneuflex.run_to(SCENE, str(ours)) == str(ours)
+        subprocess.run([str(cli), "run", SCENE, "--out", str(theirs), "--quiet"], check=True)
+        files = sorted(p.relative_to(theirs) for p in theirs.rglob("*.csv")) + [Path("summary.json")]
+        assert len(files) == 3, files
+        for f in files:
+            assert (ours / f).read_bytes() == (theirs / f).read_bytes(), f
+        assert (ours / "force.png").is_file()
+        foreign = Path(d) / "mine"
+        foreign.mkdir()
+        (foreign / "notes.txt").write_text("keep")
+        try:
+            pneuflex.run_to(SCENE, str(foreign))
+            raise AssertionError("a foreign directory was replaced")
+        except pneuflex.PneuflexError as e:
+            assert "notes.txt" in str(e), e
+        assert (foreign / "notes.txt").read_text() == "keep"
+        assert sorted(p.name for p in foreign.iterdir()) == ["notes.txt"]
+
+
+@test
 def bench_scene_ticks_is_the_runners_tick():
     # scripts/bench times this loop: before the first event it must reproduce the runner's trace bit for bit.
     for scene_path in (SCENE, str(ROOT / "scenes" / "paper-fig7-wood-to-iron.toml")):

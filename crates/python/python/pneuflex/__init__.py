@@ -12,7 +12,8 @@ The classes and functions come from the Rust crates through the native module ``
   ``update(t, x, x_dot, f_e, p_a, p_b, f_ref, x_d, dt) -> u``, ``telemetry()``.
 - ``Setpoints(scene_path).at(t) -> (f_ref, x_d)``; ``load_scene(path) -> dict``; ``initial_state(path)``.
 - ``run(scene_path) -> {run: {column: ndarray}}``; ``run_with_summary``; ``summarize(scene_path, traces)``
-  (summary.json of any traces); ``write_figures(scene_path, out_dir, runs)``; ``bench_rapier(urdf_path, ...)``;
+  (summary.json of any traces); ``run_to(scene_path, out_dir) -> dir``: the output directory
+  ``pneuflex run --out`` writes, through the same pipeline; ``write_figures(scene_path, out_dir, runs)``; ``bench_rapier(urdf_path, ...)``;
   ``bench_scene_ticks(scene_path, run, ticks=10000, settle_s=1.0) -> {wall_s, ...}``: the runner's control tick
   timed in a Rust loop (scripts/bench).
 - ``run_plant(scene_path, run, plant) -> (trace, summary or diverged reason, wall_s)``: the scene runner's loop

@@ -1,0 +1,49 @@
+//! The command line's grammar: one `Args` struct per command, grouped as the commands are (simulation,
+//! identification, real rig); each hands its values to its `cmd` module and holds no logic of its own.
+
+pub mod identify;
+pub mod rig;
+pub mod simulate;
+
+use clap::{Parser, Subcommand};
+
+/// Force and position control of pneumatic compliant actuators: model, controllers, scenes, real rig.
+#[derive(Parser)]
+#[command(name = "pneuflex", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    Tf(simulate::Tf),
+    Run(simulate::Run),
+    Sweep(simulate::Sweep),
+    Tune(simulate::Tune),
+    Identify(identify::Identify),
+    Perturb(identify::Perturb),
+    Seal(identify::Seal),
+    Leak(identify::Leak),
+    /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
+    Rig {
+        #[command(subcommand)]
+        action: rig::RigCommand,
+    },
+}
+
+impl Command {
+    pub fn call(self) -> anyhow::Result<()> {
+        match self {
+            Command::Tf(a) => a.call(),
+            Command::Run(a) => a.call(),
+            Command::Sweep(a) => a.call(),
+            Command::Tune(a) => a.call(),
+            Command::Identify(a) => a.call(),
+            Command::Perturb(a) => a.call(),
+            Command::Seal(a) => a.call(),
+            Command::Leak(a) => a.call(),
+            Command::Rig { action } => action.call(),
+        }
+    }
+}
