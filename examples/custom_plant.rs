@@ -3,8 +3,8 @@
 //!
 //! `cargo run --example custom_plant [-- TAU_S]` (default 0.005 s).
 //!
-//! Any type implementing `pneuflex::scene::Plant` runs a scene's schedule, events and divergence checks
-//! through `pneuflex::scene::simulate`.
+//! Files touched in the library to add it: none. Any type implementing `pneuflex::scene::Plant` runs a
+//! scene's schedule, events and divergence checks through `pneuflex::scene::simulate`.
 
 use std::path::Path;
 

@@ -3,9 +3,10 @@
 //!
 //! `cargo run --example pi_controller [-- KP KI]` (defaults 0.01 /N and 0.2 /(N s)).
 //!
-//! Any type implementing `pneuflex::control::Controller` runs in every scene through
-//! `pneuflex::scene::simulate`; the scene supplies the plant, the setpoints, the events and the
-//! divergence checks.
+//! Files touched in the library to add it: none. Any type implementing `pneuflex::control::Controller`
+//! runs in every scene through `pneuflex::scene::simulate`; the scene supplies the plant, the setpoints,
+//! the events and the divergence checks. Reaching it from a scene file's `runs[].controller.kind` as well
+//! touches the controller's file and its form (docs/architecture.md).
 
 use std::path::Path;
 

@@ -14,14 +14,7 @@ impl Check<'_> {
     pub(crate) fn err(&self, path: &str, message: String) -> SceneError {
         self.scene.invalid(path, message)
     }
-    /// A control-crate parameter error at `table` (`runs[1].inner`), blamed on the key it names.
-    pub(crate) fn param(&self, table: &str, e: pneuflex_control::ParamError) -> SceneError {
-        let path = match e.field() {
-            Some(f) => format!("{table}.{f}"),
-            None => table.to_string(),
-        };
-        self.err(&path, e.reason().to_string())
-    }
+    /// `x` is a finite number.
     pub(crate) fn finite(&self, path: &str, x: f64) -> Result<(), SceneError> {
         pneuflex_files::check::finite(x)
             .map(drop)

@@ -51,28 +51,35 @@ impl RunSpec {
                 message: e.reason().to_string(),
             }
         };
+        // The kind and its tables first, then each table by the control crate's own checks, in the order a
+        // reader of the run meets them.
+        match (self.controller, self.adaptive) {
+            (ControllerKind::Adaptive, None) => {
+                return Err(RunSpecError {
+                    key: "adaptive".into(),
+                    message: "missing: controller = \"adaptive\" needs the adaptive gains".into(),
+                });
+            }
+            (ControllerKind::Impedance, Some(_)) => {
+                return Err(RunSpecError {
+                    key: "adaptive".into(),
+                    message: "only allowed with controller = \"adaptive\"".into(),
+                });
+            }
+            (ControllerKind::Adaptive, Some(a)) => a.validate().map_err(bad("adaptive"))?,
+            (ControllerKind::Impedance, None) => {}
+        }
         self.impedance.validate().map_err(bad("impedance"))?;
         self.inner.validate().map_err(bad("inner"))?;
-        match (self.controller, self.adaptive) {
-            (ControllerKind::Impedance, None) => Ok(Box::new(
+        Ok(match (self.controller, self.adaptive) {
+            (ControllerKind::Adaptive, Some(a)) => Box::new(
+                AdaptiveImpedanceController::new(self.impedance, a, self.inner)
+                    .map_err(bad("adaptive"))?,
+            ),
+            _ => Box::new(
                 ImpedanceController::new(self.impedance, self.inner).map_err(bad("impedance"))?,
-            )),
-            (ControllerKind::Adaptive, Some(a)) => {
-                a.validate().map_err(bad("adaptive"))?;
-                Ok(Box::new(
-                    AdaptiveImpedanceController::new(self.impedance, a, self.inner)
-                        .map_err(bad("adaptive"))?,
-                ))
-            }
-            (ControllerKind::Adaptive, None) => Err(RunSpecError {
-                key: "adaptive".into(),
-                message: "missing: controller = \"adaptive\" needs the adaptive gains".into(),
-            }),
-            (ControllerKind::Impedance, Some(_)) => Err(RunSpecError {
-                key: "adaptive".into(),
-                message: "only allowed with controller = \"adaptive\"".into(),
-            }),
-        }
+            ),
+        })
     }
 }
 
@@ -116,29 +123,8 @@ pub(crate) fn validate(scene: &Scene, v: &Check<'_>) -> Result<(), SceneError> {
         if scene.runs[..i].iter().any(|r| r.name == run.name) {
             return Err(v.err(&at("name"), format!("duplicate run name {:?}", run.name)));
         }
-        match (run.controller, &run.adaptive) {
-            (ControllerKind::Adaptive, None) => {
-                return Err(v.err(
-                    &at("adaptive"),
-                    "missing: controller = \"adaptive\" needs the adaptive gains".into(),
-                ));
-            }
-            (ControllerKind::Impedance, Some(_)) => {
-                return Err(v.err(
-                    &at("adaptive"),
-                    "only allowed with controller = \"adaptive\"".into(),
-                ));
-            }
-            (ControllerKind::Adaptive, Some(a)) => {
-                a.validate().map_err(|e| v.param(&at("adaptive"), e))?;
-            }
-            (ControllerKind::Impedance, None) => {}
-        }
-        // The control crate's own checks, blamed on the key they are about.
-        run.impedance
-            .validate()
-            .map_err(|e| v.param(&at("impedance"), e))?;
-        run.inner.validate().map_err(|e| v.param(&at("inner"), e))?;
+        // The one check of a run's controller: building it.
+        run.build().map_err(|e| v.err(&at(&e.key), e.message))?;
     }
     Ok(())
 }
