@@ -327,43 +327,19 @@ pub fn bench_scene_ticks<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let scene = load(&scene_path)?;
     let index = crate::controller::run_index(&scene, run)?;
-    let setpoints = scene.setpoints().map_err(errors::scene)?;
-    let mut plant = build_plant(&scene).map_err(errors::scene)?;
-    let mut ctrl = scene.controller(index).map_err(errors::scene)?;
-    let dt = scene.dt_s;
-    let settle = if settle_s > 0.0 {
-        (settle_s / dt).round() as usize
-    } else {
-        0
-    };
-    // The GIL stays held (a scene's plant need not be Send); no Python runs in the loop.
-    let (secs, s) = {
-        let mut t = 0.0;
-        let mut tick = |t: &mut f64| {
-            let mut s = plant.sense();
-            s.t = *t;
-            let cmd = ctrl.update(&s, &setpoints.at(*t), dt);
-            let tel = ctrl.telemetry();
-            plant.actuate(cmd, &tel);
-            plant.advance(dt);
-            *t += dt;
-        };
-        for _ in 0..settle {
-            tick(&mut t);
-        }
-        let t0 = Instant::now();
-        for _ in 0..ticks {
-            tick(&mut t);
-        }
-        let secs = t0.elapsed().as_secs_f64();
-        (secs, plant.sense())
-    };
+    // The product's loop (host, trace, checks), as `pneuflex run` runs it; the GIL stays held (a scene's
+    // plant need not be Send) and no Python runs in the loop.
+    let timing = pneuflex_scene::time_ticks(&scene, index, ticks as u64, settle_s.max(0.0))
+        .map_err(errors::scene)?;
+    let (secs, dt) = (timing.wall.as_secs_f64(), scene.dt_s);
+    use pneuflex_control::signal::index as col;
+    let (x, f_e) = (timing.last_row[col::X], timing.last_row[col::F_E]);
     let d = PyDict::new(py);
     d.set_item("wall_s", secs)?;
     d.set_item("ticks", ticks)?;
     d.set_item("dt_s", dt)?;
-    d.set_item("x", s.x)?;
-    d.set_item("f_e", s.f_e)?;
+    d.set_item("x", x)?;
+    d.set_item("f_e", f_e)?;
     Ok(d)
 }
 

@@ -9,8 +9,7 @@
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use pneuflex_control::Controller;
-use pneuflex_scene::{MultibodyPlant, Plant, Scene, run_scene};
+use pneuflex_scene::{MultibodyPlant, Scene, run_scene, time_ticks};
 
 fn load(name: &str) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -26,35 +25,22 @@ fn bench(c: &mut Criterion) {
         .iter()
         .position(|r| r.name == "adaptive")
         .expect("the fig7 scene has an adaptive run");
-    let setpoints = scene.setpoints().unwrap_or_else(|e| panic!("{e}"));
-
-    let mut plant = MultibodyPlant::from_scene(&scene).unwrap_or_else(|e| panic!("{e}"));
-    let mut ctrl: Box<dyn Controller> =
-        scene.controller(adaptive).unwrap_or_else(|e| panic!("{e}"));
-    let dt = scene.dt_s;
-    // Settle into steady contact on wood first (1 s).
-    let mut t = 0.0;
-    let tick = |plant: &mut MultibodyPlant, ctrl: &mut dyn Controller, t: &mut f64| {
-        let mut s = plant.sense();
-        s.t = *t;
-        let cmd = ctrl.update(&s, &setpoints.at(*t), dt);
-        let tel = ctrl.telemetry();
-        plant.actuate(cmd, &tel);
-        plant.advance(dt);
-        *t += dt;
-    };
-    for _ in 0..(1.0 / dt) as usize {
-        tick(&mut plant, ctrl.as_mut(), &mut t);
-    }
+    let plant = MultibodyPlant::from_scene(&scene).unwrap_or_else(|e| panic!("{e}"));
     eprintln!(
         "multibody bench: physics dt = {} s, {} steps per {} s tick",
         plant.config().dt_s,
         plant.steps_per_tick(),
-        dt
+        scene.dt_s
     );
     let mut g = c.benchmark_group("multibody");
+    // The product's loop (host, trace, checks) after 1 s of settling into steady contact on wood; each
+    // sample times `iters` ticks of one run.
     g.bench_function("tick/adaptive", |b| {
-        b.iter(|| tick(&mut plant, ctrl.as_mut(), &mut t))
+        b.iter_custom(|iters| {
+            time_ticks(&scene, adaptive, iters, 1.0)
+                .unwrap_or_else(|e| panic!("{e}"))
+                .wall
+        })
     });
     g.finish();
 

@@ -23,8 +23,8 @@ pub use plants::{
 pub use run::output::{Summary, scene_inputs, summary, write_results, write_summary, write_trace};
 pub use run::trace::Trace;
 pub use run::{
-    LyapunovSummary, RunOptions, RunResult, Sink, Sinks, WindowMetrics, run_scene,
-    run_scene_observed, run_scene_with, signal_name, simulate, simulate_observed,
+    LyapunovSummary, RunOptions, RunResult, Sink, Sinks, TickTiming, WindowMetrics, run_scene,
+    run_scene_observed, run_scene_with, signal_name, simulate, simulate_observed, time_ticks,
 };
 pub use schema::{
     Budget, ControllerKind, EventSpec, Limits, MaterialSpec, MultibodySpec, PlantSpec,

@@ -1,14 +1,16 @@
 //! Issue 14 item 4: the simulation allocates nothing per step. For every plant kind (ideal, linear,
-//! pneumatic, multibody: the shipped scenes) and every controller of the scene, the runner's loop body
-//! (`sense → control_tick → record → trace.push → check_invariants → actuate → advance`) is warmed up,
-//! then run for a few hundred ticks under a counting global allocator (this test binary only), and must
-//! not allocate, reallocate or free.
+//! pneumatic, multibody: the shipped scenes) and every controller of the scene, the product's loop
+//! (`simulate_observed`: `sense → control_tick → record → trace → sinks → checks → actuate → advance`) is
+//! warmed up, then run for a few hundred ticks under a counting global allocator (this test binary only),
+//! and must not allocate, reallocate or free.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;
 
-use pneuflex_scene::{Scene, Trace, build_plant};
+use pneuflex_control::{Sensors, Signal, Sink, Telemetry, ValveCommand};
+use pneuflex_scene::plants::PlantError;
+use pneuflex_scene::{EventSpec, Plant, Scene, build_plant, simulate_observed};
 
 /// The system allocator, counting the calls made on a thread while that thread's counting is on (the test
 /// harness allocates on its own threads meanwhile).
@@ -59,53 +61,100 @@ fn allocations(f: impl FnOnce()) -> u64 {
 const WARM_UP: usize = 50;
 const COUNTED: usize = 300;
 
-/// Allocator calls over `COUNTED` ticks of each run of the scene, after `WARM_UP` ticks: (run, calls
-/// outside `Plant::advance`, calls inside it).
+/// Turns the counting on when tick `WARM_UP` ends and off when tick `WARM_UP + COUNTED` ends.
+struct Window {
+    k: usize,
+}
+
+impl<W: ?Sized> Sink<W> for Window {
+    fn row(&mut self, _values: &[f64], _world: &W) {
+        if self.k == WARM_UP {
+            CALLS.with(|c| c.set(0));
+            COUNTING.with(|c| c.set(true));
+        } else if self.k == WARM_UP + COUNTED {
+            COUNTING.with(|c| c.set(false));
+        }
+        self.k += 1;
+    }
+}
+
+/// The scene's plant, counting the allocator calls made inside its `advance` (Rapier's, for the
+/// multibody plant) apart from the rest of the tick.
+struct Counted<'a> {
+    plant: &'a mut dyn Plant,
+    in_advance: u64,
+}
+
+impl Plant for Counted<'_> {
+    fn sense(&self) -> Sensors {
+        self.plant.sense()
+    }
+    fn actuate(&mut self, command: ValveCommand, telemetry: &Telemetry) {
+        self.plant.actuate(command, telemetry)
+    }
+    fn advance(&mut self, dt: f64) {
+        let before = CALLS.with(Cell::get);
+        self.plant.advance(dt);
+        if COUNTING.with(Cell::get) {
+            self.in_advance += CALLS.with(Cell::get) - before;
+        }
+    }
+    fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError> {
+        self.plant.apply(event)
+    }
+    fn reset(&mut self) {
+        self.plant.reset()
+    }
+    fn check_invariants(&self) -> Result<(), PlantError> {
+        self.plant.check_invariants()
+    }
+    fn signals(&self) -> &'static [Signal] {
+        self.plant.signals()
+    }
+    fn record(&self, out: &mut [f64]) {
+        self.plant.record(out)
+    }
+}
+
+/// Allocator calls over `COUNTED` ticks of each run of the scene through the product's loop
+/// (`simulate_observed`: the host's events, trace, sinks, divergence and invariant checks), after
+/// `WARM_UP` ticks: (run, calls outside `Plant::advance`, calls inside it).
 fn per_step_allocations(scene_file: &str) -> Vec<(String, u64, u64)> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../scenes")
         .join(scene_file);
-    let scene = Scene::load(&path).unwrap();
+    let mut scene = Scene::load(&path).unwrap();
+    // Ticks 0..=WARM_UP + COUNTED: the run ends with the counted window.
+    scene.duration_s = (WARM_UP + COUNTED) as f64 * scene.dt_s;
     let setpoints = scene.setpoints().unwrap();
-    let dt = scene.dt_s;
-    let n_loop = pneuflex_control::LOOP_SIGNALS.len();
     (0..scene.runs.len())
         .map(|i| {
             let mut plant = build_plant(&scene).unwrap();
-            let mut controller = scene.controller(i).unwrap();
-            let (c_sig, p_sig) = (controller.signals(), plant.signals());
-            let columns = Trace::loop_columns(&[c_sig, p_sig]);
-            let mut values = vec![0.0; columns.len()];
-            let mut trace = Trace::with_capacity(WARM_UP + COUNTED, columns);
-            let mut in_advance = 0;
-            let calls = {
-                // The runner's loop body, as in runner::simulate_loop (events aside: they are not per step).
-                let mut tick = |k: usize| {
-                    let t = k as f64 * dt;
-                    let mut s = plant.sense();
-                    s.t = t;
-                    let sp = setpoints.at(t);
-                    let (ctl_row, plant_row) = values.split_at_mut(n_loop + c_sig.len());
-                    let (cmd, tel) =
-                        pneuflex_control::control_tick(controller.as_mut(), &s, &sp, dt, ctl_row);
-                    plant.record(plant_row);
-                    trace.push(&values);
-                    assert!(plant.check_invariants().is_ok(), "{scene_file} at t = {t}");
-                    plant.actuate(cmd, &tel);
-                    let before = CALLS.with(Cell::get);
-                    plant.advance(dt);
-                    in_advance += CALLS.with(Cell::get) - before;
-                };
-                for k in 0..WARM_UP {
-                    tick(k);
-                }
-                allocations(|| {
-                    for k in WARM_UP..WARM_UP + COUNTED {
-                        tick(k);
-                    }
-                })
+            let mut counted = Counted {
+                plant: plant.as_mut(),
+                in_advance: 0,
             };
-            (scene.runs[i].name.clone(), calls - in_advance, in_advance)
+            let mut controller = scene.controller(i).unwrap();
+            let mut window = Window { k: 0 };
+            let r = simulate_observed(
+                &scene,
+                i,
+                &mut counted,
+                controller.as_mut(),
+                &setpoints,
+                &mut |_| {},
+                &mut window,
+            )
+            .unwrap();
+            COUNTING.with(|c| c.set(false));
+            assert!(r.diverged.is_none(), "{scene_file}: {:?}", r.diverged);
+            assert_eq!(window.k, WARM_UP + COUNTED + 1, "{scene_file}: ticks");
+            let calls = CALLS.with(Cell::get);
+            (
+                scene.runs[i].name.clone(),
+                calls - counted.in_advance,
+                counted.in_advance,
+            )
         })
         .collect()
 }

@@ -5,6 +5,7 @@ mod host;
 pub mod observe;
 pub mod output;
 pub mod result;
+pub mod timing;
 pub mod trace;
 
 use pneuflex_control as control;
@@ -17,6 +18,7 @@ use crate::schema::{ControllerKind, Scene};
 pub use host::{simulate, simulate_observed, simulate_stoppable};
 pub use observe::{Sink, Sinks};
 pub use result::{LyapunovSummary, RunResult, WindowMetrics};
+pub use timing::{TickTiming, time_ticks};
 
 /// Runs every controller the scene lists, each on a fresh plant. `progress` receives the completed
 /// fraction in [0, 1]. A diverged run is returned with `diverged` set; errors are only for bad input.
