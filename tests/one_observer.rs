@@ -130,10 +130,11 @@ fn lockstep_rig_run(
 ) -> (Collect, rtloop::LoopReport, TraceWriter<Vec<u8>>) {
     let rig_file = repo("rigs/emulated.toml");
     let rig = RigFile::load(&rig_file).unwrap();
-    let mut clock = SimClock::new();
-    let (link, _log) = session::lockstep_emulator(&rig, &rig_file, clock.clone()).unwrap();
-    let link = serial::connect_link(link, &rig, &mut clock).unwrap();
-    let mut sup = session::supervised(link, &rig);
+    let session::LockstepRig {
+        rig: mut sup,
+        mut clock,
+        ..
+    } = session::lockstep_rig(&rig, &rig_file).unwrap();
     let mut controller = scene.controller(0).unwrap();
     let setpoints = scene.setpoints().unwrap();
     let mut reference = |t: f64| setpoints.at(t);

@@ -5,10 +5,13 @@
 //! `cargo bench -p pneuflex-rig --bench loop_timing` (PNEUFLEX_BENCH_SECONDS sets the length, default 15 s;
 //! PNEUFLEX_BENCH_SPIN_US overrides `loop.spin_us`; PNEUFLEX_BENCH_TIMEOUT_MS the watchdogs, default 1000 ms).
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
-use pneuflex_control::{ImpedanceController, ImpedanceParams, PidParams, Setpoint};
+use pneuflex_control::Setpoint;
 use pneuflex_rig::rtloop;
 use pneuflex_rig::trace::TraceWriter;
 use pneuflex_rig::{RigFile, serial, session};
@@ -39,16 +42,7 @@ fn main() {
     let port = emu.path.clone().unwrap();
     let link = serial::connect(&rig, &file, Some(port.to_str().unwrap())).expect("connect");
     let mut sup = session::supervised(link, &rig);
-    let mut ctrl = ImpedanceController::new(
-        ImpedanceParams::default(),
-        PidParams {
-            kp_per_m: 10.0,
-            ki_per_m_s: 20.0,
-            kd_s_per_m: 0.0,
-            ..PidParams::default()
-        },
-    )
-    .unwrap();
+    let mut ctrl = common::paper_controller();
     let mut reference = |_t: f64| Setpoint {
         f_ref: 10.0,
         x_d: 0.02,

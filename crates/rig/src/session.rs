@@ -213,6 +213,29 @@ pub fn lockstep_emulator(
     Ok(crate::emulator::lockstep(plant, rig.cal(), cfg, clock))
 }
 
+/// The rig file's emulator in lockstep (see [`lockstep_emulator`]), connected over the serial protocol and
+/// behind the supervisor, with the clock a loop must run on (`rtloop::run_with_clock`) and the emulator's log.
+pub struct LockstepRig {
+    /// The supervised rig.
+    pub rig: Supervisor<RigStack<crate::emulator::LockstepLink<PneumaticPlant>>>,
+    /// The simulated clock the emulator steps with.
+    pub clock: crate::clock::SimClock,
+    /// What the emulated board saw and did.
+    pub log: std::sync::Arc<std::sync::Mutex<crate::emulator::EmulatorLog>>,
+}
+
+/// [`LockstepRig`] for `rig` (read from `file`): the emulator, the handshake, the supervisor.
+pub fn lockstep_rig(rig: &RigFile, file: &Path) -> Result<LockstepRig, RigError> {
+    let mut clock = crate::clock::SimClock::new();
+    let (link, log) = lockstep_emulator(rig, file, clock.clone())?;
+    let serial = crate::serial::connect_link(link, rig, &mut clock)?;
+    Ok(LockstepRig {
+        rig: supervised(serial, rig),
+        clock,
+        log,
+    })
+}
+
 /// A scene whose control period is not the rig's: both files and both keys named.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error(

@@ -6,17 +6,16 @@
 //! the machine is or how loaded it is. One test runs over a real pseudo-terminal on the wall clock, with
 //! assertions that hold whatever the scheduling.
 
+mod common;
+
 use std::io;
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use pneuflex_control::{
-    Controller, ImpedanceController, ImpedanceParams, PidParams, Sensors, Setpoint, Telemetry,
-    ValveCommand,
+    Controller, ImpedanceController, Sensors, Setpoint, Telemetry, ValveCommand,
 };
-use pneuflex_rig::clock::SimClock;
 use pneuflex_rig::emulator::EmulatorLog;
 use pneuflex_rig::plant::{EmulatedPlant, Environment, ValveDrive};
 use pneuflex_rig::protocol::ValveMode;
@@ -25,33 +24,15 @@ use pneuflex_rig::rtloop::{self, LoopReport};
 use pneuflex_rig::trace::{self, TraceSink, TraceWriter};
 use pneuflex_rig::{ErrorKind, RigFile, serial, session};
 
-fn rig_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rigs/emulated.toml")
-}
-
 /// The emulated rig with its shipped watchdog times (20 ms timeout, 50 ms stale, 50 ms board watchdog):
 /// in lockstep nothing is ever late, so the tests need no allowance for a loaded machine.
 fn rig_with(faults: Vec<InjectedFault>, change_at_s: Option<f64>) -> RigFile {
-    let mut rig = RigFile::load(&rig_path()).expect("rigs/emulated.toml loads");
+    let mut rig = RigFile::load(&common::rig_path()).expect("rigs/emulated.toml loads");
     rig.rt.post_fault_s = 0.05;
     let e = rig.emulator.as_mut().unwrap();
     e.faults = faults;
     e.environment.change_at_s = change_at_s;
     rig
-}
-
-/// The controller of scenes/paper-fig3.toml (impedance filter + PID tuned for the 40 Hz PWM valve).
-fn controller() -> ImpedanceController {
-    ImpedanceController::new(
-        ImpedanceParams::default(),
-        PidParams {
-            kp_per_m: 10.0,
-            ki_per_m_s: 20.0,
-            kd_s_per_m: 0.0,
-            ..PidParams::default()
-        },
-    )
-    .unwrap()
 }
 
 const X_D: f64 = 0.02;
@@ -115,11 +96,12 @@ fn run_lockstep_into<C: Controller, W: TraceSink>(
     stop_at_s: Option<f64>,
     sink: W,
 ) -> (io::Result<LoopReport>, EmulatorLog) {
-    let file = rig_path();
-    let mut clock = SimClock::new();
-    let (link, log) = session::lockstep_emulator(rig, &file, clock.clone()).expect("emulator");
-    let serial = serial::connect_link(link, rig, &mut clock).expect("connects");
-    let mut sup = session::supervised(serial, rig);
+    let file = common::rig_path();
+    let session::LockstepRig {
+        rig: mut sup,
+        mut clock,
+        log,
+    } = session::lockstep_rig(rig, &file).expect("the emulator connects");
     let stop = AtomicBool::new(false);
     let mut reference = |t: f64| {
         if stop_at_s.is_some_and(|s| t >= s - 1e-9) {
@@ -153,11 +135,11 @@ fn col(rows: &[Vec<String>], i: usize) -> Vec<f64> {
 
 /// The same plant and controller without the serial link: ideal sensors, no latency, no quantisation.
 fn simulate(rig: &RigFile, duration_s: f64) -> Vec<(f64, f64)> {
-    let file = rig_path();
+    let file = common::rig_path();
     let mut plant = session::emulated_plant(rig, &file).unwrap();
     let e = rig.emulator.as_ref().unwrap();
     let env = Environment::from_config(&e.environment);
-    let mut ctrl = controller();
+    let mut ctrl = common::paper_controller();
     let dt = rig.dt();
     let sub = (dt / e.plant_dt_s).round() as usize;
     let h = dt / sub as f64;
@@ -195,7 +177,7 @@ fn force_tracks_reference_through_wood_to_iron() {
     // Wood (700 N/m) for 1.5 s, then iron (1400 N/m); 3 s in all.
     let duration = 3.0;
     let rig = rig_with(vec![], Some(1.5));
-    let mut ctrl = controller();
+    let mut ctrl = common::paper_controller();
     let run = run_lockstep(&rig, &mut ctrl, duration, None);
     assert!(
         run.report.fault.is_none(),
@@ -328,7 +310,7 @@ fn fault_run(fault: InjectedFault, kind: ErrorKind) -> usize {
         // Keep the host running until the board wakes up and takes in the safe commands.
         rig.rt.post_fault_s = at_s + for_s - 0.3 + 0.1;
     }
-    let mut ctrl = controller();
+    let mut ctrl = common::paper_controller();
     let run = run_lockstep(&rig, &mut ctrl, 1.0, None);
     let check_valve = !matches!(fault, InjectedFault::CloseLink { .. });
     let kf = check_fault(&run, kind, rig.dt(), check_valve);
@@ -414,7 +396,7 @@ fn a_nan_command_and_a_controller_panic_go_safe() {
     for (panic, kind) in [(false, ErrorKind::NotANumber), (true, ErrorKind::Panic)] {
         let rig = rig_with(vec![], None);
         let mut ctrl = Misbehaving {
-            inner: controller(),
+            inner: common::paper_controller(),
             panic,
         };
         let run = run_lockstep(&rig, &mut ctrl, 1.0, None);
@@ -428,7 +410,7 @@ fn a_stop_signal_and_a_crossed_limit_go_safe() {
     // The signal handler's flag, set at t = 0.4 s (tick 400): the loop sees it at the start of tick 401 and
     // commands the safe state in that tick.
     let rig = rig_with(vec![], None);
-    let mut ctrl = controller();
+    let mut ctrl = common::paper_controller();
     let run = run_lockstep(&rig, &mut ctrl, 1.5, Some(0.4));
     let kf = check_fault(&run, ErrorKind::Interrupted, rig.dt(), true);
     assert_eq!(kf, 401);
@@ -445,7 +427,7 @@ fn a_stop_signal_and_a_crossed_limit_go_safe() {
     // A position limit inside the travel to the 10 N contact (x ≈ 34 mm at 700 N/m).
     let mut rig = rig_with(vec![], None);
     rig.limits.position_m = [-0.001, 0.025];
-    let mut ctrl = controller();
+    let mut ctrl = common::paper_controller();
     let run = run_lockstep(&rig, &mut ctrl, 2.0, None);
     let kf = check_fault(&run, ErrorKind::Limit, rig.dt(), true);
     let x = col(&run.rows, 3);
@@ -488,7 +470,7 @@ impl TraceSink for FullDisk {
 #[test]
 fn a_full_disk_goes_safe_first_then_names_the_trace_and_leaves_no_half_line() {
     let rig = rig_with(vec![], None);
-    let mut ctrl = controller();
+    let mut ctrl = common::paper_controller();
     let mut disk = FullDisk {
         data: Vec::new(),
         room: 40_000,
@@ -528,7 +510,7 @@ fn a_full_disk_goes_safe_first_then_names_the_trace_and_leaves_no_half_line() {
 fn durations_that_are_not_finite_positive_and_bounded_are_refused() {
     let rig = rig_with(vec![], None);
     for d in [f64::NAN, -1.0, 0.0, 1e10, f64::INFINITY] {
-        let mut ctrl = controller();
+        let mut ctrl = common::paper_controller();
         let (res, log) = run_lockstep_into(&rig, &mut ctrl, d, None, Vec::new());
         let e = res.expect_err("refused");
         assert_eq!(e.kind(), io::ErrorKind::InvalidInput);
@@ -554,7 +536,7 @@ fn over_a_pty_a_stop_goes_safe_and_the_board_gets_only_safe_commands_after() {
     rig.limits.force_n = [-1e6, 1e6];
     rig.limits.pressure_pa = [0.0, 1e8];
     rig.limits.supply_min_pa = 0.0;
-    let file = rig_path();
+    let file = common::rig_path();
     let emu = session::spawn_pty_emulator(&rig, &file).expect("emulator starts");
     let port = emu.path.clone().unwrap();
     let serial = serial::connect(&rig, &file, Some(port.to_str().unwrap())).expect("connects");
@@ -570,7 +552,7 @@ fn over_a_pty_a_stop_goes_safe_and_the_board_gets_only_safe_commands_after() {
     let report = {
         let mut trace = TraceWriter::new(&mut out, rig.rt.trace_flush_every).unwrap();
         let opts = session::run_options(&rig, 1.0);
-        let mut ctrl = controller();
+        let mut ctrl = common::paper_controller();
         rtloop::run(
             &mut sup,
             &mut ctrl,
@@ -610,7 +592,7 @@ fn over_a_pty_a_stop_goes_safe_and_the_board_gets_only_safe_commands_after() {
 #[test]
 fn an_unopenable_port_names_the_file_and_field() {
     let rig = rig_with(vec![], None);
-    let e = serial::connect(&rig, &rig_path(), None)
+    let e = serial::connect(&rig, &common::rig_path(), None)
         .err()
         .expect("/dev/null is no serial port");
     let m = e.to_string();
@@ -618,7 +600,7 @@ fn an_unopenable_port_names_the_file_and_field() {
         m.contains("emulated.toml") && m.contains("link.port") && m.contains("/dev/null"),
         "{m}"
     );
-    let e = serial::connect(&rig, &rig_path(), Some("/dev/ttyNOPE9"))
+    let e = serial::connect(&rig, &common::rig_path(), Some("/dev/ttyNOPE9"))
         .err()
         .unwrap();
     let m = e.to_string();

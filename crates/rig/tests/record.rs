@@ -2,10 +2,12 @@
 //! failed connect; a signal commits a marked partial beside the previous output; provenance in the trace
 //! header and the manifest. The emulator runs in lockstep with a simulated clock.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use pneuflex_control::{ImpedanceController, ImpedanceParams, PidParams, Setpoint};
+use pneuflex_control::Setpoint;
 use pneuflex_files::output::read_manifest;
 use pneuflex_rig::clock::SimClock;
 use pneuflex_rig::record::{self, RecordError, Recording};
@@ -22,19 +24,6 @@ fn scratch(name: &str) -> tempfile::TempDir {
         .prefix(&format!("pneuflex-record-{name}-"))
         .tempdir()
         .unwrap()
-}
-
-fn controller() -> ImpedanceController {
-    ImpedanceController::new(
-        ImpedanceParams::default(),
-        PidParams {
-            kp_per_m: 10.0,
-            ki_per_m_s: 20.0,
-            kd_s_per_m: 0.0,
-            ..PidParams::default()
-        },
-    )
-    .unwrap()
 }
 
 /// Records `duration_s` into `out`; `stop_at_s` sets the stop flag as the signal handler would; with
@@ -77,7 +66,7 @@ fn record_into(
         connect,
         out,
         &[(&file, "rig")],
-        &mut controller(),
+        &mut common::paper_controller(),
         &mut reference,
         duration_s,
         &stop,

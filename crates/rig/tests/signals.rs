@@ -3,38 +3,30 @@
 //! marker. Its own test binary: a process installs the handler once. Without the handler for SIGTERM and
 //! SIGHUP (ctrlc's `termination` feature) this test process would be killed.
 
-use std::path::Path;
+mod common;
+
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use pneuflex_control::{ImpedanceController, ImpedanceParams, PidParams, Setpoint};
-use pneuflex_rig::clock::SimClock;
+use pneuflex_control::Setpoint;
 use pneuflex_rig::protocol::ValveMode;
 use pneuflex_rig::rtloop;
 use pneuflex_rig::trace::{self, TraceWriter};
-use pneuflex_rig::{ErrorKind, RigFile, serial, session};
+use pneuflex_rig::{ErrorKind, RigFile, session};
 
 #[test]
 fn sigterm_sighup_and_sigint_stop_the_run_safely() {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rigs/emulated.toml");
+    let file = common::rig_path();
     let rig = RigFile::load(&file).unwrap();
     let stop = session::install_ctrl_c().expect("handler");
     for sig in ["TERM", "HUP", "INT"] {
         stop.store(false, Ordering::SeqCst);
-        let mut clock = SimClock::new();
-        let (link, log) = session::lockstep_emulator(&rig, &file, clock.clone()).unwrap();
-        let serial = serial::connect_link(link, &rig, &mut clock).unwrap();
-        let mut sup = session::supervised(serial, &rig);
-        let mut ctrl = ImpedanceController::new(
-            ImpedanceParams::default(),
-            PidParams {
-                kp_per_m: 10.0,
-                ki_per_m_s: 20.0,
-                kd_s_per_m: 0.0,
-                ..PidParams::default()
-            },
-        )
-        .unwrap();
+        let session::LockstepRig {
+            rig: mut sup,
+            mut clock,
+            log,
+        } = session::lockstep_rig(&rig, &file).unwrap();
+        let mut ctrl = common::paper_controller();
         let flag = stop.clone();
         let mut sent = false;
         let mut reference = |t: f64| {

@@ -62,10 +62,11 @@ pub fn record_delayed(
         // Free motion: the block beyond the stroke.
         e.environment.x_e_m = x_e_m.unwrap_or(1.0);
     }
-    let mut clock = SimClock::new();
-    let (link, _log) = session::lockstep_emulator(&rig, &file, clock.clone()).expect("emulator");
-    let serial = serial::connect_link(link, &rig, &mut clock).expect("connects");
-    let mut sup = session::supervised(serial, &rig);
+    let session::LockstepRig {
+        rig: mut sup,
+        mut clock,
+        ..
+    } = session::lockstep_rig(&rig, &file).expect("the emulator connects");
     let stop = AtomicBool::new(false);
     let mut ctrl = Exciter::new(excitation);
     let mut reference = |_t: f64| pneuflex_control::Setpoint::default();
