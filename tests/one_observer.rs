@@ -7,9 +7,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
 use pneuflex::control::{Signal, Sink};
-use pneuflex::rig::clock::SimClock;
 use pneuflex::rig::trace::TraceWriter;
-use pneuflex::rig::{RigFile, rtloop, serial, session};
+use pneuflex::rig::{RigFile, rtloop, session};
 use pneuflex::scene::{Scene, run_scene_observed};
 
 #[derive(Default)]

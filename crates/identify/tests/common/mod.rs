@@ -6,9 +6,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
 use pneuflex_identify::excite::{Excitation, Exciter};
-use pneuflex_rig::clock::SimClock;
 use pneuflex_rig::trace::TraceWriter;
-use pneuflex_rig::{RigFile, rtloop, serial, session};
+use pneuflex_rig::{RigFile, rtloop, session};
 
 /// The workspace root.
 pub fn root() -> PathBuf {
