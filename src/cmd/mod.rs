@@ -87,6 +87,7 @@ pub mod rig;
 pub mod run;
 pub mod seal;
 pub mod sweep;
+mod tables;
 pub mod tf;
 pub mod tune;
 

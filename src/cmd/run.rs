@@ -6,14 +6,13 @@
 //! written to `DIR.partial` with the reason in summary.json and the manifest, and the exit code is 128 +
 //! the signal. A second signal ends the process at once.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pneuflex_outputs::{Outcome, Outputs, Simulate, Simulated, Stopped, simulate_into};
-use pneuflex_scene::{Limits, RunResult, Scene, WindowKind};
+use pneuflex_scene::{Limits, Scene};
 
 use super::Exit;
 
@@ -177,13 +176,13 @@ fn run_scene_file(
     };
 
     if !quiet {
-        outln!("{}", table(&results));
+        outln!("{}", super::tables::metrics(&results));
         for w in results.iter().flat_map(|r| &r.warnings) {
             outln!("warning: {w}");
         }
         let claims = pneuflex_scene::analysis::claims::check_all(scene, &results);
         if !claims.is_empty() {
-            outln!("{}", claims_table(&claims));
+            outln!("{}", super::tables::claims(&claims));
         }
         outln!(
             "{}: {} run(s) of {} s simulated in {:.3} s; outputs in {}",
@@ -210,84 +209,4 @@ fn run_scene_file(
         );
     }
     Ok(())
-}
-
-/// The scene's claims: the statement, the two values and the verdict.
-fn claims_table(claims: &[pneuflex_scene::analysis::claims::ClaimResult]) -> String {
-    let mut s = String::from("claims:\n");
-    for c in claims {
-        let v = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{x:.4}"));
-        let fragile = c
-            .fragile
-            .as_ref()
-            .map_or(String::new(), |f| format!("; fragile: {f}"));
-        let _ = writeln!(
-            s,
-            "  {:<13} {} ({} {}: {} {}, {} {}{fragile})",
-            if c.holds { "holds" } else { "DOES NOT HOLD" },
-            c.statement,
-            c.window,
-            c.metric,
-            c.better,
-            v(c.better_value),
-            c.than,
-            v(c.than_value)
-        );
-    }
-    s
-}
-
-fn opt(v: Option<f64>, unit: &str, prec: usize) -> String {
-    match v {
-        Some(x) if x.is_finite() => format!("{x:.prec$} {unit}"),
-        _ => "-".into(),
-    }
-}
-
-/// A short text table: one line per run and window with the window's main metrics.
-fn table(results: &[RunResult]) -> String {
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "{:<12} {:<18} {:>12}  details",
-        "run", "window", "RMS error"
-    );
-    for r in results {
-        if let Some(why) = &r.diverged {
-            let _ = writeln!(s, "{:<12} DIVERGED: {why}", r.name);
-            continue;
-        }
-        for w in &r.windows {
-            let details = match w.kind {
-                WindowKind::Sine => format!("phase lag {}", opt(w.phase_lag_deg, "deg", 2)),
-                WindowKind::Step => {
-                    format!("steady-state error {}", opt(w.steady_state_error_n, "N", 3))
-                }
-                WindowKind::Event => match &w.event {
-                    Some(e) => format!(
-                        "peak {}, jump {}, overshoot {} ({:.0} % of the jump), {}",
-                        opt(Some(e.peak_force_n), "N", 2),
-                        opt(Some(e.jump_n), "N", 2),
-                        opt(Some(e.recovery_overshoot_n), "N", 3),
-                        e.recovery_overshoot_pct,
-                        match (e.settling_time_s, &e.not_settled) {
-                            (Some(ts), _) => match e.fragility() {
-                                Some(f) => format!("settled in {ts:.3} s ({f})"),
-                                None => format!("settled in {ts:.3} s"),
-                            },
-                            (None, Some(why)) => format!("NOT SETTLED: {why}"),
-                            (None, None) => "not settled".into(),
-                        }
-                    ),
-                    None => "-".into(),
-                },
-            };
-            let _ = writeln!(
-                s,
-                "{:<12} {:<18} {:>10.4} N  {details}",
-                r.name, w.name, w.rms_force_error_n
-            );
-        }
-    }
-    s
 }

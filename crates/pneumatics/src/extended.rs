@@ -29,16 +29,6 @@ use crate::flow::{ISO_T0_K, OrificeStep};
 use crate::mechanics::{Friction, OneDofModel, OneDofState};
 use crate::spool::{self, SpoolLaw, Timing};
 
-/// The state of the extended model beyond the paper's (part of [`OneDofState`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ExtendedState {
-    /// Gas in the lines to A (`p_a`, `t_a`) and to B (`p_b`, `t_b`); `None` until a step with lines:
-    /// the lines then start at their chambers' state.
-    pub lines: Option<ChamberState>,
-    /// LuGre bristle deflection z, m.
-    pub bristle_m: f64,
-}
-
 /// Wall-heat constants of a step.
 #[derive(Clone, Copy)]
 struct Heat {

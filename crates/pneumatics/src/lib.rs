@@ -15,6 +15,8 @@ pub mod extended;
 pub mod flow;
 pub mod force_element;
 pub mod mechanics;
+mod moves;
+mod one_dof;
 mod spool;
 pub mod tf;
 pub mod valve;
@@ -28,9 +30,9 @@ pub use components::{
     SupplySheet, ValveSheet, find_actuator_sheet, load_actuator_sheet,
 };
 pub use effects::{Effects, LEAKS, Leaks, Lines, SpoolDynamics, WallHeat};
-pub use extended::ExtendedState;
 pub use flow::Orifice;
 pub use force_element::PneumaticForceElement;
+pub use mechanics::ExtendedState;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};
 pub use tf::{Linearisation, OperatingPoint, OperatingPointError, TfParams, TransferFunction};
 pub use valve::{Openings, PATHS, ValveKind, ValveModel, ValveState};

@@ -76,7 +76,7 @@ pub struct ValveState {
     /// Duty latched for the previous period (edges delayed into the current one).
     pub(crate) prev_duty: f64,
     /// The spool's pending moves when the model has spool dynamics or lines ([`crate::spool`]).
-    pub(crate) moves: crate::spool::PendingMoves,
+    pub(crate) moves: crate::moves::PendingMoves,
 }
 
 impl ValveState {
