@@ -150,7 +150,12 @@ pub fn markdown(r: &Report) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Estimates (95 % intervals: value +- (1.96 std error + replay bias bound))\n"
+        "\n## Estimates (95 % intervals: value +- (1.96 std error + replay bias bound){})\n",
+        if mc.adequate {
+            ""
+        } else {
+            "; NOT VALID: the model check failed, see the top"
+        }
     );
     let _ = writeln!(
         s,
