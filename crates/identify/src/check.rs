@@ -279,6 +279,26 @@ fn still_noise(d: &[Prepared], q_x: f64) -> ([f64; 3], usize) {
     )
 }
 
+/// `r` less its least-squares line over the row index: a segment's restart error (the position reading's
+/// noise, the carried velocity's error) is an offset and a drift shared by the segment's rows, whatever
+/// the model.
+fn detrended(r: &[f64]) -> Vec<f64> {
+    let n = r.len() as f64;
+    let mx = (n - 1.0) / 2.0;
+    let my = r.iter().sum::<f64>() / n;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (k, v) in r.iter().enumerate() {
+        let dx = k as f64 - mx;
+        sxy += dx * (v - my);
+        sxx += dx * dx;
+    }
+    let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    r.iter()
+        .enumerate()
+        .map(|(k, v)| v - my - b * (k as f64 - mx))
+        .collect()
+}
+
 /// Third differences of consecutive values (white noise of RMS s: RMS sqrt(20) s).
 fn third_differences(v: &[f64]) -> impl Iterator<Item = f64> + '_ {
     v.windows(4).map(|w| w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0])
@@ -343,8 +363,7 @@ pub fn check(
             for (_, seg) in &rows.segments {
                 let r: Vec<f64> = seg.iter().map(|&k| res(d, p, i, k)).collect();
                 if r.iter().all(|v| v.is_finite()) {
-                    let m = r.iter().sum::<f64>() / r.len() as f64;
-                    demeaned.push(r.into_iter().map(|v| v - m).collect());
+                    demeaned.push(detrended(&r));
                 }
             }
         }

@@ -109,6 +109,15 @@ fn g(v: f64) -> String {
     }
 }
 
+/// `v` with `digits` decimals, or a dash when it is not a number.
+fn fixed(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$}")
+    } else {
+        "–".to_string()
+    }
+}
+
 /// The report as Markdown.
 pub fn markdown(r: &Report) -> String {
     let mut s = String::new();
@@ -254,14 +263,15 @@ pub fn markdown(r: &Report) -> String {
     for c in &mc.channels {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.2} | {:.3} | {:.0} % | {:.0} | {:.2} |",
+            "| {} | {} | {} | {} | {} % | {} | {} |",
             c.signal,
             g(c.floor),
-            c.floor_ratio,
-            c.mean_abs_autocorrelation,
-            100.0 * c.lags_outside_fraction,
-            c.ljung_box,
-            c.validation_ratio
+            fixed(c.floor_ratio, 2),
+            fixed(c.mean_abs_autocorrelation, 3),
+            fixed(100.0 * c.lags_outside_fraction, 0),
+            fixed(c.ljung_box, 0),
+            // No held-out rows (--validation 0): nothing to compare, not NaN.
+            fixed(c.validation_ratio, 2)
         );
     }
     let _ = writeln!(
