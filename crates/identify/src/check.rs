@@ -813,3 +813,144 @@ fn evidence(s: &Signature) -> String {
         s.correlation
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::log::Log;
+
+    /// Uniform deviates in [-0.5, 0.5) from a fixed LCG: reproducible noise.
+    fn noise(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect()
+    }
+
+    /// A log resting for its first half (command and position steady, readings with white noise of a
+    /// known RMS on a 12-bit grid) and moving fast in its second.
+    fn resting_then_moving() -> (Prepared, [f64; 3]) {
+        let n = 2000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let q = [268.6, 268.6, 1.889e-5];
+        // Uniform noise of 3 counts' width: RMS 3 q / sqrt(12), well above the rounding's q / sqrt(12).
+        let read = |base: &dyn Fn(usize) -> f64, i: usize, seed: u64| -> Vec<f64> {
+            let e = noise(n, seed);
+            (0..n)
+                .map(|k| q[i] * ((base(k) + 3.0 * q[i] * e[k]) / q[i]).round())
+                .collect()
+        };
+        let moving = |k: usize| k >= n / 2;
+        let log = Log {
+            path: "mem.csv".into(),
+            sha256: String::new(),
+            u: (0..n)
+                .map(|k| {
+                    if moving(k) {
+                        (k as f64 * 0.05).sin()
+                    } else {
+                        0.1
+                    }
+                })
+                .collect(),
+            x: read(
+                &|k| {
+                    if moving(k) {
+                        0.02 + 0.01 * (t[k] * 40.0).sin()
+                    } else {
+                        0.02
+                    }
+                },
+                2,
+                1,
+            ),
+            p_a: read(
+                &|k| {
+                    if moving(k) {
+                        3e5 + 1e5 * (t[k] * 40.0).sin()
+                    } else {
+                        3e5
+                    }
+                },
+                0,
+                2,
+            ),
+            p_b: read(
+                &|k| {
+                    2e5 + if moving(k) {
+                        5e4 * (t[k] * 40.0).cos()
+                    } else {
+                        0.0
+                    }
+                },
+                1,
+                3,
+            ),
+            f_e: vec![0.0; n],
+            t,
+            note: None,
+        };
+        let expected = std::array::from_fn(|i| {
+            let width = 3.0 * q[i];
+            (width * width / 12.0 + q[i] * q[i] / 12.0).sqrt()
+        });
+        (
+            Prepared::new(log, &ReplayOptions::default(), n - 1),
+            expected,
+        )
+    }
+
+    #[test]
+    fn still_stretches_give_the_readings_noise() {
+        let (p, expected) = resting_then_moving();
+        let (s, rows) = still_noise(std::slice::from_ref(&p), quantum(&p.log.x));
+        // The resting half only: the moving half's windows are not still.
+        assert_eq!(rows, 1000);
+        for i in 0..3 {
+            assert!(
+                (s[i] / expected[i] - 1.0).abs() < 0.1,
+                "channel {i}: {} against {}",
+                s[i],
+                expected[i]
+            );
+        }
+    }
+
+    #[test]
+    fn a_log_that_never_rests_has_no_still_noise() {
+        let (mut p, _) = resting_then_moving();
+        p.log.u = (0..p.log.len()).map(|k| (k as f64 * 0.05).sin()).collect();
+        let (s, rows) = still_noise(std::slice::from_ref(&p), quantum(&p.log.x));
+        assert_eq!(rows, 0);
+        assert!(s.iter().all(|v| v.is_nan()));
+    }
+
+    #[test]
+    fn clipping_drops_a_few_edges_and_keeps_the_noise() {
+        // White noise of RMS 1 through third differences, and a kink every 100 rows 50 times as large.
+        let e: Vec<f64> = noise(20_000, 7).iter().map(|v| v * 12f64.sqrt()).collect();
+        let mut d: Vec<f64> = third_differences(&e).collect();
+        for k in (0..d.len()).step_by(100) {
+            d[k] += 50.0;
+        }
+        let s = clipped_scatter(&d);
+        assert!((s - 1.0).abs() < 0.1, "{s}");
+    }
+
+    #[test]
+    fn detrending_takes_out_a_line_only() {
+        let r: Vec<f64> = (0..50).map(|k| 3.0 + 0.2 * k as f64).collect();
+        assert!(detrended(&r).iter().all(|v| v.abs() < 1e-12));
+        let w: Vec<f64> = (0..50)
+            .map(|k| if k % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let d = detrended(&w);
+        // The alternation has almost no line in it (a slope of 0.0024 per row): it stays.
+        assert!(d.iter().zip(&w).all(|(a, b)| (a - b).abs() < 0.07));
+    }
+}
