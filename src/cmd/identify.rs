@@ -133,12 +133,17 @@ pub fn identify(
     );
     for e in &f.estimates {
         outln!(
-            "{:<40} {:>14.6e} {:>14.6e}   [{:.6e}, {:.6e}]",
+            "{:<40} {:>14.6e} {:>14.6e}   [{:.6e}, {:.6e}]{}",
             e.key,
             e.start,
             e.value,
             e.ci95[0],
-            e.ci95[1]
+            e.ci95[1],
+            if e.interval_valid {
+                ""
+            } else {
+                " (not valid: model not adequate)"
+            }
         );
     }
     let validation = if id.data.iter().all(|d| d.validation.is_empty()) {
@@ -161,6 +166,14 @@ pub fn identify(
     );
     for w in &id.report.warnings {
         errln!("warning: {w}");
+    }
+    let mc = &id.report.model_check;
+    if mc.adequate {
+        outln!(
+            "model check: adequate (residuals at the sensors' noise, white, held-out as good as fitted)"
+        );
+    } else {
+        errln!("warning: model check: {}", mc.summary());
     }
     outln!(
         "fit took {:.1} s; fitted sheet: {}",

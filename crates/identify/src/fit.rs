@@ -300,6 +300,10 @@ pub struct Estimate {
     pub rel_half_width: f64,
     /// Whether the fitted value sits on a bound (within 0.1 % of the range).
     pub at_bound: bool,
+    /// Whether `ci95` can be trusted: false when the model check finds the model not adequate
+    /// (`crate::check`): the interval then covers the noise of a model that is not the rig's, not the bias
+    /// of the missing effect, and may exclude the truth.
+    pub interval_valid: bool,
 }
 
 /// What the fit found.
@@ -554,6 +558,8 @@ pub fn fit_stoppable(
                 f64::INFINITY
             },
             at_bound: (v - f.lo).abs() < 1e-3 * range || (f.hi - v).abs() < 1e-3 * range,
+            // Set by the model check (`crate::request`), which needs the fitted model's residuals.
+            interval_valid: true,
         });
     }
     let correlation = (0..n)
@@ -762,7 +768,7 @@ fn restart_bootstrap(
 /// The step of the grid a logged signal's readings sit on (an ADC count in SI units), or 0 when they sit
 /// on none: the smallest gap between distinct readings, accepted when 99 % of all gaps are whole multiples
 /// of it (to 1e-3 of the step; the trace writes full-precision floats).
-fn quantum(v: &[f64]) -> f64 {
+pub(crate) fn quantum(v: &[f64]) -> f64 {
     let mut u: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
     u.sort_by(f64::total_cmp);
     let span = u.last().copied().unwrap_or(0.0) - u.first().copied().unwrap_or(0.0);

@@ -7,6 +7,7 @@ use std::path::Path;
 use pneuflex_plot::overlay::{Panel, Series, write_overlay};
 
 use crate::IdentifyError;
+use crate::check::ModelCheck;
 use crate::fit::FitResult;
 use crate::params::Key;
 use crate::replay::Prediction;
@@ -70,6 +71,9 @@ pub struct Report {
     pub sheet: String,
     /// The fit.
     pub fit: FitResult,
+    /// Whether the model explains the logs (residuals against the noise floor, whiteness, held-out rows)
+    /// and the likely missing effect; when not, every estimate's `interval_valid` is false.
+    pub model_check: ModelCheck,
     /// Validation pressure RMS as % of the supply pressure (p_a, p_b).
     pub validation_pressure_pct_supply: [f64; 2],
     /// Warnings.
@@ -105,11 +109,36 @@ fn g(v: f64) -> String {
     }
 }
 
+/// `v` with `digits` decimals, or a dash when it is not a number.
+fn fixed(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$}")
+    } else {
+        "–".to_string()
+    }
+}
+
 /// The report as Markdown.
 pub fn markdown(r: &Report) -> String {
     let mut s = String::new();
     let f = &r.fit;
     let _ = writeln!(s, "# Identification report\n");
+    let mc = &r.model_check;
+    if !mc.adequate {
+        let _ = writeln!(
+            s,
+            "**The model does not explain these logs: the intervals below are not valid.** The residuals \
+             are not the sensors' noise ({}). A rig richer than the model biases the estimates by an amount \
+             the intervals do not include; a truth may lie outside them. Likely missing: {}. Add the effect \
+             to the sheet and free its keys, then fit again.\n",
+            mc.failed.join("; "),
+            mc.likely_missing
+                .iter()
+                .map(|m| format!("**{}** ({}; `{}`)", m.effect, m.evidence, m.keys))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let _ = writeln!(s, "Sheet: `{}`\n", r.sheet);
     let _ = writeln!(
         s,
@@ -130,7 +159,12 @@ pub fn markdown(r: &Report) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Estimates (95 % intervals: value +- (1.96 std error + replay bias bound))\n"
+        "\n## Estimates (95 % intervals: value +- (1.96 std error + replay bias bound){})\n",
+        if mc.adequate {
+            ""
+        } else {
+            "; NOT VALID: the model check failed, see the top"
+        }
     );
     let _ = writeln!(
         s,
@@ -209,6 +243,50 @@ pub fn markdown(r: &Report) -> String {
         f.termination.join(", "),
         f.evaluations,
         r.fit_seconds
+    );
+    let _ = writeln!(
+        s,
+        "\n## Model check: {}\n",
+        if mc.adequate {
+            "adequate (the residuals are the sensors' noise)"
+        } else {
+            "NOT adequate (intervals not valid)"
+        }
+    );
+    let _ = writeln!(
+        s,
+        "| | floor | fit RMS / floor | mean abs autocorrelation, lags 1-{} | lags outside +-1.96/sqrt(N) | \
+         Ljung-Box Q | held-out RMS / fit RMS |",
+        crate::check::LAGS
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for c in &mc.channels {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} % | {} | {} |",
+            c.signal,
+            g(c.floor),
+            fixed(c.floor_ratio, 2),
+            fixed(c.mean_abs_autocorrelation, 3),
+            fixed(100.0 * c.lags_outside_fraction, 0),
+            fixed(c.ljung_box, 0),
+            // No held-out rows (--validation 0): nothing to compare, not NaN.
+            fixed(c.validation_ratio, 2)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nLimits: RMS / floor <= {}, mean |autocorrelation| <= {}, held-out / fit <= {}. Floor: the larger \
+         of the readings' step / sqrt(12) and their scatter on still stretches ({} rows). Signatures (|r|): {}.",
+        mc.thresholds.max_floor_ratio,
+        mc.thresholds.max_mean_abs_autocorrelation,
+        mc.thresholds.max_validation_ratio,
+        mc.channels.first().map_or(0, |c| c.still_rows),
+        mc.signatures
+            .iter()
+            .map(|g| format!("{} ({}) {:.2}", g.effect, g.probe, g.correlation))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     let _ = writeln!(s, "\n## Warnings\n");
     if r.warnings.is_empty() {

@@ -8,6 +8,7 @@ use pneuflex_files::{InputDigest, OutputDir};
 use pneuflex_pneumatics::{ActuatorSheet, OneDofModel};
 
 use crate::IdentifyError;
+use crate::check::check;
 use crate::fit::{FitOptions, Free, fit_stoppable};
 use crate::log::{LogLimits, read_log_limited};
 use crate::params::{ALL, Key, Offsets};
@@ -228,12 +229,19 @@ pub fn identify_stoppable(
         data.push(Prepared::new(log, &options.replay, fit_end));
     }
     let t0 = Instant::now();
-    let result = fit_stoppable(&base, &free, &data, &options, stop)?;
+    let mut result = fit_stoppable(&base, &free, &data, &options, stop)?;
     let fit_seconds = t0.elapsed().as_secs_f64();
     let mut model = base;
     let mut offsets = Offsets::default();
     for (k, e) in keys.iter().zip(&result.estimates) {
         k.set(&mut model, &mut offsets, e.value);
+    }
+    // Marked, not widened: a model-error term would need the missing effect's size, which the residuals
+    // alone do not give; an interval marked not valid says what is known.
+    let fitted: Vec<(Key, f64)> = free.iter().map(|f| (f.key, f.start)).collect();
+    let model_check = check(&model, &offsets, &fitted, &data, &options.replay);
+    for e in &mut result.estimates {
+        e.interval_valid = model_check.adequate;
     }
     let supply = base.actuator.supply.supply_pressure_pa;
     let warnings = warnings(&result, &keys);
@@ -255,6 +263,7 @@ pub fn identify_stoppable(
             100.0 * result.rms_validation[1] / supply,
         ],
         fit: result,
+        model_check,
         warnings,
         fit_seconds,
     };
@@ -330,6 +339,12 @@ pub fn write_staged(
         header += &format!(
             "  {} = {:e}, 95 % interval [{:e}, {:e}]\n",
             e.key, e.value, e.ci95[0], e.ci95[1]
+        );
+    }
+    if !id.report.model_check.adequate {
+        header += &format!(
+            "MODEL NOT ADEQUATE: {}; the intervals above are not valid (report.md)\n",
+            id.report.model_check.summary()
         );
     }
     if !id.report.warnings.is_empty() {

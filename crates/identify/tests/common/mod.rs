@@ -102,3 +102,28 @@ pub fn record_delayed(
     std::fs::write(out, &text).unwrap();
     text
 }
+
+/// The shipped sheets copied into `dir` with `edits` applied (file, text to replace, replacement; an empty
+/// `from` appends); the actuator sheet's path.
+pub fn sheets(dir: &Path, edits: &[(&str, &str, &str)]) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let src = root().join("pneumatics");
+    for e in std::fs::read_dir(&src).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    for (file, from, to) in edits {
+        let path = dir.join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let text = if from.is_empty() {
+            format!("{text}\n{to}\n")
+        } else {
+            assert!(text.contains(from), "{file} lacks {from:?}");
+            text.replacen(from, to, 1)
+        };
+        std::fs::write(&path, text).unwrap();
+    }
+    dir.join("paper-actuator.toml")
+}

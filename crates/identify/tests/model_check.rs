@@ -1,0 +1,343 @@
+//! The model check of issue 26: a truth of the fitted model is found adequate; truths with an effect
+//! beyond the paper hidden and not freed are found not adequate, with the effect named and every interval
+//! marked not valid; the same truths with the effect freed are adequate with the truths inside.
+mod common;
+
+use pneuflex_identify::excite::{Excitation, Signal};
+use pneuflex_identify::fit::FitOptions;
+use pneuflex_identify::params::Key;
+use pneuflex_identify::perturb::perturb;
+use pneuflex_identify::request::{Identified, Request, identify};
+
+const KEYS: [Key; 6] = [
+    Key::SonicConductance,
+    Key::CriticalRatio,
+    Key::DeadVolumeA,
+    Key::DeadVolumeB,
+    Key::Coulomb,
+    Key::MovingMass,
+];
+
+const CYL: &str = "smc-mqm16-cylinder.toml";
+const VALVE: &str = "a05ps25x-5-2-valve.toml";
+const ACT: &str = "paper-actuator.toml";
+const SMOOTH: &str = "friction = \"smooth\"              # \"smooth\" (tanh) or \"stick_slip\" (Karnopp + Stribeck)\n\
+                      coulomb_n = 0.6                  # low-friction MQM seals plus guide\n\
+                      smooth_velocity_m_per_s = 0.002";
+
+/// One planted effect: sheet edits, the effect's keys, and the name `likely_missing` should give.
+struct Effect {
+    name: &'static str,
+    edits: &'static [(&'static str, &'static str, &'static str)],
+    keys: &'static [Key],
+    missing: &'static str,
+}
+
+const EFFECTS: [Effect; 6] = [
+    Effect {
+        name: "leak",
+        edits: &[(
+            CYL,
+            "",
+            "[cylinder.leaks.piston]\nsonic_conductance_m3_per_s_pa = 1e-10\n\
+             [cylinder.leaks.a_atmosphere]\nsonic_conductance_m3_per_s_pa = 1e-10",
+        )],
+        keys: &[Key::LeakConductance(0), Key::LeakConductance(1)],
+        missing: "leakage",
+    },
+    Effect {
+        name: "wall heat",
+        edits: &[(CYL, "", "wall_heat_transfer_w_per_m2_k = 60.0")],
+        keys: &[Key::WallHeat],
+        missing: "heat_transfer",
+    },
+    Effect {
+        name: "lugre",
+        edits: &[(
+            ACT,
+            SMOOTH,
+            "friction = \"lugre\"\ncoulomb_n = 0.6\nstatic_n = 0.9\nstribeck_velocity_m_per_s = 0.005\n\
+             bristle_stiffness_n_per_m = 1e4\nbristle_damping_n_s_per_m = 100.0",
+        )],
+        keys: &[Key::BristleStiffness],
+        missing: "friction",
+    },
+    Effect {
+        name: "seal pressure",
+        edits: &[(
+            ACT,
+            SMOOTH,
+            "friction = \"smooth\"\ncoulomb_n = 0.6\nsmooth_velocity_m_per_s = 0.002\n\
+             coulomb_pressure_n_per_pa = 8e-6",
+        )],
+        keys: &[Key::CoulombPressure],
+        missing: "friction",
+    },
+    Effect {
+        name: "lines",
+        edits: &[(
+            ACT,
+            "",
+            "[lines]\nvolume_m3 = 1.5e-6\nsonic_conductance_m3_per_s_pa = 1e-8\nlength_m = 1.5",
+        )],
+        keys: &[Key::LineVolume],
+        missing: "valve_dynamics",
+    },
+    Effect {
+        name: "spool",
+        edits: &[(VALVE, "", "spool_time_constant_s = 0.0002")],
+        keys: &[Key::SpoolTimeConstant],
+        missing: "valve_dynamics",
+    },
+];
+
+fn steps(seed: u64) -> Excitation {
+    Excitation {
+        signal: Signal::Steps { hold_s: 0.15, seed },
+        amplitude: 0.05,
+        bias: 0.0,
+        centre_m: 0.025,
+        centring_per_m: 15.0,
+        ramp_s: 1.0,
+    }
+}
+
+const SECONDS: f64 = 4.0;
+
+fn fit(actuator: std::path::PathBuf, log: std::path::PathBuf, keys: &[Key]) -> Identified {
+    let req = Request {
+        logs: vec![log],
+        actuator,
+        free: keys.iter().map(|k| k.name().to_string()).collect(),
+        bounds: vec![],
+        limits: Default::default(),
+        validation_fraction: 0.25,
+        options: FitOptions::default(),
+    };
+    identify(&req).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn show(name: &str, id: &Identified) {
+    let mc = &id.report.model_check;
+    eprintln!(
+        "{name}: adequate {} failed {:?} missing {:?} signatures {:?}",
+        mc.adequate,
+        mc.failed,
+        mc.likely_missing
+            .iter()
+            .map(|m| m.effect)
+            .collect::<Vec<_>>(),
+        mc.signatures
+    );
+    for c in &mc.channels {
+        eprintln!(
+            "  {}: q {:.3e} still {:.3e} ({} rows) floor {:.3e} rms {:.3e} ratio {:.2} acf1 {:.2} mean|acf| {:.3} out {:.2} Q {:.0} val {:.2}",
+            c.signal,
+            c.resolution,
+            c.still_noise,
+            c.still_rows,
+            c.floor,
+            c.rms_fit,
+            c.floor_ratio,
+            c.autocorrelation[0],
+            c.mean_abs_autocorrelation,
+            c.lags_outside_fraction,
+            c.ljung_box,
+            c.validation_ratio
+        );
+    }
+}
+
+/// Inside-count of the truths: (inside, total), and asserts no interval that excludes its truth is valid.
+fn coverage(
+    name: &str,
+    id: &Identified,
+    changes: &[pneuflex_identify::perturb::Perturbed],
+) -> (usize, usize) {
+    let mut inside = 0;
+    let mut total = 0;
+    for e in &id.report.fit.estimates {
+        let Some(c) = changes.iter().find(|c| c.key.name() == e.key) else {
+            continue;
+        };
+        total += 1;
+        let ok = e.ci95[0] <= c.truth && c.truth <= e.ci95[1];
+        eprintln!(
+            "  {name} {}: truth {:e} fitted {:e} ({:+.2} %) [{:e}, {:e}] valid {}",
+            e.key,
+            c.truth,
+            e.value,
+            100.0 * (e.value / c.truth - 1.0),
+            e.ci95[0],
+            e.ci95[1],
+            e.interval_valid
+        );
+        if ok {
+            inside += 1;
+        }
+        assert!(
+            ok || !e.interval_valid,
+            "{name}: {}: truth {:e} outside [{:e}, {:e}], and the interval is marked valid",
+            e.key,
+            c.truth,
+            e.ci95[0],
+            e.ci95[1]
+        );
+    }
+    (inside, total)
+}
+
+/// A truth of `effect` (its keys and the six usual ones perturbed 20-40 %, seeded) and a 4 s lockstep log
+/// of it: (the base sheet with the effect, the truth's values, the log). The scratch directory lives as
+/// long as the returned guard.
+fn planted(
+    effect: &Effect,
+    seed: u64,
+) -> (
+    tempfile::TempDir,
+    std::path::PathBuf,
+    Vec<pneuflex_identify::perturb::Perturbed>,
+    std::path::PathBuf,
+) {
+    let scratch = common::scratch(&format!("model-check-{}", effect.name.replace(' ', "-")));
+    let dir = scratch.path().to_path_buf();
+    let base = common::sheets(&dir.join("base"), effect.edits);
+    let mut keys: Vec<Key> = KEYS.to_vec();
+    keys.extend_from_slice(effect.keys);
+    let (truth, changes) = perturb(&base, &keys, seed, &dir.join("truth")).unwrap();
+    let log = dir.join("log.csv");
+    common::record(&truth, seed, steps(seed), SECONDS, None, &log);
+    (scratch, base, changes, log)
+}
+
+fn effect(name: &str) -> &'static Effect {
+    EFFECTS.iter().find(|e| e.name == name).unwrap()
+}
+
+/// The truth's seed: any (51 is outside the other tests' seeds).
+const SEED: u64 = 51;
+
+/// A truth of the model that is fitted (the shipped sheet, six keys perturbed): adequate, every interval
+/// valid and holding its truth, every channel's residual within 1.3 floors.
+#[test]
+fn a_truth_of_the_fitted_model_is_adequate() {
+    let scratch = common::scratch("model-check-matched");
+    let dir = scratch.path().to_path_buf();
+    let shipped = common::root().join("pneumatics").join(ACT);
+    let (truth, changes) = perturb(&shipped, &KEYS, SEED, &dir.join("truth")).unwrap();
+    let log = dir.join("log.csv");
+    common::record(&truth, SEED, steps(SEED), SECONDS, None, &log);
+    let id = fit(shipped, log, &KEYS);
+    show("matched", &id);
+    let mc = &id.report.model_check;
+    assert!(mc.adequate, "{:?}", mc.failed);
+    assert!(mc.likely_missing.is_empty());
+    for c in &mc.channels {
+        assert!(c.floor_ratio < 1.3, "{}: {}", c.signal, c.floor_ratio);
+    }
+    assert!(id.report.fit.estimates.iter().all(|e| e.interval_valid));
+    assert_eq!(coverage("matched", &id, &changes), (6, 6));
+}
+
+/// An effect planted in the truth and not freed (the fit starts from the shipped sheet, which lacks it):
+/// not adequate, the effect named among `likely_missing`, every interval marked not valid.
+fn hidden(name: &str) {
+    let e = effect(name);
+    let (_scratch, _base, changes, log) = planted(e, SEED);
+    let id = fit(common::root().join("pneumatics").join(ACT), log, &KEYS);
+    show(&format!("{name} hidden"), &id);
+    let mc = &id.report.model_check;
+    assert!(!mc.adequate, "{name}: found adequate");
+    let named: Vec<&str> = mc.likely_missing.iter().map(|m| m.effect).collect();
+    assert!(
+        named.contains(&e.missing),
+        "{name}: likely missing {named:?}, not {}",
+        e.missing
+    );
+    assert!(id.report.fit.estimates.iter().all(|e| !e.interval_valid));
+    let md = pneuflex_identify::report::markdown(&id.report);
+    assert!(
+        md.starts_with("# Identification report\n\n**The model does not explain these logs"),
+        "{md}"
+    );
+    coverage(name, &id, &changes);
+}
+
+/// The same truth with the effect's keys freed too (the fit starts from the sheet with the effect at its
+/// unperturbed value): adequate, and every truth inside its interval.
+fn freed(name: &str) {
+    let e = effect(name);
+    let (_scratch, base, changes, log) = planted(e, SEED);
+    let mut keys: Vec<Key> = KEYS.to_vec();
+    keys.extend_from_slice(e.keys);
+    let id = fit(base, log, &keys);
+    show(&format!("{name} freed"), &id);
+    let mc = &id.report.model_check;
+    assert!(mc.adequate, "{name} freed: {:?}", mc.failed);
+    let (inside, total) = coverage(name, &id, &changes);
+    assert_eq!((inside, total), (keys.len(), keys.len()), "{name} freed");
+}
+
+#[test]
+fn a_hidden_leak_is_flagged_and_named() {
+    hidden("leak");
+}
+
+#[test]
+fn a_freed_leak_is_adequate() {
+    freed("leak");
+}
+
+#[test]
+fn hidden_wall_heat_is_flagged_and_named() {
+    hidden("wall heat");
+}
+
+#[test]
+fn freed_wall_heat_is_adequate() {
+    freed("wall heat");
+}
+
+#[test]
+fn hidden_lugre_friction_is_flagged_and_named() {
+    hidden("lugre");
+}
+
+#[test]
+fn freed_lugre_friction_is_adequate() {
+    freed("lugre");
+}
+
+#[test]
+fn a_hidden_seal_pressure_term_is_flagged_and_named() {
+    hidden("seal pressure");
+}
+
+#[test]
+fn a_freed_seal_pressure_term_is_adequate() {
+    freed("seal pressure");
+}
+
+#[test]
+fn hidden_spool_travel_is_flagged_and_named() {
+    hidden("spool");
+}
+
+#[test]
+fn freed_spool_travel_is_adequate() {
+    freed("spool");
+}
+
+// Lines between valve and ports: named too (valve_dynamics) and adequate once freed, but each fit takes
+// 23-31 s in a debug build (the hidden one drives b and F_c to their bounds): run with `--ignored`.
+#[test]
+#[ignore = "23-31 s per fit in a debug build"]
+fn hidden_lines_are_flagged_and_named() {
+    hidden("lines");
+}
+
+#[test]
+#[ignore = "23-31 s per fit in a debug build"]
+fn freed_lines_are_adequate() {
+    freed("lines");
+}
