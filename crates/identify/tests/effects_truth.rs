@@ -4,7 +4,7 @@
 //! effect's key freed in `identify` recovers its truth inside the 95 % interval.
 mod common;
 
-use std::path::{Path, PathBuf};
+use common::sheets;
 
 use pneuflex_identify::excite::{Excitation, Signal};
 use pneuflex_identify::fit::FitOptions;
@@ -75,30 +75,6 @@ const CASES: [Case; 5] = [
         keys: &[Key::CoulombPressure, Key::BristleStiffness],
     },
 ];
-
-/// The shipped sheets copied into `dir` with `edits` applied; the actuator sheet's path.
-fn sheets(dir: &Path, edits: &[(&str, &str, &str)]) -> PathBuf {
-    std::fs::create_dir_all(dir).unwrap();
-    let src = common::root().join("pneumatics");
-    for e in std::fs::read_dir(&src).unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().is_some_and(|x| x == "toml") {
-            std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
-        }
-    }
-    for (file, from, to) in edits {
-        let path = dir.join(file);
-        let text = std::fs::read_to_string(&path).unwrap();
-        let text = if from.is_empty() {
-            format!("{text}\n{to}\n")
-        } else {
-            assert!(text.contains(from), "{file} lacks {from:?}");
-            text.replacen(from, to, 1)
-        };
-        std::fs::write(&path, text).unwrap();
-    }
-    dir.join(ACT)
-}
 
 fn steps(seed: u64) -> Excitation {
     Excitation {
