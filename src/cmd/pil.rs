@@ -165,12 +165,10 @@ fn interrupted(
     stop: &std::sync::atomic::AtomicUsize,
 ) -> anyhow::Result<()> {
     let signal = stop.load(std::sync::atomic::Ordering::Relaxed);
+    // The runs the command was asked for: summary.json lists those reached and, with fewer results than
+    // runs, is incomplete even when the signal came before the first tick of the first run.
     let mut done = scene.clone();
-    let ran = runs.len() + usize::from(cut.is_some());
-    done.runs = indices[..ran]
-        .iter()
-        .map(|&i| scene.runs[i].clone())
-        .collect();
+    done.runs = indices.iter().map(|&i| scene.runs[i].clone()).collect();
     done.claims.clear();
     let mut results: Vec<_> = runs.iter().map(|r| r.firmware.clone()).collect();
     let cut_name = scene.runs[indices[runs.len()]].name.clone();
