@@ -2,6 +2,7 @@
 //! identification, real rig); each hands its values to its `cmd` module and holds no logic of its own.
 
 pub mod identify;
+pub mod new;
 pub mod rig;
 pub mod simulate;
 
@@ -25,6 +26,11 @@ pub enum Command {
     Perturb(identify::Perturb),
     Seal(identify::Seal),
     Leak(identify::Leak),
+    /// Make something new from a few values: `new rig DIR` from datasheet values (docs/your-rig.md).
+    New {
+        #[command(subcommand)]
+        what: new::NewCommand,
+    },
     /// Real-rig mode: the same controller on a real or emulated rig over the serial protocol (docs/rig.md).
     Rig {
         #[command(subcommand)]
@@ -43,6 +49,7 @@ impl Command {
             Command::Perturb(a) => a.call(),
             Command::Seal(a) => a.call(),
             Command::Leak(a) => a.call(),
+            Command::New { what } => what.call(),
             Command::Rig { action } => action.call(),
         }
     }

@@ -82,6 +82,7 @@ pub fn interrupted(signal: usize, what: String) -> anyhow::Error {
 pub mod excite;
 pub mod identify;
 pub mod live;
+pub mod new_rig;
 pub mod pil;
 pub mod rig;
 pub mod run;

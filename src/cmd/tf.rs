@@ -157,6 +157,16 @@ pub fn loop_margins(
                     a * 1e3
                 ))
             )?;
+            let o = &m.outer;
+            writeln!(
+                s,
+                "  {:>14}  outer force loop (impedance filter, inner loop, environment): crossover {} Hz, phase margin {} deg; phase crossover {} Hz, gain margin {} dB",
+                "",
+                f(o.crossover_hz, 2),
+                f(o.phase_margin_deg, 1),
+                f(o.phase_crossover_hz, 2),
+                f(o.gain_margin_db, 1),
+            )?;
             onsets.push(onset.map(|(k, hz, a)| serde_json::json!({"kp_per_m": k, "frequency_hz": hz, "amplitude_m": a})));
         }
         out.push(serde_json::json!({"analysis": a, "limit_cycle_onsets": onsets}));

@@ -63,9 +63,10 @@ pub fn fastest_chamber_pole(model: &OneDofModel) -> f64 {
     fastest
 }
 
-/// Smallest small-signal gain margin of an inner loop without a warning, dB (Coulomb friction left out, so
-/// conservative: the proportional-valve Fig. 3 plant limit-cycles from kp = 10.7 /m, where it reads −4 dB).
-pub const MIN_GAIN_MARGIN_DB: f64 = 1.0;
+/// Smallest small-signal gain margin of the inner loop, and of the outer force loop around it, without a
+/// warning, dB (Coulomb friction left out, so conservative: the proportional-valve Fig. 3 plant
+/// limit-cycles from kp = 10.7 /m, where it reads −4 dB).
+pub const MIN_GAIN_MARGIN_DB: f64 = 3.0;
 
 /// Warnings about each run's inner-loop margins at every stiffness the scene meets, on plants the loop
 /// analysis covers (a proportional-valve pneumatic plant, the linear plant); none on the others.
@@ -100,6 +101,22 @@ pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
                         m.stiffness_n_per_m,
                         m.phase_crossover_hz.unwrap_or(f64::NAN),
                         m.kp_max_per_m.unwrap_or(f64::NAN)
+                    ),
+                });
+            }
+            let o = &m.outer;
+            if let Some(gm) = o.gain_margin_db.filter(|&g| g < MIN_GAIN_MARGIN_DB) {
+                out.push(Warning {
+                    key: format!("runs[{i}].impedance.b_d_ns_per_m"),
+                    message: format!(
+                        "run `{}`: the outer force loop (impedance filter, inner loop, environment) has {gm:.1} dB of \
+                         gain margin at k_e = {} N/m (below {MIN_GAIN_MARGIN_DB} dB): the force may oscillate near \
+                         {:.1} Hz after a change; b_d >= {} N s/m keeps {MIN_GAIN_MARGIN_DB} dB (`pneuflex tf \
+                         <scene> --loop`)",
+                        run.name,
+                        m.stiffness_n_per_m,
+                        o.phase_crossover_hz.unwrap_or(f64::NAN),
+                        o.b_d_min_ns_per_m.map_or(f64::NAN, |b| (b * 10.0).ceil() / 10.0)
                     ),
                 });
             }

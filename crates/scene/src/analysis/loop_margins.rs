@@ -32,9 +32,29 @@ pub struct Margins {
     pub gain_margin_db: Option<f64>,
     /// Largest kp (other gains as in the scene) that keeps the gain margin at the target, 1/m.
     pub kp_max_per_m: Option<f64>,
+    /// The outer force loop closed around this inner loop (impedance filter, inner loop, environment).
+    pub outer: OuterMargins,
     /// The loop's frequency response: (Hz, |L| dB, arg L degrees, unwrapped).
     #[serde(skip)]
     pub bode: Vec<(f64, f64, f64)>,
+}
+
+/// Margins of the outer force loop at one stiffness: the impedance filter, the closed inner loop and the
+/// environment, broken at the force (the adaptive law frozen at its start, g = p = d = 0: the impedance
+/// controller's loop).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OuterMargins {
+    /// Gain crossover, Hz.
+    pub crossover_hz: Option<f64>,
+    /// Phase margin there, degrees.
+    pub phase_margin_deg: Option<f64>,
+    /// Phase crossover, Hz.
+    pub phase_crossover_hz: Option<f64>,
+    /// Gain margin there, dB.
+    pub gain_margin_db: Option<f64>,
+    /// The smallest b_d (m_d and the inner loop as in the scene) that keeps the outer gain margin at the
+    /// target, N s/m (None: not within 100× the scene's).
+    pub b_d_min_ns_per_m: Option<f64>,
 }
 
 /// The analysis of one run's inner loop.
@@ -196,10 +216,18 @@ fn loop_response(
     pid: &pneuflex_control::PidParams,
     dt: f64,
 ) -> Vec<(f64, f64, f64)> {
-    let mut out = Vec::with_capacity(plant.len());
+    unwrapped(
+        plant
+            .iter()
+            .map(|&(f, z, p)| (f, pid_cy(pid, dt, z).mul(p))),
+    )
+}
+
+/// (Hz, |L|, arg L rad) of a complex response, the phase unwrapped from the lowest frequency.
+fn unwrapped(resp: impl Iterator<Item = (f64, Cx)>) -> Vec<(f64, f64, f64)> {
+    let mut out = Vec::new();
     let mut prev: Option<f64> = None;
-    for &(f, z, p) in plant {
-        let l = pid_cy(pid, dt, z).mul(p);
+    for (f, l) in resp {
         let mut ph = l.arg();
         if let Some(p) = prev {
             while ph - p > std::f64::consts::PI {
@@ -213,6 +241,28 @@ fn loop_response(
         out.push((f, l.abs(), ph));
     }
     out
+}
+
+/// The outer force loop (eqs. 19–24) broken at the contact force: the impedance filter
+/// 1/(m_d s² + b_d s + k_d) from the force error to the position reference, the inner loop closed,
+/// T = C_r P / (1 + C_y P) with C_r = kp + ki·dt/(z − 1) (the PID's derivative acts on the measurement
+/// only), and the environment k_e from the position to the force: L_o = k_e T / (m_d s² + b_d s + k_d),
+/// s = jω (the filter's zero-order hold is exact to well under a degree below 20 Hz at 1 ms).
+fn outer_response(
+    plant: &[(f64, Cx, Cx)],
+    pid: &pneuflex_control::PidParams,
+    imp: &pneuflex_control::ImpedanceParams,
+    k_e: f64,
+    dt: f64,
+) -> Vec<(f64, f64, f64)> {
+    unwrapped(plant.iter().map(|&(f, z, p)| {
+        let one = Cx(1.0, 0.0);
+        let c_r = Cx(pid.kp_per_m, 0.0).add(Cx(pid.ki_per_m_s * dt, 0.0).div(z.sub(one)));
+        let t = c_r.mul(p).div(one.add(pid_cy(pid, dt, z).mul(p)));
+        let w = std::f64::consts::TAU * f;
+        let filter = Cx(imp.k_d_n_per_m - imp.m_d_kg * w * w, imp.b_d_ns_per_m * w);
+        (f, Cx(k_e, 0.0).mul(t).div(filter))
+    }))
 }
 
 /// Crossovers and margins of a response.
@@ -345,6 +395,44 @@ fn at_stiffness<P: Linearisable>(
     let plant = plant_response(&phi, &gamma, dt, &frequencies(dt));
     let resp = loop_response(&plant, &run.inner, dt);
     let (gc, pm, pc, gm) = margins_of(&resp);
+    let (ogc, opm, opc, ogm) =
+        margins_of(&outer_response(&plant, &run.inner, &run.impedance, k_e, dt));
+    // The smallest b_d with the target outer gain margin: more damping lowers the crossover and moves the
+    // filter's pole b_d/m_d up, so the margin grows with b_d; bisection on a log scale.
+    let outer_ok = |b_d: f64| {
+        let imp = pneuflex_control::ImpedanceParams {
+            b_d_ns_per_m: b_d,
+            ..run.impedance
+        };
+        margins_of(&outer_response(&plant, &run.inner, &imp, k_e, dt))
+            .3
+            .is_none_or(|g| g >= target_db)
+    };
+    let b_d0 = run.impedance.b_d_ns_per_m.max(1e-6);
+    let b_d_min = if outer_ok(b_d0) {
+        let (mut lo, mut hi) = (0.0_f64, b_d0);
+        for _ in 0..30 {
+            let mid = 0.5 * (lo + hi);
+            if outer_ok(mid) { hi = mid } else { lo = mid }
+        }
+        Some(hi)
+    } else if outer_ok(100.0 * b_d0) {
+        let (mut lo, mut hi) = (b_d0, 100.0 * b_d0);
+        for _ in 0..30 {
+            let mid = (lo * hi).sqrt();
+            if outer_ok(mid) { hi = mid } else { lo = mid }
+        }
+        Some(hi)
+    } else {
+        None
+    };
+    let outer = OuterMargins {
+        crossover_hz: ogc,
+        phase_margin_deg: opm,
+        phase_crossover_hz: opc,
+        gain_margin_db: ogm,
+        b_d_min_ns_per_m: b_d_min,
+    };
     // The largest kp with the target gain margin: bisection on kp (ki, kd as in the scene).
     let gm_at = |kp: f64| {
         let pid = pneuflex_control::PidParams {
@@ -377,6 +465,7 @@ fn at_stiffness<P: Linearisable>(
         phase_crossover_hz: pc,
         gain_margin_db: gm,
         kp_max_per_m: kp_max,
+        outer,
         bode: resp
             .iter()
             .map(|&(f, m, ph)| (f, 20.0 * m.log10(), ph.to_degrees()))

@@ -1,0 +1,108 @@
+//! `pneuflex new rig DIR`: a rig from datasheet values (docs/your-rig.md). Quantities take unit suffixes
+//! (`25mm`, `6bar`, `200l/min`); every value not given is derived and listed in DIR/README.md.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand, ValueEnum};
+
+use crate::cmd;
+
+/// Make something new from a few values.
+#[derive(Subcommand)]
+pub enum NewCommand {
+    /// A rig from datasheet values: a commented sheet set, a scene running the paper's experiment on it
+    /// with gains checked on the loop and in simulation, and a rig file (docs/your-rig.md).
+    Rig(Box<NewRig>),
+}
+
+impl NewCommand {
+    pub fn call(self) -> anyhow::Result<()> {
+        match self {
+            NewCommand::Rig(a) => cmd::new_rig::new_rig(&a),
+        }
+    }
+}
+
+/// The valve kinds.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Valve {
+    /// A 5/2 on/off solenoid valve under PWM.
+    Pwm,
+    /// A proportional 5/3 servo valve.
+    Proportional,
+}
+
+#[derive(Args)]
+pub struct NewRig {
+    /// The directory to create (it must not exist).
+    pub dir: PathBuf,
+    /// The rig's name (default: from the sizes, e.g. rig-25x100-pwm).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Cylinder bore, e.g. 25mm.
+    #[arg(long)]
+    pub bore: Option<String>,
+    /// A bore of ISO 15552 (32–320) or ISO 6432 (8–25), mm: sets the bore, rod and port.
+    #[arg(long, value_name = "MM")]
+    pub iso_bore: Option<f64>,
+    /// Piston rod diameter (default: the standard rod of the bore).
+    #[arg(long)]
+    pub rod: Option<String>,
+    /// Stroke, e.g. 100mm.
+    #[arg(long)]
+    pub stroke: Option<String>,
+    /// Supply pressure, gauge, e.g. 6bar (default 6 bar).
+    #[arg(long)]
+    pub supply: Option<String>,
+    /// The valve (default pwm).
+    #[arg(long, value_enum)]
+    pub valve: Option<Valve>,
+    /// The valve's standard nominal flow QN (6 → 5 bar gauge), e.g. 200l/min.
+    #[arg(long, group = "flow")]
+    pub valve_flow: Option<String>,
+    /// The valve's ISO 6358 sonic conductance C, m³/(s Pa) (e.g. 5e-9), or with a unit: 0.5dm3/(s*bar).
+    #[arg(long, group = "flow")]
+    pub valve_c: Option<String>,
+    /// The valve's Kv, m³/h of water at 1 bar.
+    #[arg(long, group = "flow")]
+    pub valve_kv: Option<f64>,
+    /// The valve's Cv, US gal/min of water at 1 psi.
+    #[arg(long, group = "flow")]
+    pub valve_cv: Option<f64>,
+    /// The valve's ISO 6358 critical pressure ratio b (default 0.3; 0.5 with Kv or Cv).
+    #[arg(long)]
+    pub valve_b: Option<f64>,
+    /// PWM carrier frequency of an on/off valve, e.g. 40Hz.
+    #[arg(long)]
+    pub pwm_frequency: Option<String>,
+    /// Switching delay of an on/off valve, e.g. 5ms.
+    #[arg(long)]
+    pub switching_delay: Option<String>,
+    /// Spool response time of a proportional valve, e.g. 5ms.
+    #[arg(long)]
+    pub response_time: Option<String>,
+    /// The position sensor's span from 0, e.g. 125mm.
+    #[arg(long)]
+    pub position_range: Option<String>,
+    /// The differential pressure transmitter's span (±), e.g. 0.8MPa.
+    #[arg(long)]
+    pub pressure_range: Option<String>,
+    /// Everything that moves with the piston, e.g. 0.6kg.
+    #[arg(long)]
+    pub mass: Option<String>,
+    /// Incline of the axis below the horizontal, e.g. 30deg (default 0).
+    #[arg(long)]
+    pub incline: Option<String>,
+    /// Coulomb friction of the seals and guide, e.g. 3N.
+    #[arg(long)]
+    pub friction: Option<String>,
+    /// Dead volume of each chamber (port, end cap and tube), e.g. 3cm3.
+    #[arg(long)]
+    pub dead_volume: Option<String>,
+    /// Tube length from the valve to each port, for the dead volume, e.g. 0.5m.
+    #[arg(long)]
+    pub tube_length: Option<String>,
+    /// The experiment's contact force (default: 10 % of the force range), e.g. 30N.
+    #[arg(long)]
+    pub force: Option<String>,
+}
