@@ -318,12 +318,17 @@ fn a_freed_seal_pressure_term_is_adequate() {
     freed("seal pressure");
 }
 
+// Spool travel: its hidden fit drives F_c to its bound and takes 36-39 s of CI's test time; the quick form in
+// CI leaves this pair out, the full form runs it (`cargo test -p pneuflex-identify --test model_check --
+// --include-ignored`, docs/identification.md).
 #[test]
+#[ignore = "36-39 s per fit in a debug build: the full form (--include-ignored)"]
 fn hidden_spool_travel_is_flagged_and_named() {
     hidden("spool");
 }
 
 #[test]
+#[ignore = "the full form (--include-ignored), with its hidden pair"]
 fn freed_spool_travel_is_adequate() {
     freed("spool");
 }
