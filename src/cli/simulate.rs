@@ -227,3 +227,29 @@ impl Tune {
         )
     }
 }
+
+/// A rig's run against the simulation of the same scene and run: each window's metrics side by side with
+/// the difference, figures of both, and the RMS difference of the traces (docs/your-rig.md).
+#[derive(Args)]
+pub struct Compare {
+    /// The scene the rig ran (scenes/*.toml).
+    pub scene: PathBuf,
+    /// The rig's trace.csv (`rig run` output).
+    #[arg(long, value_name = "TRACE.csv")]
+    pub rig_log: PathBuf,
+    /// The scene's run the rig ran (default: the first).
+    #[arg(long)]
+    pub run: Option<String>,
+    /// Simulate with this actuator sheet instead of the scene's (an identified one: how much closer it comes).
+    #[arg(long, value_name = "SHEET.toml")]
+    pub actuator: Option<PathBuf>,
+    /// Output directory (default: out/compare/<scene>/<run>/).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+impl Compare {
+    pub fn call(self) -> anyhow::Result<()> {
+        cmd::compare::compare(&self)
+    }
+}

@@ -34,8 +34,21 @@ pub struct ClaimResult {
     pub fragile: Option<String>,
 }
 
-/// The value of `metric` in a window (settling time None when not settled).
-fn value(w: &WindowMetrics, metric: &str) -> Option<f64> {
+/// The metrics a claim (and a comparison) can name.
+pub const METRICS: [&str; 8] = [
+    "rms_force_error_n",
+    "phase_lag_deg",
+    "steady_state_error_n",
+    "peak_force_n",
+    "jump_n",
+    "recovery_overshoot_n",
+    "recovery_overshoot_pct",
+    "settling_time_s",
+];
+
+/// The value of `metric` in a window (settling time None when not settled; None when the window's kind
+/// does not have it).
+pub fn value(w: &WindowMetrics, metric: &str) -> Option<f64> {
     let e = w.event.as_ref();
     match metric {
         "rms_force_error_n" => Some(w.rms_force_error_n),

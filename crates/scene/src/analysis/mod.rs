@@ -4,6 +4,7 @@
 pub mod adaptation;
 pub mod advice;
 pub mod claims;
+pub mod comparison;
 pub mod loop_margins;
 pub mod metrics;
 pub mod windows;

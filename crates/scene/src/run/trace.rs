@@ -153,6 +153,64 @@ impl Trace {
         Ok(Self { columns, data })
     }
 
+    /// A trace from `trace.csv` text as `run` and `rig run` write it: `#` comment lines, a header, one row per
+    /// tick, an empty cell NaN. Columns in `skip` (a rig's `wall_time`, `fault`) are left out. Errors name
+    /// the line and the column.
+    pub fn from_csv(text: &str, skip: &[&str]) -> Result<Self, String> {
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| (i + 1, l.trim_start_matches('\u{feff}')))
+            .filter(|(_, l)| !l.starts_with('#') && !l.trim().is_empty());
+        let (_, header) = lines.next().ok_or("no header row")?;
+        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let keep: Vec<bool> = names.iter().map(|n| !skip.contains(n)).collect();
+        let known = |n: &str| {
+            pneuflex_control::LOOP_SIGNALS
+                .iter()
+                .find(|s| s.name == n)
+                .map(Column::from)
+                .unwrap_or(Column {
+                    name: n.into(),
+                    unit: String::new(),
+                    group: "other".into(),
+                })
+        };
+        let mut cols: Vec<(Column, Vec<f64>)> = names
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(n, _)| (known(n), Vec::new()))
+            .collect();
+        for (line, row) in lines {
+            let cells: Vec<&str> = row.split(',').collect();
+            if cells.len() != names.len() {
+                return Err(format!(
+                    "line {line}: {} cells, the header has {}",
+                    cells.len(),
+                    names.len()
+                ));
+            }
+            let mut j = 0;
+            for ((cell, name), k) in cells.iter().zip(&names).zip(&keep) {
+                if !k {
+                    continue;
+                }
+                let c = cell.trim();
+                let v = if c.is_empty() {
+                    f64::NAN
+                } else {
+                    c.parse().map_err(|_| {
+                        format!("line {line}: column `{name}`: `{c}` is not a number")
+                    })?
+                };
+                cols[j].1.push(v);
+                j += 1;
+            }
+        }
+        Self::from_columns(cols).map_err(|e| e.to_string())
+    }
+
     /// The columns with their data, in order.
     pub fn into_columns(self) -> Vec<(Column, Vec<f64>)> {
         self.columns.into_iter().zip(self.data).collect()
