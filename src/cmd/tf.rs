@@ -140,6 +140,13 @@ pub fn loop_margins(
             a.run, a.kp_per_m, a.valve_model
         )?;
         let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
+        if a.valve_model.contains("averaged") {
+            writeln!(
+                s,
+                "  (an on/off valve: these margins are of its PWM-period average and do not see the ripple; no \
+                 limit cycle of the switching valve is predicted here: simulate to rule one out, as `new rig` does)"
+            )?;
+        }
         let mut onsets = Vec::new();
         for m in &a.margins {
             let onset = onset_at(&scene, i, m.stiffness_n_per_m)?;
