@@ -9,8 +9,8 @@ use pneuflex_control::{
     SetpointSchedule,
 };
 use pneuflex_protocol::ctrl::{
-    ControllerSetup, OutputPayload, ReadyPayload, SafePayload, SetupCollector, StartPayload, ready,
-    status,
+    ControllerSetup, MAX_SIGNALS, OutputPayload, ReadyPayload, SafePayload, SetupCollector,
+    StartPayload, ready, status,
 };
 use pneuflex_protocol::{DecodeEvent, Message, RESET_MAGIC, ValveMode, fault_code};
 use pneuflex_valve_driver::{SafeMode, ValveDriver};
@@ -171,14 +171,13 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
                     tick: s.tick,
                     u: 0.0,
                     x_r: 0.0,
-                    g: 0.0,
-                    p: 0.0,
-                    d: 0.0,
                     f_ref: sp.f_ref,
                     x_d: sp.x_d,
                     board_time_us: 0,
                     update_ns: 0,
                     status: 0,
+                    n_signals: 0,
+                    signals: [0.0; MAX_SIGNALS],
                 };
                 match (&self.state, self.controller.as_mut()) {
                     (State::Run, Some(c)) => {
@@ -196,9 +195,11 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
                         self.last_tick = s.tick;
                         out.u = cmd.u;
                         out.x_r = tel.x_r;
-                        out.g = tel.g;
-                        out.p = tel.p;
-                        out.d = tel.d;
+                        // The controller's own signals as it declares them (Start refused more than
+                        // fit in a frame).
+                        let n = c.signals().len().min(MAX_SIGNALS);
+                        c.record(&mut out.signals[..n]);
+                        out.n_signals = n as u8;
                         out.update_ns = (t1 - t0).min(u64::from(u32::MAX)) as u32;
                     }
                     (State::Safe { latched, .. }, _) => {
@@ -276,6 +277,17 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
             ValveMode::SafeHold => SafeMode::Hold,
             _ => SafeMode::Vent,
         };
+        // A controller with more signals than a CtrlOutput carries would lose some: refused.
+        let built = built.and_then(|mut c| {
+            if c.controller().signals().len() > MAX_SIGNALS {
+                Err(ReadyPayload {
+                    result: ready::START,
+                    detail: 2,
+                })
+            } else {
+                Ok(c)
+            }
+        });
         match built {
             Ok(mut c) if s.safe_mode.is_safe() => {
                 // Warm-up: the first update computes and caches the period's exact ZOH and leakage factors

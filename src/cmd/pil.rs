@@ -216,15 +216,16 @@ fn comparison_table(scene: &Scene, runs: &[PilRun]) -> String {
     let mut s = format!(
         "# {} on the emulated board vs the host simulation\n\n\
          | run | ticks | bit-identical ticks | max abs du | max abs dfe (N) | first tick abs du > 1e-9 | \
-         metrics equal | update on board, mean (min-max) ns | stack peak (B) | frames in/out, CRC errors, gaps |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         the controller's own signals | metrics equal | update on board, mean (min-max) ns | stack peak (B) | \
+         frames in/out, CRC errors, gaps |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
         scene.name
     );
     for (spec, r) in scene.runs.iter().zip(runs) {
         let c = &r.comparison;
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:e} | {:e} | {} | {} | {:.0} ({}-{}) | {} | {}/{}, {}, {} |",
+            "| {} | {} | {} | {:e} | {:e} | {} | {} | {} | {:.0} ({}-{}) | {} | {}/{}, {}, {} |",
             spec.name,
             c.ticks,
             c.bit_identical_ticks,
@@ -232,6 +233,7 @@ fn comparison_table(scene: &Scene, runs: &[PilRun]) -> String {
             c.max_abs_dfe_n,
             c.first_divergent_tick
                 .map_or("none".to_string(), |k| k.to_string()),
+            own_signals(&c.controller_signals, c.ticks),
             if c.metrics_equal { "yes" } else { "NO" },
             r.cost.mean_ns,
             r.cost.min_ns,
@@ -244,4 +246,25 @@ fn comparison_table(scene: &Scene, runs: &[PilRun]) -> String {
         );
     }
     s
+}
+
+/// The controller's own signals in a cell: each name, with its largest difference where a tick differs.
+fn own_signals(signals: &[pneuflex_pil::SignalComparison], ticks: usize) -> String {
+    if signals.is_empty() {
+        return "none declared".into();
+    }
+    let each: Vec<String> = signals
+        .iter()
+        .map(|s| {
+            if s.bit_identical_ticks == ticks {
+                format!("{} identical", s.name)
+            } else {
+                format!(
+                    "{}: {} of {ticks} identical, max abs diff {:e} {}",
+                    s.name, s.bit_identical_ticks, s.max_abs_diff, s.unit
+                )
+            }
+        })
+        .collect();
+    each.join("; ")
 }

@@ -68,9 +68,6 @@ impl Controller for ImpedanceController {
             x_f,
             dx_f: 0.0,
             e,
-            g: 0.0,
-            p: 0.0,
-            d: 0.0,
         };
         ValveCommand::clamped(u)
     }
@@ -146,17 +143,7 @@ impl Controller for AdaptiveImpedanceController {
         // eq. (25): the paper prints x_r = x_f + Δx_f; x_d is restored so that Δx_f = 0 gives eq. (23).
         let x_r = sp.x_d + x_f + dx_f;
         let u = self.pid.update(x_r, s.x, dt);
-        let a = self.law.params();
-        // Telemetry in SI: g in m, p in m/N, d in s.
-        self.telemetry = Telemetry {
-            x_r,
-            x_f,
-            dx_f,
-            e,
-            g: self.law.g() * a.position_unit_m,
-            p: self.law.p() * a.position_unit_m / a.force_unit_n,
-            d: self.law.d(),
-        };
+        self.telemetry = Telemetry { x_r, x_f, dx_f, e };
         ValveCommand::clamped(u)
     }
 
@@ -176,7 +163,12 @@ impl Controller for AdaptiveImpedanceController {
     }
 
     fn record(&self, out: &mut [f64]) {
-        let t = &self.telemetry;
-        out.copy_from_slice(&[t.g, t.p, t.d]);
+        // In SI: g in m, p in m/N, d in s (the law runs in the params' units).
+        let a = self.law.params();
+        out.copy_from_slice(&[
+            self.law.g() * a.position_unit_m,
+            self.law.p() * a.position_unit_m / a.force_unit_n,
+            self.law.d(),
+        ]);
     }
 }

@@ -43,7 +43,9 @@ impl ValveCommand {
     }
 }
 
-/// Internal signals a controller exposes for traces and plots (zero where a controller has no such signal).
+/// The impedance structure's internal signals, which the plants and the loop read (zero where a controller
+/// has no such signal). A controller's own signals (the adaptive law's g, p, d, or any new controller's)
+/// are not here: it declares them in [`Controller::signals`] and writes them in [`Controller::record`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Telemetry {
     /// Reference position handed to the inner position loop, x_r, m.
@@ -54,12 +56,6 @@ pub struct Telemetry {
     pub dx_f: f64,
     /// Force error e = f_r - f_e, N.
     pub e: f64,
-    /// Adaptive auxiliary term g(t) (eq. 35).
-    pub g: f64,
-    /// Adaptive proportional factor p(t) (eq. 35).
-    pub p: f64,
-    /// Adaptive differential factor d(t) (eq. 35).
-    pub d: f64,
 }
 
 /// A force/position controller: one call per control tick, no allocation, no std.

@@ -171,7 +171,17 @@ mod tests {
         let mut row = [f64::NAN; 11];
         let (cmd, tel) = control_tick(&mut c, &s, &sp, 1e-3, &mut row);
         assert_eq!(&row[..8], &[0.5, 10.0, 3.0, 0.01, tel.x_r, 4e5, 3e5, cmd.u]);
-        assert_eq!(&row[8..], &[tel.g, tel.p, tel.d]);
+        // The adaptive law's g, p, d in SI (default units: mm and N).
+        let a = AdaptiveParams::default();
+        let law = c.law();
+        assert_eq!(
+            &row[8..],
+            &[
+                law.g() * a.position_unit_m,
+                law.p() * a.position_unit_m / a.force_unit_n,
+                law.d()
+            ]
+        );
         assert_eq!(c.signals().len(), 3);
     }
 }

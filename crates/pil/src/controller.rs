@@ -7,7 +7,7 @@ use pneuflex_control::{
     Controller, Sensors, Setpoint, SetpointSchedule, Signal, Telemetry, ValveCommand,
 };
 use pneuflex_protocol::ctrl::{
-    ControllerSetup, OutputPayload, SafePayload, SensorsPayload, StartPayload, ready,
+    ControllerSetup, MAX_SIGNALS, OutputPayload, SafePayload, SensorsPayload, StartPayload, ready,
     setup_crc_update,
 };
 use pneuflex_protocol::{Message, ValveMode, ValvePayload, crc::CRC16_INIT, fault_code};
@@ -49,6 +49,8 @@ pub struct FirmwareController {
     tick: u32,
     signals: &'static [Signal],
     telemetry: Telemetry,
+    /// The controller's own signals of the last output, in declared order.
+    own: [f64; MAX_SIGNALS],
     /// The first link or firmware error; after it every update returns u = 0 and a non-finite x_r, which
     /// stops the scene runner at once.
     pub error: Option<PilError>,
@@ -145,6 +147,7 @@ impl FirmwareController {
             tick: 0,
             signals,
             telemetry: Telemetry::default(),
+            own: [0.0; MAX_SIGNALS],
             error: None,
             setpoint_mismatches: (0, None),
             sum_ns: 0.0,
@@ -207,6 +210,21 @@ impl FirmwareController {
                             o.tick, o.status
                         )));
                     }
+                    if o.signals().len() != self.signals.len() {
+                        return Err(PilError::Firmware(format!(
+                            "the board sent {} controller signals at tick {}; the host's controller of \
+                             the same kind declares {} ({}): the firmware was built from another \
+                             controller (docs/protocol.md §5)",
+                            o.signals().len(),
+                            o.tick,
+                            self.signals.len(),
+                            self.signals
+                                .iter()
+                                .map(|s| s.name)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        )));
+                    }
                     if (o.f_ref.to_bits(), o.x_d.to_bits())
                         != (sp.f_ref.to_bits(), sp.x_d.to_bits())
                     {
@@ -241,11 +259,9 @@ impl Controller for FirmwareController {
                 Ok(o) => {
                     self.telemetry = Telemetry {
                         x_r: o.x_r,
-                        g: o.g,
-                        p: o.p,
-                        d: o.d,
                         ..Telemetry::default()
                     };
+                    self.own = o.signals;
                     let c = &mut self.cost;
                     c.min_ns = if c.updates == 0 {
                         o.update_ns
@@ -271,6 +287,7 @@ impl Controller for FirmwareController {
             x_r: f64::NAN,
             ..Telemetry::default()
         };
+        self.own = [f64::NAN; MAX_SIGNALS];
         ValveCommand { u: 0.0 }
     }
 
@@ -285,15 +302,7 @@ impl Controller for FirmwareController {
     }
 
     fn record(&self, out: &mut [f64]) {
-        // The board reports the adaptive law's g, p, d (the adaptive controller's own signals).
-        let t = &self.telemetry;
-        for (o, s) in out.iter_mut().zip(self.signals) {
-            *o = match s.name {
-                "g" => t.g,
-                "p" => t.p,
-                "d" => t.d,
-                _ => f64::NAN,
-            };
-        }
+        // The board's values of the signals it declares, in declared order (checked in `exchange`).
+        out.copy_from_slice(&self.own[..out.len()]);
     }
 }

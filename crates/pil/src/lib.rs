@@ -73,12 +73,28 @@ pub struct Comparison {
     pub first_divergent_tick: Option<usize>,
     /// Ticks whose every recorded value is bit-identical in both traces.
     pub bit_identical_ticks: usize,
+    /// Each of the controller's own signals (as `Controller::signals()` declares them; g, p, d for the
+    /// adaptive controller), compared over the same ticks.
+    pub controller_signals: Vec<SignalComparison>,
     /// Ticks where the board's own setpoint differed from the host's.
     pub setpoint_mismatches: u64,
     /// Per metric window: RMS force error of the firmware and the host run, N.
     pub rms_force_error_n: Vec<(String, Option<f64>, Option<f64>)>,
     /// Whether every metric of summary.json is equal in both runs.
     pub metrics_equal: bool,
+}
+
+/// One controller signal of the firmware run against the host run.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SignalComparison {
+    /// The signal's declared name.
+    pub name: String,
+    /// Its declared unit.
+    pub unit: String,
+    /// max |firmware - host| (infinite where one is NaN and the other not).
+    pub max_abs_diff: f64,
+    /// Ticks where both values are bit-identical.
+    pub bit_identical_ticks: usize,
 }
 
 /// The outcome of one PIL run.
@@ -192,7 +208,7 @@ pub fn run_pil_observed(
     firmware.warnings = pinned_parameters(run, &firmware.trace);
 
     let host = host_run(scene, index)?;
-    let comparison = compare(&firmware, &host, fw.setpoint_mismatches.0);
+    let comparison = compare(&firmware, &host, signals, fw.setpoint_mismatches.0);
     Ok(PilRun {
         firmware,
         host,
@@ -206,10 +222,7 @@ pub fn run_pil_observed(
 /// The scene reduced to run `index` (what the outputs of a PIL run describe). Its claims compare runs with
 /// each other, so they go too.
 pub fn single_run_scene(scene: &Scene, index: usize) -> Scene {
-    let mut s = scene.clone();
-    s.runs = vec![scene.runs[index].clone()];
-    s.claims.clear();
-    s
+    scene.one_run(index, scene.duration_s)
 }
 
 fn host_run(scene: &Scene, index: usize) -> Result<RunResult, PilError> {
@@ -219,8 +232,13 @@ fn host_run(scene: &Scene, index: usize) -> Result<RunResult, PilError> {
         .ok_or_else(|| PilError::Setup("the host simulation returned no run".into()))
 }
 
-/// Compares two runs of the same scene tick by tick.
-pub fn compare(fw: &RunResult, host: &RunResult, setpoint_mismatches: u64) -> Comparison {
+/// Compares two runs of the same scene tick by tick; `signals` are the controller's own.
+pub fn compare(
+    fw: &RunResult,
+    host: &RunResult,
+    signals: &[pneuflex_control::Signal],
+    setpoint_mismatches: u64,
+) -> Comparison {
     let col = |r: &RunResult, n: &str| r.trace.column(n).map(<[f64]>::to_vec).unwrap_or_default();
     let (u1, u2) = (col(fw, "u"), col(host, "u"));
     let (f1, f2) = (col(fw, "f_e"), col(host, "f_e"));
@@ -254,6 +272,24 @@ pub fn compare(fw: &RunResult, host: &RunResult, setpoint_mismatches: u64) -> Co
             })
         })
         .count();
+    let controller_signals = signals
+        .iter()
+        .map(|sig| {
+            let (a, b) = (col(fw, sig.name), col(host, sig.name));
+            let n = a.len().min(b.len()).min(ticks);
+            SignalComparison {
+                name: sig.name.to_string(),
+                unit: sig.unit.to_string(),
+                // A column missing on one side compares as NaN against the other: not identical.
+                max_abs_diff: if a.len() < ticks || b.len() < ticks {
+                    f64::INFINITY
+                } else {
+                    max_abs(&a[..n], &b[..n])
+                },
+                bit_identical_ticks: (0..n).filter(|&k| a[k].to_bits() == b[k].to_bits()).count(),
+            }
+        })
+        .collect();
     let rms_force_error_n = fw
         .windows
         .iter()
@@ -271,6 +307,7 @@ pub fn compare(fw: &RunResult, host: &RunResult, setpoint_mismatches: u64) -> Co
         max_abs_dxr_m: max_abs(&x1, &x2),
         first_divergent_tick,
         bit_identical_ticks,
+        controller_signals,
         setpoint_mismatches,
         rms_force_error_n,
         metrics_equal: fw.windows == host.windows && fw.diverged == host.diverged,

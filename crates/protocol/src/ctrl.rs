@@ -83,6 +83,12 @@ pub struct SensorsPayload {
     pub p_b: f64,
 }
 
+/// Most of a controller's own signals one CtrlOutput carries (`Controller::signals()`, in SI).
+pub const MAX_SIGNALS: usize = 8;
+
+/// CtrlOutput's length without its signals; each signal adds 8 bytes (docs/protocol.md §5).
+pub const OUTPUT_BASE_LEN: usize = 46;
+
 /// The board's answer to one CtrlSensors.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OutputPayload {
@@ -92,12 +98,6 @@ pub struct OutputPayload {
     pub u: f64,
     /// Reference position x_r, m.
     pub x_r: f64,
-    /// Adaptive g (m), p (m/N), d (s); 0 for impedance.
-    pub g: f64,
-    /// See `g`.
-    pub p: f64,
-    /// See `g`.
-    pub d: f64,
     /// The board's own setpoint at t: f_r, N.
     pub f_ref: f64,
     /// The board's own setpoint at t: x_d, m.
@@ -108,6 +108,19 @@ pub struct OutputPayload {
     pub update_ns: u32,
     /// [`status`] bits.
     pub status: u8,
+    /// How many of `signals` travel: the controller's own signals as it declares them (0 in the safe
+    /// state). At most [`MAX_SIGNALS`].
+    pub n_signals: u8,
+    /// The controller's own signals after the update (`Controller::record`), in declared order; the
+    /// unused slots are 0.
+    pub signals: [f64; MAX_SIGNALS],
+}
+
+impl OutputPayload {
+    /// The signals that travel (the first `n_signals`).
+    pub fn signals(&self) -> &[f64] {
+        &self.signals[..usize::from(self.n_signals).min(MAX_SIGNALS)]
+    }
 }
 
 /// The answer to CtrlStart.
@@ -131,7 +144,8 @@ pub mod ready {
     pub const PARAM: u8 = 3;
     /// A segment is invalid or out of order (detail: its index).
     pub const SEGMENT: u8 = 4;
-    /// Unknown controller kind, bad period, watchdog 0 or a Hold safe mode with the 5/2 valve.
+    /// Unknown controller kind, bad period, watchdog 0, a Hold safe mode with the 5/2 valve, or (detail 2)
+    /// a controller declaring more than [`super::MAX_SIGNALS`] signals.
     pub const START: u8 = 5;
 }
 
@@ -173,14 +187,14 @@ pub struct SafePayload {
     pub stack_peak_bytes: u16,
 }
 
-/// Payload lengths of this mode's messages.
+/// Payload lengths of this mode's messages (CtrlOutput's without its signals).
 pub(crate) fn payload_len(t: u8) -> Option<usize> {
     match t {
         msg_type::CTRL_PARAM => Some(9),
         msg_type::CTRL_SEGMENT => Some(42),
         msg_type::CTRL_START => Some(16),
         msg_type::CTRL_SENSORS => Some(52),
-        msg_type::CTRL_OUTPUT => Some(69),
+        msg_type::CTRL_OUTPUT => Some(OUTPUT_BASE_LEN),
         msg_type::CTRL_READY => Some(2),
         msg_type::TEXT => Some(1 + TEXT_LEN),
         msg_type::SAFE => Some(18),
@@ -215,12 +229,13 @@ pub(crate) fn write_payload(m: &Message, w: &mut Writer<'_>) {
         }
         Message::CtrlOutput(o) => {
             w.put(&o.tick.to_le_bytes());
-            for v in [o.u, o.x_r, o.g, o.p, o.d, o.f_ref, o.x_d] {
+            for v in [o.u, o.x_r, o.f_ref, o.x_d] {
                 f(w, v);
             }
             w.put(&o.board_time_us.to_le_bytes());
             w.put(&o.update_ns.to_le_bytes());
-            w.put(&[o.status]);
+            w.put(&[o.status, o.signals().len() as u8]);
+            o.signals().iter().for_each(|&v| f(w, v));
         }
         Message::CtrlReady(r) => w.put(&[r.result, r.detail]),
         Message::Text(t) => {
@@ -271,19 +286,28 @@ pub(crate) fn parse_fields(t: u8, r: &mut Reader<'_>) -> Option<Message> {
             p_a: r.f64()?,
             p_b: r.f64()?,
         }),
-        msg_type::CTRL_OUTPUT => Message::CtrlOutput(OutputPayload {
-            tick: r.u32()?,
-            u: r.f64()?,
-            x_r: r.f64()?,
-            g: r.f64()?,
-            p: r.f64()?,
-            d: r.f64()?,
-            f_ref: r.f64()?,
-            x_d: r.f64()?,
-            board_time_us: r.u32()?,
-            update_ns: r.u32()?,
-            status: r.u8()?,
-        }),
+        msg_type::CTRL_OUTPUT => {
+            let mut o = OutputPayload {
+                tick: r.u32()?,
+                u: r.f64()?,
+                x_r: r.f64()?,
+                f_ref: r.f64()?,
+                x_d: r.f64()?,
+                board_time_us: r.u32()?,
+                update_ns: r.u32()?,
+                status: r.u8()?,
+                n_signals: r.u8()?,
+                signals: [0.0; MAX_SIGNALS],
+            };
+            let n = usize::from(o.n_signals);
+            if n > MAX_SIGNALS {
+                return None;
+            }
+            for v in &mut o.signals[..n] {
+                *v = r.f64()?;
+            }
+            Message::CtrlOutput(o)
+        }
         msg_type::CTRL_READY => Message::CtrlReady(ReadyPayload {
             result: r.u8()?,
             detail: r.u8()?,
@@ -688,7 +712,7 @@ mod tests {
     fn round_trip(m: Message) -> Message {
         let mut buf = [0u8; MAX_FRAME];
         let n = encode(3, &m, &mut buf);
-        assert_eq!(n, 7 + crate::payload_len(m.type_code()).unwrap());
+        assert_eq!(n, 7 + m.payload_len());
         let mut d = Decoder::new();
         let mut got = None;
         d.feed(&buf[..n], |e| {
@@ -734,14 +758,37 @@ mod tests {
                 tick: 7,
                 u: -0.25,
                 x_r: 0.01,
-                g: 1e-9,
-                p: 2e-9,
-                d: -3e-9,
                 f_ref: 10.0,
                 x_d: 0.0,
                 board_time_us: 123,
                 update_ns: 4567,
                 status: status::SAFE,
+                n_signals: 3,
+                signals: [1e-9, 2e-9, -3e-9, 0.0, 0.0, 0.0, 0.0, 0.0],
+            }),
+            Message::CtrlOutput(OutputPayload {
+                tick: 8,
+                u: 1.0,
+                x_r: -0.0,
+                f_ref: 0.0,
+                x_d: 1e-3,
+                board_time_us: 0,
+                update_ns: 0,
+                status: 0,
+                n_signals: 0,
+                signals: [0.0; MAX_SIGNALS],
+            }),
+            Message::CtrlOutput(OutputPayload {
+                tick: 9,
+                u: 0.5,
+                x_r: 0.02,
+                f_ref: 5.0,
+                x_d: 0.0,
+                board_time_us: 7,
+                update_ns: 8,
+                status: 0,
+                n_signals: MAX_SIGNALS as u8,
+                signals: [1.0, -2.0, f64::MAX, f64::MIN_POSITIVE, 5.0, 6.0, 7.0, -0.0],
             }),
             Message::CtrlReady(ReadyPayload {
                 result: ready::PARAM,

@@ -25,8 +25,8 @@ pub const SOF1: u8 = 0x5A;
 pub const HEADER_LEN: usize = 5;
 /// Bytes after the payload: the CRC.
 pub const TRAILER_LEN: usize = 2;
-/// Largest payload a frame may carry.
-pub const MAX_PAYLOAD: usize = 72;
+/// Largest payload a frame may carry: a CtrlOutput with [`ctrl::MAX_SIGNALS`] signals.
+pub const MAX_PAYLOAD: usize = ctrl::OUTPUT_BASE_LEN + 8 * ctrl::MAX_SIGNALS;
 /// Largest frame on the wire.
 pub const MAX_FRAME: usize = HEADER_LEN + MAX_PAYLOAD + TRAILER_LEN;
 /// Magic value a Reset message must carry, so that a corrupted frame cannot clear a fault by accident.
@@ -212,7 +212,8 @@ pub enum Message {
     Safe(SafePayload),
 }
 
-/// Payload length of each message type.
+/// Payload length of each message type; CtrlOutput's without its signals (8 bytes each, counted in the
+/// payload: [`expected_len`]).
 pub fn payload_len(msg_type: u8) -> Option<usize> {
     match msg_type {
         msg_type::SAMPLE => Some(23),
@@ -223,6 +224,19 @@ pub fn payload_len(msg_type: u8) -> Option<usize> {
         msg_type::CONFIG => Some(7),
         t => ctrl::payload_len(t),
     }
+}
+
+/// The length a received payload of `msg_type` must have: [`payload_len`], and for CtrlOutput 8 bytes
+/// more for each signal its count byte announces.
+pub fn expected_len(msg_type: u8, payload: &[u8]) -> Option<usize> {
+    let base = payload_len(msg_type)?;
+    Some(match msg_type {
+        msg_type::CTRL_OUTPUT => {
+            let n = payload.get(base - 1).copied().unwrap_or(0);
+            base + 8 * usize::from(n)
+        }
+        _ => base,
+    })
 }
 
 /// A frame: sequence number and message.
@@ -306,6 +320,15 @@ impl Message {
         }
     }
 
+    /// This message's payload length (LEN).
+    pub fn payload_len(&self) -> usize {
+        let base = payload_len(self.type_code()).unwrap_or(0);
+        match self {
+            Message::CtrlOutput(o) => base + 8 * o.signals().len(),
+            _ => base,
+        }
+    }
+
     fn write_payload(&self, w: &mut Writer<'_>) {
         match self {
             Message::Sample(s) => {
@@ -346,11 +369,11 @@ impl Message {
 
     /// Parses a payload of a given type, saying why it is malformed (docs/protocol.md §1 "Receiving").
     pub fn parse_checked(msg_type: u8, payload: &[u8]) -> Result<Message, MalformedReason> {
-        let want = payload_len(msg_type).ok_or(MalformedReason::UnknownType)?;
+        let want = expected_len(msg_type, payload).ok_or(MalformedReason::UnknownType)?;
         if want != payload.len() {
             return Err(MalformedReason::BadLength {
                 len: payload.len() as u8,
-                expected: want as u8,
+                expected: u8::try_from(want).unwrap_or(u8::MAX),
             });
         }
         Self::parse_fields(msg_type, payload).ok_or(MalformedReason::BadField)
@@ -397,7 +420,7 @@ impl Message {
 
 /// Encodes a frame into `out`, returning the number of bytes written.
 pub fn encode(seq: u8, msg: &Message, out: &mut [u8; MAX_FRAME]) -> usize {
-    let len = payload_len(msg.type_code()).unwrap_or(0);
+    let len = msg.payload_len();
     let mut w = Writer {
         buf: &mut out[..],
         pos: 0,
@@ -634,6 +657,28 @@ mod tests {
                     safe_mode: m,
                 })
             }),
+            // CtrlOutput's length follows its signal count: every count from none to the most.
+            (
+                any::<(u32, u32, u32, u8)>(),
+                any::<[f64; 4]>(),
+                0..=ctrl::MAX_SIGNALS,
+                any::<[f64; ctrl::MAX_SIGNALS]>()
+            )
+                .prop_map(|((tick, t_us, ns, status), v, n, mut signals)| {
+                    signals[n..].fill(0.0);
+                    Message::CtrlOutput(OutputPayload {
+                        tick,
+                        u: v[0],
+                        x_r: v[1],
+                        f_ref: v[2],
+                        x_d: v[3],
+                        board_time_us: t_us,
+                        update_ns: ns,
+                        status,
+                        n_signals: n as u8,
+                        signals,
+                    })
+                }),
         ]
     }
 
@@ -669,7 +714,7 @@ mod tests {
             let mut buf = [0u8; MAX_FRAME];
             for (seq, m) in &msgs {
                 let n = encode(*seq, m, &mut buf);
-                prop_assert_eq!(n, HEADER_LEN + payload_len(m.type_code()).unwrap() + TRAILER_LEN);
+                prop_assert_eq!(n, HEADER_LEN + m.payload_len() + TRAILER_LEN);
                 wire.extend_from_slice(&buf[..n]);
             }
             let (frames, d) = frames_of(&wire, chunk);
@@ -755,6 +800,12 @@ mod tests {
         use MalformedReason::*;
         let valve = |mode: u8| [0xE8, 0x03, 0, 0, 0x00, 0x40, mode];
         let config = |mode: u8| [0xE8, 0x03, 0, 0, 50, 0, mode];
+        // A CtrlOutput whose count byte (the payload's 46th) says `n` signals, carrying `carried`.
+        let output = |n: u8, carried: usize| {
+            let mut p = vec![0u8; ctrl::OUTPUT_BASE_LEN + 8 * carried];
+            p[ctrl::OUTPUT_BASE_LEN - 1] = n;
+            p
+        };
         let corpus: Vec<(&str, Vec<u8>, u8, MalformedReason)> = vec![
             (
                 "unknown type 0x00",
@@ -836,6 +887,33 @@ mod tests {
                 raw_frame(3, msg_type::CONFIG, &config(3)),
                 msg_type::CONFIG,
                 BadField,
+            ),
+            (
+                "ctrl output announcing 3 signals carrying 2",
+                raw_frame(4, msg_type::CTRL_OUTPUT, &output(3, 2)),
+                msg_type::CTRL_OUTPUT,
+                BadLength {
+                    len: 62,
+                    expected: 70,
+                },
+            ),
+            (
+                "ctrl output announcing 9 signals in the largest payload",
+                raw_frame(4, msg_type::CTRL_OUTPUT, &output(9, 8)),
+                msg_type::CTRL_OUTPUT,
+                BadLength {
+                    len: MAX_PAYLOAD as u8,
+                    expected: 118,
+                },
+            ),
+            (
+                "ctrl output announcing 255 signals carrying none",
+                raw_frame(4, msg_type::CTRL_OUTPUT, &output(255, 0)),
+                msg_type::CTRL_OUTPUT,
+                BadLength {
+                    len: 46,
+                    expected: u8::MAX,
+                },
             ),
         ];
         let mut buf = [0u8; MAX_FRAME];

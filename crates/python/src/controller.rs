@@ -111,7 +111,8 @@ impl PyController {
         self.ctl.update(&s, &sp, dt).u
     }
 
-    /// Internal signals of the last update: x_r, x_f, dx_f (m), e (N), and g (m), p (m/N), d (s).
+    /// Internal signals of the last update: x_r, x_f, dx_f (m), e (N), then the controller's own signals by
+    /// name (the adaptive law's g in m, p in m/N, d in s).
     fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let t = self.ctl.telemetry();
         let d = PyDict::new(py);
@@ -119,9 +120,10 @@ impl PyController {
         d.set_item("x_f", t.x_f)?;
         d.set_item("dx_f", t.dx_f)?;
         d.set_item("e", t.e)?;
-        d.set_item("g", t.g)?;
-        d.set_item("p", t.p)?;
-        d.set_item("d", t.d)?;
+        // Then the controller's own signals under their declared names (g, p, d for adaptive).
+        for (s, v) in self.ctl.signals().iter().zip(self.record()) {
+            d.set_item(s.name, v)?;
+        }
         Ok(d)
     }
 
@@ -144,10 +146,18 @@ impl PyController {
         out
     }
 
-    /// Adaptive (g, p, d) of the last update in SI (zeros for the impedance controller).
+    /// The adaptive law's (g, p, d) of the last update in SI: its declared signals of those names, zeros
+    /// for a controller that declares none (impedance).
     fn gpd(&self) -> (f64, f64, f64) {
-        let t = self.ctl.telemetry();
-        (t.g, t.p, t.d)
+        let values = self.record();
+        let by_name = |n: &str| {
+            self.ctl
+                .signals()
+                .iter()
+                .position(|s| s.name == n)
+                .map_or(0.0, |i| values[i])
+        };
+        (by_name("g"), by_name("p"), by_name("d"))
     }
 
     /// "impedance" or "adaptive".

@@ -88,15 +88,25 @@ pub fn run<C: Controller>(
         };
         c.update(&s, &sp, dt);
         let tel = c.telemetry();
+        // The controller's own signals (the adaptive law's g, p, d), by their declared names.
+        let mut own = [0.0; 8];
+        let names = c.signals();
+        c.record(&mut own[..names.len()]);
+        let signal = |n: &str| {
+            names
+                .iter()
+                .position(|s| s.name == n)
+                .map_or(0.0, |i| own[i])
+        };
         out.push(Sample {
             t,
             f_ref: sp.f_ref,
             f_e,
             x: plant.x,
             x_r: tel.x_r,
-            g: tel.g,
-            p: tel.p,
-            d: tel.d,
+            g: signal("g"),
+            p: signal("p"),
+            d: signal("d"),
         });
         plant.advance(tel.x_r, dt);
     }
