@@ -8,21 +8,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use pneuflex_files::output::{Manifest, OutputDir, Writer};
 use pneuflex_scene::analysis::comparison::{Comparison, compare as compare_runs};
-use pneuflex_scene::{PlantSpec, RunResult, Scene, Trace};
+use pneuflex_scene::{PlantSpec, Scene, Trace};
 
 use crate::cli::simulate::Compare;
-
-/// The scene cut to the one run and to the time the rig ran: windows ending after it and the claims (they
-/// compare two runs of one side) are left out, as are events after it.
-fn cut(scene: &Scene, index: usize, end_s: f64) -> Scene {
-    let mut s = scene.clone();
-    s.runs = vec![scene.runs[index].clone()];
-    s.duration_s = scene.duration_s.min(end_s);
-    s.metrics.retain(|w| w.t1_s <= s.duration_s + 0.5 * s.dt_s);
-    s.events.retain(|e| e.t_s() < s.duration_s);
-    s.claims.clear();
-    s
-}
 
 pub fn compare(a: &Compare) -> anyhow::Result<()> {
     let scene = Scene::load(&a.scene)?;
@@ -46,7 +34,7 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
             scene.dt_s
         );
     }
-    let mut sim_scene = cut(&scene, index, t[t.len() - 1]);
+    let mut sim_scene = scene.one_run(index, t[t.len() - 1]);
     if let Some(sheet) = &a.actuator {
         let abs = std::fs::canonicalize(sheet)
             .with_context(|| format!("--actuator {}", sheet.display()))?;
@@ -78,22 +66,13 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
         bail!("the simulation diverged: {why}");
     }
     sim.name = "simulation".into();
-    let windows = pneuflex_scene::analysis::windows::compute_windows(
+    let rig = pneuflex_scene::analysis::recorded::recorded_run(
         &sim_scene,
-        &rig_trace,
+        "rig",
+        rig_trace,
+        None,
         sim.pwm_period_s,
     );
-    let rig = RunResult {
-        name: "rig".into(),
-        controller: sim.controller,
-        trace: rig_trace,
-        windows,
-        lyapunov: None,
-        diverged: None,
-        interrupted: None,
-        warnings: Vec::new(),
-        pwm_period_s: sim.pwm_period_s,
-    };
     let c = compare_runs(&scene.runs[index].name, &rig, &sim);
     let md = markdown(&c, a);
     let dir = stage.path();

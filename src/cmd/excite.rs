@@ -130,6 +130,7 @@ pub fn excite(
             a.duration_s,
             &out_dir,
             &mut (),
+            &mut |_, _| Ok(()),
         )
         .map(|_| ());
     };

@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail};
 use pneuflex_control::{Controller, Setpoint};
+use pneuflex_outputs::{RecordingEnd, judge_recording};
 use pneuflex_rig::clock::WallClock;
 use pneuflex_rig::record;
 use pneuflex_rig::rtloop::{LoopReport, check_duration};
@@ -95,6 +96,7 @@ pub fn run(
     duration_s: f64,
     out_dir: &Path,
     observer: &mut dyn pneuflex_control::Sink<()>,
+    finish: record::Finish<'_>,
 ) -> anyhow::Result<LoopReport> {
     check_duration(duration_s).map_err(|e| anyhow!("--duration: {}", e.message))?;
     let rig = RigFile::load(rig_file)?;
@@ -122,6 +124,7 @@ pub fn run(
         &stop,
         &mut clock,
         observer,
+        finish,
     )?;
     finished(&rec)?;
     Ok(rec.report)
@@ -172,14 +175,33 @@ pub fn run_scene(
         }
     };
     // The live view: the same entity paths as `run`, on the wall clock; checked before the rig is touched.
+    let pwm_period_s = pneuflex_scene::build_plant(&scene)?.pwm_period_s();
     let mut live = super::live::LiveSink::parse(rerun, "rig run")?.view(
         &format!("rig/{}/{}", scene.name, scene.runs[index].name),
         &scene.runs[index].name,
         1,
         super::live::Timeline::Wall,
         scene.dt_s,
-        pneuflex_scene::build_plant(&scene)?.pwm_period_s(),
+        pwm_period_s,
     )?;
+    // The recording judged as the scene's run (summary.json, figures) before it is committed.
+    let mut analyse = |dir: &Path, report: &LoopReport| {
+        let end = match &report.fault {
+            None => RecordingEnd::Complete,
+            Some(f) => {
+                let why = format!(
+                    "the rig run ended on a fault: {}: {} (tick {})",
+                    f.kind, f.message, f.tick
+                );
+                if f.kind == pneuflex_rig::ErrorKind::Interrupted {
+                    RecordingEnd::Interrupted(why)
+                } else {
+                    RecordingEnd::Fault(why)
+                }
+            }
+        };
+        judge_recording(dir, &scene, index, end, pwm_period_s).map_err(|e| e.to_string())
+    };
     let result = run(
         record::COMMAND,
         rig_file,
@@ -190,6 +212,7 @@ pub fn run_scene(
         duration,
         &out_dir,
         live.observer(),
+        &mut analyse,
     )
     .map(|_| ());
     // The recording is safe on disk whatever the view did: a logging error is a warning.
@@ -212,6 +235,14 @@ pub(super) fn finished(rec: &record::Recording) -> anyhow::Result<()> {
     }
     outln!("{}", rec.report);
     let trace = rec.dir.join("trace.csv");
+    if let Some(e) = &rec.analysis_error {
+        errln!(
+            "error: the recording is complete in {}, but its summary and figures could not be written: {e}",
+            rec.dir.display()
+        );
+    } else if rec.dir.join("summary.json").is_file() {
+        outln!("summary: {}", rec.dir.join("summary.json").display());
+    }
     if rec.partial {
         return Err(super::interrupted(
             session::last_signal().max(2),
@@ -232,5 +263,8 @@ pub(super) fn finished(rec: &record::Recording) -> anyhow::Result<()> {
         );
     }
     outln!("trace: {}", trace.display());
+    if rec.analysis_error.is_some() {
+        bail!("the recording's analysis failed (above); the recording itself is complete");
+    }
     Ok(())
 }

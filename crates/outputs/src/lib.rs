@@ -29,6 +29,14 @@ pub enum OutputsError {
     /// The figures.
     #[error("writing figures: {0}")]
     Figures(#[from] pneuflex_plot::PlotError),
+    /// A recording's trace that cannot be read back.
+    #[error("{}: {message}", path.display())]
+    Recording {
+        /// The trace.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
     /// A file the caller asked to keep outside (a Rerun recording) would be inside the directory.
     #[error(
         "{what} {}: it would be inside the output directory {}, which is replaced as a whole by the next \
@@ -298,4 +306,102 @@ pub fn simulate_into(
         simulation_time,
         outcome,
     })
+}
+
+/// How a recording on the rig ended, for [`judge_recording`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum RecordingEnd {
+    /// It ran its whole duration.
+    Complete,
+    /// A fault ended it (the message): judged as a diverged simulation is, no window metrics or figures.
+    Fault(String),
+    /// A signal stopped it (the message): summary.json marked incomplete, no figures.
+    Interrupted(String),
+}
+
+/// A recording of run `index` of `scene` (its `trace.csv` in `dir`, the rig's columns) judged as `run`
+/// judges a simulated run, from the same code: `summary.json` with the windows' metrics, the Lyapunov
+/// check and the warnings (the claims are left out: they compare two runs), and for a complete recording
+/// the figures. On an error the files it wrote are removed again, so the recording stays as it was.
+pub fn judge_recording(
+    dir: &Path,
+    scene: &Scene,
+    index: usize,
+    end: RecordingEnd,
+    pwm_period_s: Option<f64>,
+) -> Result<(), OutputsError> {
+    let before: Vec<_> = list(dir)?;
+    let written = write_judgement(dir, scene, index, end, pwm_period_s);
+    if written.is_err() {
+        for name in list(dir)? {
+            if !before.contains(&name) {
+                let p = dir.join(&name);
+                let _ = if p.is_dir() {
+                    std::fs::remove_dir_all(&p)
+                } else {
+                    std::fs::remove_file(&p)
+                };
+            }
+        }
+    }
+    written
+}
+
+fn list(dir: &Path) -> Result<Vec<std::ffi::OsString>, OutputsError> {
+    let entries = std::fs::read_dir(dir).map_err(|e| write_error(dir, e))?;
+    Ok(entries.flatten().map(|e| e.file_name()).collect())
+}
+
+fn write_error(path: &Path, os_error: std::io::Error) -> OutputsError {
+    OutputsError::Scene(SceneError::Write {
+        path: path.to_path_buf(),
+        os_error,
+    })
+}
+
+fn write_judgement(
+    dir: &Path,
+    scene: &Scene,
+    index: usize,
+    end: RecordingEnd,
+    pwm_period_s: Option<f64>,
+) -> Result<(), OutputsError> {
+    let path = dir.join("trace.csv");
+    let unreadable = |message: String| OutputsError::Recording {
+        path: path.clone(),
+        message,
+    };
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| unreadable(format!("cannot read: {e}")))?;
+    let trace =
+        pneuflex_scene::Trace::from_csv(&text, &["wall_time", "fault"]).map_err(unreadable)?;
+    let one = scene.one_run(index, trace.t().last().copied().unwrap_or(0.0));
+    let (fault, interrupted) = match end {
+        RecordingEnd::Complete => (None, None),
+        RecordingEnd::Fault(why) => (Some(why), None),
+        RecordingEnd::Interrupted(why) => (None, Some(why)),
+    };
+    let name = &scene.runs[index].name;
+    let mut r = pneuflex_scene::analysis::recorded::recorded_run(
+        &one,
+        name,
+        trace,
+        fault.or(interrupted.clone()),
+        pwm_period_s,
+    );
+    if interrupted.is_some() {
+        r.interrupted = r.diverged.take();
+    }
+    let results = std::slice::from_ref(&r);
+    let mut summary = pneuflex_scene::summary(&one, results);
+    // The recording's trace is the rig's own, beside summary.json.
+    summary.runs[0].trace = "trace.csv".into();
+    let path = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary)
+        .map_err(|e| write_error(&path, std::io::Error::other(e)))?;
+    std::fs::write(&path, text + "\n").map_err(|e| write_error(&path, e))?;
+    if r.diverged.is_none() && r.interrupted.is_none() {
+        pneuflex_viz::write_figures(dir, &one, results, pneuflex_viz::Format::Png)?;
+    }
+    Ok(())
 }

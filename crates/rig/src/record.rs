@@ -36,7 +36,15 @@ pub struct Recording {
     pub partial: bool,
     /// Staging directories of earlier runs that died, kept as `<dest>.unfinished-<pid>`.
     pub recovered: Vec<PathBuf>,
+    /// Why the caller's analysis of the recording ([`Finish`]) failed; the recording was committed all
+    /// the same, without the analysis.
+    pub analysis_error: Option<String>,
 }
+
+/// What the caller adds to a recording before it is committed (`rig run --scene`: summary.json and the
+/// figures), given the staging directory with the complete trace and the loop's report. An error leaves
+/// the recording committed without what this wrote; it must remove its own files on failure.
+pub type Finish<'a> = &'a mut dyn FnMut(&Path, &LoopReport) -> Result<(), String>;
 
 /// Why nothing (or only a kept staging directory) was recorded.
 #[derive(Debug, thiserror::Error)]
@@ -102,11 +110,13 @@ where
         stop,
         clock,
         &mut (),
+        &mut |_, _| Ok(()),
     )
 }
 
 /// [`record`] with an observer of every row (a live Rerun view): the loop's signals, the controller's and
-/// the link's quality ([`crate::serial::LINK_SIGNALS`]), and the fault as an event.
+/// the link's quality ([`crate::serial::LINK_SIGNALS`]), and the fault as an event; `finish` adds the
+/// caller's analysis to the staged recording before the commit.
 #[allow(clippy::too_many_arguments)]
 pub fn record_observed<L, E, C, K>(
     command: &'static str,
@@ -120,6 +130,7 @@ pub fn record_observed<L, E, C, K>(
     stop: &AtomicBool,
     clock: &mut K,
     observer: &mut dyn pneuflex_control::Sink<()>,
+    finish: Finish<'_>,
 ) -> Result<Recording, RecordError>
 where
     L: Link,
@@ -174,6 +185,9 @@ where
         Ok(r) => r,
         Err(e) => return Err(kept(out, e.to_string())),
     };
+    // The trace is closed and complete: the caller's analysis goes beside it (its failure never costs
+    // the recording).
+    let analysis_error = finish(out.path(), &report).err();
     // Checked again before the commit: a commit refused now must not lose the recording.
     let target = match &report.fault {
         Some(f) if f.kind == ErrorKind::Interrupted => out.partial_dest(),
@@ -202,5 +216,6 @@ where
         dir,
         partial,
         recovered,
+        analysis_error,
     })
 }

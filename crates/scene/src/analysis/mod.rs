@@ -7,4 +7,5 @@ pub mod claims;
 pub mod comparison;
 pub mod loop_margins;
 pub mod metrics;
+pub mod recorded;
 pub mod windows;

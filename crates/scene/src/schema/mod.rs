@@ -247,6 +247,19 @@ impl Scene {
         divergence::validate(self, &v)
     }
 
+    /// The scene reduced to run `index` and cut at `end_s` (what one run on the rig or on the board
+    /// describes): windows ending after `end_s` and events after it are left out, and the claims, which
+    /// compare two runs.
+    pub fn one_run(&self, index: usize, end_s: f64) -> Scene {
+        let mut s = self.clone();
+        s.runs = vec![self.runs[index].clone()];
+        s.duration_s = self.duration_s.min(end_s);
+        s.metrics.retain(|w| w.t1_s <= s.duration_s + 0.5 * s.dt_s);
+        s.events.retain(|e| e.t_s() < s.duration_s);
+        s.claims.clear();
+        s
+    }
+
     /// The index of the run named `name`; the error lists the runs there are.
     pub fn run_index(&self, name: &str) -> Result<usize, SceneError> {
         self.runs
