@@ -111,6 +111,7 @@ pub fn loop_margins(
     bode: Option<&Path>,
 ) -> anyhow::Result<String> {
     use pneuflex_scene::analysis::loop_margins::{analyse, onset_at};
+    use pneuflex_scene::analysis::pwm_onset::pwm_onset_at;
     anyhow::ensure!(
         margin_db.is_finite() && (0.0..=60.0).contains(&margin_db),
         "--margin-db: a gain margin in [0, 60] dB, got {margin_db}"
@@ -143,13 +144,20 @@ pub fn loop_margins(
         if a.valve_model.contains("averaged") {
             writeln!(
                 s,
-                "  (an on/off valve: these margins are of its PWM-period average and do not see the ripple; no \
-                 limit cycle of the switching valve is predicted here: simulate to rule one out, as `new rig` does)"
+                "  (an on/off valve: these margins are of its PWM-period average, which does not see the duty \
+                 held over the period; the onset below comes from the sampled-data model of the PWM, \
+                 docs/scenes.md \"The PWM valve's onset\")"
             )?;
         }
         let mut onsets = Vec::new();
         for m in &a.margins {
-            let onset = onset_at(&scene, i, m.stiffness_n_per_m)?;
+            // On a switching valve the sampled-data onset replaces the describing functions' (which
+            // linearise the period average).
+            let pwm = pwm_onset_at(&scene, i, m.stiffness_n_per_m)?;
+            let onset = match pwm {
+                Some(p) => Some((p.kp_per_m, p.frequency_hz, f64::NAN)),
+                None => onset_at(&scene, i, m.stiffness_n_per_m)?,
+            };
             writeln!(
                 s,
                 "  k_e = {:>8} N/m: crossover {} Hz, phase margin {} deg; phase crossover {} Hz, gain margin {} dB; kp for {margin_db} dB: {} /m{}",
@@ -159,10 +167,14 @@ pub fn loop_margins(
                 f(m.phase_crossover_hz, 2),
                 f(m.gain_margin_db, 1),
                 f(m.kp_max_per_m, 2),
-                onset.map_or(String::new(), |(k, hz, a)| format!(
-                    "; limit cycle predicted from kp = {k:.2} /m at {hz:.1} Hz ({:.1} mm)",
-                    a * 1e3
-                ))
+                onset.map_or(String::new(), |(k, hz, a)| if a.is_nan() {
+                    format!("; limit cycle predicted from kp = {k:.2} /m at {hz:.1} Hz (sampled-data PWM)")
+                } else {
+                    format!(
+                        "; limit cycle predicted from kp = {k:.2} /m at {hz:.1} Hz ({:.1} mm)",
+                        a * 1e3
+                    )
+                })
             )?;
             let o = &m.outer;
             writeln!(
@@ -174,7 +186,13 @@ pub fn loop_margins(
                 f(o.phase_crossover_hz, 2),
                 f(o.gain_margin_db, 1),
             )?;
-            onsets.push(onset.map(|(k, hz, a)| serde_json::json!({"kp_per_m": k, "frequency_hz": hz, "amplitude_m": a})));
+            onsets.push(match pwm {
+                Some(p) => serde_json::json!({"method": "sampled-data PWM", "kp_per_m": p.kp_per_m,
+                    "frequency_hz": p.frequency_hz, "pwm_period_s": p.pwm_period_s,
+                    "switching_delay_s": p.switching_delay_s}),
+                None => onset.map_or(serde_json::Value::Null, |(k, hz, a)| serde_json::json!({
+                    "method": "describing functions", "kp_per_m": k, "frequency_hz": hz, "amplitude_m": a})),
+            });
         }
         out.push(serde_json::json!({"analysis": a, "limit_cycle_onsets": onsets}));
         analyses.push(a);

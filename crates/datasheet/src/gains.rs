@@ -1,13 +1,16 @@
 //! Inner-loop gains that work on the rig `new rig` wrote: kp from the linearised loop at every stiffness
 //! the scene meets with at least [`TARGET_GAIN_MARGIN_DB`] of gain margin (ki = 2 kp /s, the paper's ratio),
 //! below the describing-function limit-cycle onset, then confirmed by simulating the scene: every run
-//! settles after the stiffness change with no sustained oscillation. The averaged PWM model does not see
-//! the ripple, so on a PWM valve the simulation decides (kp lowered by 30 % until it passes).
+//! settles after the stiffness change with no sustained oscillation. On a PWM valve kp also keeps the
+//! target margin against the sampled-data onset (`pneuflex_scene::analysis::pwm_onset`: the duty held over
+//! each period, which the period average does not see), and the simulation has the last word (kp lowered
+//! by 30 % until it passes).
 
 use std::path::Path;
 
 use pneuflex_scene::Scene;
 use pneuflex_scene::analysis::loop_margins::{analyse, onset_at};
+use pneuflex_scene::analysis::pwm_onset::pwm_onset_at;
 
 use crate::DesignError;
 use crate::design::round2;
@@ -134,6 +137,25 @@ pub fn choose(
         g = g.with_kp(round2(ONSET_FRACTION * onset));
         note.push_str(&format!(
             "; lowered to {} /m, {ONSET_FRACTION} of the {onset:.2} /m limit-cycle onset the describing functions predict",
+            g.kp_per_m
+        ));
+    }
+    // On a PWM valve, the target margin against the sampled-data onset (the duty held over each period),
+    // which the period average does not see.
+    let mut pwm_onset = f64::INFINITY;
+    for k in pneuflex_scene::analysis::loop_margins::stiffnesses(&scene) {
+        if let Some(p) =
+            pwm_onset_at(&scene, 0, k).map_err(|e| DesignError::Scene(e.to_string()))?
+        {
+            pwm_onset = pwm_onset.min(p.kp_per_m);
+        }
+    }
+    let pwm_kp = pwm_onset * 10f64.powf(-TARGET_GAIN_MARGIN_DB / 20.0);
+    if pwm_onset.is_finite() && g.kp_per_m > pwm_kp {
+        g = g.with_kp(round2(pwm_kp));
+        note.push_str(&format!(
+            "; lowered to {} /m, {TARGET_GAIN_MARGIN_DB} dB under the {pwm_onset:.2} /m onset of the PWM's \
+             sampled-data model",
             g.kp_per_m
         ));
     }

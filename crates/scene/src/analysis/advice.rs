@@ -69,7 +69,8 @@ pub fn fastest_chamber_pole(model: &OneDofModel) -> f64 {
 pub const MIN_GAIN_MARGIN_DB: f64 = 3.0;
 
 /// Warnings about each run's inner-loop margins at every stiffness the scene meets, on plants the loop
-/// analysis covers (a proportional-valve pneumatic plant, the linear plant); none on the others.
+/// analysis covers (a pneumatic plant — on a PWM valve from its sampled-data model — and the linear
+/// plant); none on the others.
 pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
     let mut out = Vec::new();
     // Runs with the same inner loop share one analysis (the margins depend on the plant and the PID only).
@@ -90,7 +91,30 @@ pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
             }
         };
         for m in &a.margins {
-            if let Some(gm) = m.gain_margin_db.filter(|&g| g < MIN_GAIN_MARGIN_DB) {
+            // On a switching valve the sampled-data model of the PWM gives the margin (the period average
+            // promises more: kp 49 against a simulated onset of 32 /m on paper-fig3).
+            let pwm = crate::analysis::pwm_onset::pwm_onset_at(scene, i, m.stiffness_n_per_m)
+                .ok()
+                .flatten();
+            if let Some(p) = pwm {
+                let gm = 20.0 * (p.kp_per_m / run.inner.kp_per_m).log10();
+                if gm < MIN_GAIN_MARGIN_DB {
+                    out.push(Warning {
+                        key: format!("runs[{i}].inner.kp_per_m"),
+                        message: format!(
+                            "run `{}`: the on/off valve's PWM limit-cycles from kp = {:.2} /m at k_e = {} N/m \
+                             (sampled-data model, near {:.1} Hz): {gm:.1} dB of gain margin (below \
+                             {MIN_GAIN_MARGIN_DB} dB); kp <= {:.2} /m keeps {MIN_GAIN_MARGIN_DB} dB (`pneuflex tf \
+                             <scene> --loop`)",
+                            run.name,
+                            p.kp_per_m,
+                            m.stiffness_n_per_m,
+                            p.frequency_hz,
+                            p.kp_per_m * 10f64.powf(-MIN_GAIN_MARGIN_DB / 20.0)
+                        ),
+                    });
+                }
+            } else if let Some(gm) = m.gain_margin_db.filter(|&g| g < MIN_GAIN_MARGIN_DB) {
                 out.push(Warning {
                     key: format!("runs[{i}].inner.kp_per_m"),
                     message: format!(

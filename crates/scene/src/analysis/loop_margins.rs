@@ -136,7 +136,7 @@ fn linearise<P: Linearisable>(p: &mut P, u0: f64, dt: f64) -> (Vec<Vec<f64>>, Ve
 
 /// [`linearise`] with Γ the secant over ±`hu` of the command (the valve's gain seen by an oscillation of
 /// that amplitude: over an underlapped centre the small-signal gain is the larger).
-fn linearise_secant<P: Linearisable>(
+pub(crate) fn linearise_secant<P: Linearisable>(
     p: &mut P,
     u0: f64,
     hu: f64,
@@ -568,7 +568,7 @@ pub fn limit_cycle_onset<P: Linearisable + Clone>(
 
 /// Settles the plant on its inner loop alone at the contact position of the scene's first force; returns
 /// the command there.
-fn settle<P: Linearisable>(
+pub(crate) fn settle<P: Linearisable>(
     p: &mut P,
     scene: &Scene,
     pid: &pneuflex_control::PidParams,

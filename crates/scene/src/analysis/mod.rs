@@ -7,5 +7,6 @@ pub mod claims;
 pub mod comparison;
 pub mod loop_margins;
 pub mod metrics;
+pub mod pwm_onset;
 pub mod recorded;
 pub mod windows;

@@ -57,6 +57,14 @@ pub trait Linearisable: Plant {
     /// supply→A and B→exhaust for d of the period and the other paths for 1 − d, i.e. a proportional valve
     /// open both ways at the centre (underlap 1), lagging by the switching delay plus half a period.
     fn average_switching(&mut self) {}
+    /// For the sampled-data analysis of a switching valve ([`crate::analysis::pwm_onset`]): replaces it by
+    /// the valve its latched duty drives over a period — open both ways at the centre as in
+    /// [`Linearisable::average_switching`], but without the lag, which the analysis models exactly as the
+    /// hold of the duty over the period and the switching delay. Returns (PWM period, switching delay), s;
+    /// None for a valve that does not switch.
+    fn hold_switching(&mut self) -> Option<(f64, f64)> {
+        None
+    }
     /// Leaves out Coulomb friction: linearised at rest its tanh or stick band is a steep viscous damping
     /// (F_c/v_s, 600 N·s/m on the shipped sheet) that an oscillation of any size never sees — its describing
     /// function falls as 4 F_c/(π ω A) — so a small-signal margin with it would promise far more than the

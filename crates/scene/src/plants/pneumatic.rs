@@ -173,6 +173,21 @@ impl crate::plants::Linearisable for OneDofPneumatic {
             v.underlap = 1.0;
         }
     }
+    fn hold_switching(&mut self) -> Option<(f64, f64)> {
+        let v = &mut self.model.actuator.valve;
+        let pneuflex_pneumatics::ValveKind::OnOffPwm {
+            pwm_frequency_hz,
+            switching_delay_s,
+        } = v.kind
+        else {
+            return None;
+        };
+        v.kind = pneuflex_pneumatics::ValveKind::Proportional {
+            response_time_s: 0.0,
+        };
+        v.underlap = 1.0;
+        Some((1.0 / pwm_frequency_hz, switching_delay_s))
+    }
     fn switching(&self) -> bool {
         matches!(
             self.model.actuator.valve.kind,
