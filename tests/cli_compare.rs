@@ -164,3 +164,122 @@ fn a_bad_log_is_refused_with_its_line() {
     );
     assert!(!tmp.path().join("out").exists(), "nothing written");
 }
+
+#[test]
+fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    // The "rig": paper-fig3 run with the Coulomb friction doubled, both runs (the sheets copied beside it).
+    std::fs::create_dir(t.join("pneumatics")).unwrap();
+    for e in std::fs::read_dir(repo.join("pneumatics")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            std::fs::copy(&p, t.join("pneumatics").join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    let sheet_path = t.join("pneumatics/paper-actuator.toml");
+    let sheet = std::fs::read_to_string(&sheet_path).unwrap();
+    assert!(
+        sheet.contains("coulomb_n = 0.6 "),
+        "the shipped sheet's Coulomb friction moved"
+    );
+    std::fs::write(
+        &sheet_path,
+        sheet.replace("coulomb_n = 0.6 ", "coulomb_n = 1.2 "),
+    )
+    .unwrap();
+    std::fs::create_dir(t.join("scenes")).unwrap();
+    let scene = repo.join("scenes/paper-fig3.toml");
+    std::fs::copy(&scene, t.join("scenes/rig-scene.toml")).unwrap();
+    ok(&pneuflex(
+        &["run", "scenes/rig-scene.toml", "--quiet", "--out", "rig"],
+        t,
+    ));
+    let scene = scene.to_str().unwrap();
+    let imp = format!("impedance={}", t.join("rig/impedance/trace.csv").display());
+    let ada = format!("adaptive={}", t.join("rig/adaptive/trace.csv").display());
+    ok(&pneuflex(
+        &[
+            "compare",
+            scene,
+            "--rig-log",
+            &imp,
+            "--rig-log",
+            &ada,
+            "--out",
+            "cmp",
+        ],
+        t,
+    ));
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let c = read(&t.join("cmp/compare.json"));
+    let rig_summary = read(&t.join("rig/summary.json"));
+    // The rig's verdicts are the rig scene's own claims (its summary.json), value for value.
+    let claims = c["claims"]["rig"].as_array().unwrap();
+    let own = rig_summary["claims"].as_array().unwrap();
+    assert_eq!(claims.len(), own.len());
+    for (a, b) in claims.iter().zip(own) {
+        assert_eq!(a["statement"], b["statement"]);
+        assert_eq!(a["holds"], b["holds"], "{}", a["statement"]);
+        for k in ["better_value", "than_value"] {
+            let (x, y) = (a[k].as_f64().unwrap(), b[k].as_f64().unwrap());
+            assert!(
+                (x - y).abs() <= 1e-9 * x.abs().max(1.0),
+                "{}: {k} {x} vs {y}",
+                a["statement"]
+            );
+        }
+    }
+    // The simulation side is the shipped scene's.
+    assert_eq!(
+        c["claims"]["simulation"].as_array().unwrap().len(),
+        own.len()
+    );
+    assert_eq!(c["runs"].as_array().unwrap().len(), 2);
+    let md = std::fs::read_to_string(t.join("cmp/compare.md")).unwrap();
+    assert!(
+        md.contains("the claims, on the rig and in simulation"),
+        "{md}"
+    );
+    for f in ["impedance/force.png", "adaptive/force.png"] {
+        assert!(t.join("cmp").join(f).is_file(), "{f}");
+    }
+    // Two logs must say which run each recorded, and two of one run are refused.
+    let bare = t.join("rig/impedance/trace.csv");
+    let bare = bare.to_str().unwrap();
+    let o = pneuflex(
+        &[
+            "compare",
+            scene,
+            "--rig-log",
+            bare,
+            "--rig-log",
+            &ada,
+            "--out",
+            "x",
+        ],
+        t,
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("give RUN="), "{e}");
+    let twice = format!("adaptive={bare}");
+    let o = pneuflex(
+        &[
+            "compare",
+            scene,
+            "--rig-log",
+            &ada,
+            "--rig-log",
+            &twice,
+            "--out",
+            "x",
+        ],
+        t,
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("already given"), "{e}");
+    assert!(!t.join("x").exists(), "nothing written");
+}

@@ -234,16 +234,18 @@ impl Tune {
 pub struct Compare {
     /// The scene the rig ran (scenes/*.toml).
     pub scene: PathBuf,
-    /// The rig's trace.csv (`rig run` output).
-    #[arg(long, value_name = "TRACE.csv")]
-    pub rig_log: PathBuf,
-    /// The scene's run the rig ran (default: the first).
+    /// The rig's trace.csv (`rig run` output); repeat it with RUN=TRACE.csv for several runs, whose claims
+    /// are then judged on the rig beside the simulation. A log whose folder holds `rig run --scene`'s
+    /// summary.json names its run itself.
+    #[arg(long, value_name = "[RUN=]TRACE.csv", required = true)]
+    pub rig_log: Vec<String>,
+    /// The scene's run a single --rig-log recorded (default: the one its summary.json names, else the first).
     #[arg(long)]
     pub run: Option<String>,
     /// Simulate with this actuator sheet instead of the scene's (an identified one: how much closer it comes).
     #[arg(long, value_name = "SHEET.toml")]
     pub actuator: Option<PathBuf>,
-    /// Output directory (default: out/compare/<scene>/<run>/).
+    /// Output directory (default: out/compare/<scene>/<run>/, out/compare/<scene>/ for several runs).
     #[arg(long)]
     pub out: Option<PathBuf>,
 }

@@ -1,40 +1,107 @@
-//! `pneuflex compare SCENE --rig-log TRACE.csv`: the scene's run simulated for as long as the rig ran, its
-//! windows' metrics and the rig's from the same metric code (`pneuflex_scene::analysis::comparison`), the
-//! figures of both runs overlaid, `compare.json` and `compare.md`.
+//! `pneuflex compare SCENE --rig-log [RUN=]TRACE.csv ...`: each recorded run of the scene simulated for as
+//! long as the rig ran, its windows' metrics and the rig's from the same metric code
+//! (`pneuflex_scene::analysis::comparison`), the figures of both overlaid, `compare.json` and `compare.md`.
+//! With the logs of two runs a claim compares, the claim's verdict on the rig beside the simulation's.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use pneuflex_files::output::{Manifest, OutputDir, Writer};
+use pneuflex_scene::analysis::claims::{ClaimResult, check_all};
 use pneuflex_scene::analysis::comparison::{Comparison, compare as compare_runs};
-use pneuflex_scene::{PlantSpec, Scene, Trace};
+use pneuflex_scene::analysis::recorded::recorded_run;
+use pneuflex_scene::{PlantSpec, RunResult, Scene, Trace};
 
 use crate::cli::simulate::Compare;
 
-pub fn compare(a: &Compare) -> anyhow::Result<()> {
-    let scene = Scene::load(&a.scene)?;
-    let index = match &a.run {
-        None => 0,
-        Some(name) => scene.run_index(name)?,
-    };
-    let text = std::fs::read_to_string(&a.rig_log)
-        .with_context(|| format!("--rig-log {}: cannot read", a.rig_log.display()))?;
-    let rig_trace = Trace::from_csv(&text, &["wall_time", "fault"])
-        .map_err(|e| anyhow::anyhow!("--rig-log {}: {e}", a.rig_log.display()))?;
-    if rig_trace.len() < 2 {
-        bail!("--rig-log {}: fewer than two rows", a.rig_log.display());
+/// One `--rig-log`: the run it recorded, its path, its trace.
+struct Log {
+    run: usize,
+    path: PathBuf,
+    trace: Trace,
+}
+
+/// The run a log recorded: `RUN=` before the path; else `--run` or, beside the trace, the summary.json
+/// `rig run --scene` wrote; else, for a single log, the scene's first run.
+fn run_of(
+    scene: &Scene,
+    arg: &str,
+    run: Option<&str>,
+    single: bool,
+) -> anyhow::Result<(usize, PathBuf)> {
+    if let Some((name, path)) = arg.split_once('=')
+        && let Ok(i) = scene.run_index(name)
+    {
+        return Ok((i, PathBuf::from(path)));
     }
-    let t = rig_trace.t();
+    let path = PathBuf::from(arg);
+    if single && let Some(name) = run {
+        return Ok((scene.run_index(name)?, path));
+    }
+    let beside = path.parent().unwrap_or(Path::new(".")).join("summary.json");
+    let recorded = std::fs::read_to_string(&beside)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .filter(|s| s["scene"].as_str() == Some(scene.name.as_str()))
+        .and_then(|s| s["runs"][0]["name"].as_str().map(str::to_string));
+    match recorded {
+        Some(name) => Ok((scene.run_index(&name)?, path)),
+        None if single => Ok((0, path)),
+        None => bail!(
+            "--rig-log {arg}: which run did it record? No summary.json of scene `{}` beside it: give RUN={arg}",
+            scene.name
+        ),
+    }
+}
+
+fn read_log(scene: &Scene, run: usize, path: PathBuf) -> anyhow::Result<Log> {
+    let shown = path.display().to_string();
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("--rig-log {shown}: cannot read"))?;
+    let trace = Trace::from_csv(&text, &["wall_time", "fault"])
+        .map_err(|e| anyhow::anyhow!("--rig-log {shown}: {e}"))?;
+    if trace.len() < 2 {
+        bail!("--rig-log {shown}: fewer than two rows");
+    }
+    let t = trace.t();
     let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
     if (dt - scene.dt_s).abs() > 0.01 * scene.dt_s {
         bail!(
-            "--rig-log {}: rows {dt:.6} s apart, the scene's dt_s is {} s: a log of another scene?",
-            a.rig_log.display(),
+            "--rig-log {shown}: rows {dt:.6} s apart, the scene's dt_s is {} s: a log of another scene?",
             scene.dt_s
         );
     }
-    let mut sim_scene = scene.one_run(index, t[t.len() - 1]);
+    Ok(Log { run, path, trace })
+}
+
+pub fn compare(a: &Compare) -> anyhow::Result<()> {
+    let scene = Scene::load(&a.scene)?;
+    let single = a.rig_log.len() == 1;
+    if !single && a.run.is_some() {
+        bail!(
+            "--run names the run of a single --rig-log; with several, write each as RUN=TRACE.csv"
+        );
+    }
+    let mut logs = Vec::new();
+    for arg in &a.rig_log {
+        let (run, path) = run_of(&scene, arg, a.run.as_deref(), single)?;
+        if let Some(other) = logs.iter().find(|l: &&Log| l.run == run) {
+            bail!(
+                "--rig-log {arg}: run `{}` is already given by {}",
+                scene.runs[run].name,
+                other.path.display()
+            );
+        }
+        logs.push(read_log(&scene, run, path)?);
+    }
+    // Every run simulated for as long as the shortest log ran.
+    let end_s = logs
+        .iter()
+        .map(|l| l.trace.t()[l.trace.len() - 1])
+        .fold(f64::INFINITY, f64::min);
+    let indices: Vec<usize> = logs.iter().map(|l| l.run).collect();
+    let mut sim_scene = scene.some_runs(&indices, end_s);
     if let Some(sheet) = &a.actuator {
         let abs = std::fs::canonicalize(sheet)
             .with_context(|| format!("--actuator {}", sheet.display()))?;
@@ -48,41 +115,83 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
             ),
         }
     }
+    let first = &scene.runs[logs[0].run].name;
     let dest = a.out.clone().unwrap_or_else(|| {
-        Path::new("out")
-            .join("compare")
-            .join(&scene.name)
-            .join(&scene.runs[index].name)
+        let d = Path::new("out").join("compare").join(&scene.name);
+        if single { d.join(first) } else { d }
     });
-    let log_dir: PathBuf = a
-        .rig_log
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
-    let stage = OutputDir::create(&dest, &[&log_dir], Writer::simulation("compare"))?;
-    let mut results = pneuflex_scene::run_scene(&sim_scene, &mut |_| {})?;
-    let mut sim = results.remove(0);
-    if let Some(why) = &sim.diverged {
+    let log_dirs: Vec<PathBuf> = logs
+        .iter()
+        .map(|l| l.path.parent().map(Path::to_path_buf).unwrap_or_default())
+        .collect();
+    let protect: Vec<&Path> = log_dirs.iter().map(PathBuf::as_path).collect();
+    let stage = OutputDir::create(&dest, &protect, Writer::simulation("compare"))?;
+    let sims = pneuflex_scene::run_scene(&sim_scene, &mut |_| {})?;
+    if let Some(why) = sims.iter().find_map(|r| r.diverged.as_ref()) {
         bail!("the simulation diverged: {why}");
     }
-    sim.name = "simulation".into();
-    let rig = pneuflex_scene::analysis::recorded::recorded_run(
-        &sim_scene,
-        "rig",
-        rig_trace,
-        None,
-        sim.pwm_period_s,
-    );
-    let c = compare_runs(&scene.runs[index].name, &rig, &sim);
-    let md = markdown(&c, a);
+    let rigs: Vec<RunResult> = logs
+        .into_iter()
+        .enumerate()
+        .map(|(i, l)| {
+            let name = sim_scene.runs[i].name.clone();
+            recorded_run(&sim_scene, i, &name, l.trace, None, sims[i].pwm_period_s)
+        })
+        .collect();
+    let comparisons: Vec<Comparison> = rigs
+        .iter()
+        .zip(&sims)
+        .map(|(r, s)| compare_runs(&r.name, r, s))
+        .collect();
+    let claims = (check_all(&sim_scene, &rigs), check_all(&sim_scene, &sims));
     let dir = stage.path();
-    std::fs::write(dir.join("compare.json"), serde_json::to_string_pretty(&c)?)?;
+    let mut md = String::new();
+    for c in &comparisons {
+        md.push_str(&markdown(c, a));
+    }
+    if !sim_scene.claims.is_empty() {
+        md.push_str(&claims_markdown(&claims.0, &claims.1));
+    }
+    if single {
+        std::fs::write(
+            dir.join("compare.json"),
+            serde_json::to_string_pretty(&comparisons[0])?,
+        )?;
+    } else {
+        let json = serde_json::json!({
+            "runs": comparisons,
+            "claims": {"rig": claims.0, "simulation": claims.1},
+        });
+        std::fs::write(
+            dir.join("compare.json"),
+            serde_json::to_string_pretty(&json)?,
+        )?;
+    }
     std::fs::write(dir.join("compare.md"), &md)?;
-    pneuflex_viz::write_figures(dir, &sim_scene, &[rig, sim], pneuflex_viz::Format::Png)?;
-    let mut inputs = vec![
-        pneuflex_files::InputDigest::of_file(&a.scene, "scene")?,
-        pneuflex_files::InputDigest::of_file(&a.rig_log, "log")?,
-    ];
+    // Each run's figures, the rig and the simulation overlaid (in the run's folder with several runs).
+    for (i, (rig, sim)) in rigs.into_iter().zip(sims).enumerate() {
+        let one = sim_scene.one_run(i, sim_scene.duration_s);
+        let fig_dir = if single {
+            dir.to_path_buf()
+        } else {
+            dir.join(&rig.name)
+        };
+        std::fs::create_dir_all(&fig_dir)?;
+        let rig = RunResult {
+            name: "rig".into(),
+            ..rig
+        };
+        let sim = RunResult {
+            name: "simulation".into(),
+            ..sim
+        };
+        pneuflex_viz::write_figures(&fig_dir, &one, &[rig, sim], pneuflex_viz::Format::Png)?;
+    }
+    let mut inputs = vec![pneuflex_files::InputDigest::of_file(&a.scene, "scene")?];
+    for arg in &a.rig_log {
+        let (_, path) = run_of(&scene, arg, a.run.as_deref(), single)?;
+        inputs.push(pneuflex_files::InputDigest::of_file(&path, "log")?);
+    }
     if let Some(s) = &a.actuator {
         inputs.push(pneuflex_files::InputDigest::of_file(s, "actuator")?);
     }
@@ -96,9 +205,9 @@ fn markdown(c: &Comparison, a: &Compare) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "# rig against simulation: run `{}`\n\nrig log {}; simulated with {}.\n",
+        "# rig against simulation: run `{}`\n\nrig logs {}; simulated with {}.\n",
         c.run,
-        a.rig_log.display(),
+        a.rig_log.join(", "),
         a.actuator
             .as_ref()
             .map_or("the scene's actuator sheet".to_string(), |p| p
@@ -128,6 +237,29 @@ fn markdown(c: &Comparison, a: &Compare) -> String {
             f(m.simulation),
             f(m.difference)
         );
+    }
+    s.push('\n');
+    s
+}
+
+/// The scene's claims between the recorded runs: the verdict on the rig beside the simulation's.
+fn claims_markdown(rig: &[ClaimResult], sim: &[ClaimResult]) -> String {
+    let mut s = String::from(
+        "# the claims, on the rig and in simulation\n\n| claim | rig | simulation |\n|---|---|---|\n",
+    );
+    let side = |c: &ClaimResult| {
+        let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+        format!(
+            "{}: {} {} against {} {}",
+            if c.holds { "holds" } else { "DOES NOT HOLD" },
+            c.better,
+            f(c.better_value),
+            c.than,
+            f(c.than_value)
+        )
+    };
+    for (r, m) in rig.iter().zip(sim) {
+        let _ = writeln!(s, "| {} | {} | {} |", r.statement, side(r), side(m));
     }
     s
 }

@@ -384,6 +384,7 @@ fn write_judgement(
     let name = &scene.runs[index].name;
     let mut r = pneuflex_scene::analysis::recorded::recorded_run(
         &one,
+        0,
         name,
         trace,
         fault.or(interrupted.clone()),

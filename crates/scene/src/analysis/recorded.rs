@@ -8,18 +8,19 @@ use crate::run::RunResult;
 use crate::run::trace::Trace;
 use crate::schema::{ControllerKind, Scene};
 
-/// Run 0 of `scene` (a scene reduced by [`Scene::one_run`] to the run that was recorded and the time it
-/// ran) as `trace` recorded it. `ended` is why the recording ended early (a rig fault): the run is then
+/// Run `index` of `scene` (a scene reduced by [`Scene::one_run`] or [`Scene::some_runs`] to the runs
+/// recorded and the time they ran) as `trace` recorded it. `ended` is why the recording ended early (a rig fault): the run is then
 /// treated as a diverged simulation is — its trace kept, no window metrics. `pwm_period_s` is the
 /// valve's PWM period of the scene's plant (the event metrics average over it).
 pub fn recorded_run(
     scene: &Scene,
+    index: usize,
     name: &str,
     trace: Trace,
     ended: Option<String>,
     pwm_period_s: Option<f64>,
 ) -> RunResult {
-    let run = &scene.runs[0];
+    let run = &scene.runs[index];
     let windows = if ended.is_none() {
         compute_windows(scene, &trace, pwm_period_s)
     } else {

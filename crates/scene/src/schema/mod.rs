@@ -251,12 +251,22 @@ impl Scene {
     /// describes): windows ending after `end_s` and events after it are left out, and the claims, which
     /// compare two runs.
     pub fn one_run(&self, index: usize, end_s: f64) -> Scene {
+        self.some_runs(&[index], end_s)
+    }
+
+    /// [`Scene::one_run`] for the runs `indices` (in that order): the claims between two of them stay.
+    pub fn some_runs(&self, indices: &[usize], end_s: f64) -> Scene {
         let mut s = self.clone();
-        s.runs = vec![self.runs[index].clone()];
+        s.runs = indices.iter().map(|&i| self.runs[i].clone()).collect();
         s.duration_s = self.duration_s.min(end_s);
         s.metrics.retain(|w| w.t1_s <= s.duration_s + 0.5 * s.dt_s);
         s.events.retain(|e| e.t_s() < s.duration_s);
-        s.claims.clear();
+        let kept = |name: &str| s.runs.iter().any(|r| r.name == name);
+        let claims = std::mem::take(&mut s.claims);
+        s.claims = claims
+            .into_iter()
+            .filter(|c| c.better != c.than && kept(&c.better) && kept(&c.than))
+            .collect();
         s
     }
 
