@@ -283,3 +283,118 @@ fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation()
     assert!(!o.status.success() && e.contains("already given"), "{e}");
     assert!(!t.join("x").exists(), "nothing written");
 }
+
+#[test]
+fn on_the_lockstep_emulator_the_true_sheet_explains_the_rig_better_than_the_shipped_one() {
+    // `rig run --lockstep-truth`: the emulated rig (ADC quantisation, noise, the emulator's own start and
+    // stiffness change) hides a perturbed sheet; compare with the shipped sheet, then with the hidden one.
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let sheet = repo.join("pneumatics/paper-actuator.toml");
+    let keys = "valve.sonic_conductance_m3_per_s_pa,mechanics.coulomb_n,mechanics.moving_mass_kg";
+    ok(&pneuflex(
+        &[
+            "perturb",
+            "--actuator",
+            sheet.to_str().unwrap(),
+            "--keys",
+            keys,
+            "--seed",
+            "5",
+            "--out",
+            "truth",
+        ],
+        t,
+    ));
+    let rig = repo.join("rigs/emulated.toml");
+    let scene = repo.join("scenes/paper-fig3.toml");
+    let (rig, scene) = (rig.to_str().unwrap(), scene.to_str().unwrap());
+    let run = |out: &str| {
+        ok(&pneuflex(
+            &[
+                "rig",
+                "run",
+                "--rig",
+                rig,
+                "--lockstep-truth",
+                "truth/paper-actuator.toml",
+                "--scene",
+                scene,
+                "--run",
+                "impedance",
+                "--out",
+                out,
+            ],
+            t,
+        ))
+    };
+    run("rec");
+    // Lockstep: the same recording again, value for value (all but the host's wall clock).
+    run("rec-again");
+    let values = |d: &str| -> Vec<String> {
+        let text = std::fs::read_to_string(t.join(d).join("trace.csv")).unwrap();
+        let rows: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
+        let wall = rows[0]
+            .split(',')
+            .position(|c| c == "wall_time")
+            .expect("a wall_time column");
+        rows.iter()
+            .map(|r| {
+                let mut cells: Vec<&str> = r.split(',').collect();
+                cells.remove(wall);
+                cells.join(",")
+            })
+            .collect()
+    };
+    let (first, again) = (values("rec"), values("rec-again"));
+    assert!(
+        first.len() > 10_000 && first == again,
+        "the lockstep recording is not reproducible"
+    );
+    // rig run --scene judged the recording: every window of the scene, the stiffness change's included.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(t.join("rec/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["runs"][0]["windows"].as_array().unwrap().len(), 4);
+    for (out, extra) in [
+        ("shipped", None),
+        ("true", Some("truth/paper-actuator.toml")),
+    ] {
+        let mut args = vec!["compare", scene, "--rig-log", "rec/trace.csv", "--out", out];
+        if let Some(a) = extra {
+            args.extend(["--actuator", a]);
+        }
+        ok(&pneuflex(&args, t));
+    }
+    let read = |d: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(t.join(d).join("compare.json")).unwrap())
+            .unwrap()
+    };
+    let (shipped, truth) = (read("shipped"), read("true"));
+    assert_eq!(truth["run"], "impedance");
+    let rms = |c: &serde_json::Value| -> Vec<f64> {
+        c["metrics"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|m| m["metric"] == "rms_force_error_n")
+            .map(|m| m["difference"].as_f64().unwrap().abs())
+            .collect()
+    };
+    let (a, b) = (rms(&shipped), rms(&truth));
+    assert_eq!(a.len(), 4);
+    for (s, tr) in a.iter().zip(&b) {
+        assert!(
+            *tr < 0.2 * s,
+            "each window's RMS error difference shrinks: {a:?} -> {b:?}"
+        );
+    }
+    let fe = |c: &serde_json::Value| c["f_e_rms_difference_n"].as_f64().unwrap();
+    assert!(
+        fe(&truth) < fe(&shipped),
+        "{} vs {}",
+        fe(&truth),
+        fe(&shipped)
+    );
+}

@@ -133,6 +133,14 @@ pub struct Run {
     /// Run length in seconds (default: the scene's duration).
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Instead of --port: the rig file's emulator in lockstep with a simulated clock (not real time),
+    /// hiding this actuator sheet (`perturb` writes one); --seed seeds its sensor noise. For CI and
+    /// worked examples: the same recording every time.
+    #[arg(long, conflicts_with = "port")]
+    pub lockstep_truth: Option<PathBuf>,
+    /// Seed of the lockstep emulator's sensor noise.
+    #[arg(long, default_value_t = 1, requires = "lockstep_truth")]
+    pub seed: u64,
     /// Output directory for trace.csv (default: out/rig/<scene>/<run>/).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -196,6 +204,7 @@ impl Run {
         cmd::rig::run_scene(
             &self.rig,
             self.port.as_deref(),
+            self.lockstep_truth.as_deref().map(|t| (t, self.seed)),
             &self.scene,
             self.run.as_deref(),
             self.duration,

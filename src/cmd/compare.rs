@@ -95,10 +95,10 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
         }
         logs.push(read_log(&scene, run, path)?);
     }
-    // Every run simulated for as long as the shortest log ran.
+    // Every run simulated for as long as the shortest log ran (N ticks cover N·dt).
     let end_s = logs
         .iter()
-        .map(|l| l.trace.t()[l.trace.len() - 1])
+        .map(|l| l.trace.t()[l.trace.len() - 1] + scene.dt_s)
         .fold(f64::INFINITY, f64::min);
     let indices: Vec<usize> = logs.iter().map(|l| l.run).collect();
     let mut sim_scene = scene.some_runs(&indices, end_s);

@@ -5,11 +5,11 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail};
 use pneuflex_control::Setpoint;
+use pneuflex_rig::RigFile;
 use pneuflex_rig::record;
 use pneuflex_rig::rtloop::check_duration;
-use pneuflex_rig::{RigFile, serial, session};
 
-use super::rig::{finished, run};
+use super::rig::run;
 
 /// The options of `pneuflex rig excite`.
 #[derive(Clone, Debug)]
@@ -134,25 +134,16 @@ pub fn excite(
         )
         .map(|_| ());
     };
-    // Lockstep: the board steps once per loop tick on a simulated clock (as crates/rig's tests run it).
-    check_duration(a.duration_s).map_err(|e| anyhow!("--duration: {}", e.message))?;
-    let mut rig = RigFile::load(rig_file)?;
-    session::hide_truth(&mut rig, rig_file, truth, Some(a.seed), None)?;
-    let mut clock = pneuflex_rig::clock::SimClock::new();
-    let (link, _log) = session::lockstep_emulator(&rig, rig_file, clock.clone())?;
-    let mut link_clock = clock.clone();
-    let stop = session::install_ctrl_c()?;
-    let rec = record::record(
+    super::recording::record_lockstep(
         record::EXCITE,
-        &rig,
-        || serial::connect_link(link, &rig, &mut link_clock),
+        rig_file,
+        truth,
+        a.seed,
         &out_dir,
         &[(rig_file, "rig")],
         &mut controller,
         &mut reference,
         a.duration_s,
-        &stop,
-        &mut clock,
-    )?;
-    finished(&rec)
+        &mut |_, _| Ok(()),
+    )
 }

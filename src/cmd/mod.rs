@@ -85,6 +85,7 @@ pub mod identify;
 pub mod live;
 pub mod new_rig;
 pub mod pil;
+mod recording;
 pub mod rig;
 pub mod run;
 pub mod seal;

@@ -126,16 +126,18 @@ pub fn run(
         observer,
         finish,
     )?;
-    finished(&rec)?;
+    super::recording::finished(&rec)?;
     Ok(rec.report)
 }
 
 /// `pneuflex rig run --scene <scene.toml>`: the controller and reference of one of the scene's runs (by name,
 /// or the first) on the rig, for the scene's duration unless `duration_s` is given. Output in
 /// `out/rig/<scene>/<run>/` unless `out` is given.
+#[allow(clippy::too_many_arguments)]
 pub fn run_scene(
     rig_file: &Path,
     port: Option<&str>,
+    lockstep: Option<(&Path, u64)>,
     scene_path: &Path,
     run_name: Option<&str>,
     duration_s: Option<f64>,
@@ -202,6 +204,23 @@ pub fn run_scene(
         };
         judge_recording(dir, &scene, index, end, pwm_period_s).map_err(|e| e.to_string())
     };
+    if let Some((truth, seed)) = lockstep {
+        if rerun.is_some() {
+            bail!("--rerun: shows a real-time run; a --lockstep-truth run is not one");
+        }
+        return super::recording::record_lockstep(
+            record::COMMAND,
+            rig_file,
+            truth,
+            seed,
+            &out_dir,
+            &[(rig_file, "rig"), (scene_path, "scene")],
+            controller.as_mut(),
+            &mut reference,
+            duration,
+            &mut analyse,
+        );
+    }
     let result = run(
         record::COMMAND,
         rig_file,
@@ -222,49 +241,4 @@ pub fn run_scene(
         Err(e) => errln!("warning: the Rerun view is incomplete: {e:#}"),
     }
     result
-}
-
-/// What a recorded run's end prints, and its exit: 128 + the signal after an interruption (the
-/// recording is committed as `<dest>.partial`), an error after a fault, success otherwise.
-pub(super) fn finished(rec: &record::Recording) -> anyhow::Result<()> {
-    for r in &rec.recovered {
-        errln!(
-            "note: the recording of an earlier run that died was kept in {}",
-            r.display()
-        );
-    }
-    outln!("{}", rec.report);
-    let trace = rec.dir.join("trace.csv");
-    if let Some(e) = &rec.analysis_error {
-        errln!(
-            "error: the recording is complete in {}, but its summary and figures could not be written: {e}",
-            rec.dir.display()
-        );
-    } else if rec.dir.join("summary.json").is_file() {
-        outln!("summary: {}", rec.dir.join("summary.json").display());
-    }
-    if rec.partial {
-        return Err(super::interrupted(
-            session::last_signal().max(2),
-            format!(
-                "stopped at t = {} s; the valve was put in its safe state; partial trace: {}",
-                rec.report.time_reached_s,
-                trace.display()
-            ),
-        ));
-    }
-    if let Some(f) = &rec.report.fault {
-        bail!(
-            "run ended on a fault: {}: {} (tick {}); trace: {}",
-            f.kind,
-            f.message,
-            f.tick,
-            trace.display()
-        );
-    }
-    outln!("trace: {}", trace.display());
-    if rec.analysis_error.is_some() {
-        bail!("the recording's analysis failed (above); the recording itself is complete");
-    }
-    Ok(())
 }

@@ -375,7 +375,8 @@ fn write_judgement(
         std::fs::read_to_string(&path).map_err(|e| unreadable(format!("cannot read: {e}")))?;
     let trace =
         pneuflex_scene::Trace::from_csv(&text, &["wall_time", "fault"]).map_err(unreadable)?;
-    let one = scene.one_run(index, trace.t().last().copied().unwrap_or(0.0));
+    // N ticks cover N·dt (the last one's time + dt): a full-length recording keeps its last window.
+    let one = scene.one_run(index, trace.t().last().map_or(0.0, |t| t + scene.dt_s));
     let (fault, interrupted) = match end {
         RecordingEnd::Complete => (None, None),
         RecordingEnd::Fault(why) => (Some(why), None),

@@ -103,10 +103,10 @@ fn a_recording_of_the_simulated_run_is_judged_as_the_simulation_judged_it() {
 fn a_recording_cut_short_keeps_only_the_windows_it_covers() {
     let scene = scene();
     let (dir, sim, i) = recorded(&scene);
-    // The first 4 s of it (header and rows up to t = 4.0 s).
+    // The first 4 s of it: 4000 ticks (header and rows up to t = 3.999 s) cover 4 s.
     let path = dir.path().join("trace.csv");
     let text = std::fs::read_to_string(&path).unwrap();
-    let cut: Vec<&str> = text.lines().take(1 + 4001).collect();
+    let cut: Vec<&str> = text.lines().take(1 + 4000).collect();
     std::fs::write(&path, cut.join("\n") + "\n").unwrap();
     judge_recording(
         dir.path(),

@@ -249,7 +249,7 @@ impl Scene {
 
     /// The scene reduced to run `index` and cut at `end_s` (what one run on the rig or on the board
     /// describes): windows ending after `end_s` and events after it are left out, and the claims, which
-    /// compare two runs.
+    /// compare two runs. A recording of N ticks covers N·dt: give that, not its last tick's time.
     pub fn one_run(&self, index: usize, end_s: f64) -> Scene {
         self.some_runs(&[index], end_s)
     }
@@ -262,10 +262,11 @@ impl Scene {
         s.metrics.retain(|w| w.t1_s <= s.duration_s + 0.5 * s.dt_s);
         s.events.retain(|e| e.t_s() < s.duration_s);
         let kept = |name: &str| s.runs.iter().any(|r| r.name == name);
+        let window = |name: &str| s.metrics.iter().any(|w| w.name == name);
         let claims = std::mem::take(&mut s.claims);
         s.claims = claims
             .into_iter()
-            .filter(|c| c.better != c.than && kept(&c.better) && kept(&c.than))
+            .filter(|c| c.better != c.than && kept(&c.better) && kept(&c.than) && window(&c.window))
             .collect();
         s
     }
