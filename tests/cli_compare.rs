@@ -18,6 +18,24 @@ fn ok(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
+/// `perturb` of the shipped actuator sheet's `keys` (seed 5) into `dir/truth/`: the hidden truth.
+fn perturb(dir: &Path, keys: &str) {
+    let sheet = Path::new(env!("CARGO_MANIFEST_DIR")).join("pneumatics/paper-actuator.toml");
+    let sheet = sheet.to_str().unwrap();
+    let args = [
+        "perturb",
+        "--actuator",
+        sheet,
+        "--keys",
+        keys,
+        "--seed",
+        "5",
+        "--out",
+        "truth",
+    ];
+    ok(&pneuflex(&args, dir));
+}
+
 #[test]
 fn the_true_sheet_closes_the_gap_the_shipped_one_leaves() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -25,21 +43,7 @@ fn the_true_sheet_closes_the_gap_the_shipped_one_leaves() {
     let t = tmp.path();
     let keys = "valve.sonic_conductance_m3_per_s_pa,valve.critical_pressure_ratio,cylinder.dead_volume_a_m3,\
                 cylinder.dead_volume_b_m3,mechanics.coulomb_n,mechanics.moving_mass_kg";
-    let sheet = repo.join("pneumatics/paper-actuator.toml");
-    ok(&pneuflex(
-        &[
-            "perturb",
-            "--actuator",
-            sheet.to_str().unwrap(),
-            "--keys",
-            keys,
-            "--seed",
-            "5",
-            "--out",
-            "truth",
-        ],
-        t,
-    ));
+    perturb(t, keys);
     let truth = t.join("truth/paper-actuator.toml");
     // The "rig": the scene run on the truth.
     let scene = repo.join("scenes/paper-fig3.toml");
@@ -291,22 +295,10 @@ fn on_the_lockstep_emulator_the_true_sheet_explains_the_rig_better_than_the_ship
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();
-    let sheet = repo.join("pneumatics/paper-actuator.toml");
-    let keys = "valve.sonic_conductance_m3_per_s_pa,mechanics.coulomb_n,mechanics.moving_mass_kg";
-    ok(&pneuflex(
-        &[
-            "perturb",
-            "--actuator",
-            sheet.to_str().unwrap(),
-            "--keys",
-            keys,
-            "--seed",
-            "5",
-            "--out",
-            "truth",
-        ],
+    perturb(
         t,
-    ));
+        "valve.sonic_conductance_m3_per_s_pa,mechanics.coulomb_n,mechanics.moving_mass_kg",
+    );
     let rig = repo.join("rigs/emulated.toml");
     let scene = repo.join("scenes/paper-fig3.toml");
     let (rig, scene) = (rig.to_str().unwrap(), scene.to_str().unwrap());

@@ -331,7 +331,48 @@ pub fn judge_recording(
     pwm_period_s: Option<f64>,
 ) -> Result<(), OutputsError> {
     let before: Vec<_> = list(dir)?;
-    let written = write_judgement(dir, scene, index, end, pwm_period_s);
+    let written = (|| -> Result<(), OutputsError> {
+        let path = dir.join("trace.csv");
+        let unreadable = |message: String| OutputsError::Recording {
+            path: path.clone(),
+            message,
+        };
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| unreadable(format!("cannot read: {e}")))?;
+        let trace =
+            pneuflex_scene::Trace::from_csv(&text, &["wall_time", "fault"]).map_err(unreadable)?;
+        // N ticks cover N·dt (the last one's time + dt): a full-length recording keeps its last window.
+        let one = scene.one_run(index, trace.t().last().map_or(0.0, |t| t + scene.dt_s));
+        let (fault, interrupted) = match end {
+            RecordingEnd::Complete => (None, None),
+            RecordingEnd::Fault(why) => (Some(why), None),
+            RecordingEnd::Interrupted(why) => (None, Some(why)),
+        };
+        let name = &scene.runs[index].name;
+        let mut r = pneuflex_scene::analysis::recorded::recorded_run(
+            &one,
+            0,
+            name,
+            trace,
+            fault.or(interrupted.clone()),
+            pwm_period_s,
+        );
+        if interrupted.is_some() {
+            r.interrupted = r.diverged.take();
+        }
+        let results = std::slice::from_ref(&r);
+        let mut summary = pneuflex_scene::summary(&one, results);
+        // The recording's trace is the rig's own, beside summary.json.
+        summary.runs[0].trace = "trace.csv".into();
+        let path = dir.join("summary.json");
+        let text = serde_json::to_string_pretty(&summary)
+            .map_err(|e| write_error(&path, std::io::Error::other(e)))?;
+        std::fs::write(&path, text + "\n").map_err(|e| write_error(&path, e))?;
+        if r.diverged.is_none() && r.interrupted.is_none() {
+            pneuflex_viz::write_figures(dir, &one, results, pneuflex_viz::Format::Png)?;
+        }
+        Ok(())
+    })();
     if written.is_err() {
         for name in list(dir)? {
             if !before.contains(&name) {
@@ -357,53 +398,4 @@ fn write_error(path: &Path, os_error: std::io::Error) -> OutputsError {
         path: path.to_path_buf(),
         os_error,
     })
-}
-
-fn write_judgement(
-    dir: &Path,
-    scene: &Scene,
-    index: usize,
-    end: RecordingEnd,
-    pwm_period_s: Option<f64>,
-) -> Result<(), OutputsError> {
-    let path = dir.join("trace.csv");
-    let unreadable = |message: String| OutputsError::Recording {
-        path: path.clone(),
-        message,
-    };
-    let text =
-        std::fs::read_to_string(&path).map_err(|e| unreadable(format!("cannot read: {e}")))?;
-    let trace =
-        pneuflex_scene::Trace::from_csv(&text, &["wall_time", "fault"]).map_err(unreadable)?;
-    // N ticks cover N·dt (the last one's time + dt): a full-length recording keeps its last window.
-    let one = scene.one_run(index, trace.t().last().map_or(0.0, |t| t + scene.dt_s));
-    let (fault, interrupted) = match end {
-        RecordingEnd::Complete => (None, None),
-        RecordingEnd::Fault(why) => (Some(why), None),
-        RecordingEnd::Interrupted(why) => (None, Some(why)),
-    };
-    let name = &scene.runs[index].name;
-    let mut r = pneuflex_scene::analysis::recorded::recorded_run(
-        &one,
-        0,
-        name,
-        trace,
-        fault.or(interrupted.clone()),
-        pwm_period_s,
-    );
-    if interrupted.is_some() {
-        r.interrupted = r.diverged.take();
-    }
-    let results = std::slice::from_ref(&r);
-    let mut summary = pneuflex_scene::summary(&one, results);
-    // The recording's trace is the rig's own, beside summary.json.
-    summary.runs[0].trace = "trace.csv".into();
-    let path = dir.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary)
-        .map_err(|e| write_error(&path, std::io::Error::other(e)))?;
-    std::fs::write(&path, text + "\n").map_err(|e| write_error(&path, e))?;
-    if r.diverged.is_none() && r.interrupted.is_none() {
-        pneuflex_viz::write_figures(dir, &one, results, pneuflex_viz::Format::Png)?;
-    }
-    Ok(())
 }

@@ -59,18 +59,23 @@ fn assert_close(a: &serde_json::Value, b: &serde_json::Value, at: &str) {
     }
 }
 
-#[test]
-fn a_recording_of_the_simulated_run_is_judged_as_the_simulation_judged_it() {
-    let scene = scene();
-    let (dir, sim, i) = recorded(&scene);
+/// [`judge_recording`] of a complete recording of `sim`.
+fn judge(dir: &tempfile::TempDir, scene: &Scene, i: usize, sim: &pneuflex_scene::RunResult) {
     judge_recording(
         dir.path(),
-        &scene,
+        scene,
         i,
         RecordingEnd::Complete,
         sim.pwm_period_s,
     )
     .unwrap();
+}
+
+#[test]
+fn a_recording_of_the_simulated_run_is_judged_as_the_simulation_judged_it() {
+    let scene = scene();
+    let (dir, sim, i) = recorded(&scene);
+    judge(&dir, &scene, i, &sim);
     let s = summary(dir.path());
     assert_eq!(s["complete"], true);
     let run = &s["runs"][0];
@@ -108,14 +113,7 @@ fn a_recording_cut_short_keeps_only_the_windows_it_covers() {
     let text = std::fs::read_to_string(&path).unwrap();
     let cut: Vec<&str> = text.lines().take(1 + 4000).collect();
     std::fs::write(&path, cut.join("\n") + "\n").unwrap();
-    judge_recording(
-        dir.path(),
-        &scene,
-        i,
-        RecordingEnd::Complete,
-        sim.pwm_period_s,
-    )
-    .unwrap();
+    judge(&dir, &scene, i, &sim);
     let s = summary(dir.path());
     let names: Vec<&str> = s["runs"][0]["windows"]
         .as_array()
