@@ -178,6 +178,11 @@ def crossval_scene(scene: Path, args) -> dict:
     }.get(plant_kind, f"pneuflex {plant_kind} plant")
     print(f"[{name}] reference run ({reference}) ...", flush=True)
     ref_traces, ref_summary, ref_wall = pneuflex.run_with_summary(str(used))
+    # A frozen run is the controller of another run with its parameters held: the plant is the same, so it
+    # adds nothing to the engines' comparison (and its values come from the whole-scene run).
+    frozen = {r["name"] for r in scene_dict["runs"] if r.get("frozen")}
+    ref_traces = {k: v for k, v in ref_traces.items() if k not in frozen}
+    ref_summary = dict(ref_summary, runs=[r for r in ref_summary["runs"] if r["name"] not in frozen])
     if args.runs:
         missing = [r for r in args.runs if r not in ref_traces]
         if missing:

@@ -37,7 +37,10 @@ pub fn pil(
     let scene = Scene::load(scene_path)?;
     let indices: Vec<usize> = match run {
         Some(name) => vec![scene.run_index(name)?],
-        None => (0..scene.runs.len()).collect(),
+        // Frozen runs hold values from a whole-scene run: the board runs the adapting controllers.
+        None => (0..scene.runs.len())
+            .filter(|&i| scene.runs[i].frozen.is_none())
+            .collect(),
     };
     let elf = firmware.map_or_else(default_firmware, Path::to_path_buf);
     // Missing QEMU or a file that is not the board's firmware: said before any output directory is made.

@@ -26,6 +26,15 @@ pub(super) fn claims(claims: &[pneuflex_scene::analysis::claims::ClaimResult]) -
             c.than,
             v(c.than_value)
         );
+        if let Some(a) = &c.adaptation {
+            let _ = writeln!(
+                s,
+                "  {:<13} adaptation verdict, {}: {}",
+                "",
+                a.earned_by.words(),
+                a.why
+            );
+        }
     }
     s
 }
@@ -42,12 +51,12 @@ pub(super) fn metrics(results: &[RunResult]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<12} {:<18} {:>12}  details",
+        "{:<13} {:<18} {:>12}  details",
         "run", "window", "RMS error"
     );
     for r in results {
         if let Some(why) = &r.diverged {
-            let _ = writeln!(s, "{:<12} DIVERGED: {why}", r.name);
+            let _ = writeln!(s, "{:<13} DIVERGED: {why}", r.name);
             continue;
         }
         for w in &r.windows {
@@ -77,7 +86,7 @@ pub(super) fn metrics(results: &[RunResult]) -> String {
             };
             let _ = writeln!(
                 s,
-                "{:<12} {:<18} {:>10.4} N  {details}",
+                "{:<13} {:<18} {:>10.4} N  {details}",
                 r.name, w.name, w.rms_force_error_n
             );
         }

@@ -134,6 +134,17 @@ pub fn loop_margins(
     let mut out = Vec::new();
     let mut s = String::new();
     for i in 0..scene.runs.len() {
+        if let Some(f) = &scene.runs[i].frozen {
+            writeln!(
+                s,
+                "run `{}`: the controller of `{}` with g, p, d held at its {}: the same inner loop as `{}`",
+                scene.runs[i].name,
+                f.run,
+                f.at.name(),
+                f.run
+            )?;
+            continue;
+        }
         let a = analyse(&scene, i, margin_db)?;
         writeln!(
             s,

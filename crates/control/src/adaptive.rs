@@ -219,6 +219,11 @@ pub struct AdaptiveLaw {
     p: f64,
     d: f64,
     chi: f64,
+    /// g0, p0, d0: where [`AdaptiveLaw::reset`] goes back to.
+    initial: [f64; 3],
+    /// A frozen law holds g, p, d at their initial values: the same controller without adaptation, to
+    /// tell what the adaptation earns from what its parameter values (or their bounds) earn.
+    frozen: bool,
     dt_cached: f64,
     /// (decay, gain) for g, p, d.
     factors: [(f64, f64); 3],
@@ -234,6 +239,8 @@ impl AdaptiveLaw {
             p: 0.0,
             d: 0.0,
             chi: 0.0,
+            initial: [0.0; 3],
+            frozen: false,
             dt_cached: f64::NAN,
             factors: [(1.0, 0.0); 3],
         })
@@ -250,10 +257,22 @@ impl AdaptiveLaw {
         finite("p0", p0)?;
         finite("d0", d0)?;
         let mut law = Self::new(params)?;
-        law.g = g0;
-        law.p = p0;
-        law.d = d0;
+        law.initial = [g0, p0, d0];
+        law.reset();
         Ok(law)
+    }
+
+    /// A law held at g0, p0, d0 (scaled units) for the whole run: Δx_f = g0 + p0 e + d0 ẋ (eq. (36)) with
+    /// no update of eq. (35). The projection bounds do not apply: the values are taken as given.
+    pub fn frozen(params: AdaptiveParams, g0: f64, p0: f64, d0: f64) -> Result<Self, ParamError> {
+        let mut law = Self::with_initial(params, g0, p0, d0)?;
+        law.frozen = true;
+        Ok(law)
+    }
+
+    /// Whether g, p, d are held (see [`AdaptiveLaw::frozen`]).
+    pub fn is_frozen(&self) -> bool {
+        self.frozen
     }
 
     /// The law's parameters.
@@ -285,6 +304,9 @@ impl AdaptiveLaw {
             LambdaDSign::AsPrinted => -(a.lambda_p * e + a.lambda_d * v),
         };
         self.chi = chi;
+        if self.frozen {
+            return (self.g + self.p * e + self.d * v) * a.position_unit_m;
+        }
         // eq. (35): g' = -μ1 χ ∓ σ1 g, p' = -μ2 χ e - σ2 p, d' = -μ3 χ ẋ - σ3 d.
         let [(dg, kg), (dp, kp), (dd, kd)] = self.factors;
         self.g = self.g * dg + kg * (-a.mu1 * chi);
@@ -340,11 +362,9 @@ impl AdaptiveLaw {
         self.chi
     }
 
-    /// Back to g = p = d = 0.
+    /// Back to the initial g0, p0, d0 (zero unless given to [`AdaptiveLaw::with_initial`]).
     pub fn reset(&mut self) {
-        self.g = 0.0;
-        self.p = 0.0;
-        self.d = 0.0;
+        [self.g, self.p, self.d] = self.initial;
         self.chi = 0.0;
     }
 }

@@ -108,6 +108,25 @@ impl AdaptiveImpedanceController {
         })
     }
 
+    /// The same controller with its adaptive parameters held for the whole run, in SI: g in m, p in m/N,
+    /// d in s ([`AdaptiveLaw::frozen`]). At g = p = d = 0 it is the [`ImpedanceController`].
+    pub fn frozen(
+        impedance: ImpedanceParams,
+        adaptive: AdaptiveParams,
+        pid: PidParams,
+        g_m: f64,
+        p_m_per_n: f64,
+        d_s: f64,
+    ) -> Result<Self, ParamError> {
+        let (fu, pu) = (adaptive.force_unit_n, adaptive.position_unit_m);
+        Ok(Self {
+            filter: ImpedanceFilter::new(impedance)?,
+            law: AdaptiveLaw::frozen(adaptive, g_m / pu, p_m_per_n * fu / pu, d_s)?,
+            pid: Pid::new(pid)?,
+            telemetry: Telemetry::default(),
+        })
+    }
+
     /// The impedance filter (x_f state).
     pub fn filter(&self) -> &ImpedanceFilter {
         &self.filter

@@ -600,3 +600,65 @@ fn the_d_bound_limits_the_as_printed_sign_instead_of_switching_the_term_off() {
         b.d()
     );
 }
+
+/// A frozen law gives Δx_f = g0 + p0 e + d0 ẋ (eq. (36)) at every tick and never moves, whatever e and ẋ
+/// do; held at zero, the frozen adaptive controller is the impedance controller tick for tick.
+#[test]
+fn a_frozen_law_holds_its_values_and_at_zero_is_the_impedance_controller() {
+    let a = AdaptiveParams {
+        p_max_m_per_n: 3.57e-4,
+        d_max_s: 0.005,
+        ..AdaptiveParams::default()
+    };
+    let (g0, p0, d0) = (2.0e-3 / a.position_unit_m, 1.0e-4, -4.0e-3);
+    let mut law = AdaptiveLaw::frozen(a, g0, p0, d0).unwrap();
+    assert!(law.is_frozen());
+    let mut live = AdaptiveLaw::with_initial(a, g0, p0, d0).unwrap();
+    let dt = 1e-3;
+    for k in 0..2000 {
+        let t = k as f64 * dt;
+        let (e, v) = (5.0 * (7.0 * t).sin() + 1.0, 0.02 * (3.0 * t).cos());
+        let dx = law.update(e, v, dt);
+        live.update(e, v, dt);
+        let expect =
+            (g0 + p0 * e / a.force_unit_n + d0 * v / a.position_unit_m) * a.position_unit_m;
+        assert!(
+            (dx - expect).abs() <= 1e-15 * (1.0 + expect.abs()),
+            "tick {k}: {dx} vs {expect}"
+        );
+        assert_eq!((law.g(), law.p(), law.d()), (g0, p0, d0));
+    }
+    assert_ne!(
+        (live.g(), live.p(), live.d()),
+        (g0, p0, d0),
+        "the live law adapts"
+    );
+    live.reset();
+    assert_eq!(
+        (live.g(), live.p(), live.d()),
+        (g0, p0, d0),
+        "reset goes back to g0, p0, d0"
+    );
+
+    let (imp, pid) = (ImpedanceParams::default(), PidParams::default());
+    let mut frozen = AdaptiveImpedanceController::frozen(imp, a, pid, 0.0, 0.0, 0.0).unwrap();
+    let mut plain = ImpedanceController::new(imp, pid).unwrap();
+    for k in 0..2000 {
+        let t = k as f64 * dt;
+        let s = Sensors {
+            x: 0.01 * (2.0 * t).sin(),
+            x_dot: 0.02 * (2.0 * t).cos(),
+            f_e: 20.0 * (1.0 - (-5.0 * t).exp()),
+            ..Sensors::default()
+        };
+        let sp = Setpoint {
+            f_ref: 30.0,
+            x_d: 0.0,
+        };
+        assert_eq!(
+            frozen.update(&s, &sp, dt),
+            plain.update(&s, &sp, dt),
+            "tick {k}"
+        );
+    }
+}

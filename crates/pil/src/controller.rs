@@ -66,6 +66,13 @@ pub struct FirmwareController {
 /// The setup a scene run describes.
 pub fn setup_of(run: &pneuflex_scene::schema::RunSpec) -> Result<ControllerSetup, PilError> {
     use pneuflex_scene::ControllerKind;
+    if let Some(f) = &run.frozen {
+        return Err(PilError::Setup(format!(
+            "run `{}` is frozen (the controller of `{}` with g, p, d held): the board runs the adapting \
+             controllers only; choose another run",
+            run.name, f.run
+        )));
+    }
     match (run.controller, run.adaptive) {
         (ControllerKind::Impedance, _) => Ok(ControllerSetup::Impedance {
             impedance: run.impedance,

@@ -56,7 +56,12 @@ fn release_elf() -> Option<PathBuf> {
 fn pil(scene: &str) {
     let Some(elf) = release_elf() else { return };
     let scene = Scene::load(&root().join(scene)).expect("scene loads");
-    for (i, run) in scene.runs.iter().enumerate() {
+    for (i, run) in scene
+        .runs
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.frozen.is_none())
+    {
         let r = pneuflex_pil::run_pil(&scene, i, &elf, &mut |_| {}).expect("PIL run");
         let c = &r.comparison;
         eprintln!(

@@ -27,6 +27,6 @@ pub use run::{
     run_scene_observed, run_scene_with, signal_name, simulate, simulate_observed, time_ticks,
 };
 pub use schema::{
-    Budget, ControllerKind, EventSpec, Limits, MaterialSpec, MultibodySpec, PlantSpec,
-    SCENE_SCHEMA_VERSION, Scene, WindowKind,
+    Budget, ControllerKind, EventSpec, FrozenAt, FrozenValues, Limits, MaterialSpec, MultibodySpec,
+    PlantSpec, SCENE_SCHEMA_VERSION, Scene, WindowKind,
 };

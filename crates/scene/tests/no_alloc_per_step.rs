@@ -134,7 +134,16 @@ fn per_step_allocations(scene_file: &str) -> Vec<(String, u64, u64)> {
                 plant: plant.as_mut(),
                 in_advance: 0,
             };
-            let mut controller = scene.controller(i).unwrap();
+            // A frozen run holds values its source's run gives; any held values allocate the same.
+            let held = scene.runs[i]
+                .frozen
+                .as_ref()
+                .map(|_| pneuflex_scene::FrozenValues {
+                    g_m: 1e-3,
+                    p_m_per_n: 1e-4,
+                    d_s: -1e-3,
+                });
+            let mut controller = scene.run_controller(i, held).unwrap();
             let mut window = Window { k: 0 };
             let r = simulate_observed(
                 &scene,

@@ -139,9 +139,15 @@ fn a_key_that_does_not_exist_is_the_scenes_own_error() {
     assert!(e.contains("sweep point #0 of 2"), "{e}");
     let e = err(&fig3, &["runs[adaptve].inner.kp_per_m=5"]);
     assert!(e.contains("no element named \"adaptve\""), "{e}");
-    assert!(e.contains("[\"impedance\", \"adaptive\"]"), "{e}");
+    assert!(
+        e.contains("[\"impedance\", \"adaptive\", \"frozen_means\", \"frozen_bounds\"]"),
+        "{e}"
+    );
     let e = err(&fig3, &["runs[7].inner.kp_per_m=5"]);
-    assert!(e.contains("has 2 element(s), no [7]"), "{e}");
+    assert!(e.contains("has 4 element(s), no [7]"), "{e}");
+    // A frozen run runs its source's controller: moving its gain alone is refused with the key.
+    let e = err(&fig3, &["runs[frozen_means].inner.kp_per_m=5"]);
+    assert!(e.contains("runs[2].inner") && e.contains("differ"), "{e}");
     let e = err(&fig3, &["nothing.here=5"]);
     assert!(e.contains("unknown field `nothing`"), "{e}");
     let e = err(&fig3, &["environment[0]=5"]);

@@ -3,9 +3,9 @@
 
 use pneuflex_control as control;
 
-use crate::run::result::LyapunovSummary;
+use crate::run::result::{LyapunovSummary, RunResult};
 use crate::run::trace::Trace;
-use crate::schema::{RunSpec, Scene};
+use crate::schema::{FrozenAt, FrozenValues, RunSpec, Scene};
 
 /// The Lyapunov check (Section III-D) for an adaptive run: the control crate's reference model and Q,
 /// started from the run's impedance loop at the scene's initial stiffness (eq. (28) with p = d = g = 0)
@@ -48,7 +48,7 @@ pub fn lyapunov_summary(scene: &Scene, run: &RunSpec) -> Option<LyapunovSummary>
 /// Warnings for adaptive parameters that sat at their projection bound for most of the run: then the bound,
 /// not the adaptive law, set them (issue: a silently pinned parameter).
 pub fn pinned_parameters(run: &RunSpec, tr: &Trace) -> Vec<String> {
-    let Some(a) = run.adaptive else {
+    let Some(a) = run.adaptive.filter(|_| run.frozen.is_none()) else {
         return Vec::new();
     };
     let mut out = Vec::new();
@@ -77,4 +77,44 @@ pub fn pinned_parameters(run: &RunSpec, tr: &Trace) -> Vec<String> {
         }
     }
     out
+}
+
+/// The values frozen run `run` holds, from its source's result: the means of g, p, d over the source's
+/// trace, or (at = "bounds") p and d at the source's projection bounds with g at its mean. The error says
+/// why there is nothing to hold (the source diverged, was stopped or has no g, p, d columns).
+pub fn frozen_values(run: &RunSpec, source: &RunResult) -> Result<FrozenValues, String> {
+    let (Some(f), Some(a)) = (&run.frozen, run.adaptive) else {
+        return Err(format!("run `{}` is not a frozen adaptive run", run.name));
+    };
+    if let Some(why) = source.diverged.as_ref().or(source.interrupted.as_ref()) {
+        return Err(format!(
+            "not run: its source `{}` did not finish ({why})",
+            source.name
+        ));
+    }
+    let mean = |name: &str| -> Result<f64, String> {
+        let col = source
+            .trace
+            .column(name)
+            .filter(|c| !c.is_empty())
+            .ok_or_else(|| format!("not run: the trace of `{}` has no {name}", source.name))?;
+        Ok(col.iter().sum::<f64>() / col.len() as f64)
+    };
+    let g_m = mean("g")?;
+    Ok(match f.at {
+        FrozenAt::Means => FrozenValues {
+            g_m,
+            p_m_per_n: mean("p")?,
+            d_s: mean("d")?,
+        },
+        // The sign of the d box follows λd's (AdaptiveLaw::update): d <= 0 from ė, d >= 0 as printed.
+        FrozenAt::Bounds => FrozenValues {
+            g_m,
+            p_m_per_n: a.p_max_m_per_n,
+            d_s: match a.lambda_d_sign {
+                control::LambdaDSign::FromEdot => -a.d_max_s,
+                control::LambdaDSign::AsPrinted => a.d_max_s,
+            },
+        },
+    })
 }

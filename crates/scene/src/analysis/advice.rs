@@ -78,7 +78,13 @@ pub fn margin_warnings(scene: &Scene) -> Vec<Warning> {
         pneuflex_control::PidParams,
         crate::analysis::loop_margins::LoopAnalysis,
     )> = Vec::new();
-    for (i, run) in scene.runs.iter().enumerate() {
+    // A frozen run runs its source's controller: its margins are the source's, warned about once.
+    for (i, run) in scene
+        .runs
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.frozen.is_none())
+    {
         let a = match done.iter().find(|(pid, _)| *pid == run.inner) {
             Some((_, a)) => a.clone(),
             None => {

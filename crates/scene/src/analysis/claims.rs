@@ -32,7 +32,67 @@ pub struct ClaimResult {
     /// (`EventResponse::settling_time_range_s`), with both runs' ranges. Such a verdict is not one to lean on.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fragile: Option<String>,
+    /// On a claim won by an adaptive run that has frozen runs ([`crate::schema::FrozenSpec`]): whether
+    /// the adaptation, the values it reached or its projection bound earned the win.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub adaptation: Option<AdaptationVerdict>,
 }
+
+/// What earned an adaptive run's win, told by the same controller with its parameters frozen.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AdaptationVerdict {
+    /// The verdict.
+    pub earned_by: EarnedBy,
+    /// The verdict in words, with the shares of the lead.
+    pub why: String,
+    /// Each frozen run of the adaptive one, on the claim's metric.
+    pub frozen: Vec<FrozenClaim>,
+}
+
+/// The verdict of [`AdaptationVerdict`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EarnedBy {
+    /// The controller held at the projection bounds wins too, keeping most of the lead.
+    ProjectionBound,
+    /// The controller held at the run's mean g, p, d wins too, keeping most of the lead.
+    ParameterValues,
+    /// No frozen run keeps most of the lead: the adaptation itself earns it.
+    Adaptation,
+    /// The claim does not hold: nothing to attribute.
+    NoWin,
+}
+
+impl EarnedBy {
+    /// The verdict in a table's words.
+    pub fn words(self) -> &'static str {
+        match self {
+            EarnedBy::ProjectionBound => "projection bound",
+            EarnedBy::ParameterValues => "parameter values",
+            EarnedBy::Adaptation => "adaptation",
+            EarnedBy::NoWin => "no win",
+        }
+    }
+}
+
+/// A frozen run on the metric of a claim its source makes.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FrozenClaim {
+    /// The frozen run.
+    pub run: String,
+    /// `means` or `bounds`.
+    pub at: &'static str,
+    /// Its value of the metric.
+    pub value: Option<f64>,
+    /// Whether it beats the claim's `than` run by the claim's margin.
+    pub wins: bool,
+    /// Its lead over `than` as a fraction of the adaptive run's lead (1: the same; None: no lead).
+    pub share_of_lead: Option<f64>,
+}
+
+/// Share of the adaptive run's lead a frozen run must keep for the win to be put down to its values, not
+/// to the adaptation: half.
+pub const FROZEN_SHARE: f64 = 0.5;
 
 /// The metrics a claim (and a comparison) can name.
 pub const METRICS: [&str; 8] = [
@@ -111,7 +171,118 @@ pub fn check(c: &ClaimSpec, results: &[RunResult]) -> ClaimResult {
         holds: why_not.is_none(),
         why_not,
         fragile,
+        adaptation: None,
     }
+}
+
+/// The adaptation verdict of claim `c` (checked: `checked`) when its better run is an adapting run with
+/// frozen runs among the results, and the claim is not against one of them.
+pub fn adaptation_verdict(
+    scene: &Scene,
+    c: &ClaimSpec,
+    checked: &ClaimResult,
+    results: &[RunResult],
+) -> Option<AdaptationVerdict> {
+    let frozen: Vec<_> = scene
+        .runs
+        .iter()
+        .filter_map(|r| Some((r, r.frozen.as_ref()?)))
+        .filter(|(r, f)| f.run == c.better && results.iter().any(|x| x.name == r.name))
+        .collect();
+    if frozen.is_empty() || frozen.iter().any(|(r, _)| r.name == c.than) {
+        return None;
+    }
+    let get = |run: &str| lookup(results, run, &c.window).and_then(|w| value(w, &c.metric));
+    let t = checked.than_value;
+    let lead = match (checked.better_value, t) {
+        (Some(b), Some(t)) => Some(t - b),
+        _ => None,
+    };
+    let rows: Vec<FrozenClaim> = frozen
+        .iter()
+        .map(|(r, f)| {
+            let v = get(&r.name);
+            let wins = verdict(c, v, t).is_none();
+            // Not settling is an infinite time: a frozen run that settles keeps the whole lead.
+            let share = match (v, t, lead) {
+                (Some(v), Some(t), Some(lead)) if lead > 0.0 => Some((t - v) / lead),
+                (Some(_), None, _) => Some(1.0),
+                _ => None,
+            };
+            FrozenClaim {
+                run: r.name.clone(),
+                at: f.at.name(),
+                value: v,
+                wins,
+                share_of_lead: share,
+            }
+        })
+        .collect();
+    let pct = |s: Option<f64>| s.map_or("no".to_string(), |s| format!("{:.0} %", 100.0 * s));
+    // The bounds first: when the controller held at its bounds keeps the lead, the bound suffices
+    // whatever the means do; then the means.
+    let keeps = |f: &&FrozenClaim| f.wins && f.share_of_lead.is_some_and(|s| s >= FROZEN_SHARE);
+    let bounds = crate::schema::FrozenAt::Bounds.name();
+    let kept =
+        (rows.iter().filter(keeps).find(|f| f.at == bounds)).or_else(|| rows.iter().find(keeps));
+    let (earned_by, why) = if !checked.holds {
+        // A frozen run that wins where the adaptive one does not: the adaptation costs the win.
+        let costs = match rows.iter().find(|f| f.wins) {
+            Some(f) => format!(
+                "; `{}` (held at the {}) would win it with {}: the adaptation costs this win",
+                f.run,
+                f.at,
+                f.value.map_or("-".into(), |v| format!("{v:.4}"))
+            ),
+            None => String::new(),
+        };
+        (
+            EarnedBy::NoWin,
+            format!(
+                "the claim does not hold: `{}` has no win to attribute{costs}",
+                c.better
+            ),
+        )
+    } else if let Some(f) = kept {
+        let by = if f.at == crate::schema::FrozenAt::Bounds.name() {
+            EarnedBy::ProjectionBound
+        } else {
+            EarnedBy::ParameterValues
+        };
+        (
+            by,
+            format!(
+                "`{}` (held at the {}) also beats `{}` and keeps {} of the lead: {} earn the win, not the adaptation",
+                f.run,
+                f.at,
+                c.than,
+                pct(f.share_of_lead),
+                if by == EarnedBy::ProjectionBound {
+                    "the projection bounds"
+                } else {
+                    "the values the law reached"
+                }
+            ),
+        )
+    } else {
+        let shares: Vec<String> = rows
+            .iter()
+            .map(|f| format!("`{}` keeps {}", f.run, pct(f.share_of_lead)))
+            .collect();
+        (
+            EarnedBy::Adaptation,
+            format!(
+                "no frozen run keeps {:.0} % of the lead ({}): the adaptation earns the win",
+                100.0 * FROZEN_SHARE,
+                shares.join(", ")
+            ),
+        )
+    };
+    Some(AdaptationVerdict {
+        earned_by,
+        why,
+        frozen: rows,
+    })
 }
 
 /// Why the claim does not hold for the better run's value `b` and the other's `t` (None: it holds).
@@ -139,7 +310,15 @@ fn verdict(c: &ClaimSpec, b: Option<f64>, t: Option<f64>) -> Option<String> {
 
 /// Every claim of the scene checked against its results.
 pub fn check_all(scene: &Scene, results: &[RunResult]) -> Vec<ClaimResult> {
-    scene.claims.iter().map(|c| check(c, results)).collect()
+    scene
+        .claims
+        .iter()
+        .map(|c| {
+            let mut r = check(c, results);
+            r.adaptation = adaptation_verdict(scene, c, &r, results);
+            r
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -10,11 +10,11 @@ pub mod trace;
 
 use pneuflex_control as control;
 
-use crate::analysis::adaptation::{lyapunov_summary, pinned_parameters};
+use crate::analysis::adaptation::{frozen_values, lyapunov_summary, pinned_parameters};
 use crate::analysis::windows::compute_windows;
 use crate::error::SceneError;
 use crate::plants::{Plant, build_plant};
-use crate::schema::{ControllerKind, Scene};
+use crate::schema::{ControllerKind, FrozenValues, Scene};
 pub use host::{simulate, simulate_observed, simulate_stoppable};
 pub use observe::{Sink, Sinks};
 pub use result::{LyapunovSummary, RunResult, WindowMetrics};
@@ -89,30 +89,106 @@ pub fn run_scene_with(
     scene.validate()?;
     scene.check_budget(&opts.limits)?;
     let setpoints = scene.setpoints()?;
+    let n_runs = scene.runs.len();
+    // Two phases: the adapting runs, then the frozen runs (always last), which hold values the first
+    // phase's traces give.
+    let n_adapting = scene
+        .runs
+        .iter()
+        .position(|r| r.frozen.is_some())
+        .unwrap_or(n_runs);
+    let share =
+        |lo: usize, hi: usize| move |f: f64| (lo as f64 + f * (hi - lo) as f64) / n_runs as f64;
+    let first = share(0, n_adapting);
+    let mut out = run_phase(
+        scene,
+        opts,
+        &setpoints,
+        0,
+        &vec![Ok(None); n_adapting],
+        &mut |f| progress(first(f)),
+        observer,
+    )?;
+    if n_adapting < n_runs && out.len() == n_adapting && !stopped(opts) {
+        let frozen: Vec<Held> = scene.runs[n_adapting..]
+            .iter()
+            .map(|run| {
+                let f = run.frozen.as_ref().ok_or("not frozen")?;
+                let source = out.iter().find(|r| r.name == f.run).ok_or("no source")?;
+                frozen_values(run, source).map(Some)
+            })
+            .collect();
+        let second = share(n_adapting, n_runs);
+        let mut later = run_phase(
+            scene,
+            opts,
+            &setpoints,
+            n_adapting,
+            &frozen,
+            &mut |f| progress(second(f)),
+            observer,
+        )?;
+        out.append(&mut later);
+    }
+    progress(1.0);
+    Ok(out)
+}
+
+/// What run `first + k` of a phase holds: `Ok(None)` for an adapting run, the values of a frozen run, or
+/// why a frozen run is not simulated (its source did not finish): it comes back with an empty trace and
+/// that reason as its divergence.
+type Held = Result<Option<FrozenValues>, String>;
+
+/// Runs `first..first + frozen.len()` of the scene, one after another or in parallel, holding `frozen[k]`
+/// in run `first + k`.
+fn run_phase(
+    scene: &Scene,
+    opts: &RunOptions<'_>,
+    setpoints: &control::SetpointSchedule,
+    first: usize,
+    frozen: &[Held],
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn Sink<dyn Plant>,
+) -> Result<Vec<RunResult>, SceneError> {
+    let n_runs = frozen.len();
+    if n_runs == 0 {
+        return Ok(Vec::new());
+    }
     let parallel = !observer.watches()
-        && scene.runs.len() > 1
+        && n_runs > 1
         && rayon::current_num_threads() > 1
         // A pool thread must not block on the progress channel below.
         && rayon::current_thread_index().is_none();
     if parallel {
-        return run_parallel(scene, opts, &setpoints, progress);
+        return run_parallel(scene, opts, setpoints, first, frozen, progress);
     }
     let mut plant = build_plant(scene)?;
-    let n_runs = scene.runs.len();
     let mut out = Vec::with_capacity(n_runs);
-    for i in 0..n_runs {
+    for (k, held) in frozen.iter().enumerate() {
         if stopped(opts) {
             break;
         }
-        let mut controller = scene.controller(i)?;
+        let i = first + k;
+        let held = match held {
+            Ok(held) => *held,
+            Err(why) => {
+                let r = not_simulated(scene, i, why);
+                if let Some(f) = opts.on_run {
+                    f(&r);
+                }
+                out.push(r);
+                continue;
+            }
+        };
+        let mut controller = scene.run_controller(i, held)?;
         plant.reset();
-        let mut sub = |f: f64| progress((i as f64 + f) / n_runs as f64);
+        let mut sub = |f: f64| progress((k as f64 + f) / n_runs as f64);
         let mut r = host::simulate_loop(
             scene,
             i,
             plant.as_mut(),
             controller.as_mut(),
-            &setpoints,
+            setpoints,
             &mut sub,
             observer,
             opts.stop,
@@ -124,8 +200,27 @@ pub fn run_scene_with(
         }
         out.push(r);
     }
-    progress(1.0);
     Ok(out)
+}
+
+/// A frozen run whose source gave nothing to hold: no trace, no metrics, and `why` as its divergence.
+fn not_simulated(scene: &Scene, i: usize, why: &str) -> RunResult {
+    let run = &scene.runs[i];
+    // The loop's columns and the controller's (the plant's are left out: no plant was built).
+    let signals = scene
+        .run_controller(i, Some(FrozenValues::default()))
+        .map_or(&[][..], |c| c.signals());
+    RunResult {
+        name: run.name.clone(),
+        controller: run.controller,
+        trace: trace::Trace::with_capacity(0, trace::Trace::loop_columns(&[signals])),
+        windows: Vec::new(),
+        lyapunov: None,
+        diverged: Some(why.to_string()),
+        interrupted: None,
+        warnings: Vec::new(),
+        pwm_period_s: None,
+    }
 }
 
 fn stopped(opts: &RunOptions<'_>) -> bool {
@@ -136,9 +231,14 @@ fn stopped(opts: &RunOptions<'_>) -> bool {
 /// A simulated run's metrics, Lyapunov check and warnings.
 fn finish_run(scene: &Scene, i: usize, r: &mut RunResult) {
     finish_metrics(scene, i, r);
-    if r.controller == ControllerKind::Adaptive {
+    if adapts(scene, i) {
         r.lyapunov = lyapunov_summary(scene, &scene.runs[i]);
     }
+}
+
+/// Whether run `i`'s law adapts (an adaptive run that is not frozen): what the Lyapunov check is about.
+fn adapts(scene: &Scene, i: usize) -> bool {
+    scene.runs[i].controller == ControllerKind::Adaptive && scene.runs[i].frozen.is_none()
 }
 
 /// A simulated run's window metrics and warnings (what needs its trace).
@@ -160,11 +260,13 @@ fn run_parallel(
     scene: &Scene,
     opts: &RunOptions<'_>,
     setpoints: &control::SetpointSchedule,
+    first: usize,
+    frozen: &[Held],
     progress: &mut dyn FnMut(f64),
 ) -> Result<Vec<RunResult>, SceneError> {
     use std::sync::Mutex;
     use std::sync::atomic::{AtomicUsize, Ordering};
-    let n_runs = scene.runs.len();
+    let n_runs = frozen.len();
     let next = AtomicUsize::new(0);
     let slots: Vec<Mutex<Option<Result<RunResult, SceneError>>>> =
         (0..n_runs).map(|_| Mutex::new(None)).collect();
@@ -179,19 +281,30 @@ fn run_parallel(
                     if stopped(opts) {
                         break;
                     }
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= n_runs {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    if k >= n_runs {
                         break;
                     }
+                    let i = first + k;
                     let run = || -> Result<RunResult, SceneError> {
+                        let held = match &frozen[k] {
+                            Ok(held) => *held,
+                            Err(why) => {
+                                let r = not_simulated(scene, i, why);
+                                if let Some(f) = opts.on_run {
+                                    f(&r);
+                                }
+                                return Ok(r);
+                            }
+                        };
                         let mut plant = build_plant(scene)?;
-                        let mut controller = scene.controller(i)?;
+                        let mut controller = scene.run_controller(i, held)?;
                         // Progress in steps of 1 % of the run (each message wakes the caller).
                         let mut sent = 0.0;
                         let mut sub = |f: f64| {
                             if f - sent >= 0.01 || (f >= 1.0 && sent < 1.0) {
                                 sent = f;
-                                let _ = tx.send((i, f));
+                                let _ = tx.send((k, f));
                             }
                         };
                         let mut r = host::simulate_loop(
@@ -212,7 +325,7 @@ fn run_parallel(
                     };
                     let r = run();
                     let failed = r.is_err();
-                    *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
+                    *slots[k].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
                     if failed {
                         // Later runs would be discarded: start none.
                         next.fetch_max(n_runs, Ordering::Relaxed);
@@ -221,9 +334,9 @@ fn run_parallel(
             });
         }
         drop(tx);
-        let lyapunov: Vec<Option<LyapunovSummary>> = (0..n_runs)
+        let lyapunov: Vec<Option<LyapunovSummary>> = (first..first + n_runs)
             .map(|i| {
-                (scene.runs[i].controller == ControllerKind::Adaptive)
+                adapts(scene, i)
                     .then(|| lyapunov_summary(scene, &scene.runs[i]))
                     .flatten()
             })
@@ -237,7 +350,6 @@ fn run_parallel(
         }
         lyapunov
     });
-    progress(1.0);
     let mut out = Vec::with_capacity(n_runs);
     for (slot, lyap) in slots.into_iter().zip(lyapunov) {
         match slot.into_inner().unwrap_or_else(|e| e.into_inner()) {

@@ -27,7 +27,10 @@ pub use events::EventSpec;
 pub use limits::{Budget, Limits};
 pub use plant::{MaterialSpec, MultibodySpec, PlantSpec};
 pub use reference::{ForcePiece, ReferenceSpec};
-pub use runs::{AdaptiveParams, ControllerKind, ImpedanceParams, PidParams, RunSpec, RunSpecError};
+pub use runs::{
+    AdaptiveParams, ControllerKind, FrozenAt, FrozenSpec, FrozenValues, ImpedanceParams, PidParams,
+    RunSpec, RunSpecError,
+};
 pub use windows::{MetricWindow, WindowKind};
 
 /// A complete experiment: plant, environment, references, events, controllers to compare and metric windows.
@@ -115,7 +118,25 @@ impl Scene {
             key: String::new(),
             message: e.message().trim().to_string(),
         })?;
-        let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+        // Frozen runs copy another run's controller before the file is read into a Scene (rare: most
+        // scenes are read straight from the text, with its spans).
+        let mut doc = match text.contains("frozen").then(|| text.parse::<toml::Table>()) {
+            Some(Ok(doc)) if runs::copy_frozen_controllers_needed(&doc) => Some(doc),
+            _ => None,
+        };
+        if let Some(doc) = doc.as_mut() {
+            runs::copy_frozen_controllers(doc).map_err(|(key, message)| SceneError::Invalid {
+                file: file.to_path_buf(),
+                at: pneuflex_files::toml_key_position(text, &key),
+                key,
+                message,
+            })?;
+        }
+        let read = match doc {
+            Some(doc) => serde_path_to_error::deserialize(toml::Value::Table(doc)),
+            None => serde_path_to_error::deserialize(de),
+        };
+        let mut scene: Scene = read.map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner();
             let path = if path == "." { String::new() } else { path };
