@@ -79,7 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // The sink saw every tick the trace holds: it watched the run, it did not change it.
         assert_eq!(*ticks as usize, r.trace.t().len(), "run {run}");
         println!(
-            "  {run:<10} {reversals:>6} reversals, travel {travel:>8.1} (command units), peak f_e {peak:>6.2} N over {ticks} ticks"
+            "  {run:<13} {reversals:>6} reversals, travel {travel:>8.1} (command units), peak f_e {peak:>6.2} N over {ticks} ticks"
         );
     }
     Ok(())

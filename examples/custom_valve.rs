@@ -96,6 +96,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         scene.name
     );
     for (i, ideal) in shipped.iter().enumerate() {
+        if scene.runs[i].frozen.is_some() {
+            // A frozen run holds values its source reached in the whole scene's run (docs/scenes.md, "What
+            // adaptation buys"): it has no controller of its own to put on another valve.
+            continue;
+        }
         valve.reset();
         let mut controller = scene.controller(i)?;
         let r = simulate(

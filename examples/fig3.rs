@@ -25,15 +25,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     println!("{}\nRMS force error, N:", scene.description);
     print!("{:<24}", "window");
-    runs.iter().for_each(|r| print!("{:>12}", r.name));
+    runs.iter().for_each(|r| print!("{:>14}", r.name));
     println!();
     for w in &scene.metrics {
         print!("{:<24}", format!("{} {}-{} s", w.name, w.t0_s, w.t1_s));
         for r in &runs {
             // A diverged run has no metrics.
             match r.window(&w.name) {
-                Some(m) => print!("{:>12.3}", m.rms_force_error_n),
-                None => print!("{:>12}", "-"),
+                Some(m) => print!("{:>14.3}", m.rms_force_error_n),
+                None => print!("{:>14}", "-"),
             }
         }
         println!();

@@ -137,15 +137,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     println!("{}\nRMS force error, N:", scene.description);
     print!("{:<24}", "window");
-    shipped.iter().for_each(|r| print!("{:>12}", r.name));
-    println!("{:>12}", "PI");
+    shipped.iter().for_each(|r| print!("{:>14}", r.name));
+    println!("{:>14}", "PI");
     for w in &scene.metrics {
         print!("{:<24}", format!("{} {}-{} s", w.name, w.t0_s, w.t1_s));
         for r in &shipped {
             let m = r.window(&w.name).map(|m| m.rms_force_error_n);
-            print!("{:>12.3}", m.unwrap_or(f64::NAN));
+            print!("{:>14.3}", m.unwrap_or(f64::NAN));
         }
-        println!("{:>12.3}", pi.rms(&w.name).unwrap_or(f64::NAN));
+        println!("{:>14.3}", pi.rms(&w.name).unwrap_or(f64::NAN));
     }
     println!("PI gains: kp = {kp} /N, ki = {ki} /(N s)");
     Ok(())

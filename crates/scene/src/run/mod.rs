@@ -100,15 +100,14 @@ pub fn run_scene_with(
     let share =
         |lo: usize, hi: usize| move |f: f64| (lo as f64 + f * (hi - lo) as f64) / n_runs as f64;
     let first = share(0, n_adapting);
-    let mut out = run_phase(
+    let adapting = Phase {
         scene,
         opts,
-        &setpoints,
-        0,
-        &vec![Ok(None); n_adapting],
-        &mut |f| progress(first(f)),
-        observer,
-    )?;
+        setpoints: &setpoints,
+        first: 0,
+        held: &vec![Ok(None); n_adapting],
+    };
+    let mut out = run_phase(&adapting, &mut |f| progress(first(f)), observer)?;
     if n_adapting < n_runs && out.len() == n_adapting && !stopped(opts) {
         let frozen: Vec<Held> = scene.runs[n_adapting..]
             .iter()
@@ -119,15 +118,14 @@ pub fn run_scene_with(
             })
             .collect();
         let second = share(n_adapting, n_runs);
-        let mut later = run_phase(
+        let frozen = Phase {
             scene,
             opts,
-            &setpoints,
-            n_adapting,
-            &frozen,
-            &mut |f| progress(second(f)),
-            observer,
-        )?;
+            setpoints: &setpoints,
+            first: n_adapting,
+            held: &frozen,
+        };
+        let mut later = run_phase(&frozen, &mut |f| progress(second(f)), observer)?;
         out.append(&mut later);
     }
     progress(1.0);
@@ -139,18 +137,46 @@ pub fn run_scene_with(
 /// that reason as its divergence.
 type Held = Result<Option<FrozenValues>, String>;
 
-/// Runs `first..first + frozen.len()` of the scene, one after another or in parallel, holding `frozen[k]`
-/// in run `first + k`.
-fn run_phase(
-    scene: &Scene,
-    opts: &RunOptions<'_>,
-    setpoints: &control::SetpointSchedule,
+/// One phase of a scene's runs: runs `first..first + held.len()`, run `first + k` holding `held[k]`.
+struct Phase<'a, 'o> {
+    scene: &'a Scene,
+    opts: &'a RunOptions<'o>,
+    setpoints: &'a control::SetpointSchedule,
     first: usize,
-    frozen: &[Held],
+    held: &'a [Held],
+}
+
+impl Phase<'_, '_> {
+    /// What run `first + k` holds; or, for a frozen run with nothing to hold, its result (already
+    /// given to `on_run`, like every run's).
+    fn held(&self, k: usize) -> Result<Option<FrozenValues>, Box<RunResult>> {
+        match &self.held[k] {
+            Ok(held) => Ok(*held),
+            Err(why) => {
+                let r = not_simulated(self.scene, self.first + k, why);
+                if let Some(f) = self.opts.on_run {
+                    f(&r);
+                }
+                Err(Box::new(r))
+            }
+        }
+    }
+}
+
+/// Runs a phase, one run after another or in parallel.
+fn run_phase(
+    phase: &Phase<'_, '_>,
     progress: &mut dyn FnMut(f64),
     observer: &mut dyn Sink<dyn Plant>,
 ) -> Result<Vec<RunResult>, SceneError> {
-    let n_runs = frozen.len();
+    let Phase {
+        scene,
+        opts,
+        setpoints,
+        first,
+        ..
+    } = *phase;
+    let n_runs = phase.held.len();
     if n_runs == 0 {
         return Ok(Vec::new());
     }
@@ -160,23 +186,19 @@ fn run_phase(
         // A pool thread must not block on the progress channel below.
         && rayon::current_thread_index().is_none();
     if parallel {
-        return run_parallel(scene, opts, setpoints, first, frozen, progress);
+        return run_parallel(phase, progress);
     }
     let mut plant = build_plant(scene)?;
     let mut out = Vec::with_capacity(n_runs);
-    for (k, held) in frozen.iter().enumerate() {
+    for k in 0..n_runs {
         if stopped(opts) {
             break;
         }
         let i = first + k;
-        let held = match held {
-            Ok(held) => *held,
-            Err(why) => {
-                let r = not_simulated(scene, i, why);
-                if let Some(f) = opts.on_run {
-                    f(&r);
-                }
-                out.push(r);
+        let held = match phase.held(k) {
+            Ok(held) => held,
+            Err(not_run) => {
+                out.push(*not_run);
                 continue;
             }
         };
@@ -257,16 +279,19 @@ fn finish_metrics(scene: &Scene, i: usize, r: &mut RunResult) {
 /// checked, as in the sequential path. The calling thread reports progress from what the workers send. The
 /// first error in run order is returned.
 fn run_parallel(
-    scene: &Scene,
-    opts: &RunOptions<'_>,
-    setpoints: &control::SetpointSchedule,
-    first: usize,
-    frozen: &[Held],
+    phase: &Phase<'_, '_>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Vec<RunResult>, SceneError> {
     use std::sync::Mutex;
     use std::sync::atomic::{AtomicUsize, Ordering};
-    let n_runs = frozen.len();
+    let Phase {
+        scene,
+        opts,
+        setpoints,
+        first,
+        ..
+    } = *phase;
+    let n_runs = phase.held.len();
     let next = AtomicUsize::new(0);
     let slots: Vec<Mutex<Option<Result<RunResult, SceneError>>>> =
         (0..n_runs).map(|_| Mutex::new(None)).collect();
@@ -287,15 +312,9 @@ fn run_parallel(
                     }
                     let i = first + k;
                     let run = || -> Result<RunResult, SceneError> {
-                        let held = match &frozen[k] {
-                            Ok(held) => *held,
-                            Err(why) => {
-                                let r = not_simulated(scene, i, why);
-                                if let Some(f) = opts.on_run {
-                                    f(&r);
-                                }
-                                return Ok(r);
-                            }
+                        let held = match phase.held(k) {
+                            Ok(held) => held,
+                            Err(not_run) => return Ok(*not_run),
                         };
                         let mut plant = build_plant(scene)?;
                         let mut controller = scene.run_controller(i, held)?;
