@@ -829,6 +829,29 @@ fn every_failure_names_its_cause() {
         "the fit ran first: {}",
         r.stdout
     );
+    // A log format file with a unit its signal does not take: refused with its line and key, nothing written.
+    let format = d.path().join("logger.toml");
+    std::fs::write(
+        &format,
+        "separator = \";\"\n[columns]\nt = { name = \"t\", unit = \"min\" }\n",
+    )
+    .unwrap();
+    let fmt_out = d.path().join("fmt-out");
+    let r = run(&[
+        "identify",
+        "--log",
+        s(&log),
+        "--actuator",
+        "pneumatics/paper-actuator.toml",
+        "--free",
+        "mechanics.moving_mass_kg",
+        "--log-format",
+        s(&format),
+        "--out",
+        s(&fmt_out),
+    ]);
+    r.refused(&["logger.toml:3:", "columns.t.unit", "\"ms\""]);
+    assert!(!fmt_out.exists(), "an output was left for a refused format");
     let fit = d.path().join("fit");
     let r = run(&[
         "identify",

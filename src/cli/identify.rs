@@ -41,6 +41,11 @@ pub struct Identify {
     /// Longest time span of one log, s (default 3600); a longer log is refused.
     #[arg(long, value_name = "S", default_value_t = 3600.0)]
     pub max_log_s: f64,
+    /// How the logs are written, when another tool wrote them: a TOML file with the separator, the decimal
+    /// and thousands marks, the lines before the header and each signal's column and unit
+    /// (docs/identification.md, "Other people's logs"). Default: pneuflex's trace.csv.
+    #[arg(long, value_name = "FILE")]
+    pub log_format: Option<PathBuf>,
 }
 
 /// Write a hidden truth for identification tests: the sheet with KEYS each moved 20-40 % (seeded).
@@ -113,6 +118,7 @@ impl Identify {
                     max_rows: self.max_rows,
                     max_span_s: self.max_log_s,
                 },
+                log_format: self.log_format,
             },
         )
     }

@@ -34,6 +34,8 @@ pub struct IdentifyArgs {
     pub settle_s: f64,
     /// `--max-rows`, `--max-log-s`.
     pub limits: LogLimits,
+    /// `--log-format`.
+    pub log_format: Option<PathBuf>,
 }
 
 /// `pneuflex identify --log L... --actuator S --free K,... [--bounds K=[lo,hi]]... [--out DIR]`.
@@ -67,12 +69,17 @@ pub fn identify(
     if !(a.limits.max_span_s.is_finite() && a.limits.max_span_s > 0.0) {
         bail!("--max-log-s: must be > 0 s, got {}", a.limits.max_span_s);
     }
+    let log_format = match &a.log_format {
+        Some(f) => pneuflex_identify::log_format::LogFormat::load(f)?,
+        None => Default::default(),
+    };
     let req = Request {
         logs,
         actuator: actuator.to_path_buf(),
         free: a.free,
         bounds: a.bounds,
         limits: a.limits,
+        log_format,
         validation_fraction: a.validation,
         options: FitOptions {
             replay: ReplayOptions {

@@ -11,6 +11,7 @@ pub mod excite;
 pub mod fit;
 pub mod leak;
 pub mod log;
+pub mod log_format;
 pub mod params;
 pub mod perturb;
 pub mod replay;

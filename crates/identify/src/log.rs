@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::IdentifyError;
+use crate::log_format::LogFormat;
 
 /// The columns identification reads, in this order.
 pub const COLUMNS: [&str; 6] = ["t", "u", "x", "p_a", "p_b", "f_e"];
@@ -107,6 +108,15 @@ pub fn read_log(path: &Path) -> Result<Log, IdentifyError> {
 /// [`read_log`] within `limits`: the file's size is checked against the rows limit before it is read, and
 /// it is read line by line (memory holds the columns identification uses, never the text).
 pub fn read_log_limited(path: &Path, limits: &LogLimits) -> Result<Log, IdentifyError> {
+    read_log_formatted(path, limits, &LogFormat::default())
+}
+
+/// [`read_log_limited`] for a log in `format` (another tool's export: [`LogFormat`]).
+pub fn read_log_formatted(
+    path: &Path,
+    limits: &LogLimits,
+    format: &LogFormat,
+) -> Result<Log, IdentifyError> {
     use std::io::BufRead;
     let size = pneuflex_files::input::check_regular(path, pneuflex_files::InputKind::Trace)
         .map_err(|e| IdentifyError::Input(e.to_string()))?;
@@ -131,7 +141,7 @@ pub fn read_log_limited(path: &Path, limits: &LogLimits) -> Result<Log, Identify
         .map_err(|e| IdentifyError::Input(format!("{}: cannot read: {e}", path.display())))?;
     let mut reader = std::io::BufReader::new(file);
     let mut hasher = pneuflex_files::provenance::Sha256Hasher::new();
-    let mut parser = LogParser::new(path, *limits);
+    let mut parser = LogParser::new(path, *limits, format);
     let mut buf = Vec::new();
     let mut line_no = 0;
     loop {
@@ -183,7 +193,18 @@ pub fn parse_log_limited(
     sha256: String,
     limits: &LogLimits,
 ) -> Result<Log, IdentifyError> {
-    let mut parser = LogParser::new(path, *limits);
+    parse_log_formatted(path, text, sha256, limits, &LogFormat::default())
+}
+
+/// [`parse_log_limited`] for a log in `format`.
+pub fn parse_log_formatted(
+    path: &Path,
+    text: &str,
+    sha256: String,
+    limits: &LogLimits,
+    format: &LogFormat,
+) -> Result<Log, IdentifyError> {
+    let mut parser = LogParser::new(path, *limits, format);
     for (i, line) in text.lines().enumerate() {
         if !parser.line(i + 1, line)? {
             break;
@@ -229,6 +250,9 @@ fn header_text(names: &[String]) -> String {
 struct LogParser<'a> {
     path: &'a Path,
     limits: LogLimits,
+    format: &'a LogFormat,
+    /// Lines of the preamble still to skip.
+    preamble: usize,
     /// The header's column names, once read.
     names: Option<Vec<String>>,
     idx: [usize; COLUMNS.len()],
@@ -240,10 +264,12 @@ struct LogParser<'a> {
 }
 
 impl<'a> LogParser<'a> {
-    fn new(path: &'a Path, limits: LogLimits) -> Self {
+    fn new(path: &'a Path, limits: LogLimits, format: &'a LogFormat) -> Self {
         Self {
             path,
             limits,
+            format,
+            preamble: format.skip_lines,
             names: None,
             idx: [0; COLUMNS.len()],
             fault: None,
@@ -278,6 +304,10 @@ impl<'a> LogParser<'a> {
             self.end_marker |= line.starts_with("# end:");
             return Ok(true);
         }
+        if self.preamble > 0 {
+            self.preamble -= 1;
+            return Ok(true);
+        }
         let Some(names) = &self.names else {
             self.header(line_no, line)?;
             return Ok(true);
@@ -285,7 +315,7 @@ impl<'a> LogParser<'a> {
         if line.trim().is_empty() {
             return Ok(true);
         }
-        let fields: Vec<&str> = line.split(',').collect();
+        let fields = self.format.split(line);
         if fields.len() != names.len() {
             return Err(self.err(
                 Some(line_no),
@@ -309,7 +339,8 @@ impl<'a> LogParser<'a> {
         let mut v = [0.0; COLUMNS.len()];
         for (i, c) in COLUMNS.iter().enumerate() {
             let s = fields[self.idx[i]].trim();
-            let x: f64 = s.parse().map_err(|_| {
+            let map = &self.format.columns[i];
+            let x = self.format.number(s).ok_or_else(|| {
                 self.err(
                     Some(line_no),
                     Some(c),
@@ -319,6 +350,8 @@ impl<'a> LogParser<'a> {
                     ),
                 )
             })?;
+            // To SI, absolute (the format's unit, scale and gauge offset; 1 and 0 for pneuflex's trace).
+            let x = x * map.factor + map.offset;
             if !x.is_finite() {
                 return Err(self.err(
                     Some(line_no),
@@ -342,12 +375,18 @@ impl<'a> LogParser<'a> {
     }
 
     fn header(&mut self, line_no: usize, line: &str) -> Result<(), IdentifyError> {
-        let names: Vec<String> = line.split(',').map(|n| n.trim().to_string()).collect();
+        let names: Vec<String> = self
+            .format
+            .split(line)
+            .iter()
+            .map(|n| n.trim().trim_matches('"').to_string())
+            .collect();
         for (i, c) in COLUMNS.iter().enumerate() {
-            let found: Vec<usize> = (0..names.len()).filter(|&k| names[k] == *c).collect();
+            let name = &self.format.columns[i].name;
+            let found: Vec<usize> = (0..names.len()).filter(|&k| names[k] == *name).collect();
             match found.as_slice() {
                 [k] => self.idx[i] = *k,
-                [] => {
+                [] if self.format.own_trace => {
                     return Err(self.err(
                         Some(line_no),
                         Some(c),
@@ -358,12 +397,23 @@ impl<'a> LogParser<'a> {
                         ),
                     ));
                 }
+                [] => {
+                    return Err(self.err(
+                        Some(line_no),
+                        Some(c),
+                        format!(
+                            "no column named `{name}` (the log format's columns.{c}.name; the header has {}): \
+                             check the name, the separator and skip_lines",
+                            header_text(&names)
+                        ),
+                    ));
+                }
                 [a, b, ..] => {
                     return Err(self.err(
                         Some(line_no),
                         Some(c),
                         format!(
-                            "the header names `{c}` twice (columns {} and {}): which one is the signal?",
+                            "the header names `{name}` twice (columns {} and {}): which one is the signal?",
                             a + 1,
                             b + 1
                         ),
@@ -371,7 +421,12 @@ impl<'a> LogParser<'a> {
                 }
             }
         }
-        self.fault = names.iter().position(|n| n == "fault");
+        // Only pneuflex's trace has a fault column (another tool's export is used as it is).
+        self.fault = if self.format.own_trace {
+            names.iter().position(|n| n == "fault")
+        } else {
+            None
+        };
         self.names = Some(names);
         Ok(())
     }
@@ -469,7 +524,7 @@ impl<'a> LogParser<'a> {
                 ),
             ));
         }
-        if self.log.note.is_none() && !self.end_marker {
+        if self.log.note.is_none() && !self.end_marker && self.format.own_trace {
             self.log.note = Some("no end marker: the trace was cut (its rows are used)".into());
         }
         self.log.sha256 = sha256;

@@ -10,7 +10,8 @@ use pneuflex_pneumatics::{ActuatorSheet, OneDofModel};
 use crate::IdentifyError;
 use crate::check::check;
 use crate::fit::{FitOptions, Free, fit_stoppable};
-use crate::log::{LogLimits, read_log_limited};
+use crate::log::{LogLimits, read_log_formatted};
+use crate::log_format::LogFormat;
 use crate::params::{ALL, Key, Offsets};
 use crate::replay::Prepared;
 use crate::report::{LogEntry, Report, markdown, validation_png, warnings};
@@ -32,6 +33,8 @@ pub struct Request {
     pub options: FitOptions,
     /// How long a log may be (rows, time span).
     pub limits: LogLimits,
+    /// How the logs are written (pneuflex's trace.csv by default; `--log-format`).
+    pub log_format: LogFormat,
 }
 
 /// The result of [`identify`].
@@ -206,7 +209,7 @@ pub fn identify_stoppable(
     options.replay.stroke_m = Some(base.actuator.cylinder.stroke_m);
     let mut data = Vec::new();
     for p in &req.logs {
-        let log = read_log_limited(p, &req.limits)?;
+        let log = read_log_formatted(p, &req.limits, &req.log_format)?;
         let n = log.len();
         let span = log.t[n - 1] - log.t[0];
         if options.replay.segment_s > span {

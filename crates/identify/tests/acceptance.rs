@@ -75,6 +75,7 @@ fn check_seed(seed: u64) {
         free: KEYS.iter().map(|k| k.name().to_string()).collect(),
         bounds: vec![],
         limits: Default::default(),
+        log_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };
@@ -189,6 +190,7 @@ fn flags_mass_from_a_log_without_motion() {
         ],
         bounds: vec![],
         limits: Default::default(),
+        log_format: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     };
@@ -253,6 +255,7 @@ fn recovers_delay_viscous_friction_and_an_offset() {
         free,
         bounds: vec![],
         limits: Default::default(),
+        log_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };
@@ -317,6 +320,7 @@ fn two_logs_identify_what_one_could_not() {
         free: vec!["valve.sonic_conductance_m3_per_s_pa,mechanics.moving_mass_kg".into()],
         bounds: vec![],
         limits: Default::default(),
+        log_format: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     };

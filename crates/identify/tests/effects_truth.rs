@@ -202,6 +202,7 @@ fn identify_recovers_a_hidden_wall_heat_coefficient() {
         free: keys.iter().map(|k| k.name().to_string()).collect(),
         bounds: vec![],
         limits: Default::default(),
+        log_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };

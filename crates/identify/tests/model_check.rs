@@ -111,6 +111,7 @@ fn fit(actuator: std::path::PathBuf, log: std::path::PathBuf, keys: &[Key]) -> I
         free: keys.iter().map(|k| k.name().to_string()).collect(),
         bounds: vec![],
         limits: Default::default(),
+        log_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };

@@ -50,6 +50,7 @@ fn recovers_c_and_b_per_path() {
         free: keys.iter().map(|k| k.name().to_string()).collect(),
         bounds: vec![],
         limits: Default::default(),
+        log_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };
