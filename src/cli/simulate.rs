@@ -21,7 +21,8 @@ pub struct Tf {
     /// With --loop: the gain margin the largest kp is computed for, dB (default 6).
     #[arg(long)]
     pub margin_db: Option<f64>,
-    /// With --loop: also draw the Bode plot of every run's inner loop at every stiffness (PNG).
+    /// With --loop: also draw the Bode plot of every run's inner loop at every stiffness, with the margins
+    /// marked (PNG; SVG for a FILE ending in .svg).
     #[arg(long, value_name = "FILE.png")]
     pub bode: Option<PathBuf>,
 }

@@ -209,8 +209,14 @@ pub fn loop_margins(
         analyses.push(a);
     }
     if let Some(b) = bode {
-        let tmp = b.with_extension(format!("partial-{}.png", std::process::id()));
-        let drawn = pneuflex_viz::write_bode(&tmp, &analyses);
+        // The partial file keeps the format's extension (SVG for `.svg`, PNG otherwise).
+        let ext = if b.extension().is_some_and(|e| e == "svg") {
+            "svg"
+        } else {
+            "png"
+        };
+        let tmp = b.with_extension(format!("partial-{}.{ext}", std::process::id()));
+        let drawn = pneuflex_viz::write_bode(&tmp, &scene, &analyses);
         if let Err(e) = drawn {
             let _ = std::fs::remove_file(&tmp);
             return Err(e.into());

@@ -1,117 +1,194 @@
-//! A Bode plot: the gain and the phase of open loops against frequency, with the 0 dB and -180 deg lines.
+//! A Bode plot: the gain and the phase of open loops against frequency, with the 0 dB and -180 deg lines and
+//! each loop's margins marked where they are read.
 
 use std::path::Path;
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::{FAMILY, PlotError, ensure_font};
+use crate::{FAMILY, PALETTE, PlotError, ensure_font};
 
-/// One loop's frequency response: its legend label and (Hz, dB, degrees) points, frequency ascending.
-pub type BodeLine<'a> = (String, &'a [(f64, f64, f64)]);
+/// One loop's frequency response and the margins read off it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodeLine<'a> {
+    /// Legend label.
+    pub label: String,
+    /// (Hz, dB, degrees) points, frequency ascending.
+    pub points: &'a [(f64, f64, f64)],
+    /// The gain crossover (|L| = 0 dB), Hz, and the phase margin there, degrees.
+    pub gain_crossover: Option<(f64, f64)>,
+    /// The phase crossover (arg L = -180°), Hz, and the gain margin there, dB.
+    pub phase_crossover: Option<(f64, f64)>,
+}
 
-/// Draws the gain (top) and phase (bottom) of `lines` into a PNG at `path` (1200 x 900); lines of fewer
-/// than two points are left out, and nothing to draw is [`PlotError::Empty`].
-/// A Bode plot of inner-loop analyses (`pneuflex_scene::analysis::loop_margins`): |L| in dB above, arg L in degrees
-/// below, one line per run and stiffness, against frequency on a log axis; the 0 dB and −180° lines dashed.
-pub fn write_bode(path: &Path, lines: &[BodeLine<'_>]) -> Result<(), PlotError> {
+/// Draws the gain (top) and phase (bottom) of `lines` under `title` into `path` (1200 x 900; SVG when the
+/// path ends in `.svg`, PNG otherwise). At each gain crossover a dot on 0 dB and, below, the phase margin as
+/// a bar up from -180°; at each phase crossover a dot on -180° and, above, the gain margin as a bar up to
+/// 0 dB; the legend gives the numbers. The axes span the data: no floor. Lines of fewer than two points are
+/// left out, and nothing to draw is [`PlotError::Empty`].
+pub fn write_bode(path: &Path, title: &str, lines: &[BodeLine<'_>]) -> Result<(), PlotError> {
     ensure_font()?;
-    let lines: Vec<&BodeLine<'_>> = lines.iter().filter(|(_, b)| b.len() > 1).collect();
+    let lines: Vec<&BodeLine<'_>> = lines.iter().filter(|l| l.points.len() > 1).collect();
     if lines.is_empty() {
         return Err(PlotError::Empty);
     }
-    let draw = || -> Result<(), String> {
-        let root = BitMapBackend::new(path, (1200, 900)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (top, bottom) = root.split_vertically(450);
-        let f_lo = lines
-            .iter()
-            .map(|(_, b)| b[0].0)
-            .fold(f64::INFINITY, f64::min);
-        let f_hi = lines
-            .iter()
-            .map(|(_, b)| b[b.len() - 1].0)
-            .fold(0.0_f64, f64::max);
-        let (m_lo, m_hi) = lines
-            .iter()
-            .flat_map(|(_, b)| b.iter())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
-                (l.min(p.1), h.max(p.1))
-            });
-        let (p_lo, p_hi) = lines
-            .iter()
-            .flat_map(|(_, b)| b.iter())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
-                (l.min(p.2), h.max(p.2))
-            });
-        let colors = [BLUE, RED, GREEN, MAGENTA, CYAN, BLACK];
-        for (area, title, y_desc, idx, lo, hi, reference) in [
-            (
-                &top,
-                "open inner loop L: gain",
-                "|L| [dB]",
-                1,
-                m_lo.max(-80.0),
-                m_hi.min(80.0),
-                0.0,
-            ),
-            (
-                &bottom,
-                "phase",
-                "arg L [deg]",
-                2,
-                p_lo.max(-720.0),
-                p_hi.min(180.0),
-                -180.0,
-            ),
-        ] {
-            let mut chart = ChartBuilder::on(area)
-                .caption(title, (FAMILY, 22))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(70)
-                .build_cartesian_2d((f_lo..f_hi).log_scale(), (lo - 5.0)..(hi + 5.0))
-                .map_err(|e| e.to_string())?;
-            chart
-                .configure_mesh()
-                .x_desc("frequency [Hz]")
-                .y_desc(y_desc)
-                .label_style((FAMILY, 15))
-                .draw()
-                .map_err(|e| e.to_string())?;
-            chart
-                .draw_series(DashedLineSeries::new(
-                    vec![(f_lo, reference), (f_hi, reference)],
-                    6,
-                    4,
-                    BLACK.stroke_width(1),
-                ))
-                .map_err(|e| e.to_string())?;
-            for (k, (label, b)) in lines.iter().enumerate() {
-                let c = colors[k % colors.len()];
-                chart
-                    .draw_series(LineSeries::new(
-                        b.iter().map(|p| (p.0, if idx == 1 { p.1 } else { p.2 })),
-                        c.stroke_width(2),
-                    ))
-                    .map_err(|e| e.to_string())?
-                    .label(label.as_str())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(2))
-                    });
-            }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font((FAMILY, 14))
-                .draw()
-                .map_err(|e| e.to_string())?;
-        }
-        root.present().map_err(|e| e.to_string())
+    let size = (1200, 900);
+    let svg = path.extension().is_some_and(|e| e == "svg");
+    let drawn = if svg {
+        draw(
+            SVGBackend::new(path, size).into_drawing_area(),
+            title,
+            &lines,
+        )
+    } else {
+        draw(
+            BitMapBackend::new(path, size).into_drawing_area(),
+            title,
+            &lines,
+        )
     };
-    draw().map_err(|message| PlotError::Draw {
+    drawn.map_err(|message| PlotError::Draw {
         path: path.to_path_buf(),
         message,
     })
+}
+
+/// The range of a column of every line's points, with a little room.
+fn span(lines: &[&BodeLine<'_>], col: fn(&(f64, f64, f64)) -> f64) -> (f64, f64) {
+    let (lo, hi) = lines
+        .iter()
+        .flat_map(|l| l.points.iter())
+        .map(col)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(v), h.max(v))
+        });
+    let pad = 0.05 * (hi - lo).max(1.0);
+    (lo - pad, hi + pad)
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    title: &str,
+    lines: &[&BodeLine<'_>],
+) -> Result<(), String> {
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let root = root.titled(title, (FAMILY, 20)).map_err(e)?;
+    let (top, bottom) = root.split_vertically(430);
+    let f_lo = lines
+        .iter()
+        .map(|l| l.points[0].0)
+        .fold(f64::INFINITY, f64::min);
+    let f_hi = (lines.iter())
+        .map(|l| l.points[l.points.len() - 1].0)
+        .fold(0.0_f64, f64::max);
+    // The 0 dB and -180° lines are always in view.
+    let (g_lo, g_hi) = span(lines, |p| p.1);
+    let (p_lo, p_hi) = span(lines, |p| p.2);
+    let panels = [
+        (
+            "open loop L: gain",
+            "|L| [dB]",
+            g_lo.min(-5.0),
+            g_hi.max(5.0),
+            0.0,
+        ),
+        (
+            "phase",
+            "arg L [deg]",
+            p_lo.min(-190.0),
+            p_hi.max(-170.0),
+            -180.0,
+        ),
+    ];
+    for (k, (area, (caption, y_desc, lo, hi, reference))) in
+        [&top, &bottom].into_iter().zip(panels).enumerate()
+    {
+        let gain = k == 0;
+        let mut chart = ChartBuilder::on(area)
+            .caption(caption, (FAMILY, 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d((f_lo..f_hi).log_scale(), lo..hi)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("frequency [Hz]")
+            .y_desc(y_desc)
+            .label_style((FAMILY, 15))
+            .draw()
+            .map_err(e)?;
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(f_lo, reference), (f_hi, reference)],
+                6,
+                4,
+                BLACK.stroke_width(1),
+            ))
+            .map_err(e)?;
+        for (i, l) in lines.iter().enumerate() {
+            let c = PALETTE[i % PALETTE.len()];
+            let label = if gain {
+                let f = |v: Option<(f64, f64)>, unit: &str, what: &str| {
+                    v.map_or(format!("no {what}"), |(hz, m)| {
+                        format!("{what} {m:.1} {unit} at {hz:.2} Hz")
+                    })
+                };
+                format!(
+                    "{}: {}, {}",
+                    l.label,
+                    f(l.phase_crossover, "dB", "GM"),
+                    f(l.gain_crossover, "deg", "PM")
+                )
+            } else {
+                l.label.clone()
+            };
+            chart
+                .draw_series(LineSeries::new(
+                    l.points.iter().map(|p| (p.0, if gain { p.1 } else { p.2 })),
+                    c.stroke_width(2),
+                ))
+                .map_err(e)?
+                .label(label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(2))
+                });
+            // Where each margin is read: the crossover on this panel's reference line, and the other
+            // crossover's margin as a bar from the curve to the reference.
+            let (dot, bar) = if gain {
+                (
+                    l.gain_crossover,
+                    l.phase_crossover.map(|(hz, gm)| (hz, -gm, 0.0)),
+                )
+            } else {
+                (
+                    l.phase_crossover,
+                    l.gain_crossover.map(|(hz, pm)| (hz, -180.0, -180.0 + pm)),
+                )
+            };
+            if let Some((hz, _)) = dot {
+                chart
+                    .draw_series(std::iter::once(Circle::new((hz, reference), 5, c.filled())))
+                    .map_err(e)?;
+            }
+            if let Some((hz, a, b)) = bar {
+                chart
+                    .draw_series(std::iter::once(PathElement::new(
+                        vec![(hz, a.clamp(lo, hi)), (hz, b.clamp(lo, hi))],
+                        c.stroke_width(4),
+                    )))
+                    .map_err(e)?;
+            }
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerLeft)
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font((FAMILY, 14))
+            .draw()
+            .map_err(e)?;
+    }
+    root.present().map_err(e)
 }

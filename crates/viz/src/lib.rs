@@ -356,25 +356,56 @@ fn event_label(ev: &EventSpec) -> String {
     }
 }
 
-/// The Bode plot of the scene's loop analyses: every run's open inner loop at every stiffness it meets
-/// (`pneuflex tf SCENE --loop --bode FILE`).
+/// The Bode plot of the scene's loop analyses (`pneuflex tf SCENE --loop --bode FILE`): every distinct open
+/// inner loop at every stiffness the scene meets, runs with the same loop on one line, titled with the scene.
+/// The response is drawn up to half the Nyquist frequency of the control tick: above it a sampled loop's
+/// phase bends towards z = -1, which a reader takes for plant behaviour.
 pub fn write_bode(
     path: &Path,
+    scene: &Scene,
     analyses: &[pneuflex_scene::analysis::loop_margins::LoopAnalysis],
 ) -> Result<(), PlotError> {
-    let lines: Vec<BodeLine<'_>> = analyses
+    let f_max = 0.25 / scene.dt_s;
+    // (runs, kp, margins): loops whose responses are the same, bit for bit, share a line.
+    let mut loops: Vec<(
+        Vec<&str>,
+        f64,
+        &pneuflex_scene::analysis::loop_margins::Margins,
+    )> = Vec::new();
+    for a in analyses {
+        for m in &a.margins {
+            match loops
+                .iter_mut()
+                .find(|(_, kp, l)| *kp == a.kp_per_m && l.bode == m.bode)
+            {
+                Some((runs, _, _)) => runs.push(&a.run),
+                None => loops.push((vec![&a.run], a.kp_per_m, m)),
+            }
+        }
+    }
+    let lines: Vec<BodeLine<'_>> = loops
         .iter()
-        .flat_map(|a| {
-            a.margins.iter().map(move |m| {
-                (
-                    format!(
-                        "{} (kp {} /m), k_e {} N/m",
-                        a.run, a.kp_per_m, m.stiffness_n_per_m
-                    ),
-                    m.bode.as_slice(),
-                )
-            })
+        .map(|(runs, kp, m)| {
+            let end = m.bode.partition_point(|p| p.0 <= f_max);
+            BodeLine {
+                label: format!(
+                    "{} (kp {kp} /m), k_e {} N/m",
+                    runs.join(", "),
+                    m.stiffness_n_per_m
+                ),
+                points: &m.bode[..end],
+                gain_crossover: m.crossover_hz.zip(m.phase_margin_deg),
+                phase_crossover: m.phase_crossover_hz.zip(m.gain_margin_db),
+            }
         })
         .collect();
-    pneuflex_plot::write_bode(path, &lines)
+    let title = if scene.description.is_empty() {
+        format!(
+            "{}: open inner position loop, broken at the valve command",
+            scene.name
+        )
+    } else {
+        format!("{}: {}", scene.name, scene.description)
+    };
+    pneuflex_plot::write_bode(path, &title, &lines)
 }
