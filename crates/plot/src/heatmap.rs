@@ -20,8 +20,13 @@ pub struct Heatmap<'a> {
     /// Labels of the y values, bottom to top.
     pub y_ticks: &'a [String],
     /// The cells, row by row from the bottom: `cells[y * nx + x]`; None is drawn grey with a cross
-    /// (no value: the run diverged), a non-finite value grey with a circle (e.g. never settled).
+    /// (no value: the run diverged or failed), a non-finite value grey with ∞ (an infinite settling time).
     pub cells: &'a [Option<f64>],
+    /// Cells whose run is flagged (did not settle in some window), in the order of `cells` (empty: none):
+    /// a † after the value, and `flag_note` under the map when any is flagged.
+    pub flagged: &'a [bool],
+    /// What the dagger means.
+    pub flag_note: &'a str,
     /// Cells whose number hangs on a threshold (a fragile settling time), in the order of `cells` (empty:
     /// none): an asterisk after the value, and `mark_note` under the map when any is marked.
     pub marked: &'a [bool],
@@ -122,8 +127,23 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
             sequential(f)
         }
     };
+    // A legend line for every cell state the map shows, under it.
+    let mut notes = Vec::new();
+    if map.cells.iter().any(|c| c.is_none()) {
+        notes.push("grey ×: no value (the run diverged or failed)");
+    }
+    if map.cells.iter().any(|c| c.is_some_and(|v| !v.is_finite())) {
+        notes.push("grey ∞: not settled (an infinite settling time)");
+    }
+    if map.flagged.contains(&true) {
+        notes.push(map.flag_note);
+    }
+    if map.marked.contains(&true) {
+        notes.push(map.mark_note);
+    }
+    let room = 18 * notes.len() as u32;
     let width = 900.max(160 + 60 * nx as u32);
-    let height = 700.max(160 + 32 * ny as u32);
+    let height = 700.max(160 + 32 * ny as u32) + room;
     let draw = || -> Result<(), String> {
         let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
@@ -131,6 +151,7 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
         let mut chart = ChartBuilder::on(&main)
             .caption(map.title, (FAMILY, 20))
             .margin(14)
+            .margin_bottom(14 + room)
             .x_label_area_size(60)
             .y_label_area_size(90)
             // Integer ranges are inclusive: 0..n - 1 is n segments.
@@ -175,14 +196,18 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
                     .draw_series(std::iter::once(Rectangle::new([c0, c1], fill.filled())))
                     .map_err(|e| e.to_string())?;
                 let centre = (SegmentValue::CenterOf(x), SegmentValue::CenterOf(y));
-                let star = if map.marked.get(y * nx + x) == Some(&true) {
-                    "*"
-                } else {
-                    ""
+                let star = match (
+                    map.marked.get(y * nx + x) == Some(&true),
+                    map.flagged.get(y * nx + x) == Some(&true),
+                ) {
+                    (true, true) => "*†",
+                    (true, false) => "*",
+                    (false, true) => "†",
+                    (false, false) => "",
                 };
                 let text = match v {
                     None => "×".to_string(),
-                    Some(v) if !v.is_finite() => "∞".to_string(),
+                    Some(v) if !v.is_finite() => "∞".to_string() + star,
                     Some(v) if show_text => cell_text(v) + star,
                     Some(_) => star.to_string(),
                 };
@@ -208,7 +233,7 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
         // The colour bar.
         let mut cb = ChartBuilder::on(&bar)
             .margin_top(60)
-            .margin_bottom(74)
+            .margin_bottom(74 + room)
             .margin_right(10)
             .y_label_area_size(70)
             .build_cartesian_2d(0.0..1.0, lo..hi)
@@ -228,10 +253,10 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
             Rectangle::new([(0.0, a), (1.0, b)], colour(0.5 * (a + b)).filled())
         }))
         .map_err(|e| e.to_string())?;
-        if map.marked.contains(&true) {
+        for (k, note) in notes.iter().rev().enumerate() {
             root.draw(&Text::new(
-                map.mark_note,
-                (14, height as i32 - 22),
+                *note,
+                (14, height as i32 - 22 - 18 * k as i32),
                 (FAMILY, 13).into_font(),
             ))
             .map_err(|e| e.to_string())?;

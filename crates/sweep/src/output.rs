@@ -60,15 +60,20 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
                 .is_some_and(|r| r.status == Status::Ok && r.metrics[f] == Some(1.0))
         })
     };
+    // The cell says what sweep.csv says: the metric's value (an infinite settling time when its window did
+    // not settle), no value for a run that diverged or failed; a run that did not settle in some window is
+    // flagged, since its numbers describe a loop that does not work.
     let value = |p: &PointResult, run: usize| -> Option<f64> {
         let r = p.runs.get(run)?;
-        // A run that never settled (a limit cycle, an end stop, lost contact) is drawn as not working
-        // (grey, a circle) whatever the metric: its number would describe a run that does not work.
         match r.status {
             Status::Diverged | Status::Error => None,
-            Status::NotSettled => Some(f64::INFINITY),
-            Status::Ok => r.metrics[metric].or(Some(f64::NAN)),
+            Status::NotSettled | Status::Ok => r.metrics[metric],
         }
+    };
+    let unsettled = |p: &PointResult, run: usize| -> bool {
+        p.runs
+            .get(run)
+            .is_some_and(|r| r.status == Status::NotSettled)
     };
     // Point index = x * ny + y (the first key varies slowest); cells row by row from the bottom.
     let cells = |f: &dyn Fn(&PointResult) -> Option<f64>| -> Vec<Option<f64>> {
@@ -88,14 +93,21 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
         m
     };
     let mut out = Vec::new();
+    let scene = &sweep.base_scene.name;
+    let what = with_unit(&name);
     for (k, run) in sweep.base_scene.runs.iter().enumerate() {
-        out.push((
-            format!("heatmap-{}-{name}.png", run.name),
-            format!("{} ({}): {name}", run.name, run.controller.name()),
-            cells(&|p| value(p, k)),
-            marks(&|p| fragile(p, k)),
-            false,
-        ));
+        out.push(Map {
+            file: format!("heatmap-{}-{name}.png", run.name),
+            title: format!(
+                "{scene}, run {} ({}): {what}",
+                run.name,
+                run.controller.name()
+            ),
+            cells: cells(&|p| value(p, k)),
+            marked: marks(&|p| fragile(p, k)),
+            flagged: marks(&|p| unsettled(p, k)),
+            diverging: false,
+        });
     }
     let find = |kind: &str| {
         sweep
@@ -109,13 +121,14 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
             &sweep.base_scene.runs[a].name,
             &sweep.base_scene.runs[i].name,
         );
-        out.push((
-            format!("heatmap-{an}-minus-{inn}-{name}.png"),
-            format!("{an} − {inn}: {name} (< 0: {an} lower)"),
-            cells(&|p| Some(value(p, a)? - value(p, i)?)),
-            marks(&|p| fragile(p, a) || fragile(p, i)),
-            true,
-        ));
+        out.push(Map {
+            file: format!("heatmap-{an}-minus-{inn}-{name}.png"),
+            title: format!("{scene}, {an} − {inn}: {what} (< 0: {an} lower)"),
+            cells: cells(&|p| Some(value(p, a)? - value(p, i)?)),
+            marked: marks(&|p| fragile(p, a) || fragile(p, i)),
+            flagged: marks(&|p| unsettled(p, a) || unsettled(p, i)),
+            diverging: true,
+        });
     }
     out
 }
@@ -208,15 +221,78 @@ pub fn write_figures(
         }
         let maps = heatmap_cells(sweep, results, metric_i);
         write_maps(dir, sweep, &maps, metric_i, &mut files)?;
-        all_maps.extend(maps.into_iter().map(|m| m.0));
+        all_maps.extend(maps.into_iter().map(|m| m.file));
     }
     write_record(dir, sweep, all_maps, None)?;
     files.push(PathBuf::from("sweep.json"));
     Ok(files)
 }
 
-/// File name, title, cells, marked cells (a fragile settling time), diverging scale.
-type Map = (String, String, Vec<Option<f64>>, Vec<bool>, bool);
+/// One heatmap to draw.
+struct Map {
+    /// File name, relative.
+    file: String,
+    title: String,
+    cells: Vec<Option<f64>>,
+    /// A fragile settling time.
+    marked: Vec<bool>,
+    /// A run that did not settle in some window (status not_settled).
+    flagged: Vec<bool>,
+    /// A difference: the scale centred on zero.
+    diverging: bool,
+}
+
+/// Units by the suffix of a key's last part, longest first (the scene's and the sheets' naming convention).
+const UNITS: [(&str, &str); 22] = [
+    ("_m3_per_s_pa", "m³/(s·Pa)"),
+    ("_ns_per_m", "N·s/m"),
+    ("_n_s_per_m", "N·s/m"),
+    ("_n_per_m", "N/m"),
+    ("_m_per_n", "m/N"),
+    ("_per_m_s", "1/(m·s)"),
+    ("_s_per_m", "s/m"),
+    ("_m_per_s2", "m/s²"),
+    ("_m_per_s", "m/s"),
+    ("_per_m", "1/m"),
+    ("_m3", "m³"),
+    ("_m2", "m²"),
+    ("_kg", "kg"),
+    ("_hz", "Hz"),
+    ("_pct", "%"),
+    ("_deg", "deg"),
+    ("_pa", "Pa"),
+    ("_k", "K"),
+    ("_s", "s"),
+    ("_n", "N"),
+    ("_m", "m"),
+    ("_rad", "rad"),
+];
+
+/// A key or metric as an axis label: the unit suffix of its last part dropped, underscores as spaces, and
+/// the unit in brackets (`environment.stiffness_n_per_m` -> `environment.stiffness [N/m]`).
+fn with_unit(key: &str) -> String {
+    let (head, last) = key.rsplit_once('.').map_or(("", key), |(h, l)| (h, l));
+    let (name, unit) = UNITS
+        .iter()
+        .find_map(|(suffix, unit)| last.strip_suffix(suffix).map(|n| (n, Some(*unit))))
+        .filter(|(n, _)| !n.is_empty())
+        .unwrap_or((last, None));
+    // Words are spaced; a symbol with a subscript (b_d, k_e) keeps its underscore.
+    let name = if name.split('_').all(|w| w.len() <= 2) {
+        name.to_string()
+    } else {
+        name.replace('_', " ")
+    };
+    let text = if head.is_empty() {
+        name
+    } else {
+        format!("{head}.{name}")
+    };
+    match unit {
+        Some(u) => format!("{text} [{u}]"),
+        None => text,
+    }
+}
 
 fn write_maps(
     dir: &Path,
@@ -228,25 +304,32 @@ fn write_maps(
     if let Some(grid) = sweep.points.grid.as_ref().filter(|g| g.len() == 2) {
         let xt: Vec<String> = grid[0].1.values().iter().map(tick).collect();
         let yt: Vec<String> = grid[1].1.values().iter().map(tick).collect();
-        for (file, title, cells, marked, diverging) in maps {
-            let path = dir.join(file);
+        let (x_label, y_label) = (
+            with_unit(&sweep.points.keys[grid[0].0].text),
+            with_unit(&sweep.points.keys[grid[1].0].text),
+        );
+        let value_label = with_unit(&sweep.columns[metric_i].name());
+        for m in maps {
+            let path = dir.join(&m.file);
             pneuflex_plot::write_heatmap(
                 &path,
                 &pneuflex_plot::Heatmap {
-                    title,
-                    x_label: &sweep.points.keys[grid[0].0].text,
+                    title: &m.title,
+                    x_label: &x_label,
                     x_ticks: &xt,
-                    y_label: &sweep.points.keys[grid[1].0].text,
+                    y_label: &y_label,
                     y_ticks: &yt,
-                    cells,
-                    marked,
+                    cells: &m.cells,
+                    marked: &m.marked,
                     mark_note: "* settling time hangs on the band (±5 % moves it > 10 %)",
-                    value_label: &sweep.columns[metric_i].name(),
-                    diverging: *diverging,
+                    flagged: &m.flagged,
+                    flag_note: "†: the run did not settle in some window (sweep.csv: status not_settled)",
+                    value_label: &value_label,
+                    diverging: m.diverging,
                 },
             )
             .map_err(|e| SweepError::Other(e.to_string()))?;
-            files.push(PathBuf::from(file));
+            files.push(PathBuf::from(&m.file));
         }
     }
     Ok(())
@@ -294,4 +377,52 @@ pub fn write_record(
         serde_json::to_string_pretty(&record).map_err(|e| SweepError::Other(e.to_string()))?;
     std::fs::write(&json, text + "\n").map_err(|e| io(&json, e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::with_unit;
+
+    #[test]
+    fn keys_become_labels_with_their_units() {
+        for (key, label) in [
+            (
+                "environment.stiffness_n_per_m",
+                "environment.stiffness [N/m]",
+            ),
+            (
+                "runs[*].impedance.b_d_ns_per_m",
+                "runs[*].impedance.b_d [N·s/m]",
+            ),
+            ("environment.x_e_m", "environment.x_e [m]"),
+            (
+                "runs[adaptive].inner.kp_per_m",
+                "runs[adaptive].inner.kp [1/m]",
+            ),
+            ("runs[0].inner.ki_per_m_s", "runs[0].inner.ki [1/(m·s)]"),
+            (
+                "stiffness_change.settling_time_s",
+                "stiffness_change.settling time [s]",
+            ),
+            ("sine.phase_lag_deg", "sine.phase lag [deg]"),
+            (
+                "stiffness_change.recovery_overshoot_pct",
+                "stiffness_change.recovery overshoot [%]",
+            ),
+            (
+                "plant.actuator:mechanics.moving_mass_kg",
+                "plant.actuator:mechanics.moving mass [kg]",
+            ),
+            (
+                "valve.sonic_conductance_m3_per_s_pa",
+                "valve.sonic conductance [m³/(s·Pa)]",
+            ),
+            ("sine.amplitude_ratio", "sine.amplitude ratio"),
+            ("plant.substeps", "plant.substeps"),
+            // A name that is only a unit keeps its name.
+            ("x.m", "x.m"),
+        ] {
+            assert_eq!(with_unit(key), label, "{key}");
+        }
+    }
 }
