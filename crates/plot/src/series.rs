@@ -95,29 +95,83 @@ pub fn band_color(c: RGBColor) -> RGBAColor {
     c.mix(0.22)
 }
 
-fn y_range(plot: &Plot) -> (f64, f64) {
+/// The y axis of a plot: the data's range, padded. A spike that the bulk of the data does not reach (beyond
+/// the 0.5 %–99.5 % quantiles by more than their span: an impact of a few ticks on a signal of seconds) would
+/// set the scale and flatten the rest, so the axis stops just past the bulk there and a note gives the
+/// clipped extreme, its value and time.
+pub(crate) fn y_range(plot: &Plot) -> (f64, f64, Vec<String>) {
     let (t0, t1) = plot.t_range;
-    let mut lo = f64::INFINITY;
-    let mut hi = f64::NEG_INFINITY;
     let series = plot
         .bands
         .iter()
         .map(|b| (b.t, &b.y))
         .chain(plot.lines.iter().map(|l| (l.t, &l.y)));
+    let mut values = Vec::new();
+    // The extremes and their times.
+    let (mut lo, mut hi) = ((f64::INFINITY, 0.0), (f64::NEG_INFINITY, 0.0));
     for (t, y) in series {
         for (t, y) in t.iter().zip(y) {
             if *t >= t0 && *t <= t1 && y.is_finite() {
-                lo = lo.min(*y);
-                hi = hi.max(*y);
+                values.push(*y);
+                if *y < lo.0 {
+                    lo = (*y, *t);
+                }
+                if *y > hi.0 {
+                    hi = (*y, *t);
+                }
             }
         }
     }
-    if !lo.is_finite() {
-        lo = 0.0;
-        hi = 1.0;
+    if values.is_empty() {
+        return (-0.08, 1.08, Vec::new());
     }
-    let pad = ((hi - lo) * 0.08).max(1e-9 + 1e-3 * hi.abs().max(lo.abs()));
-    (lo - pad, hi + pad)
+    let (mut a, mut b) = (lo.0, hi.0);
+    let mut notes = Vec::new();
+    // The axis's unit, from a label that ends in `[unit]`.
+    let unit = (plot.y_label.rsplit_once('['))
+        .and_then(|(_, u)| u.strip_suffix(']'))
+        .map_or(String::new(), |u| format!(" {u}"));
+    if values.len() >= 200 {
+        let n = values.len();
+        let q =
+            |values: &mut Vec<f64>, k: usize| *values.select_nth_unstable_by(k, f64::total_cmp).1;
+        let (q_lo, q_hi) = (q(&mut values, n / 200), q(&mut values, n - 1 - n / 200));
+        let span = q_hi - q_lo;
+        if span > 0.0 {
+            if hi.0 > q_hi + span {
+                b = q_hi + 0.25 * span;
+                notes.push(format!(
+                    "clipped: peak {}{unit} at t = {:.3} s",
+                    short(hi.0),
+                    hi.1
+                ));
+            }
+            if lo.0 < q_lo - span {
+                a = q_lo - 0.25 * span;
+                notes.push(format!(
+                    "clipped: low {}{unit} at t = {:.3} s",
+                    short(lo.0),
+                    lo.1
+                ));
+            }
+        }
+    }
+    let pad = ((b - a) * 0.08).max(1e-9 + 1e-3 * b.abs().max(a.abs()));
+    (a - pad, b + pad, notes)
+}
+
+/// A value in four significant digits.
+fn short(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && !(1e-2..1e5).contains(&a) {
+        format!("{v:.3e}")
+    } else {
+        format!(
+            "{:.*}",
+            (3 - a.max(1.0).log10().floor() as i32).max(0) as usize,
+            v
+        )
+    }
 }
 
 /// `raster`: the backend is a pixel buffer (thick lines as side-by-side pixel lines, [`Stroke`]), not SVG.
@@ -131,7 +185,10 @@ where
 {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let (t0, t1) = plot.t_range;
-    let (lo, hi) = y_range(plot);
+    let (lo, hi, clipped) = y_range(plot);
+    let notes: Vec<(String, RGBColor)> = (plot.notes.iter().cloned())
+        .chain(clipped.into_iter().map(|n| (n, BLACK)))
+        .collect();
     let mut chart = ChartBuilder::on(&root)
         .caption(&plot.title, (FAMILY, 26))
         .margin(16)
@@ -243,12 +300,11 @@ where
                 .map_err(|e| e.to_string())?;
         }
     }
-    if !plot.notes.is_empty() {
+    if !notes.is_empty() {
         let font = (FAMILY, 16).into_font();
         let measure: TextStyle = font.clone().into();
         let line_h = 22;
-        let w = plot
-            .notes
+        let w = notes
             .iter()
             .map(|(s, _)| {
                 root.estimate_text_size(s, &measure)
@@ -258,7 +314,7 @@ where
             .max()
             .unwrap_or(0);
         let (x0, y0) = (px.start + 10, py.start + 10);
-        let h = line_h * plot.notes.len() as i32 + 8;
+        let h = line_h * notes.len() as i32 + 8;
         root.draw(&Rectangle::new(
             [(x0, y0), (x0 + w + 16, y0 + h)],
             WHITE.mix(0.85).filled(),
@@ -266,7 +322,7 @@ where
         .map_err(|e| e.to_string())?;
         root.draw(&Rectangle::new([(x0, y0), (x0 + w + 16, y0 + h)], BLACK))
             .map_err(|e| e.to_string())?;
-        for (k, (s, c)) in plot.notes.iter().enumerate() {
+        for (k, (s, c)) in notes.iter().enumerate() {
             root.draw(&Text::new(
                 s.clone(),
                 (x0 + 8, y0 + 6 + line_h * k as i32),
@@ -439,5 +495,47 @@ mod tests {
             top >= 49,
             "the reversal reaches y = {top}, above the data's 50 by more than the width"
         );
+    }
+}
+
+#[cfg(test)]
+mod y_axis_tests {
+    use super::*;
+
+    fn plot_of<'a>(t: &'a [f64], y: Vec<f64>) -> Plot<'a> {
+        let mut p = Plot::new("t".into(), "f [N]", (0.0, 10.0), Vec::new());
+        p.lines.push(Line {
+            label: "f".into(),
+            t,
+            y,
+            color: BLACK,
+            dashed: false,
+            width: 1,
+        });
+        p
+    }
+
+    #[test]
+    fn an_impact_spike_is_clipped_with_a_note_and_a_smooth_signal_is_not() {
+        let t: Vec<f64> = (0..10_001).map(|k| k as f64 * 1e-3).collect();
+        let sine: Vec<f64> = t.iter().map(|t| 20.0 + 5.0 * (6.0 * t).sin()).collect();
+        let (lo, hi, notes) = y_range(&plot_of(&t, sine.clone()));
+        assert!(notes.is_empty(), "{notes:?}");
+        // The whole signal in view, padded by 8 % of its range.
+        assert!(
+            (lo - (15.0 - 0.8)).abs() < 1e-3 && (hi - (25.0 + 0.8)).abs() < 1e-3,
+            "{lo} {hi}"
+        );
+        // 5 ms of a 2.5 kN impact at t = 4.0 s.
+        let mut spiked = sine;
+        for (k, v) in spiked.iter_mut().enumerate().skip(4000).take(5) {
+            *v = if k == 4002 { 2500.0 } else { 1500.0 };
+        }
+        let (lo, hi, notes) = y_range(&plot_of(&t, spiked));
+        assert!(
+            hi < 40.0 && lo > 10.0,
+            "the axis follows the bulk: {lo}..{hi}"
+        );
+        assert_eq!(notes, ["clipped: peak 2500 N at t = 4.002 s"]);
     }
 }
