@@ -298,7 +298,11 @@ pub fn markdown(r: &Report) -> String {
     s
 }
 
-/// Draws the held-out rows of one log: measured against simulated p_a, p_b and x.
+/// How much of the held-out part the validation figure shows, s (20 periods of the paper's 40 Hz PWM).
+pub const VALIDATION_WINDOW_S: f64 = 0.5;
+
+/// Draws the first [`VALIDATION_WINDOW_S`] of the held-out rows of one log: measured against simulated p_a,
+/// p_b and x, each with its residual (measured - model) in a panel of its own.
 pub fn validation_png(
     path: &Path,
     log: &crate::log::Log,
@@ -308,13 +312,23 @@ pub fn validation_png(
     if rows.is_empty() {
         return Ok(());
     }
-    let (a, b) = (rows[0], rows[rows.len() - 1] + 1);
+    // A readable window: the first VALIDATION_WINDOW_S of the held-out rows (a whole validation part of
+    // seconds overlays dozens of PWM cycles into a band).
+    let a = rows[0];
+    let end_t = log.t[a] + VALIDATION_WINDOW_S;
+    let b = rows
+        .iter()
+        .copied()
+        .take_while(|&k| log.t[k] <= end_t)
+        .last()
+        .unwrap_or(a)
+        + 1;
     let t = &log.t[a..b];
     let kpa = |v: &[f64]| v.iter().map(|p| p * 1e-3).collect::<Vec<f64>>();
     let mm = |v: &[f64]| v.iter().map(|p| p * 1e3).collect::<Vec<f64>>();
     // Rows inside a segment's settling time are not compared: drawn as gaps in the simulation.
     let mut keep = vec![false; b - a];
-    for &k in rows {
+    for &k in rows.iter().filter(|&&k| k < b) {
         keep[k - a] = true;
     }
     let gap = |v: Vec<f64>| -> Vec<f64> {
@@ -326,22 +340,23 @@ pub fn validation_png(
     let (ma, sa) = (kpa(&log.p_a[a..b]), gap(kpa(&pred.p_a[a..b])));
     let (mb, sb) = (kpa(&log.p_b[a..b]), gap(kpa(&pred.p_b[a..b])));
     let (mx, sx) = (mm(&log.x[a..b]), gap(mm(&pred.x[a..b])));
-    fn panel<'a>(title: &str, unit: &str, t: &'a [f64], m: &'a [f64], s: &'a [f64]) -> Panel<'a> {
+    // The residuals, measured - model, where compared.
+    let res = |m: &[f64], s: &[f64]| -> Vec<f64> { m.iter().zip(s).map(|(m, s)| m - s).collect() };
+    let (ra, rb, rx) = (res(&ma, &sa), res(&mb, &sb), res(&mx, &sx));
+    fn panel<'a>(title: &str, unit: &str, t: &'a [f64], lines: &[(&str, &'a [f64])]) -> Panel<'a> {
         Panel {
             title: title.into(),
             y_desc: unit.into(),
-            series: vec![
-                Series {
-                    label: "measured".into(),
+            series: lines
+                .iter()
+                .map(|&(label, y)| Series {
+                    label: label.into(),
                     t,
-                    y: m,
-                },
-                Series {
-                    label: "fitted model".into(),
-                    t,
-                    y: s,
-                },
-            ],
+                    y,
+                })
+                .collect(),
+            // A residual is read against zero.
+            include_zero: title.contains("residual"),
         }
     }
     let name = log
@@ -349,18 +364,39 @@ pub fn validation_png(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
+    let (m, f) = ("measured", "fitted model");
     write_overlay(
         path,
         &[
             panel(
-                &format!("held-out validation of {name}: chamber A pressure"),
+                &format!(
+                    "held-out validation of {name}, t = {:.2}-{:.2} s: chamber A pressure",
+                    log.t[a],
+                    log.t[b - 1]
+                ),
                 "p_a [kPa abs]",
                 t,
-                &ma,
-                &sa,
+                &[(m, &ma), (f, &sa)],
             ),
-            panel("chamber B pressure", "p_b [kPa abs]", t, &mb, &sb),
-            panel("position", "x [mm]", t, &mx, &sx),
+            panel(
+                "chamber B pressure",
+                "p_b [kPa abs]",
+                t,
+                &[(m, &mb), (f, &sb)],
+            ),
+            panel(
+                "pressure residual, measured - model",
+                "[kPa]",
+                t,
+                &[("p_a", &ra), ("p_b", &rb)],
+            ),
+            panel("position", "x [mm]", t, &[(m, &mx), (f, &sx)]),
+            panel(
+                "position residual, measured - model",
+                "[mm]",
+                t,
+                &[("x", &rx)],
+            ),
         ],
     )
     .map_err(|e| IdentifyError::Output {

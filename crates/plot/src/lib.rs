@@ -91,3 +91,13 @@ pub const PALETTE: [RGBColor; 6] = [
     RGBColor(230, 159, 0),
     RGBColor(86, 180, 233),
 ];
+
+/// The names of [`PALETTE`]'s colours, for a key written in words.
+pub const PALETTE_NAMES: [&str; 6] = [
+    "blue",
+    "vermillion",
+    "green",
+    "purple",
+    "orange",
+    "sky blue",
+];

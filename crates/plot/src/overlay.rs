@@ -5,7 +5,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::{FAMILY, PALETTE, PlotError, decimate, ensure_font};
+use crate::{FAMILY, PALETTE, PALETTE_NAMES, PlotError, decimate, ensure_font};
 
 /// One line: its label, times (s) and values; non-finite values are gaps.
 #[derive(Clone, Debug)]
@@ -27,16 +27,19 @@ pub struct Panel<'a> {
     pub y_desc: String,
     /// The lines.
     pub series: Vec<Series<'a>>,
+    /// Whether the y axis reaches 0 (a residual: its offset from zero is what is read).
+    pub include_zero: bool,
 }
 
-/// Writes `panels` stacked vertically into a PNG at `path` (1200 px wide, 300 px per panel).
+/// Writes `panels` stacked vertically into a PNG at `path` (1200 px wide, 260 px per panel). The lines'
+/// labels go in each panel's title with their colours, not in a legend box over the data.
 pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), PlotError> {
     ensure_font()?;
     if panels.is_empty() || panels.iter().all(|p| p.series.is_empty()) {
         return Err(PlotError::Empty);
     }
     let draw = || -> Result<(), String> {
-        let height = 300 * panels.len() as u32;
+        let height = 260 * panels.len() as u32;
         let root = BitMapBackend::new(path, (1200, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let areas = root.split_evenly((panels.len(), 1));
@@ -59,9 +62,21 @@ pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), PlotError>
             if !(t0.is_finite() && t1 > t0 && y0.is_finite() && y1.is_finite()) {
                 continue;
             }
-            let pad = ((y1 - y0) * 0.05).max(1e-12 * y1.abs().max(1.0));
+            let (y0, y1) = if panel.include_zero {
+                (y0.min(0.0), y1.max(0.0))
+            } else {
+                (y0, y1)
+            };
+            // At least 1 % of the values' size: a flat line gets an axis, not one repeated label.
+            let pad = ((y1 - y0) * 0.05)
+                .max(0.01 * y1.abs().max(y0.abs()))
+                .max(1e-12);
+            let key: Vec<String> = (panel.series.iter().enumerate())
+                .map(|(i, s)| format!("{}: {}", s.label, PALETTE_NAMES[i % PALETTE.len()]))
+                .collect();
+            let caption = format!("{} ({})", panel.title, key.join(", "));
             let mut chart = ChartBuilder::on(area)
-                .caption(&panel.title, (FAMILY, 20))
+                .caption(caption, (FAMILY, 18))
                 .margin(10)
                 .x_label_area_size(35)
                 .y_label_area_size(80)
@@ -76,22 +91,21 @@ pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), PlotError>
                 .map_err(|e| e.to_string())?;
             for (i, s) in panel.series.iter().enumerate() {
                 let color = PALETTE[i % PALETTE.len()];
-                let pts = decimate(s.t, s.y, t0, t1, 1200);
-                chart
-                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-                    .map_err(|e| e.to_string())?
-                    .label(s.label.clone())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-                    });
+                // A gap (non-finite values) breaks the line: each finite stretch is drawn on its own.
+                let mut k = 0;
+                while k < s.y.len() {
+                    let start = k + s.y[k..].iter().take_while(|v| !v.is_finite()).count();
+                    let end = start + s.y[start..].iter().take_while(|v| v.is_finite()).count();
+                    k = end.max(start + 1);
+                    if end <= start {
+                        continue;
+                    }
+                    let pts = decimate(&s.t[start..end], &s.y[start..end], t0, t1, 1200);
+                    chart
+                        .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                        .map_err(|e| e.to_string())?;
+                }
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font((FAMILY, 14))
-                .draw()
-                .map_err(|e| e.to_string())?;
         }
         root.present().map_err(|e| e.to_string())
     };
