@@ -278,3 +278,40 @@ impl TapMkdir for PathBuf {
         self
     }
 }
+
+/// `run --format svg`: the figures as SVG (for a paper), listed in the output manifest; an unknown format
+/// is refused before anything is written.
+#[test]
+fn the_figures_can_be_written_as_svg() {
+    let d = scratch("svg");
+    let out = d.path().join("svg");
+    let o = pneuflex()
+        .args(["run", "-q", "--format", "svg", "--out"])
+        .arg(&out)
+        .arg(repo("scenes/paper-fig3-ideal.toml"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut figures: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".svg") || n.ends_with(".png"))
+        .collect();
+    figures.sort();
+    assert_eq!(figures, ["event-0.svg", "force.svg", "position.svg"]);
+    for f in &figures {
+        let text = std::fs::read_to_string(out.join(f)).unwrap();
+        assert!(text.starts_with("<svg"), "{f}");
+    }
+    let manifest = std::fs::read_to_string(out.join(".pneuflex-output.json")).unwrap();
+    assert!(manifest.contains("force.svg"), "{manifest}");
+    let bad = d.path().join("pdf");
+    let o = pneuflex()
+        .args(["run", "-q", "--format", "pdf", "--out"])
+        .arg(&bad)
+        .arg(repo("scenes/paper-fig3-ideal.toml"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success() && stderr(&o).contains("possible values: png, svg"));
+    assert!(!bad.exists());
+}

@@ -48,6 +48,27 @@ pub struct Run {
     /// Largest memory all traces may take, MiB (default 2048); the scene is refused beyond it.
     #[arg(long, value_name = "MIB")]
     pub max_trace_mb: Option<u64>,
+    /// The figures' format: png (default) or svg (vector, for a paper; convert to PDF with any SVG tool).
+    #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
+    pub format: FigureFormat,
+}
+
+/// A figure format on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FigureFormat {
+    /// Raster image.
+    Png,
+    /// Vector image.
+    Svg,
+}
+
+impl From<FigureFormat> for pneuflex_viz::Format {
+    fn from(f: FigureFormat) -> Self {
+        match f {
+            FigureFormat::Png => pneuflex_viz::Format::Png,
+            FigureFormat::Svg => pneuflex_viz::Format::Svg,
+        }
+    }
 }
 
 /// Run a scene at every point of a grid or sample of its keys, in parallel: one table of every point's
@@ -178,6 +199,7 @@ impl Run {
                 rerun: self.rerun,
                 max_steps: self.max_steps,
                 max_trace_mb: self.max_trace_mb,
+                figures: self.format.into(),
             },
         )
     }

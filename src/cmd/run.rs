@@ -27,6 +27,8 @@ pub struct RunArgs {
     pub max_steps: Option<u64>,
     /// `--max-trace-mb`: trace memory allowed, MiB.
     pub max_trace_mb: Option<u64>,
+    /// `--format`: the figures' format.
+    pub figures: pneuflex_viz::Format,
 }
 
 /// The limits of one run from `--max-steps` and `--max-trace-mb` (the defaults where absent).
@@ -123,6 +125,7 @@ fn run_scene_file(
     let how = Simulate {
         limits,
         stop: Some(&stop),
+        figures: args.figures,
     };
     #[cfg(feature = "rerun")]
     let simulated = match observer.as_mut() {

@@ -206,6 +206,8 @@ pub struct Simulate<'a> {
     pub limits: Limits,
     /// Non-zero (a signal's number) stops the current run at the next tick; the outputs become a partial.
     pub stop: Option<&'a AtomicUsize>,
+    /// The figures' format (`run --format`).
+    pub figures: pneuflex_viz::Format,
 }
 
 /// What [`simulate_into`] ran and wrote.
@@ -268,11 +270,7 @@ pub fn simulate_into(
             let figures = summary.complete && results.iter().any(|r| r.diverged.is_none());
             let last_run = last_run.into_inner().unwrap_or_else(|e| e.into_inner());
             let (figures, written) = rayon::join(
-                || {
-                    figures.then(|| {
-                        pneuflex_viz::write_figures(dir, scene, &results, pneuflex_viz::Format::Png)
-                    })
-                },
+                || figures.then(|| pneuflex_viz::write_figures(dir, scene, &results, how.figures)),
                 // The other core takes this first (a join's second half is what is stolen), then figures.
                 || {
                     if let Some(r) = results.iter().find(|r| Some(&r.name) == last_run.as_ref()) {

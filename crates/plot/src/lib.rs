@@ -54,9 +54,10 @@ pub enum PlotError {
 }
 
 /// Output format of a figure.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Format {
     /// Raster image, 1200×700 px.
+    #[default]
     Png,
     /// Vector image.
     Svg,
