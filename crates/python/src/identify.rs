@@ -25,9 +25,10 @@ fn err(e: IdentifyError) -> PyErr {
 /// Fits `free` keys of the actuator sheet to the logs; writes the outputs of the CLI into `out` when
 /// given. Returns JSON: `{"report": <report.json>, "validation": [{"log", "t", "p_a", "p_b", "x",
 /// "p_a_model", "p_b_model", "x_model"}]}` (held-out rows of each log; model values NaN where a segment's
-/// settling was not compared).
+/// settling was not compared). `log_format` names a format file for logs another tool wrote
+/// (docs/identification.md, "Other people's logs").
 #[pyfunction]
-#[pyo3(signature = (logs, actuator, free, bounds=Vec::new(), validation=0.2, segment=0.1, settle=0.015, out=None))]
+#[pyo3(signature = (logs, actuator, free, bounds=Vec::new(), validation=0.2, segment=0.1, settle=0.015, out=None, log_format=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify_json(
     py: Python<'_>,
@@ -39,6 +40,7 @@ pub fn identify_json(
     segment: f64,
     settle: f64,
     out: Option<PathBuf>,
+    log_format: Option<PathBuf>,
 ) -> PyResult<String> {
     if !(segment.is_finite()
         && segment > 0.0
@@ -49,12 +51,17 @@ pub fn identify_json(
             "segment must be > 0 s and settle in [0, segment), got {segment}, {settle}"
         )));
     }
+    let log_format = match &log_format {
+        Some(f) => pneuflex_identify::log_format::LogFormat::load(f).map_err(err)?,
+        None => Default::default(),
+    };
     let req = Request {
         logs,
         actuator,
         free,
         bounds,
         limits: Default::default(),
+        log_format,
         validation_fraction: validation,
         options: FitOptions {
             replay: ReplayOptions {

@@ -546,6 +546,29 @@ def identify_recovers_a_mass_from_a_simulated_log():
             raise AssertionError("accepted an unknown key")
         except pneuflex.PneuflexError as err:
             assert "--free: mechanics.mass" in str(err), err
+        # The same log as another tool exports it (';', ms, mm, kPa), read through a log format file: the
+        # same estimate.
+        export = ["Zeit;Ventil;Weg;pA;pB;Kraft"]
+        for row in rows[1:]:
+            t, _, f_e, x, _, p_a, p_b, u = (float(v) for v in row.split(","))
+            export.append(f"{t * 1e3!r};{u!r};{x * 1e3!r};{p_a * 1e-3!r};{p_b * 1e-3!r};{f_e!r}")
+        theirs = d / "export.csv"
+        theirs.write_text("\n".join(export) + "\n")
+        fmt = d / "logger.toml"
+        fmt.write_text(
+            'separator = ";"\n[columns]\nt = { name = "Zeit", unit = "ms" }\nu = { name = "Ventil", unit = "1" }\n'
+            'x = { name = "Weg", unit = "mm" }\np_a = { name = "pA", unit = "kPa" }\n'
+            'p_b = { name = "pB", unit = "kPa" }\nf_e = { name = "Kraft", unit = "N" }\n'
+        )
+        r2 = pneuflex.identify(theirs, SHEET, ["mechanics.moving_mass_kg"], validation=0.25, log_format=fmt)
+        e2 = r2["estimates"]["mechanics.moving_mass_kg"]
+        assert abs(e2["value"] / e["value"] - 1) < 1e-6, (e2, e)
+        fmt.write_text(fmt.read_text().replace('unit = "ms"', 'unit = "min"'))
+        try:
+            pneuflex.identify(theirs, SHEET, ["mechanics.moving_mass_kg"], log_format=fmt)
+            raise AssertionError("accepted a unit time does not take")
+        except OSError as err:
+            assert "logger.toml:3:" in str(err) and "columns.t.unit" in str(err), err
 
 
 def main() -> int:

@@ -77,8 +77,9 @@ def mujoco_plugin_path() -> str:
     )
 
 
-def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settle=0.015, out=None):
-    """Fits the ``free`` keys of the actuator sheet to rig logs (see the module doc and docs/identification.md)."""
+def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settle=0.015, out=None, log_format=None):
+    """Fits the ``free`` keys of the actuator sheet to rig logs (see the module doc and docs/identification.md);
+    ``log_format`` names a format file for logs another tool wrote (docs/identification.md, "Other people's logs")."""
     import json
 
     import numpy as np
@@ -93,6 +94,7 @@ def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settl
         identify_json(
             [str(p) for p in logs], str(actuator), list(free), [str(b) for b in bounds],
             validation, segment, settle, None if out is None else str(out),
+            None if log_format is None else str(log_format),
         )
     )
     rep = raw["report"]
