@@ -131,6 +131,44 @@ def run_returns_traces_and_summarize_reproduces_the_runner_metrics():
 
 
 @test
+def run_gives_dataframes_the_summary_and_the_claims():
+    """pneuflex.run's Results: the dict of arrays as before, and each run's trace as a DataFrame indexed by t,
+    the window metrics as a table equal to summary.json's, the claims with the adaptation verdict; a sweep's
+    table as a DataFrame with a row per point and run."""
+    import pandas as pd
+
+    r = pneuflex.run(SCENE)
+    scene = pneuflex.load_scene(SCENE)
+    names = [x["name"] for x in scene["runs"]]
+    assert list(r) == names and isinstance(r["adaptive"]["f_e"], np.ndarray)
+    df = r.trace("adaptive")
+    assert isinstance(df, pd.DataFrame) and df.index.name == "t" and len(df) == scene["n_steps"] + 1
+    assert {"f_e", "x", "u", "g", "p", "d"} <= set(df.columns) and "t" not in df.columns
+    assert np.array_equal(df["f_e"].to_numpy(), r["adaptive"]["f_e"])
+    assert set(r.traces) == set(names)
+    m = r.metrics
+    run0 = next(x for x in r.summary["runs"] if x["name"] == "adaptive")
+    sine = next(w for w in run0["windows"] if w["name"] == "sine")
+    assert m.loc[("adaptive", "sine"), "rms_force_error_n"] == sine["rms_force_error_n"]
+    settle = m.loc[("impedance", "stiffness_change"), "settling_time_s"]
+    assert 0.5 < settle < 2.0, settle
+    c = r.claims_frame
+    assert len(c) == len(r.claims) == 5 and set(c["earned_by"]) <= {"adaptation", "projection_bound",
+                                                                      "parameter_values", "no_win"}
+    assert list(c["holds"]) == [x["holds"] for x in r.claims]
+    try:
+        r.trace("nope")
+        raise AssertionError("an unknown run was accepted")
+    except KeyError as e:
+        assert "nope" in str(e) and "adaptive" in str(e), e
+    ideal = str(ROOT / "scenes" / "paper-fig3-ideal.toml")
+    table = pneuflex.sweep(ideal, ["environment.stiffness_n_per_m=700,1400"])
+    assert isinstance(table, str) and table.startswith("point,")
+    f = table.frame
+    assert len(f) == 2 * 2 and list(f["environment.stiffness_n_per_m"]) == [700, 700, 1400, 1400], f
+
+
+@test
 def run_to_writes_what_the_cli_writes():
     """run_to goes through the CLI's output pipeline: the same trace files and summary.json, byte for byte,
     as `pneuflex run --out` (the debug binary the test command builds first); a directory pneuflex did not

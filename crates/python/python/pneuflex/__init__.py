@@ -11,7 +11,8 @@ The classes and functions come from the Rust crates through the native module ``
 - ``Controller(kind, impedance, inner, adaptive=None)`` / ``Controller.from_scene(path, run)``;
   ``update(t, x, x_dot, f_e, p_a, p_b, f_ref, x_d, dt) -> u``, ``telemetry()``.
 - ``Setpoints(scene_path).at(t) -> (f_ref, x_d)``; ``load_scene(path) -> dict``; ``initial_state(path)``.
-- ``run(scene_path) -> {run: {column: ndarray}}``; ``run_with_summary``; ``summarize(scene_path, traces)``
+- ``run(scene_path) -> Results``: ``{run: {column: ndarray}}`` with ``.summary``, ``.claims``, ``.trace(run)``
+  (a pandas DataFrame indexed by t), ``.metrics`` and ``.claims_frame`` (``pneuflex.frames``); ``run_with_summary``; ``summarize(scene_path, traces)``
   (summary.json of any traces); ``run_to(scene_path, out_dir) -> dir``: the output directory
   ``pneuflex run --out`` writes, through the same pipeline; ``write_figures(scene_path, out_dir, runs)``; ``bench_rapier(urdf_path, ...)``;
   ``bench_scene_ticks(scene_path, run, ticks=10000, settle_s=1.0) -> {wall_s, ...}``: the runner's control tick
@@ -21,7 +22,8 @@ The classes and functions come from the Rust crates through the native module ``
   p_b)``, ``actuate(u, x_r)``, ``advance(dt)``; MuJoCo in crossval/). ``loop_signals()``: the loop's recorded
   signals [(name, unit, group)]; ``Controller.signals`` / ``Controller.record()``: the controller's own.
 
-- ``sweep(scene, sets, samples=None, seed=0, executor="local")`` -> sweep.csv's table;
+- ``sweep(scene, sets, samples=None, seed=0, executor="local")`` -> sweep.csv's table (a ``SweepTable``: the
+  text, and ``.frame``, the table as a DataFrame);
   ``tune(scene, free, over, out=...)`` -> tune.json as a dict; executors ``"local"`` / ``LocalExecutor(threads)``
   (the Rust pool) or ``"ray"`` / ``RayExecutor(chunk_size)`` (Ray tasks; the same table). See ``pneuflex.sweeps``.
 - ``identify(logs, actuator, free, bounds=[], validation=0.2, segment=0.1, settle=0.015, out=None)``: the fit of
@@ -39,7 +41,17 @@ SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError
 
 from ._native import *  # noqa: F401,F403
 from ._native import PneuflexError, __version__  # noqa: F401
+from . import _native
+from .frames import Results, SweepTable  # noqa: F401
 from .sweeps import LocalExecutor, RayExecutor, sweep, tune  # noqa: F401,E402
+
+
+def run(scene_path) -> Results:
+    """Runs every controller of the scene file: a :class:`Results`, the ``{run: {column: ndarray}}`` dict of the
+    traces (trace.csv's columns), with ``.summary`` (summary.json), ``.claims``, ``.trace(run)`` (a DataFrame),
+    ``.metrics`` and ``.claims_frame`` (pneuflex.frames; pandas for the DataFrames)."""
+    traces, summary, wall_s = _native.run_with_summary(str(scene_path))
+    return Results(traces, summary, wall_s)
 
 MUJOCO_PLUGIN_FILE = "libpneuflex_mujoco.so"
 

@@ -19,6 +19,7 @@ Executors:
 import math
 
 from . import _native
+from .frames import SweepTable
 
 
 class LocalExecutor:
@@ -67,7 +68,7 @@ def chunks(n, size):
 
 def sweep(scene, sets, samples=None, seed=0, executor="local", threads=0, out=None):
     """The scene at every point of ``sets`` (``["KEY=SPEC", ...]``, as ``pneuflex sweep --set``); returns the
-    table (sweep.csv's text). Every point is checked before anything runs (``PneuflexError`` naming the file, the
+    table (sweep.csv's text, a ``SweepTable`` whose ``.frame`` is the table as a DataFrame). Every point is checked before anything runs (``PneuflexError`` naming the file, the
     key and the point). ``out``: also write it to ``out/sweep.csv``."""
     sets = [str(s) for s in sets]
     scene = str(scene)
@@ -85,7 +86,7 @@ def sweep(scene, sets, samples=None, seed=0, executor="local", threads=0, out=No
         task = ray.remote(num_cpus=1)(_sweep_chunk)
         futures = [task.remote(scene, sets, c, samples, seed) for c in chunks(n, size)]
         rows = "".join(ray.get(futures))
-    table = header + rows
+    table = SweepTable(header + rows)
     if out is not None:
         import os
 
