@@ -812,17 +812,21 @@ fn every_failure_names_its_cause() {
     // "none", not NaN.
     let (_, rec) = recording(d.path());
     let log = rec.join("trace.csv");
-    let r = run(&[
-        "identify",
-        "--log",
-        s(&log),
-        "--actuator",
-        "pneumatics/paper-actuator.toml",
-        "--free",
-        "mechanics.moving_mass_kg",
-        "--out",
-        s(&repo("pneumatics")),
-    ]);
+    // `identify` of the mass from the recording, with `more` arguments.
+    let identify = |more: &[&str]| {
+        let mut args = vec![
+            "identify",
+            "--log",
+            s(&log),
+            "--actuator",
+            "pneumatics/paper-actuator.toml",
+            "--free",
+            "mechanics.moving_mass_kg",
+        ];
+        args.extend_from_slice(more);
+        run(&args)
+    };
+    let r = identify(&["--out", s(&repo("pneumatics"))]);
     r.refused(&["pneumatics", "holds an input"]);
     assert!(
         !r.stdout.contains("fit took"),
@@ -837,35 +841,11 @@ fn every_failure_names_its_cause() {
     )
     .unwrap();
     let fmt_out = d.path().join("fmt-out");
-    let r = run(&[
-        "identify",
-        "--log",
-        s(&log),
-        "--actuator",
-        "pneumatics/paper-actuator.toml",
-        "--free",
-        "mechanics.moving_mass_kg",
-        "--log-format",
-        s(&format),
-        "--out",
-        s(&fmt_out),
-    ]);
+    let r = identify(&["--log-format", s(&format), "--out", s(&fmt_out)]);
     r.refused(&["logger.toml:3:", "columns.t.unit", "\"ms\""]);
     assert!(!fmt_out.exists(), "an output was left for a refused format");
     let fit = d.path().join("fit");
-    let r = run(&[
-        "identify",
-        "--log",
-        s(&log),
-        "--actuator",
-        "pneumatics/paper-actuator.toml",
-        "--free",
-        "mechanics.moving_mass_kg",
-        "--validation",
-        "0",
-        "--out",
-        s(&fit),
-    ]);
+    let r = identify(&["--validation", "0", "--out", s(&fit)]);
     assert!(r.ok(), "{}", r.stderr);
     assert!(!r.stdout.contains("NaN"), "{}", r.stdout);
     let md = std::fs::read_to_string(fit.join("report.md")).unwrap();
