@@ -169,13 +169,7 @@ fn run_phase(
     progress: &mut dyn FnMut(f64),
     observer: &mut dyn Sink<dyn Plant>,
 ) -> Result<Vec<RunResult>, SceneError> {
-    let Phase {
-        scene,
-        opts,
-        setpoints,
-        first,
-        ..
-    } = *phase;
+    let (scene, opts, setpoints, first) = (phase.scene, phase.opts, phase.setpoints, phase.first);
     let n_runs = phase.held.len();
     if n_runs == 0 {
         return Ok(Vec::new());
@@ -284,13 +278,7 @@ fn run_parallel(
 ) -> Result<Vec<RunResult>, SceneError> {
     use std::sync::Mutex;
     use std::sync::atomic::{AtomicUsize, Ordering};
-    let Phase {
-        scene,
-        opts,
-        setpoints,
-        first,
-        ..
-    } = *phase;
+    let (scene, opts, setpoints, first) = (phase.scene, phase.opts, phase.setpoints, phase.first);
     let n_runs = phase.held.len();
     let next = AtomicUsize::new(0);
     let slots: Vec<Mutex<Option<Result<RunResult, SceneError>>>> =
