@@ -169,6 +169,53 @@ def run_gives_dataframes_the_summary_and_the_claims():
 
 
 @test
+def the_force_control_environment_is_the_scene_run_by_a_policy():
+    """pneuflex/ForceControl-v0 passes Gymnasium's env_checker; with the scene's values and the scene's adaptive
+    controller as the policy it reproduces pneuflex.run's adaptive run (RMS force error within 1e-6); seeded
+    episodes repeat exactly; the adaptive baseline beats doing nothing and a random policy."""
+    import warnings
+
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pneuflex.envs as envs
+
+    env = gymnasium.make("pneuflex/ForceControl-v0").unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(env, skip_render_check=True)
+
+    def episode(policy, seed=0, randomize=False, cap=None):
+        obs, info = env.reset(seed=seed, options={"randomize": randomize})
+        err, rewards, seen = [], [], []
+        while True:
+            obs, r, term, trunc, step = env.step(policy(obs))
+            err.append(obs[1] * envs.SCALES[0] - step["f_e_n"])
+            rewards.append(r)
+            seen.append(obs)
+            if term or trunc or (cap and len(rewards) >= cap):
+                return np.array(err), np.mean(rewards), np.array(seen), info
+
+    base = envs.adaptive_baseline(env)
+    err, reward, _, _ = episode(base)
+    a = pneuflex.run(SCENE)["adaptive"]
+    scene_rms = np.sqrt(np.mean((a["f_ref"] - a["f_e"])[1:] ** 2))
+    assert len(err) == len(a["t"]) - 1, len(err)
+    assert abs(np.sqrt(np.mean(err ** 2)) / scene_rms - 1) < 1e-6, (np.sqrt(np.mean(err ** 2)), scene_rms)
+    _, zero, _, _ = episode(lambda o: np.zeros(1, np.float32))
+    rng = np.random.default_rng(0)
+    _, rand, _, _ = episode(lambda o: rng.uniform(-1, 1, 1).astype(np.float32))
+    assert reward > 5 * max(zero, rand), (reward, zero, rand)
+    # Seeded domain randomisation: the same seed and actions, the same episode; another seed, other values.
+    wave = lambda o: np.array([0.3 * math.sin(7 * o[1])], np.float32)  # noqa: E731
+    _, _, one, i1 = episode(wave, seed=5, randomize=True, cap=500)
+    _, _, two, i2 = episode(wave, seed=5, randomize=True, cap=500)
+    _, _, _, i3 = episode(wave, seed=6, randomize=True, cap=500)
+    assert i1 == i2 and np.array_equal(one, two) and i3 != i1, (i1, i3)
+    assert 350 <= i1["stiffness_n_per_m"] <= 2800 and 4 <= i1["t_change_s"] <= 8, i1
+
+
+@test
 def run_to_writes_what_the_cli_writes():
     """run_to goes through the CLI's output pipeline: the same trace files and summary.json, byte for byte,
     as `pneuflex run --out` (the debug binary the test command builds first); a directory pneuflex did not

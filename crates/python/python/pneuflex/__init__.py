@@ -53,6 +53,7 @@ def run(scene_path) -> Results:
     traces, summary, wall_s = _native.run_with_summary(str(scene_path))
     return Results(traces, summary, wall_s)
 
+
 MUJOCO_PLUGIN_FILE = "libpneuflex_mujoco.so"
 
 
