@@ -229,7 +229,8 @@ def run_to_writes_what_the_cli_writes():
         assert pneuflex.run_to(SCENE, str(ours)) == str(ours)
         subprocess.run([str(cli), "run", SCENE, "--out", str(theirs), "--quiet"], check=True)
         files = sorted(p.relative_to(theirs) for p in theirs.rglob("*.csv")) + [Path("summary.json")]
-        assert len(files) == 3, files
+        # A trace per run (fig3: impedance, adaptive and its two frozen runs) and the summary.
+        assert len(files) == len(pneuflex.load_scene(SCENE)["runs"]) + 1 == 5, files
         for f in files:
             assert (ours / f).read_bytes() == (theirs / f).read_bytes(), f
         assert (ours / "force.png").is_file()
