@@ -94,6 +94,9 @@ pub struct Sweep {
     /// repeat for heatmaps of several metrics.
     #[arg(long, value_name = "WINDOW.METRIC")]
     pub metric: Vec<String>,
+    /// The heatmaps' format: png (default) or svg.
+    #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
+    pub format: FigureFormat,
     /// Number of samples of the sampled keys (rand:, lhs:, ...).
     #[arg(long, value_name = "N")]
     pub samples: Option<usize>,
@@ -216,6 +219,7 @@ impl Sweep {
                 seed: self.seed,
                 threads: self.threads,
                 metric: self.metric,
+                format: self.format.into(),
                 traces: self.traces,
                 quiet: self.quiet,
                 max_points: self.max_points,

@@ -30,6 +30,8 @@ pub struct SweepArgs {
     pub threads: usize,
     /// `--metric WINDOW.METRIC` for the heatmaps (several: a set of heatmaps each).
     pub metric: Vec<String>,
+    /// `--format`: the heatmaps' format.
+    pub format: pneuflex_viz::Format,
     /// `--traces`: every point's traces and summary.json.
     pub traces: bool,
     /// No progress bar and no summary line.
@@ -233,7 +235,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
             ),
         ));
     }
-    pneuflex_sweep::output::write_figures(stage.path(), &sweep, &kept, &metrics)?;
+    pneuflex_sweep::output::write_figures(stage.path(), &sweep, &kept, &metrics, args.format)?;
     let dest = stage.commit(manifest)?;
     if !args.quiet {
         let threads = if args.threads == 0 {

@@ -90,9 +90,9 @@ fn cell_text(v: f64) -> String {
     }
 }
 
-/// Draws a heatmap as a PNG (900 × 700 px, plus room for many columns).
+/// Draws a heatmap as a PNG, or an SVG for a path ending in `.svg` (900 × 700 px, plus room for many columns
+/// and for the legend lines).
 pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
-    use plotters::coord::ranged1d::SegmentValue;
     ensure_font()?;
     let (nx, ny) = (map.x_ticks.len(), map.y_ticks.len());
     if nx == 0 || ny == 0 || map.cells.len() != nx * ny {
@@ -144,127 +144,181 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
     let room = 18 * notes.len() as u32;
     let width = 900.max(160 + 60 * nx as u32);
     let height = 700.max(160 + 32 * ny as u32) + room;
-    let draw = || -> Result<(), String> {
-        let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (main, bar) = root.split_horizontally(width - 150);
-        let mut chart = ChartBuilder::on(&main)
-            .caption(map.title, (FAMILY, 20))
-            .margin(14)
-            .margin_bottom(14 + room)
-            .x_label_area_size(60)
-            .y_label_area_size(90)
-            // Integer ranges are inclusive: 0..n - 1 is n segments.
-            .build_cartesian_2d((0..nx - 1).into_segmented(), (0..ny - 1).into_segmented())
-            .map_err(|e| e.to_string())?;
-        let label = |ticks: &[String], v: &SegmentValue<usize>| match v {
-            SegmentValue::CenterOf(i) => ticks.get(*i).cloned().unwrap_or_default(),
-            _ => String::new(),
-        };
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc(map.x_label)
-            .y_desc(map.y_label)
-            .x_labels(nx)
-            .y_labels(ny)
-            .x_label_formatter(&|v| label(map.x_ticks, v))
-            .y_label_formatter(&|v| label(map.y_ticks, v))
-            .label_style((FAMILY, 13))
-            .axis_desc_style((FAMILY, 16))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        let grey = RGBColor(190, 190, 190);
-        let show_text = nx * ny <= 200;
-        for y in 0..ny {
-            for x in 0..nx {
-                let v = map.cells[y * nx + x];
-                let fill = match v {
-                    Some(v) if v.is_finite() => colour(v),
-                    _ => grey,
-                };
-                let edge = |i: usize, n: usize| {
-                    if i >= n {
-                        SegmentValue::Last
-                    } else {
-                        SegmentValue::Exact(i)
-                    }
-                };
-                let c0 = (edge(x, nx), edge(y, ny));
-                let c1 = (edge(x + 1, nx), edge(y + 1, ny));
-                chart
-                    .draw_series(std::iter::once(Rectangle::new([c0, c1], fill.filled())))
-                    .map_err(|e| e.to_string())?;
-                let centre = (SegmentValue::CenterOf(x), SegmentValue::CenterOf(y));
-                let star = match (
-                    map.marked.get(y * nx + x) == Some(&true),
-                    map.flagged.get(y * nx + x) == Some(&true),
-                ) {
-                    (true, true) => "*†",
-                    (true, false) => "*",
-                    (false, true) => "†",
-                    (false, false) => "",
-                };
-                let text = match v {
-                    None => "×".to_string(),
-                    Some(v) if !v.is_finite() => "∞".to_string() + star,
-                    Some(v) if show_text => cell_text(v) + star,
-                    Some(_) => star.to_string(),
-                };
-                if !text.is_empty() {
-                    let (r, g, b) = (fill.0 as f64, fill.1 as f64, fill.2 as f64);
-                    let ink = if 0.299 * r + 0.587 * g + 0.114 * b > 140.0 {
-                        BLACK
-                    } else {
-                        WHITE
-                    };
-                    let style = TextStyle::from((FAMILY, 12).into_font()).color(&ink).pos(
-                        plotters::style::text_anchor::Pos::new(
-                            plotters::style::text_anchor::HPos::Center,
-                            plotters::style::text_anchor::VPos::Center,
-                        ),
-                    );
-                    chart
-                        .draw_series(std::iter::once(Text::new(text, centre, style)))
-                        .map_err(|e| e.to_string())?;
-                }
-            }
-        }
-        // The colour bar.
-        let mut cb = ChartBuilder::on(&bar)
-            .margin_top(60)
-            .margin_bottom(74 + room)
-            .margin_right(10)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..1.0, lo..hi)
-            .map_err(|e| e.to_string())?;
-        cb.configure_mesh()
-            .disable_mesh()
-            .disable_x_axis()
-            .y_desc(map.value_label)
-            .label_style((FAMILY, 12))
-            .axis_desc_style((FAMILY, 14))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        let steps = 100;
-        cb.draw_series((0..steps).map(|k| {
-            let a = lo + (hi - lo) * k as f64 / steps as f64;
-            let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
-            Rectangle::new([(0.0, a), (1.0, b)], colour(0.5 * (a + b)).filled())
-        }))
-        .map_err(|e| e.to_string())?;
-        for (k, note) in notes.iter().rev().enumerate() {
-            root.draw(&Text::new(
-                *note,
-                (14, height as i32 - 22 - 18 * k as i32),
-                (FAMILY, 13).into_font(),
-            ))
-            .map_err(|e| e.to_string())?;
-        }
-        root.present().map_err(|e| e.to_string())
+    let frame = Frame {
+        map,
+        nx,
+        ny,
+        lo,
+        hi,
+        width,
+        height,
+        notes,
+        room,
+        colour: &colour,
     };
-    draw().map_err(|message| PlotError::Draw {
+    // SVG for a path ending in .svg (`sweep --format svg`), PNG otherwise.
+    let drawn = if path.extension().is_some_and(|e| e == "svg") {
+        draw(
+            SVGBackend::new(path, (width, height)).into_drawing_area(),
+            &frame,
+        )
+    } else {
+        draw(
+            BitMapBackend::new(path, (width, height)).into_drawing_area(),
+            &frame,
+        )
+    };
+    drawn.map_err(|message| PlotError::Draw {
         path: path.to_path_buf(),
         message,
     })
+}
+
+/// What [`draw`] draws: the map and what [`write_heatmap`] worked out for it.
+struct Frame<'a, 'm> {
+    map: &'a Heatmap<'m>,
+    nx: usize,
+    ny: usize,
+    lo: f64,
+    hi: f64,
+    width: u32,
+    height: u32,
+    notes: Vec<&'a str>,
+    room: u32,
+    colour: &'a dyn Fn(f64) -> RGBColor,
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    f: &Frame<'_, '_>,
+) -> Result<(), String> {
+    use plotters::coord::ranged1d::SegmentValue;
+    let Frame {
+        map,
+        nx,
+        ny,
+        lo,
+        hi,
+        width,
+        height,
+        ref notes,
+        room,
+        colour,
+    } = *f;
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (main, bar) = root.split_horizontally(width - 150);
+    let mut chart = ChartBuilder::on(&main)
+        .caption(map.title, (FAMILY, 20))
+        .margin(14)
+        .margin_bottom(14 + room)
+        .x_label_area_size(60)
+        .y_label_area_size(90)
+        // Integer ranges are inclusive: 0..n - 1 is n segments.
+        .build_cartesian_2d((0..nx - 1).into_segmented(), (0..ny - 1).into_segmented())
+        .map_err(|e| e.to_string())?;
+    let label = |ticks: &[String], v: &SegmentValue<usize>| match v {
+        SegmentValue::CenterOf(i) => ticks.get(*i).cloned().unwrap_or_default(),
+        _ => String::new(),
+    };
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(map.x_label)
+        .y_desc(map.y_label)
+        .x_labels(nx)
+        .y_labels(ny)
+        .x_label_formatter(&|v| label(map.x_ticks, v))
+        .y_label_formatter(&|v| label(map.y_ticks, v))
+        .label_style((FAMILY, 13))
+        .axis_desc_style((FAMILY, 16))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let grey = RGBColor(190, 190, 190);
+    let show_text = nx * ny <= 200;
+    for y in 0..ny {
+        for x in 0..nx {
+            let v = map.cells[y * nx + x];
+            let fill = match v {
+                Some(v) if v.is_finite() => colour(v),
+                _ => grey,
+            };
+            let edge = |i: usize, n: usize| {
+                if i >= n {
+                    SegmentValue::Last
+                } else {
+                    SegmentValue::Exact(i)
+                }
+            };
+            let c0 = (edge(x, nx), edge(y, ny));
+            let c1 = (edge(x + 1, nx), edge(y + 1, ny));
+            chart
+                .draw_series(std::iter::once(Rectangle::new([c0, c1], fill.filled())))
+                .map_err(|e| e.to_string())?;
+            let centre = (SegmentValue::CenterOf(x), SegmentValue::CenterOf(y));
+            let star = match (
+                map.marked.get(y * nx + x) == Some(&true),
+                map.flagged.get(y * nx + x) == Some(&true),
+            ) {
+                (true, true) => "*†",
+                (true, false) => "*",
+                (false, true) => "†",
+                (false, false) => "",
+            };
+            let text = match v {
+                None => "×".to_string(),
+                Some(v) if !v.is_finite() => "∞".to_string() + star,
+                Some(v) if show_text => cell_text(v) + star,
+                Some(_) => star.to_string(),
+            };
+            if !text.is_empty() {
+                let (r, g, b) = (fill.0 as f64, fill.1 as f64, fill.2 as f64);
+                let ink = if 0.299 * r + 0.587 * g + 0.114 * b > 140.0 {
+                    BLACK
+                } else {
+                    WHITE
+                };
+                let style = TextStyle::from((FAMILY, 12).into_font()).color(&ink).pos(
+                    plotters::style::text_anchor::Pos::new(
+                        plotters::style::text_anchor::HPos::Center,
+                        plotters::style::text_anchor::VPos::Center,
+                    ),
+                );
+                chart
+                    .draw_series(std::iter::once(Text::new(text, centre, style)))
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+    }
+    // The colour bar.
+    let mut cb = ChartBuilder::on(&bar)
+        .margin_top(60)
+        .margin_bottom(74 + room)
+        .margin_right(10)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..1.0, lo..hi)
+        .map_err(|e| e.to_string())?;
+    cb.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc(map.value_label)
+        .label_style((FAMILY, 12))
+        .axis_desc_style((FAMILY, 14))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let steps = 100;
+    cb.draw_series((0..steps).map(|k| {
+        let a = lo + (hi - lo) * k as f64 / steps as f64;
+        let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
+        Rectangle::new([(0.0, a), (1.0, b)], colour(0.5 * (a + b)).filled())
+    }))
+    .map_err(|e| e.to_string())?;
+    for (k, note) in notes.iter().rev().enumerate() {
+        root.draw(&Text::new(
+            *note,
+            (14, height as i32 - 22 - 18 * k as i32),
+            (FAMILY, 13).into_font(),
+        ))
+        .map_err(|e| e.to_string())?;
+    }
+    root.present().map_err(|e| e.to_string())
 }

@@ -57,3 +57,39 @@ fn every_cell_state_gets_a_legend_line_and_room_under_the_map() {
     let one = draw(&[None, Some(2.0), Some(3.0), Some(4.0)], &[], &[]);
     assert_eq!(one, (900, 700 + 18));
 }
+
+#[test]
+fn a_path_ending_in_svg_gets_a_vector_heatmap_with_its_legend() {
+    let path = std::env::temp_dir().join(format!("pneuflex-heatmap-{}.svg", std::process::id()));
+    let ticks = ["1".to_string(), "2".to_string()];
+    write_heatmap(
+        &path,
+        &Heatmap {
+            title: "scene, run a: window.settling time [s]",
+            x_label: "environment.stiffness [N/m]",
+            x_ticks: &ticks,
+            y_label: "runs[*].inner.kp [1/m]",
+            y_ticks: &ticks,
+            cells: &[Some(0.3), Some(f64::INFINITY), None, Some(0.4)],
+            marked: &[],
+            mark_note: "* fragile",
+            flagged: &[false, true, false, false],
+            flag_note: "† not settled somewhere",
+            value_label: "window.settling time [s]",
+            diverging: false,
+        },
+    )
+    .unwrap();
+    let svg = std::fs::read_to_string(&path).unwrap();
+    let _ = std::fs::remove_file(&path);
+    assert!(svg.starts_with("<svg"), "{}", &svg[..60.min(svg.len())]);
+    for text in [
+        "environment.stiffness [N/m]",
+        "grey ×: no value",
+        "grey ∞: not settled",
+        "† not settled somewhere",
+        "∞†",
+    ] {
+        assert!(svg.contains(text), "{text}");
+    }
+}

@@ -42,7 +42,7 @@ struct Record<'a> {
 pub const MAX_HEATMAP_CELLS: usize = 65_536;
 
 /// Every figure's file name (relative) and its cells, for a two-key grid.
-fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<Map> {
+fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize, ext: &str) -> Vec<Map> {
     let Some(grid) = &sweep.points.grid else {
         return Vec::new();
     };
@@ -97,7 +97,7 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
     let what = with_unit(&name);
     for (k, run) in sweep.base_scene.runs.iter().enumerate() {
         out.push(Map {
-            file: format!("heatmap-{}-{name}.png", run.name),
+            file: format!("heatmap-{}-{name}.{ext}", run.name),
             title: format!(
                 "{scene}, run {} ({}): {what}",
                 run.name,
@@ -122,7 +122,7 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize) -> Vec<M
             &sweep.base_scene.runs[i].name,
         );
         out.push(Map {
-            file: format!("heatmap-{an}-minus-{inn}-{name}.png"),
+            file: format!("heatmap-{an}-minus-{inn}-{name}.{ext}"),
             title: format!("{scene}, {an} − {inn}: {what} (< 0: {an} lower)"),
             cells: cells(&|p| Some(value(p, a)? - value(p, i)?)),
             marked: marks(&|p| fragile(p, a) || fragile(p, i)),
@@ -140,6 +140,7 @@ pub fn write(
     sweep: &Sweep,
     results: &[PointResult],
     metrics: &[String],
+    format: pneuflex_plot::Format,
 ) -> Result<Vec<PathBuf>, SweepError> {
     let io = |p: &Path, e: std::io::Error| {
         SweepError::Other(format!("{}: cannot write: {e}", p.display()))
@@ -147,7 +148,7 @@ pub fn write(
     let csv = dir.join("sweep.csv");
     std::fs::write(&csv, sweep.table(results)).map_err(|e| io(&csv, e))?;
     let mut files = vec![PathBuf::from("sweep.csv")];
-    files.extend(write_figures(dir, sweep, results, metrics)?);
+    files.extend(write_figures(dir, sweep, results, metrics, format)?);
     Ok(files)
 }
 
@@ -211,6 +212,7 @@ pub fn write_figures(
     sweep: &Sweep,
     results: &[PointResult],
     metrics: &[String],
+    format: pneuflex_plot::Format,
 ) -> Result<Vec<PathBuf>, SweepError> {
     let mut files = Vec::new();
     let mut all_maps = Vec::new();
@@ -219,7 +221,7 @@ pub fn write_figures(
         if !has_heatmaps(sweep) {
             continue;
         }
-        let maps = heatmap_cells(sweep, results, metric_i);
+        let maps = heatmap_cells(sweep, results, metric_i, format.ext());
         write_maps(dir, sweep, &maps, metric_i, &mut files)?;
         all_maps.extend(maps.into_iter().map(|m| m.file));
     }
