@@ -216,6 +216,38 @@ def the_force_control_environment_is_the_scene_run_by_a_policy():
 
 
 @test
+def every_native_name_has_a_type_stub():
+    """pneuflex/_native.pyi declares every function, class and method the native module exports, with the
+    parameter names the module's own signatures give (a function added without its stub fails here)."""
+    import ast
+    import inspect
+
+    from pneuflex import _native
+
+    tree = ast.parse((Path(pneuflex.__file__).parent / "_native.pyi").read_text())
+    stubs = {}
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef):
+            stubs[node.name] = [a.arg for a in node.args.args]
+        elif isinstance(node, ast.ClassDef):
+            stubs[node.name] = {n.name: [a.arg for a in n.args.args] for n in node.body
+                                if isinstance(n, ast.FunctionDef)}
+    for name in (n for n in dir(_native) if not n.startswith("__") and n != "_workspace_dir"):
+        assert name in stubs, f"_native.{name} has no stub"
+        value = getattr(_native, name)
+        if isinstance(value, type):
+            for m in (m for m in vars(value) if not m.startswith("_")):
+                sig = getattr(getattr(value, m), "__text_signature__", None)
+                if sig:
+                    assert m in stubs[name], f"_native.{name}.{m} has no stub"
+                    params = [p for p in inspect.signature(getattr(value, m)).parameters if p != "self"]
+                    assert [a for a in stubs[name][m] if a != "self"] == params, (name, m, stubs[name][m], params)
+        elif callable(value):
+            params = list(inspect.signature(value).parameters)
+            assert stubs[name] == params, (name, stubs[name], params)
+
+
+@test
 def run_to_writes_what_the_cli_writes():
     """run_to goes through the CLI's output pipeline: the same trace files and summary.json, byte for byte,
     as `pneuflex run --out` (the debug binary the test command builds first); a directory pneuflex did not
