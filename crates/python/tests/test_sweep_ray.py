@@ -67,6 +67,10 @@ def test_ray_tune_equals_local_tune():
         a = pneuflex.tune(STEP, out=os.path.join(d, "local"), executor="local", **args)
         b = pneuflex.tune(STEP, out=os.path.join(d, "ray"), executor="ray", **args)
         assert a == b, (a, b)
+        # history.csv as a DataFrame: one row per evaluation.
+        h = a.history
+        assert len(h) == a["evaluations"] and list(h.columns[:3]) == ["evaluation", "generation",
+                                                                       "runs[impedance].impedance.b_d_ns_per_m"]
         for f in ("history.csv", "report.md", "ideal-step-tuned.toml", "tune.json", "convergence.png"):
             x = Path(d, "local", f).read_bytes()
             y = Path(d, "ray", f).read_bytes()

@@ -4,7 +4,8 @@
 and also ``.summary`` (summary.json as a dict), ``.claims``, ``.trace(run)`` / ``.traces`` (a DataFrame per run,
 indexed by ``t``), ``.metrics`` (one row per run and metric window) and ``.claims_frame``. ``pneuflex.sweep``
 returns a :class:`SweepTable`: sweep.csv's text as before, and ``.frame`` (the table as a DataFrame). pandas is
-imported only when a DataFrame is asked for (``pip install pandas``).
+imported only when a DataFrame is asked for (``pip install pandas``). ``pneuflex.tune`` returns a :class:`TuneResult`:
+tune.json as before, and ``.history``.
 """
 
 import io
@@ -79,6 +80,23 @@ class Results(dict):
                 row["earned_by"] = a["earned_by"]
             rows.append(row)
         return pd.DataFrame(rows)
+
+
+class TuneResult(dict):
+    """tune.json as a dict, with every evaluated candidate (history.csv) as a DataFrame in ``.history``."""
+
+    def __init__(self, record, out):
+        super().__init__(record)
+        #: The output directory the tune wrote.
+        self.out = out
+
+    @property
+    def history(self):
+        """One row per evaluation: its generation, the free keys' values, the objective J, its rank and J at
+        each environment of ``over``."""
+        import os
+
+        return _pandas().read_csv(os.path.join(self.out, "history.csv"))
 
 
 class SweepTable(str):

@@ -19,7 +19,7 @@ Executors:
 import math
 
 from . import _native
-from .frames import SweepTable
+from .frames import SweepTable, TuneResult
 
 
 class LocalExecutor:
@@ -100,7 +100,8 @@ def tune(scene, free, over=(), out="out/tune", run=None, terms=(), budget=200, s
          sigma0=0.3, executor="local", threads=0):
     """CMA-ES over ``free`` (``["KEY=[LO,HI]", ...]``) minimising the worst case over ``over``
     (``["KEY=V1,V2,..."]``) of the objective of ``pneuflex tune``; writes the tuned scene, report.md,
-    convergence.png, history.csv and tune.json into ``out`` and returns tune.json as a dict."""
+    convergence.png, history.csv and tune.json into ``out`` and returns tune.json as a dict (a ``TuneResult``, whose
+    ``.history`` is history.csv as a DataFrame)."""
     import json
 
     scene, free, over, terms = str(scene), [str(f) for f in free], [str(o) for o in over], [str(t) for t in terms]
@@ -126,4 +127,4 @@ def tune(scene, free, over=(), out="out/tune", run=None, terms=(), budget=200, s
     ) + ")"
     text = _native.tune_run(scene, free, over, str(out), run, terms, budget, seed, population, sigma0, n_threads,
                             evaluate, command)
-    return json.loads(text)
+    return TuneResult(json.loads(text), str(out))
