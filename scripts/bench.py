@@ -16,7 +16,8 @@ Each round times, in alternating order:
   alternate in ten slices per round, and the ratios are taken per round.
 Both sides settle into steady contact (1 s) before timing. Rates are simulated steps (control ticks for
 pneuflex, mj_steps for MuJoCo; equal at the scene's 1 ms) per wall-clock second; the ratio is taken per round.
-Then the peak RSS of whole `pneuflex run` processes (fig3, fig7; GNU time's %M). Nothing here asserts anything about speed.
+Then the Gymnasium task's env-steps per second (Rust batch, vector env, single env; `gym_rates`), and the peak RSS
+of whole `pneuflex run` processes (fig3, fig7; GNU time's %M). Nothing here asserts anything about speed.
 """
 
 from __future__ import annotations
@@ -176,6 +177,50 @@ def fmt_rate(xs: list[float]) -> str:
     return f"{med:>10,.0f} steps/s  ({1e6 / med:6.2f} us/step)   min {lo:>10,.0f}  max {hi:>10,.0f}"
 
 
+def gym_rates(rounds: int, quick: bool) -> None:
+    """Env-steps per second of the Gymnasium force-control task (docs/gymnasium.md) on paper-fig3, interleaved
+    over rounds: the Rust batch alone (`ForceControlBatch.step`, both cores), the same through the vector
+    environment (`gymnasium.make_vec`), and the single environment's Python step. Random valve commands,
+    domain randomisation on, next-step autoreset."""
+    try:
+        import gymnasium
+
+        import pneuflex.envs  # noqa: F401
+    except ImportError as e:
+        print(f"\n(Gymnasium rows skipped: {e})")
+        return
+    n = 1024
+    scene = str(ROOT / "scenes" / "paper-fig3.toml")
+    batch = pneuflex.ForceControlBatch(scene, n, randomize=True, autoreset=True)
+    batch.reset(1)
+    vec = gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=n, vectorization_mode="vector_entry_point")
+    vec.reset(seed=1)
+    single = gymnasium.make("pneuflex/ForceControl-v0")
+    single.reset(seed=1)
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-0.2, 0.2, (8, n))
+    steps = 20 if quick else 100
+
+    def timed(f, k: int, per: int) -> float:
+        t0 = time.perf_counter()
+        for i in range(k):
+            f(i)
+        return k * per / (time.perf_counter() - t0)
+
+    rates: dict[str, list[float]] = {"batch": [], "vector": [], "single": []}
+    for _ in range(rounds):
+        rates["batch"].append(timed(lambda i: batch.step(actions[i % 8]), steps, n))
+        rates["vector"].append(timed(lambda i: vec.step(actions[i % 8, :, None]), steps, n))
+        rates["single"].append(timed(lambda i: single.step(actions[i % 8, :1]), steps * 20, 1))
+    print(f"\nGymnasium force-control task on paper-fig3 (1 ms tick, 10 RK4 substeps; {n} episodes, "
+          f"{rounds} rounds, interleaved), env-steps per wall-clock second:")
+    print(f"  Rust batch (ForceControlBatch.step)      {fmt_rate(rates['batch'])}")
+    print(f"  vector env (gymnasium.make_vec)          {fmt_rate(rates['vector'])}")
+    print(f"  single env (gymnasium.make, Python step) {fmt_rate(rates['single'])}")
+
+
 def peak_rss(binary: Path, scene: str, out_root: Path) -> dict:
     """Peak RSS (MiB) and wall time (s) of one whole `pneuflex run` process.
 
@@ -329,6 +374,8 @@ def main() -> int:
             print("warning: MuJoCo reported a warning in the plugin's models (it reset their state)")
     m1 = os.getloadavg()
     print(f"  load average after: {m1[0]:.2f} {m1[1]:.2f} {m1[2]:.2f}")
+
+    gym_rates(args.rounds, args.quick)
 
     if not args.no_rss:
         binary = Path(args.rss_binary) if args.rss_binary else Path("target/release/pneuflex")

@@ -48,6 +48,11 @@ impl ImpedanceController {
         &self.filter
     }
 
+    /// Retunes the target impedance (m_d, b_d, k_d) from the next update on, the filter's state kept.
+    pub fn set_impedance(&mut self, params: ImpedanceParams) -> Result<(), ParamError> {
+        self.filter.set_params(params)
+    }
+
     /// The inner position loop.
     pub fn pid(&self) -> &Pid {
         &self.pid

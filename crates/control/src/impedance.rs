@@ -158,6 +158,16 @@ impl ImpedanceFilter {
         &self.params
     }
 
+    /// New parameters from the next step on, the state x_f, ẋ_f kept (a gain schedule, or a learned
+    /// policy that retunes the target impedance); validated, the filter unchanged on error.
+    pub fn set_params(&mut self, params: ImpedanceParams) -> Result<(), ParamError> {
+        params.validate()?;
+        self.params = params;
+        // The ZOH step is recomputed at the next step.
+        self.dt_cached = f64::NAN;
+        Ok(())
+    }
+
     /// Advances one period with the force error `e` (N) held constant; returns x_f (m) at the end
     /// of the period. eq. (22): x_f(s) = e(s) / (m_d s² + b_d s + k_d), discretised exactly (ZOH).
     pub fn step(&mut self, e: f64, dt: f64) -> f64 {

@@ -40,6 +40,46 @@ fn filter_step_matches_closed_form() {
     }
 }
 
+/// Retuned mid-run (k_d 800 -> 200 N/m at 1 s under a held error), the filter goes on from its state:
+/// the closed form of the new system from (x_f, ẋ_f) at the switch; bad parameters leave it unchanged.
+#[test]
+fn retuned_filter_continues_from_its_state() {
+    let (dt, e, m, b) = (1e-3, 10.0, 2.0, 20.0);
+    let params = |k| ImpedanceParams {
+        m_d_kg: m,
+        b_d_ns_per_m: b,
+        k_d_n_per_m: k,
+    };
+    let mut f = ImpedanceFilter::new(params(800.0)).unwrap();
+    for _ in 0..1000 {
+        f.step(e, dt);
+    }
+    let (x1, v1) = (f.x_f(), f.v_f());
+    let before = f;
+    assert!(f.set_params(params(f64::NAN)).is_err());
+    assert!(
+        f.set_params(ImpedanceParams {
+            m_d_kg: 0.0,
+            ..params(200.0)
+        })
+        .is_err()
+    );
+    assert_eq!(f, before, "a refused retune changes nothing");
+    f.set_params(params(200.0)).unwrap();
+    let k: f64 = 200.0;
+    let w = (k / m).sqrt();
+    let z = b / (2.0 * (m * k).sqrt());
+    let wd = w * (1.0 - z * z).sqrt();
+    let a = x1 - e / k;
+    let bb = (v1 + z * w * a) / wd;
+    for n in 1..=3000 {
+        let x = f.step(e, dt);
+        let t = n as f64 * dt;
+        let cf = e / k + (-z * w * t).exp() * (a * (wd * t).cos() + bb * (wd * t).sin());
+        assert!((x - cf).abs() < 1e-12, "t={t} {x} vs {cf}");
+    }
+}
+
 /// A one-period pulse: by superposition x(t) = s(t) - s(t - dt) with s the step response; and a
 /// large period (0.5 s, ω dt = 10) stays exact and stable where explicit Euler would diverge.
 #[test]

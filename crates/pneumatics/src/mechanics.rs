@@ -65,9 +65,21 @@ impl Friction {
     /// pressure difference, `F_c = F_c0 + k_p |p_a - p_b|` (and `F_s` by as much; docs/pneumatics.md).
     #[inline]
     pub fn with_normal_force(&self, extra: f64) -> Self {
+        self.map_forces(|f| f + extra)
+    }
+
+    /// The law with its Coulomb and break-away forces times `k` (velocities and bristle constants kept):
+    /// a seal that grips harder or looser, as domain randomisation draws it.
+    pub fn scaled(&self, k: f64) -> Self {
+        self.map_forces(|f| f * k)
+    }
+
+    /// The law with `op` applied to its Coulomb and break-away forces.
+    #[inline]
+    fn map_forces(&self, op: impl Fn(f64) -> f64) -> Self {
         let mut f = *self;
         match &mut f {
-            Friction::Smooth { coulomb_n, .. } => *coulomb_n += extra,
+            Friction::Smooth { coulomb_n, .. } => *coulomb_n = op(*coulomb_n),
             Friction::StickSlip {
                 coulomb_n,
                 static_n,
@@ -78,8 +90,8 @@ impl Friction {
                 static_n,
                 ..
             } => {
-                *coulomb_n += extra;
-                *static_n += extra;
+                *coulomb_n = op(*coulomb_n);
+                *static_n = op(*static_n);
             }
         }
         f

@@ -9,6 +9,7 @@
 
 mod controller;
 mod errors;
+mod gym;
 mod identify;
 mod model;
 mod plant;
@@ -30,6 +31,9 @@ mod _native {
 
     #[pymodule_export]
     use crate::plant::run_plant;
+
+    #[pymodule_export]
+    use crate::gym::PyForceControlBatch;
 
     #[pymodule_export]
     use crate::scene::{

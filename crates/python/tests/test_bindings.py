@@ -213,6 +213,167 @@ def the_force_control_environment_is_the_scene_run_by_a_policy():
     _, _, _, i3 = episode(wave, seed=6, randomize=True, cap=500)
     assert i1 == i2 and np.array_equal(one, two) and i3 != i1, (i1, i3)
     assert 350 <= i1["stiffness_n_per_m"] <= 2800 and 4 <= i1["t_change_s"] <= 8, i1
+    assert all(0.5 <= i[k] <= 2 for i in (i1, i3) for k in ("mass_scale", "friction_scale")), (i1, i3)
+    assert i1["mass_scale"] != i3["mass_scale"] and i1["friction_scale"] != i3["friction_scale"], (i1, i3)
+
+
+def _impedance_episode(env, cap=None):
+    """The RMS force error of one episode of the impedance action held at (0, 0): the scene's own gains."""
+    env.reset(seed=0, options={"randomize": False})
+    err = []
+    while True:
+        obs, _, term, trunc, step = env.step(np.zeros(2, np.float32))
+        err.append(obs[1] * 10.0 - step["f_e_n"])
+        if term or trunc or (cap and len(err) >= cap):
+            return np.sqrt(np.mean(np.square(err))), len(err)
+
+
+@test
+def the_impedance_action_at_zero_is_the_scene_impedance_run():
+    """pneuflex/ForceControlImpedance-v0 passes check_env; held at (0, 0) the controller keeps the scene's
+    m_d and b_d and the episode is pneuflex.run's impedance run, sampled every 10 ticks (RMS within 1e-6 of
+    the same samples of the trace); other adjustments change the force."""
+    import warnings
+
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pneuflex.envs  # noqa: F401
+
+    env = gymnasium.make("pneuflex/ForceControlImpedance-v0").unwrapped
+    assert env.action_space.shape == (2,)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(env, skip_render_check=True)
+    rms, n = _impedance_episode(env)
+    r = pneuflex.run(SCENE)["impedance"]
+    sampled = (r["f_ref"] - r["f_e"])[10::10]
+    assert n == len(sampled), (n, len(sampled))
+    want = np.sqrt(np.mean(sampled ** 2))
+    assert abs(rms / want - 1) < 1e-6, (rms, want)
+    # Softer target inertia, more damping: another response.
+    env.reset(seed=0, options={"randomize": False})
+    obs = [env.step(np.array([-1.0, 1.0], np.float32))[0] for _ in range(300)]
+    env.reset(seed=0, options={"randomize": False})
+    same = [env.step(np.zeros(2, np.float32))[0] for _ in range(300)]
+    assert np.abs(np.array(obs)[:, 0] - np.array(same)[:, 0]).max() > 0.05
+
+
+@test
+def the_vector_environment_is_many_single_ones():
+    """gymnasium.make_vec(..., vectorization_mode="vector_entry_point") gives the Rust batch: each of its
+    episodes, fed its own actions, is the single environment fed the same ones, to the bit; a seed repeats
+    the batch's draws; an episode that ends is reset by the next step (reward 0, its first observation)."""
+    import gymnasium
+
+    import pneuflex.envs as envs
+
+    n = 6
+    vec = gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=n, vectorization_mode="vector_entry_point")
+    assert isinstance(vec.unwrapped, envs.ForceControlVector), type(vec.unwrapped)
+    assert vec.observation_space.shape == (n, 6) and vec.action_space.shape == (n, 1)
+    single = envs.ForceControl()
+    u = np.linspace(-0.15, 0.15, n)[:, None]
+    obs0, _ = vec.reset(seed=1, options={"randomize": False})
+    got = [obs0]
+    for k in range(200):
+        obs, r, term, trunc, _ = vec.step(u * math.sin(0.05 * k))
+        got.append(obs)
+        assert not (term.any() or trunc.any())
+    got = np.array(got)
+    for i in range(n):
+        o, _ = single.reset(seed=1, options={"randomize": False})
+        want = [o] + [single.step(u[i] * math.sin(0.05 * k))[0] for k in range(200)]
+        assert np.array_equal(got[:, i], np.array(want)), i
+    # Seeds: the same seed the same draws, another seed others, all within their ranges.
+    _, a = vec.reset(seed=7)
+    _, b = vec.reset(seed=7)
+    _, c = vec.reset(seed=8)
+    assert all(np.array_equal(a[k], b[k]) for k in envs.PARAMS)
+    assert not np.array_equal(a["stiffness_n_per_m"], c["stiffness_n_per_m"])
+    assert len(set(a["mass_scale"])) == n and ((0.5 <= a["mass_scale"]) & (a["mass_scale"] <= 2)).all()
+    # A list of seeds: episode i draws what the single environment draws for seed[i].
+    _, d = vec.reset(seed=[30 + i for i in range(n)])
+    for i in range(n):
+        _, info = single.reset(seed=30 + i)
+        assert all(d[k][i] == info[k] for k in envs.PARAMS), (i, info)
+    # Full retraction: the flange reaches its end stop, terminated; the next step starts a new episode.
+    vec.reset(seed=2)
+    for k in range(5000):
+        obs, r, term, trunc, _ = vec.step(-np.ones((n, 1)))
+        if term.any():
+            break
+    assert term.any(), "full retraction never reached the end stop"
+    ended = term.copy()
+    # Ending at the end stop forfeits every remaining tick at zero force: f_ref = 10 N before 3 s, then
+    # 10 + 2 sin(2 pi (t - 3)) N (paper-fig3), summed here in closed form.
+    t_end = (k + 1) * 1e-3
+    rest = t_end + 1e-3 * np.arange(1, round((10.0 - t_end) / 1e-3) + 1)
+    f_ref = np.where(rest < 3.0, 10.0, 10.0 + 2.0 * np.sin(2 * np.pi * (rest - 3.0)))
+    f_now = 10.0 if t_end < 3.0 else 10.0 + 2.0 * math.sin(2 * math.pi * (t_end - 3.0))
+    want = -((f_now - obs[ended, 0] * 10.0) / 10.0) ** 2 - np.sum((f_ref / 10.0) ** 2)
+    assert np.allclose(r[ended], want, rtol=1e-9), (r[ended], want)
+    obs, r, term, trunc, _ = vec.step(-np.ones((n, 1)))
+    assert (r[ended] == 0).all() and not term[ended].any()
+    assert (np.abs(obs[ended, 2]) < 1e-6).all(), obs[ended]  # x = x_e: the scene's start, touching
+    try:
+        vec.step(np.zeros(n + 1))
+    except ValueError as e:
+        assert "values for 6 environments" in str(e), e
+    else:
+        raise AssertionError("a wrong number of actions was accepted")
+    try:
+        pneuflex.ForceControlBatch(SCENE, 2, action="torque")
+    except pneuflex.PneuflexError as e:
+        assert "paper-fig3.toml" in str(e) and "action" in str(e), e
+    else:
+        raise AssertionError("an unknown action was accepted")
+
+
+@test
+def the_gymnasium_examples_run():
+    """crates/python/examples: the random policy, the adaptive baseline (on the scene's own values it is the
+    scene's adaptive run: RMS 1.699 N) and a small CEM over the impedance gains run to their end."""
+    import subprocess
+
+    ex = ROOT / "crates" / "python" / "examples"
+    runs = {
+        "random_policy.py": ["--episodes", "1"],
+        "adaptive_baseline.py": ["--episodes", "1"],
+        "cem_impedance.py": ["--iterations", "1", "--population", "4", "--episodes", "1"],
+    }
+    out = {}
+    for name, argv in runs.items():
+        r = subprocess.run([sys.executable, str(ex / name), *argv], capture_output=True, text=True, cwd=ex,
+                           timeout=300)
+        assert r.returncode == 0, (name, r.stderr)
+        out[name] = r.stdout
+    assert "RMS force error 1.699 N" in out["adaptive_baseline.py"], out["adaptive_baseline.py"]
+    assert "held-out return" in out["cem_impedance.py"] and "seed 0:" in out["random_policy.py"], out
+
+
+@test
+def the_multibody_environment_is_the_multibody_scene():
+    """pneuflex/MultibodyForceControl-v0 runs the Rapier rig: it passes check_env, and the impedance action at
+    (0, 0) over the first 2 s follows the multibody scene's impedance run (RMS within 1e-6)."""
+    import warnings
+
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pneuflex.envs  # noqa: F401
+
+    env = gymnasium.make("pneuflex/MultibodyForceControl-v0").unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(env, skip_render_check=True)
+    scene = str(ROOT / "scenes" / "paper-fig3-multibody.toml")
+    imp = gymnasium.make("pneuflex/MultibodyForceControl-v0", action="impedance").unwrapped
+    rms, n = _impedance_episode(imp, cap=200)
+    r = pneuflex.run(scene)["impedance"]
+    sampled = (r["f_ref"] - r["f_e"])[10:10 * n + 1:10]
+    want = np.sqrt(np.mean(sampled ** 2))
+    assert len(sampled) == n and abs(rms / want - 1) < 1e-6, (rms, want, n)
 
 
 @test

@@ -10,6 +10,9 @@ The classes and functions come from the Rust crates through the native module ``
   rigid-body engine (MuJoCo in crossval/).
 - ``Controller(kind, impedance, inner, adaptive=None)`` / ``Controller.from_scene(path, run)``;
   ``update(t, x, x_dot, f_e, p_a, p_b, f_ref, x_d, dt) -> u``, ``telemetry()``.
+- ``ForceControlBatch(scene_path, num_envs=1, randomize=True, autoreset=False, action="valve")``: episodes of the
+  force-control task stepped in Rust, in parallel (``step(actions) -> (obs, rewards, terminated, truncated)``);
+  the Gymnasium environments of ``pneuflex.envs`` stand on it.
 - ``Setpoints(scene_path).at(t) -> (f_ref, x_d)``; ``load_scene(path) -> dict``; ``initial_state(path)``.
 - ``run(scene_path) -> Results``: ``{run: {column: ndarray}}`` with ``.summary``, ``.claims``, ``.trace(run)``
   (a pandas DataFrame indexed by t), ``.metrics`` and ``.claims_frame`` (``pneuflex.frames``); ``run_with_summary``; ``summarize(scene_path, traces)``

@@ -99,6 +99,11 @@ impl OneDofPneumatic {
     pub fn environment(&self) -> LinearSpring {
         self.env
     }
+
+    /// RK4 steps per control period.
+    pub fn substeps(&self) -> u32 {
+        self.substeps
+    }
 }
 
 impl crate::plants::Linearisable for OneDofPneumatic {

@@ -1,0 +1,689 @@
+//! The force-control task of `pneuflex.envs` (Gymnasium), stepped in Rust: a batch of episodes of a
+//! 1-DOF pneumatic scene, each its own plant (the scene crate's [`OneDofPneumatic`], the plant
+//! `pneuflex.run` simulates), spring environment, events and domain-randomised parameters.
+//!
+//! One `step` advances every episode by one control tick under its valve command, in parallel over the
+//! machine's cores with the GIL released. `ForceControl` is a batch of one, `ForceControlVector` the
+//! `gymnasium.vector.VectorEnv` over a batch of many: one implementation of the task for both.
+
+use std::path::{Path, PathBuf};
+
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
+use pneuflex_control::{
+    Controller, ImpedanceController, ImpedanceParams, Sensors, SetpointSchedule, Telemetry,
+    ValveCommand,
+};
+use pneuflex_scene::plants::{LinearSpring, MultibodyPlant, OneDofPneumatic, Plant};
+use pneuflex_scene::schema::{ControllerKind, EventSpec, PlantSpec};
+use pneuflex_scene::{Scene, SceneError};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+use crate::errors;
+
+/// Observation scales: f_e and f_ref in 10 N, x - x_e in 10 mm, velocity in 0.1 m/s, pressures in bar.
+pub const SCALES: [f64; OBS] = [10.0, 10.0, 0.01, 0.1, 1e5, 1e5];
+/// Length of an observation: f_e, f_ref, x - x_e, x_dot, p_a, p_b.
+const OBS: usize = 6;
+
+/// What domain randomisation draws from at each reset: every range is log-uniform but the switch time's.
+#[derive(Clone, Copy, Debug)]
+struct Ranges {
+    /// The stiffness before and after the change, each log-uniform, N/m (the paper's 350-2800 N/m).
+    stiffness_n_per_m: (f64, f64),
+    /// The time of the stiffness change, uniform, s.
+    t_change_s: (f64, f64),
+    /// The moving mass as a multiple of the sheet's, log-uniform.
+    mass_scale: (f64, f64),
+    /// The seal friction's Coulomb and break-away forces as a multiple of the sheet's, log-uniform.
+    friction_scale: (f64, f64),
+}
+
+const RANGES: Ranges = Ranges {
+    stiffness_n_per_m: (350.0, 2800.0),
+    t_change_s: (4.0, 8.0),
+    mass_scale: (0.5, 2.0),
+    friction_scale: (0.5, 2.0),
+};
+
+fn log_uniform(rng: &mut StdRng, (lo, hi): (f64, f64)) -> f64 {
+    (lo.ln() + rng.random::<f64>() * (hi.ln() - lo.ln())).exp()
+}
+
+/// One episode's physical parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Draw {
+    k_before: f64,
+    k_after: f64,
+    t_change_s: f64,
+    mass_scale: f64,
+    friction_scale: f64,
+}
+
+/// What an action is.
+#[derive(Clone, Debug)]
+enum Action {
+    /// The valve command u in [-1, 1], held over one control tick.
+    Valve,
+    /// Adjustments (a_m, a_b) in [-1, 1]^2 of the scene's impedance controller, which then runs each
+    /// tick: m_d = m_d0 4^a_m, b_d = b_d0 4^a_b (k_d kept), held over `ticks` control ticks.
+    Impedance {
+        /// The scene's impedance run's controller, its m_d0, b_d0, k_d0.
+        controller: Box<ImpedanceController>,
+        ticks: u32,
+    },
+}
+
+impl Action {
+    /// Values in one action.
+    fn width(&self) -> usize {
+        match self {
+            Action::Valve => 1,
+            Action::Impedance { .. } => 2,
+        }
+    }
+}
+
+/// The scene's values: what every episode starts from.
+struct Task {
+    action: Action,
+    scene: Scene,
+    /// A 1-DOF pneumatic scene's plant at its initial state: each episode is built from its model with the
+    /// draw's mass and friction. None for a multibody scene, whose episodes reset their own plant.
+    one_dof: Option<OneDofPneumatic>,
+    setpoints: SetpointSchedule,
+    /// The scene's events in time order.
+    events: Vec<EventSpec>,
+    /// The scene's own parameters (no randomisation).
+    own: Draw,
+    dt: f64,
+    duration: f64,
+    x_e: f64,
+    stroke: f64,
+}
+
+impl Task {
+    fn load(path: &Path, action: &str, decision_ticks: u32) -> Result<Self, SceneError> {
+        let scene = Scene::load(path)?;
+        let action = match action {
+            "valve" => Action::Valve,
+            "impedance" => {
+                let run = scene
+                    .runs
+                    .iter()
+                    .find(|r| r.controller == ControllerKind::Impedance && r.frozen.is_none())
+                    .ok_or_else(|| {
+                        scene.invalid(
+                            "runs",
+                            "no impedance run: the impedance action retunes the scene's impedance controller".into(),
+                        )
+                    })?;
+                let controller = ImpedanceController::new(run.impedance, run.inner)
+                    .map_err(|e| scene.invalid("runs", e.to_string()))?;
+                Action::Impedance {
+                    controller: Box::new(controller),
+                    ticks: decision_ticks.max(1),
+                }
+            }
+            other => {
+                return Err(SceneError::Plant {
+                    file: scene.source.clone(),
+                    message: format!("action = {other:?}: expected \"valve\" or \"impedance\""),
+                });
+            }
+        };
+        let env = LinearSpring {
+            stiffness_n_per_m: scene.environment.stiffness_n_per_m,
+            x_e_m: scene.environment.x_e_m,
+        };
+        let one_dof = match scene.plant {
+            PlantSpec::Pneumatic { .. } => Some(OneDofPneumatic::from_scene(&scene, env)?),
+            PlantSpec::Multibody(_) => None,
+            _ => {
+                return Err(scene.invalid(
+                    "plant.kind",
+                    format!(
+                        "is {:?}; the force-control environment needs a pneumatic or multibody plant (a valve to command)",
+                        scene.plant.kind()
+                    ),
+                ));
+            }
+        };
+        let mut events = scene.events.clone();
+        events.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+        let change = events.iter().find_map(|e| match *e {
+            EventSpec::Stiffness {
+                t_s,
+                stiffness_n_per_m,
+                ..
+            } => Some((t_s, stiffness_n_per_m)),
+            _ => None,
+        });
+        let k0 = env.stiffness_n_per_m;
+        let (t_change_s, k_after) = change.unwrap_or((f64::INFINITY, k0));
+        let mut task = Self {
+            action,
+            one_dof,
+            setpoints: scene.setpoints()?,
+            events,
+            own: Draw {
+                k_before: k0,
+                k_after,
+                t_change_s,
+                mass_scale: 1.0,
+                friction_scale: 1.0,
+            },
+            dt: scene.dt_s,
+            duration: scene.duration_s,
+            x_e: env.x_e_m,
+            stroke: f64::INFINITY,
+            scene,
+        };
+        let plant = task.build()?;
+        task.stroke = plant
+            .actuator_geometry()
+            .map_or(f64::INFINITY, |g| g.stroke_m);
+        // Every event must be one this plant takes (validation says so too; here it is the environment's).
+        for (i, ev) in task.scene.events.iter().enumerate() {
+            task.build()?
+                .apply(ev)
+                .map_err(|e| task.scene.invalid(&format!("events[{i}]"), e.to_string()))?;
+        }
+        Ok(task)
+    }
+
+    /// A new plant of the scene at its initial state.
+    fn build(&self) -> Result<Box<dyn Plant + Send + Sync>, SceneError> {
+        Ok(match &self.one_dof {
+            Some(p) => Box::new(p.clone()),
+            None => Box::new(MultibodyPlant::from_scene(&self.scene)?),
+        })
+    }
+
+    /// The draw of a new episode (the scene's own values without randomisation; the multibody plant's
+    /// mass and friction are its URDF's and its sheet's, not drawn).
+    fn draw(&self, rng: &mut StdRng, randomize: bool) -> Draw {
+        if !randomize {
+            return self.own;
+        }
+        let r = RANGES;
+        let one_dof = self.one_dof.is_some();
+        Draw {
+            k_before: log_uniform(rng, r.stiffness_n_per_m),
+            k_after: log_uniform(rng, r.stiffness_n_per_m),
+            t_change_s: r.t_change_s.0 + rng.random::<f64>() * (r.t_change_s.1 - r.t_change_s.0),
+            mass_scale: if one_dof {
+                log_uniform(rng, r.mass_scale)
+            } else {
+                1.0
+            },
+            friction_scale: if one_dof {
+                log_uniform(rng, r.friction_scale)
+            } else {
+                1.0
+            },
+        }
+    }
+
+    /// The reward of the ticks after `t` to the episode's end with no contact force, -Σ (f_ref / 10 N)^2:
+    /// what an episode that ends at an end stop forfeits, so that ending early never pays.
+    fn forfeit(&self, t: f64) -> f64 {
+        let ticks = ((self.duration - t) / self.dt).round().max(0.0) as u64;
+        -(1..=ticks)
+            .map(|k| (self.setpoints.at(t + k as f64 * self.dt).f_ref / SCALES[0]).powi(2))
+            .sum::<f64>()
+    }
+
+    /// The scene's events, with its first stiffness change (or one added) at the draw's time and value.
+    fn events(&self, draw: &Draw) -> Vec<EventSpec> {
+        let mut events = self.events.clone();
+        let first = events
+            .iter()
+            .position(|e| matches!(e, EventSpec::Stiffness { .. }));
+        match first {
+            Some(i) => {
+                if let EventSpec::Stiffness {
+                    t_s,
+                    stiffness_n_per_m,
+                    ..
+                } = &mut events[i]
+                {
+                    (*t_s, *stiffness_n_per_m) = (draw.t_change_s, draw.k_after);
+                }
+            }
+            None if draw.t_change_s.is_finite() => events.push(EventSpec::Stiffness {
+                t_s: draw.t_change_s,
+                stiffness_n_per_m: draw.k_after,
+                material: None,
+                damping_n_s_per_m: None,
+            }),
+            None => {}
+        }
+        events.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+        events
+    }
+}
+
+/// One running episode.
+struct Episode {
+    plant: Box<dyn Plant + Send + Sync>,
+    /// The impedance action's controller, at the scene's parameters at each restart.
+    controller: Option<ImpedanceController>,
+    events: Vec<EventSpec>,
+    /// The first event not yet applied.
+    next: usize,
+    t: f64,
+    draw: Draw,
+    /// The episode's own generator: its next reset draws from it.
+    rng: StdRng,
+    /// Terminated or truncated at the last step: the next step resets it (Gymnasium's next-step autoreset).
+    ended: bool,
+}
+
+impl Episode {
+    fn new(task: &Task, rng: StdRng) -> Result<Self, SceneError> {
+        let mut e = Self {
+            plant: task.build()?,
+            controller: None,
+            events: Vec::new(),
+            next: 0,
+            t: 0.0,
+            draw: task.own,
+            rng,
+            ended: false,
+        };
+        e.restart(task, false);
+        Ok(e)
+    }
+
+    /// Starts a new episode with a new draw (the scene's own values unless `randomize`).
+    fn restart(&mut self, task: &Task, randomize: bool) {
+        let draw = task.draw(&mut self.rng, randomize);
+        match &task.one_dof {
+            Some(p) => {
+                let mut model = *p.model();
+                model.mechanics.moving_mass_kg *= draw.mass_scale;
+                model.mechanics.friction = model.mechanics.friction.scaled(draw.friction_scale);
+                let env = LinearSpring {
+                    stiffness_n_per_m: draw.k_before,
+                    x_e_m: task.x_e,
+                };
+                // The chambers start at the static balance of this episode's mass (OneDofPneumatic::new).
+                self.plant = Box::new(OneDofPneumatic::new(model, p.state().x, env, p.substeps()));
+            }
+            None => {
+                self.plant.reset();
+                // The material facing the flange at the draw's stiffness (checked at load: it takes it).
+                let _ = self.plant.apply(&EventSpec::Stiffness {
+                    t_s: 0.0,
+                    stiffness_n_per_m: draw.k_before,
+                    material: None,
+                    damping_n_s_per_m: None,
+                });
+            }
+        }
+        self.controller = match task.action {
+            Action::Impedance { ref controller, .. } => Some(**controller),
+            Action::Valve => None,
+        };
+        self.events = task.events(&draw);
+        self.draw = draw;
+        self.next = 0;
+        self.t = 0.0;
+        self.ended = false;
+        self.apply_due();
+    }
+
+    /// Applies the events due at the current time, as the scene loop does before it senses.
+    fn apply_due(&mut self) {
+        while let Some(ev) = self.events.get(self.next) {
+            if ev.t_s() > self.t + 1e-9 {
+                break;
+            }
+            // Checked when the task was loaded: the plant takes each of the scene's events.
+            let _ = self.plant.apply(ev);
+            self.next += 1;
+        }
+    }
+
+    fn observe(&self, task: &Task, out: &mut [f32]) {
+        let s = self.plant.sense();
+        let f_ref = task.setpoints.at(self.t).f_ref;
+        let raw = [s.f_e, f_ref, s.x - task.x_e, s.x_dot, s.p_a, s.p_b];
+        for ((o, r), k) in out.iter_mut().zip(raw).zip(SCALES) {
+            *o = (r / k) as f32;
+        }
+    }
+
+    /// One action: a control tick under a valve command, or a retune of the impedance controller and
+    /// its ticks; the rewards summed over the ticks.
+    fn step(&mut self, task: &Task, action: &[f64]) -> Outcome {
+        let clamp = |a: f64| {
+            if a.is_finite() {
+                a.clamp(-1.0, 1.0)
+            } else {
+                0.0
+            }
+        };
+        let Some(c) = self.controller.as_mut() else {
+            let (reward, terminated, truncated) = self.tick(task, action[0]);
+            return Outcome {
+                reward,
+                terminated,
+                truncated,
+            };
+        };
+        let Action::Impedance { controller, ticks } = &task.action else {
+            unreachable!("an episode has a controller only under the impedance action")
+        };
+        let p0 = controller.filter().params();
+        let retuned = ImpedanceParams {
+            m_d_kg: p0.m_d_kg * 4f64.powf(clamp(action[0])),
+            b_d_ns_per_m: p0.b_d_ns_per_m * 4f64.powf(clamp(action[1])),
+            k_d_n_per_m: p0.k_d_n_per_m,
+        };
+        // Positive and finite by construction: the scene's parameters were validated.
+        let _ = c.set_impedance(retuned);
+        let mut out = Outcome::default();
+        for _ in 0..*ticks {
+            let mut s: Sensors = self.plant.sense();
+            s.t = self.t;
+            let sp = task.setpoints.at(self.t);
+            let u = self
+                .controller
+                .as_mut()
+                .map_or(0.0, |c| c.update(&s, &sp, task.dt).u);
+            let (reward, terminated, truncated) = self.tick(task, u);
+            out.reward += reward;
+            (out.terminated, out.truncated) = (terminated, truncated);
+            if terminated || truncated {
+                break;
+            }
+        }
+        out
+    }
+
+    /// One control tick under valve command `u`: (reward, terminated, truncated).
+    fn tick(&mut self, task: &Task, u: f64) -> (f64, bool, bool) {
+        let u = if u.is_finite() {
+            u.clamp(-1.0, 1.0)
+        } else {
+            0.0
+        };
+        self.plant
+            .actuate(ValveCommand { u }, &Telemetry::default());
+        self.plant.advance(task.dt);
+        self.t += task.dt;
+        self.apply_due();
+        let s = self.plant.sense();
+        let f_ref = task.setpoints.at(self.t).f_ref;
+        // The squared force error the paper's RMS metric sums, in (10 N)^2.
+        let reward = -((f_ref - s.f_e) / SCALES[0]).powi(2);
+        let terminated = s.x <= 0.0 || s.x >= task.stroke || !s.x.is_finite();
+        let truncated = self.t >= task.duration - 0.5 * task.dt;
+        if terminated && !truncated {
+            return (reward + task.forfeit(self.t), true, false);
+        }
+        (reward, terminated, truncated)
+    }
+}
+
+/// What one step of the batch returns for one episode.
+#[derive(Clone, Copy, Default)]
+struct Outcome {
+    reward: f64,
+    terminated: bool,
+    truncated: bool,
+}
+
+/// A batch of force-control episodes on a 1-DOF pneumatic scene (the Rust side of `pneuflex.envs`).
+#[pyclass(name = "ForceControlBatch", module = "pneuflex")]
+pub struct PyForceControlBatch {
+    task: Task,
+    episodes: Vec<Episode>,
+    randomize: bool,
+    /// Whether an ended episode is reset by the next step (a vector environment) or stays ended.
+    autoreset: bool,
+}
+
+/// A reset's seed: one for the batch, or one per episode.
+#[derive(FromPyObject)]
+enum Seeds {
+    One(u64),
+    Each(Vec<u64>),
+}
+
+fn seeded(seed: u64, i: usize) -> StdRng {
+    // Each episode its own stream: the seed and the index mixed (SplitMix64's increment).
+    StdRng::seed_from_u64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+}
+
+#[pymethods]
+impl PyForceControlBatch {
+    /// `num_envs` episodes of the scene at `scene_path` (a pneumatic 1-DOF or a multibody scene), at the
+    /// scene's values until reset. `randomize`: draw each episode's stiffness before and after the change
+    /// (log-uniform 350-2800 N/m), the change's time (uniform 4-8 s) and, on the 1-DOF plant, the moving
+    /// mass and the seal friction (each log-uniform 0.5-2x the sheet's) at every reset; otherwise the
+    /// scene's own values. `autoreset`: a step resets an episode that ended at the step before
+    /// (Gymnasium's next-step autoreset), returning its first observation. `action`: "valve" (u, one tick
+    /// per step) or "impedance" (a_m, a_b retune the scene's impedance run: m_d = m_d0 4^a_m,
+    /// b_d = b_d0 4^a_b, then `decision_ticks` ticks of that controller per step, the rewards summed).
+    #[new]
+    #[pyo3(signature = (scene_path, num_envs = 1, randomize = true, autoreset = false, action = "valve", decision_ticks = 10))]
+    fn new(
+        scene_path: PathBuf,
+        num_envs: usize,
+        randomize: bool,
+        autoreset: bool,
+        action: &str,
+        decision_ticks: u32,
+    ) -> PyResult<Self> {
+        if num_envs == 0 {
+            return Err(PyValueError::new_err("num_envs must be at least 1"));
+        }
+        let task = Task::load(&scene_path, action, decision_ticks).map_err(errors::scene)?;
+        let episodes = (0..num_envs)
+            .map(|i| Episode::new(&task, seeded(0, i)))
+            .collect::<Result<_, _>>()
+            .map_err(errors::scene)?;
+        Ok(Self {
+            task,
+            episodes,
+            randomize,
+            autoreset,
+        })
+    }
+
+    /// Starts every episode afresh: episode i's generator from (`seed`, i), or from (`seed[i]`, 0) when
+    /// `seed` is a list of one seed per episode (episode i then draws what a batch of one reset with
+    /// `seed[i]` draws); `randomize` overrides the batch's setting for these episodes (and their
+    /// autoresets). Returns the observations (num_envs, 6).
+    #[pyo3(signature = (seed, randomize = None))]
+    fn reset<'py>(
+        &mut self,
+        py: Python<'py>,
+        seed: Seeds,
+        randomize: Option<bool>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let n = self.episodes.len();
+        if let Seeds::Each(s) = &seed
+            && s.len() != n
+        {
+            return Err(PyValueError::new_err(format!(
+                "seed: {} seeds for {n} environments",
+                s.len()
+            )));
+        }
+        if let Some(r) = randomize {
+            self.randomize = r;
+        }
+        let task = &self.task;
+        let randomize = self.randomize;
+        for (i, e) in self.episodes.iter_mut().enumerate() {
+            e.rng = match &seed {
+                Seeds::One(s) => seeded(*s, i),
+                Seeds::Each(s) => seeded(s[i], 0),
+            };
+            e.restart(task, randomize);
+        }
+        Ok(self.observations(py))
+    }
+
+    /// One control tick of every episode under `actions` (one valve command in [-1, 1] each; NaN is 0):
+    /// (observations (num_envs, 6) float32, rewards, terminated, truncated).
+    #[allow(clippy::type_complexity)]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<(
+        Bound<'py, PyArray2<f32>>,
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<bool>>,
+        Bound<'py, PyArray1<bool>>,
+    )> {
+        let n = self.episodes.len();
+        let width = self.task.action.width();
+        let u = actions.as_slice()?;
+        if u.len() != n * width {
+            return Err(PyValueError::new_err(format!(
+                "actions: {} values for {n} environments of {width} each",
+                u.len()
+            )));
+        }
+        let u = u.to_vec();
+        let mut obs = vec![0f32; n * OBS];
+        let mut out = vec![Outcome::default(); n];
+        let (task, randomize, autoreset) = (&self.task, self.randomize, self.autoreset);
+        let episodes = &mut self.episodes;
+        py.detach(|| {
+            // Chunks of episodes to the cores: an episode's tick is about a microsecond.
+            let chunk = n.div_ceil(4 * rayon::current_num_threads()).max(16);
+            episodes
+                .par_chunks_mut(chunk)
+                .zip(obs.par_chunks_mut(chunk * OBS))
+                .zip(out.par_chunks_mut(chunk))
+                .zip(u.par_chunks(chunk * width))
+                .for_each(|(((eps, obs), out), u)| {
+                    for (((e, o), r), u) in eps
+                        .iter_mut()
+                        .zip(obs.chunks_mut(OBS))
+                        .zip(out.iter_mut())
+                        .zip(u.chunks(width))
+                    {
+                        if e.ended && autoreset {
+                            e.restart(task, randomize);
+                        } else {
+                            *r = e.step(task, u);
+                            e.ended = r.terminated || r.truncated;
+                        }
+                        e.observe(task, o);
+                    }
+                });
+        });
+        let obs = obs.into_pyarray(py).reshape([n, OBS])?;
+        let rewards = out.iter().map(|o| o.reward).collect::<Vec<_>>();
+        let term = out.iter().map(|o| o.terminated).collect::<Vec<_>>();
+        let trunc = out.iter().map(|o| o.truncated).collect::<Vec<_>>();
+        Ok((
+            obs,
+            rewards.into_pyarray(py),
+            term.into_pyarray(py),
+            trunc.into_pyarray(py),
+        ))
+    }
+
+    /// Each episode's parameters as arrays: stiffness_n_per_m (before the change),
+    /// stiffness_after_n_per_m, t_change_s, mass_scale, friction_scale.
+    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        let col = |f: fn(&Draw) -> f64| {
+            self.episodes
+                .iter()
+                .map(|e| f(&e.draw))
+                .collect::<Vec<_>>()
+                .into_pyarray(py)
+        };
+        d.set_item("stiffness_n_per_m", col(|d| d.k_before))?;
+        d.set_item("stiffness_after_n_per_m", col(|d| d.k_after))?;
+        d.set_item("t_change_s", col(|d| d.t_change_s))?;
+        d.set_item("mass_scale", col(|d| d.mass_scale))?;
+        d.set_item("friction_scale", col(|d| d.friction_scale))?;
+        Ok(d)
+    }
+
+    /// Episode `i`'s time and sensors in SI (pressures absolute): (t, x, x_dot, f_e, p_a, p_b); a
+    /// controller reads them as a policy.
+    fn sensors(&self, i: usize) -> PyResult<(f64, f64, f64, f64, f64, f64)> {
+        let e = self.episodes.get(i).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "environment {i} out of range: the batch has {}",
+                self.episodes.len()
+            ))
+        })?;
+        let s = e.plant.sense();
+        Ok((e.t, s.x, s.x_dot, s.f_e, s.p_a, s.p_b))
+    }
+
+    /// The scene's (f_ref N, x_d m) at time `t` s.
+    fn setpoint(&self, t: f64) -> (f64, f64) {
+        let s = self.task.setpoints.at(t);
+        (s.f_ref, s.x_d)
+    }
+
+    /// Number of episodes.
+    #[getter]
+    fn num_envs(&self) -> usize {
+        self.episodes.len()
+    }
+
+    /// Values per action: 1 (the valve command) or 2 (the impedance adjustments a_m, a_b).
+    #[getter]
+    fn action_width(&self) -> usize {
+        self.task.action.width()
+    }
+
+    /// Control ticks per step: 1 under the valve action, `decision_ticks` under the impedance action.
+    #[getter]
+    fn ticks_per_step(&self) -> u32 {
+        match self.task.action {
+            Action::Valve => 1,
+            Action::Impedance { ticks, .. } => ticks,
+        }
+    }
+
+    /// The control tick, s.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.task.dt
+    }
+
+    /// The episode's length, s (the scene's duration).
+    #[getter]
+    fn duration(&self) -> f64 {
+        self.task.duration
+    }
+
+    /// The observation scales (f_e, f_ref, x - x_e, x_dot, p_a, p_b in SI divided by these).
+    #[getter]
+    fn scales(&self) -> [f64; OBS] {
+        SCALES
+    }
+}
+
+impl PyForceControlBatch {
+    fn observations<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
+        let n = self.episodes.len();
+        let mut obs = vec![0f32; n * OBS];
+        for (e, o) in self.episodes.iter().zip(obs.chunks_mut(OBS)) {
+            e.observe(&self.task, o);
+        }
+        obs.into_pyarray(py)
+            .reshape([n, OBS])
+            .expect("n * 6 values reshape to (n, 6)")
+    }
+}
