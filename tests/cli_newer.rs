@@ -1072,3 +1072,118 @@ fn a_signal_leaves_the_previous_output_and_a_marked_partial() {
         "no fitted sheet"
     );
 }
+
+/// `--format pdf` on every command that draws (`run` is checked in cli_run.rs): sweep's heatmaps, tune's
+/// convergence plot, identify's validation figure, compare's figures, `rig run`'s recording figures and
+/// `tf --bode FILE.pdf` are PDFs, named with the extension; no PNG is left beside them.
+#[test]
+fn every_command_that_draws_writes_pdf() {
+    let d = scratch("pdf");
+    let dir = d.path();
+    let scene = ideal_scene(dir);
+    let (truth, rec) = recording(dir);
+    let pdfs = |out: &Path| -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".pdf") || n.ends_with(".png"))
+            .collect();
+        names.sort();
+        for n in &names {
+            assert!(n.ends_with(".pdf"), "{}: {n} is not a PDF", out.display());
+            let bytes = std::fs::read(out.join(n)).unwrap();
+            assert!(bytes.starts_with(b"%PDF-"), "{}/{n}", out.display());
+        }
+        names
+    };
+    let out = dir.join("sweep");
+    let r = run(&[
+        "sweep",
+        "-q",
+        s(&scene),
+        "--set",
+        "environment.stiffness_n_per_m=500,700",
+        "--set",
+        "runs[*].impedance.b_d_ns_per_m=40,60",
+        "--format",
+        "pdf",
+        "--out",
+        s(&out),
+    ]);
+    assert!(r.ok(), "{}", r.stderr);
+    assert!(!pdfs(&out).is_empty(), "sweep drew no heatmap");
+    let out = dir.join("tune");
+    let r = run(&[
+        "tune",
+        "-q",
+        s(&scene),
+        "--free",
+        "runs[adaptive].inner.kp_per_m=[100,300]",
+        "--budget",
+        "4",
+        "--format",
+        "pdf",
+        "--out",
+        s(&out),
+    ]);
+    assert!(r.ok(), "{}", r.stderr);
+    assert_eq!(pdfs(&out), ["convergence.pdf"]);
+    let out = dir.join("identify");
+    let r = run(&[
+        "identify",
+        "--log",
+        s(&rec.join("trace.csv")),
+        "--actuator",
+        "pneumatics/paper-actuator.toml",
+        "--free",
+        "mechanics.moving_mass_kg",
+        "--format",
+        "pdf",
+        "--out",
+        s(&out),
+    ]);
+    assert!(r.ok(), "{}", r.stderr);
+    assert_eq!(pdfs(&out), ["validation-1.pdf"]);
+    let sim = dir.join("sim");
+    assert!(run(&["run", "-q", s(&scene), "--out", s(&sim)]).ok());
+    let out = dir.join("compare");
+    let r = run(&[
+        "compare",
+        s(&scene),
+        "--rig-log",
+        s(&sim.join("impedance/trace.csv")),
+        "--run",
+        "impedance",
+        "--format",
+        "pdf",
+        "--out",
+        s(&out),
+    ]);
+    assert!(r.ok(), "{}", r.stderr);
+    assert!(pdfs(&out).contains(&"force.pdf".to_string()));
+    let out = dir.join("rig-run");
+    let r = run(&[
+        "rig",
+        "run",
+        "--rig",
+        "rigs/emulated.toml",
+        "--lockstep-truth",
+        s(&truth.join("paper-actuator.toml")),
+        "--scene",
+        "scenes/paper-fig3.toml",
+        "--run",
+        "impedance",
+        "--duration",
+        "1",
+        "--format",
+        "pdf",
+        "--out",
+        s(&out),
+    ]);
+    assert!(r.ok(), "{}", r.stderr);
+    assert!(pdfs(&out).contains(&"force.pdf".to_string()));
+    let bode = dir.join("loop.pdf");
+    let r = run(&["tf", "--loop", "scenes/paper-fig3.toml", "--bode", s(&bode)]);
+    assert!(r.ok(), "{}", r.stderr);
+    assert!(std::fs::read(&bode).unwrap().starts_with(b"%PDF-"));
+}

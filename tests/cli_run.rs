@@ -279,39 +279,58 @@ impl TapMkdir for PathBuf {
     }
 }
 
-/// `run --format svg`: the figures as SVG (for a paper), listed in the output manifest; an unknown format
-/// is refused before anything is written.
+/// `run --format svg|pdf`: the figures as SVG or PDF (for a paper), listed in the output manifest, with the
+/// scene's description under each title; an unknown format is refused before anything is written.
 #[test]
-fn the_figures_can_be_written_as_svg() {
+fn the_figures_can_be_written_as_svg_or_pdf() {
     let d = scratch("svg");
-    let out = d.path().join("svg");
-    let o = pneuflex()
-        .args(["run", "-q", "--format", "svg", "--out"])
-        .arg(&out)
-        .arg(repo("scenes/paper-fig3-ideal.toml"))
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", stderr(&o));
-    let mut figures: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".svg") || n.ends_with(".png"))
-        .collect();
-    figures.sort();
-    assert_eq!(figures, ["event-0.svg", "force.svg", "position.svg"]);
-    for f in &figures {
-        let text = std::fs::read_to_string(out.join(f)).unwrap();
-        assert!(text.starts_with("<svg"), "{f}");
+    let scene = repo("scenes/paper-fig3-ideal.toml");
+    let description = pneuflex_scene::Scene::load(&scene).unwrap().description;
+    assert!(!description.is_empty());
+    for ext in ["svg", "pdf"] {
+        let out = d.path().join(ext);
+        let o = pneuflex()
+            .args(["run", "-q", "--format", ext, "--out"])
+            .arg(&out)
+            .arg(&scene)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        let mut figures: Vec<String> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| [".svg", ".png", ".pdf"].iter().any(|x| n.ends_with(x)))
+            .collect();
+        figures.sort();
+        let want: Vec<String> = ["event-0", "force", "position"]
+            .iter()
+            .map(|f| format!("{f}.{ext}"))
+            .collect();
+        assert_eq!(figures, want);
+        for f in &figures {
+            let bytes = std::fs::read(out.join(f)).unwrap();
+            let magic: &[u8] = if ext == "svg" { b"<svg" } else { b"%PDF-" };
+            assert!(bytes.starts_with(magic), "{f}");
+            if ext == "svg" {
+                // The title names the scene; the line under it is the scene's description.
+                let text = String::from_utf8(bytes).unwrap();
+                let escaped = description
+                    .replace('&', "&amp;")
+                    .replace('>', "&gt;")
+                    .replace('<', "&lt;");
+                assert!(text.contains(&escaped), "{f} lacks the description");
+            }
+        }
+        let manifest = std::fs::read_to_string(out.join(".pneuflex-output.json")).unwrap();
+        assert!(manifest.contains(&format!("force.{ext}")), "{manifest}");
     }
-    let manifest = std::fs::read_to_string(out.join(".pneuflex-output.json")).unwrap();
-    assert!(manifest.contains("force.svg"), "{manifest}");
-    let bad = d.path().join("pdf");
+    let bad = d.path().join("eps");
     let o = pneuflex()
-        .args(["run", "-q", "--format", "pdf", "--out"])
+        .args(["run", "-q", "--format", "eps", "--out"])
         .arg(&bad)
-        .arg(repo("scenes/paper-fig3-ideal.toml"))
+        .arg(&scene)
         .output()
         .unwrap();
-    assert!(!o.status.success() && stderr(&o).contains("possible values: png, svg"));
+    assert!(!o.status.success() && stderr(&o).contains("possible values: png, svg, pdf"));
     assert!(!bad.exists());
 }

@@ -46,6 +46,9 @@ pub struct Identify {
     /// (docs/identification.md, "Other people's logs"). Default: pneuflex's trace.csv.
     #[arg(long, value_name = "FILE")]
     pub log_format: Option<PathBuf>,
+    /// The validation figures' format: png (default), svg or pdf.
+    #[arg(long, value_enum, default_value_t = super::FigureFormat::Png)]
+    pub format: super::FigureFormat,
 }
 
 /// Write a hidden truth for identification tests: the sheet with KEYS each moved 20-40 % (seeded).
@@ -119,6 +122,7 @@ impl Identify {
                     max_span_s: self.max_log_s,
                 },
                 log_format: self.log_format,
+                figure_format: self.format.into(),
             },
         )
     }

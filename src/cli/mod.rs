@@ -8,6 +8,27 @@ pub mod simulate;
 
 use clap::{Parser, Subcommand};
 
+/// A figure format on the command line (`--format` of every command that draws).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FigureFormat {
+    /// Raster image.
+    Png,
+    /// Vector image.
+    Svg,
+    /// Vector document, from the SVG (for a paper).
+    Pdf,
+}
+
+impl From<FigureFormat> for pneuflex_viz::Format {
+    fn from(f: FigureFormat) -> Self {
+        match f {
+            FigureFormat::Png => pneuflex_viz::Format::Png,
+            FigureFormat::Svg => pneuflex_viz::Format::Svg,
+            FigureFormat::Pdf => pneuflex_viz::Format::Pdf,
+        }
+    }
+}
+
 /// Force and position control of pneumatic compliant actuators: model, controllers, scenes, real rig.
 #[derive(Parser)]
 #[command(name = "pneuflex", version, about, long_about = None)]

@@ -70,6 +70,9 @@ pub struct Pil {
     /// `spawn` or `connect <url>`. Needs the `rerun` feature.
     #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
     pub rerun: Option<Vec<String>>,
+    /// The figures' format: png (default), svg or pdf.
+    #[arg(long, value_enum, default_value_t = crate::cli::FigureFormat::Png)]
+    pub format: crate::cli::FigureFormat,
 }
 
 /// Excite the valve for identification (docs/identification.md): a PRBS, chirp or steps plus a weak
@@ -149,6 +152,9 @@ pub struct Run {
     /// Needs the `rerun` feature.
     #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
     pub rerun: Option<Vec<String>>,
+    /// The figures' format: png (default), svg or pdf.
+    #[arg(long, value_enum, default_value_t = crate::cli::FigureFormat::Png)]
+    pub format: crate::cli::FigureFormat,
 }
 
 impl Emulate {
@@ -174,6 +180,7 @@ impl Pil {
             self.firmware.as_deref(),
             self.out.as_deref(),
             self.rerun.as_deref(),
+            self.format.into(),
         )
     }
 }
@@ -210,6 +217,7 @@ impl Run {
             self.duration,
             self.out.as_deref(),
             self.rerun.as_deref(),
+            self.format.into(),
         )
     }
 }

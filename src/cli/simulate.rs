@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
+use super::FigureFormat;
 use crate::cmd;
 
 /// Linearised transfer function (eqs. 16-17) of an actuator sheet, or of the sheet a scene names.
@@ -22,7 +23,7 @@ pub struct Tf {
     #[arg(long)]
     pub margin_db: Option<f64>,
     /// With --loop: also draw the Bode plot of every run's inner loop at every stiffness, with the margins
-    /// marked (PNG; SVG for a FILE ending in .svg).
+    /// marked (PNG; SVG or PDF for a FILE ending in .svg or .pdf).
     #[arg(long, value_name = "FILE.png")]
     pub bode: Option<PathBuf>,
 }
@@ -48,27 +49,9 @@ pub struct Run {
     /// Largest memory all traces may take, MiB (default 2048); the scene is refused beyond it.
     #[arg(long, value_name = "MIB")]
     pub max_trace_mb: Option<u64>,
-    /// The figures' format: png (default) or svg (vector, for a paper; convert to PDF with any SVG tool).
+    /// The figures' format: png (default), svg or pdf (vector, for a paper).
     #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
     pub format: FigureFormat,
-}
-
-/// A figure format on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum FigureFormat {
-    /// Raster image.
-    Png,
-    /// Vector image.
-    Svg,
-}
-
-impl From<FigureFormat> for pneuflex_viz::Format {
-    fn from(f: FigureFormat) -> Self {
-        match f {
-            FigureFormat::Png => pneuflex_viz::Format::Png,
-            FigureFormat::Svg => pneuflex_viz::Format::Svg,
-        }
-    }
 }
 
 /// Run a scene at every point of a grid or sample of its keys, in parallel: one table of every point's
@@ -94,7 +77,7 @@ pub struct Sweep {
     /// repeat for heatmaps of several metrics.
     #[arg(long, value_name = "WINDOW.METRIC")]
     pub metric: Vec<String>,
-    /// The heatmaps' format: png (default) or svg.
+    /// The heatmaps' format: png (default), svg or pdf.
     #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
     pub format: FigureFormat,
     /// Number of samples of the sampled keys (rand:, lhs:, ...).
@@ -174,6 +157,9 @@ pub struct Tune {
     /// Largest memory of one candidate's traces, MiB (default 2048), as `run`'s.
     #[arg(long, value_name = "MIB")]
     pub max_trace_mb: Option<u64>,
+    /// The convergence plot's format: png (default), svg or pdf.
+    #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
+    pub format: FigureFormat,
 }
 
 impl Tf {
@@ -250,6 +236,7 @@ impl Tune {
                 },
                 quiet: self.quiet,
                 limits: cmd::run::limits(self.max_steps, self.max_trace_mb),
+                figures: self.format.into(),
             },
         )
     }
@@ -275,6 +262,9 @@ pub struct Compare {
     /// Output directory (default: out/compare/<scene>/<run>/, out/compare/<scene>/ for several runs).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// The figures' format: png (default), svg or pdf.
+    #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
+    pub format: FigureFormat,
 }
 
 impl Compare {

@@ -185,7 +185,7 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
             name: "simulation".into(),
             ..sim
         };
-        pneuflex_viz::write_figures(&fig_dir, &one, &[rig, sim], pneuflex_viz::Format::Png)?;
+        pneuflex_viz::write_figures(&fig_dir, &one, &[rig, sim], a.format.into())?;
     }
     let mut inputs = vec![pneuflex_files::InputDigest::of_file(&a.scene, "scene")?];
     for arg in &a.rig_log {

@@ -36,6 +36,8 @@ pub struct IdentifyArgs {
     pub limits: LogLimits,
     /// `--log-format`.
     pub log_format: Option<PathBuf>,
+    /// `--format`: the validation figures'.
+    pub figure_format: pneuflex_viz::Format,
 }
 
 /// `pneuflex identify --log L... --actuator S --free K,... [--bounds K=[lo,hi]]... [--out DIR]`.
@@ -80,6 +82,7 @@ pub fn identify(
         bounds: a.bounds,
         limits: a.limits,
         log_format,
+        figure_format: a.figure_format,
         validation_fraction: a.validation,
         options: FitOptions {
             replay: ReplayOptions {

@@ -33,6 +33,7 @@ pub fn pil(
     firmware: Option<&Path>,
     out: Option<&Path>,
     rerun: Option<&[String]>,
+    figures: pneuflex_viz::Format,
 ) -> anyhow::Result<()> {
     let scene = Scene::load(scene_path)?;
     let indices: Vec<usize> = match run {
@@ -122,7 +123,7 @@ pub fn pil(
         .context("writing comparison.json")?;
     let table = comparison_table(&done, &runs);
     std::fs::write(outputs.dir().join("comparison.md"), &table).context("writing comparison.md")?;
-    let dest = outputs.commit(&done, &results)?;
+    let dest = outputs.commit(&done, &results, figures)?;
     outln!("{table}");
     outln!("outputs in {}", dest.display());
     let bad: Vec<String> = done

@@ -143,6 +143,7 @@ pub fn run_scene(
     duration_s: Option<f64>,
     out: Option<&Path>,
     rerun: Option<&[String]>,
+    figures: pneuflex_viz::Format,
 ) -> anyhow::Result<()> {
     if let Some(d) = duration_s {
         check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
@@ -202,7 +203,7 @@ pub fn run_scene(
                 }
             }
         };
-        judge_recording(dir, &scene, index, end, pwm_period_s).map_err(|e| e.to_string())
+        judge_recording(dir, &scene, index, end, pwm_period_s, figures).map_err(|e| e.to_string())
     };
     if let Some((truth, seed)) = lockstep {
         if rerun.is_some() {

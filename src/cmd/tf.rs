@@ -209,12 +209,8 @@ pub fn loop_margins(
         analyses.push(a);
     }
     if let Some(b) = bode {
-        // The partial file keeps the format's extension (SVG for `.svg`, PNG otherwise).
-        let ext = if b.extension().is_some_and(|e| e == "svg") {
-            "svg"
-        } else {
-            "png"
-        };
+        // The partial file keeps the format's extension (SVG for `.svg`, PDF for `.pdf`, PNG otherwise).
+        let ext = pneuflex_viz::Format::of(b).ext();
         let tmp = b.with_extension(format!("partial-{}.{ext}", std::process::id()));
         let drawn = pneuflex_viz::write_bode(&tmp, &scene, &analyses);
         if let Err(e) = drawn {

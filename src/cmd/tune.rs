@@ -33,6 +33,8 @@ pub struct TuneArgs {
     pub quiet: bool,
     /// `--max-steps`, `--max-trace-mb`: what one run of a candidate may cost.
     pub limits: pneuflex_scene::Limits,
+    /// `--format`: the convergence plot's.
+    pub figures: pneuflex_viz::Format,
 }
 
 fn shell_word(s: &str) -> String {
@@ -122,6 +124,7 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
         &history,
         &command,
         reason.as_deref(),
+        args.figures,
     )?;
     let manifest = Manifest::new(
         "tune",

@@ -1,5 +1,5 @@
 //! The identification report: warnings for what the data cannot identify, `report.json`, `report.md` and
-//! the validation overlay `validation.png`.
+//! the validation overlay `validation-<i>.png` (or .svg, .pdf).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -303,7 +303,7 @@ pub const VALIDATION_WINDOW_S: f64 = 0.5;
 
 /// Draws the first [`VALIDATION_WINDOW_S`] of the held-out rows of one log: measured against simulated p_a,
 /// p_b and x, each with its residual (measured - model) in a panel of its own.
-pub fn validation_png(
+pub fn validation_figure(
     path: &Path,
     log: &crate::log::Log,
     pred: &Prediction,

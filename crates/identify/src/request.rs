@@ -14,7 +14,7 @@ use crate::log::{LogLimits, read_log_formatted};
 use crate::log_format::LogFormat;
 use crate::params::{ALL, Key, Offsets};
 use crate::replay::Prepared;
-use crate::report::{LogEntry, Report, markdown, validation_png, warnings};
+use crate::report::{LogEntry, Report, markdown, validation_figure, warnings};
 
 /// What to identify from what.
 #[derive(Clone, Debug)]
@@ -35,6 +35,8 @@ pub struct Request {
     pub limits: LogLimits,
     /// How the logs are written (pneuflex's trace.csv by default; `--log-format`).
     pub log_format: LogFormat,
+    /// The validation figures' format (`--format`: PNG, SVG or PDF).
+    pub figure_format: pneuflex_plot::Format,
 }
 
 /// The result of [`identify`].
@@ -293,7 +295,7 @@ pub fn stage_output(req: &Request, out: &Path) -> Result<OutputDir, IdentifyErro
     )?)
 }
 
-/// Writes the fitted sheet set, `report.json`, `report.md` and `validation-<i>.png` into `out` (staged
+/// Writes the fitted sheet set, `report.json`, `report.md` and `validation-<i>.png` (or .svg, .pdf) into `out` (staged
 /// beside it and renamed into place: `pneuflex_files::OutputDir`). Returns the fitted actuator sheet.
 pub fn write_outputs(id: &Identified, req: &Request, out: &Path) -> Result<PathBuf, IdentifyError> {
     let stage = stage_output(req, out)?;
@@ -372,8 +374,8 @@ pub fn write_staged(
             continue;
         }
         let pred = d.replay(&id.model, &id.offsets, &id.options.replay, d.log.len());
-        validation_png(
-            &dir.join(format!("validation-{}.png", i + 1)),
+        validation_figure(
+            &dir.join(format!("validation-{}.{}", i + 1, req.figure_format.ext())),
             &d.log,
             &pred,
             &d.validation,

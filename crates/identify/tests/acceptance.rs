@@ -76,6 +76,7 @@ fn check_seed(seed: u64) {
         bounds: vec![],
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };
@@ -191,6 +192,7 @@ fn flags_mass_from_a_log_without_motion() {
         bounds: vec![],
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     };
@@ -256,6 +258,7 @@ fn recovers_delay_viscous_friction_and_an_offset() {
         bounds: vec![],
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };
@@ -321,6 +324,7 @@ fn two_logs_identify_what_one_could_not() {
         bounds: vec![],
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     };

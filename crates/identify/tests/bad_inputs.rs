@@ -35,6 +35,7 @@ fn request(log: PathBuf, free: &[&str], bounds: &[&str]) -> Request {
         bounds: bounds.iter().map(|s| s.to_string()).collect(),
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.2,
         options: FitOptions::default(),
     }

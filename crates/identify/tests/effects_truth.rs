@@ -203,6 +203,7 @@ fn identify_recovers_a_hidden_wall_heat_coefficient() {
         bounds: vec![],
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };

@@ -112,6 +112,7 @@ fn fit(actuator: std::path::PathBuf, log: std::path::PathBuf, keys: &[Key]) -> I
         bounds: vec![],
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };

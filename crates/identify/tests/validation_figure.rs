@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use pneuflex_identify::log::Log;
 use pneuflex_identify::replay::Prediction;
-use pneuflex_identify::report::validation_png;
+use pneuflex_identify::report::validation_figure;
 
 fn png_size(bytes: &[u8]) -> (u32, u32) {
     assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
@@ -43,7 +43,7 @@ fn the_validation_figure_shows_a_readable_window_with_its_residuals() {
     let rows: Vec<usize> = (2400..n).filter(|k| k % 100 >= 15).collect();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("validation-1.png");
-    validation_png(&path, &log, &pred, &rows).unwrap();
+    validation_figure(&path, &log, &pred, &rows).unwrap();
     let size = png_size(&std::fs::read(&path).unwrap());
     assert_eq!(
         size,
@@ -55,6 +55,6 @@ fn the_validation_figure_shows_a_readable_window_with_its_residuals() {
     }
     // Nothing held out: nothing drawn, no error.
     let none = dir.path().join("none.png");
-    validation_png(&none, &log, &pred, &[]).unwrap();
+    validation_figure(&none, &log, &pred, &[]).unwrap();
     assert!(!none.exists());
 }

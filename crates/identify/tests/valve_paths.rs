@@ -51,6 +51,7 @@ fn recovers_c_and_b_per_path() {
         bounds: vec![],
         limits: Default::default(),
         log_format: Default::default(),
+        figure_format: Default::default(),
         validation_fraction: 0.25,
         options: FitOptions::default(),
     };

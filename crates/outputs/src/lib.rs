@@ -143,13 +143,18 @@ impl Outputs {
         )
     }
 
-    /// Writes every run's trace, `summary.json` and (when a run did not diverge) the figures of runs made
-    /// elsewhere, then moves the directory into place; files the caller wrote into [`Outputs::dir`] go
-    /// with it.
-    pub fn commit(self, scene: &Scene, results: &[RunResult]) -> Result<PathBuf, OutputsError> {
+    /// Writes every run's trace, `summary.json` and (when a run did not diverge) the figures, in
+    /// `figures`' format, of runs made elsewhere, then moves the directory into place; files the caller
+    /// wrote into [`Outputs::dir`] go with it.
+    pub fn commit(
+        self,
+        scene: &Scene,
+        results: &[RunResult],
+        figures: pneuflex_viz::Format,
+    ) -> Result<PathBuf, OutputsError> {
         pneuflex_scene::write_results(self.dir(), scene, results)?;
         if results.iter().any(|r| r.diverged.is_none()) {
-            pneuflex_viz::write_figures(self.dir(), scene, results, pneuflex_viz::Format::Png)?;
+            pneuflex_viz::write_figures(self.dir(), scene, results, figures)?;
         }
         let summary = pneuflex_scene::summary(scene, results);
         let manifest = self.manifest(&summary);
@@ -320,13 +325,15 @@ pub enum RecordingEnd {
 /// A recording of run `index` of `scene` (its `trace.csv` in `dir`, the rig's columns) judged as `run`
 /// judges a simulated run, from the same code: `summary.json` with the windows' metrics, the Lyapunov
 /// check and the warnings (the claims are left out: they compare two runs), and for a complete recording
-/// the figures. On an error the files it wrote are removed again, so the recording stays as it was.
+/// the figures (in `figures`' format). On an error the files it wrote are removed again, so the recording
+/// stays as it was.
 pub fn judge_recording(
     dir: &Path,
     scene: &Scene,
     index: usize,
     end: RecordingEnd,
     pwm_period_s: Option<f64>,
+    figures: pneuflex_viz::Format,
 ) -> Result<(), OutputsError> {
     let before: Vec<_> = list(dir)?;
     let written = (|| -> Result<(), OutputsError> {
@@ -367,7 +374,7 @@ pub fn judge_recording(
             .map_err(|e| write_error(&path, std::io::Error::other(e)))?;
         std::fs::write(&path, text + "\n").map_err(|e| write_error(&path, e))?;
         if r.diverged.is_none() && r.interrupted.is_none() {
-            pneuflex_viz::write_figures(dir, &one, results, pneuflex_viz::Format::Png)?;
+            pneuflex_viz::write_figures(dir, &one, results, figures)?;
         }
         Ok(())
     })();

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use pneuflex_outputs::{RecordingEnd, judge_recording};
 use pneuflex_scene::{Scene, run_scene};
+use pneuflex_viz::Format;
 
 fn scene() -> Scene {
     let p: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paper-fig3.toml");
@@ -67,6 +68,7 @@ fn judge(dir: &tempfile::TempDir, scene: &Scene, i: usize, sim: &pneuflex_scene:
         i,
         RecordingEnd::Complete,
         sim.pwm_period_s,
+        Format::Png,
     )
     .unwrap();
 }
@@ -147,7 +149,7 @@ fn a_fault_or_a_signal_is_said_and_draws_no_figures() {
             RecordingEnd::Fault(w) | RecordingEnd::Interrupted(w) => w.clone(),
             RecordingEnd::Complete => unreachable!(),
         };
-        judge_recording(dir.path(), &scene, i, end, sim.pwm_period_s).unwrap();
+        judge_recording(dir.path(), &scene, i, end, sim.pwm_period_s, Format::Png).unwrap();
         let s = summary(dir.path());
         assert_eq!(s["runs"][0][key].as_str(), Some(why.as_str()));
         assert!(s["runs"][0]["windows"].as_array().unwrap().is_empty());
@@ -166,7 +168,15 @@ fn a_trace_that_cannot_be_read_back_leaves_the_recording_as_it_was() {
     let dir = tempfile::tempdir().unwrap();
     let bad = "t,f_ref,f_e,x,x_r,p_a,p_b,u\n0,10,0,0,0,1e5,1e5,0\n0.001,10,oops,0,0,1e5,1e5,0\n";
     std::fs::write(dir.path().join("trace.csv"), bad).unwrap();
-    let e = judge_recording(dir.path(), &scene, 0, RecordingEnd::Complete, None).unwrap_err();
+    let e = judge_recording(
+        dir.path(),
+        &scene,
+        0,
+        RecordingEnd::Complete,
+        None,
+        Format::Png,
+    )
+    .unwrap_err();
     let msg = e.to_string();
     assert!(msg.contains("trace.csv") && msg.contains("oops"), "{msg}");
     let left: Vec<_> = std::fs::read_dir(dir.path())

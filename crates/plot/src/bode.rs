@@ -21,8 +21,8 @@ pub struct BodeLine<'a> {
     pub phase_crossover: Option<(f64, f64)>,
 }
 
-/// Draws the gain (top) and phase (bottom) of `lines` under `title` into `path` (1200 x 900; SVG when the
-/// path ends in `.svg`, PNG otherwise). At each gain crossover a dot on 0 dB and, below, the phase margin as
+/// Draws the gain (top) and phase (bottom) of `lines` under `title` into `path` (1200 x 900; SVG or PDF when
+/// the path ends in `.svg` or `.pdf`, PNG otherwise). At each gain crossover a dot on 0 dB and, below, the phase margin as
 /// a bar up from -180°; at each phase crossover a dot on -180° and, above, the gain margin as a bar up to
 /// 0 dB; the legend gives the numbers. The axes span the data: no floor. Lines of fewer than two points are
 /// left out, and nothing to draw is [`PlotError::Empty`].
@@ -32,25 +32,26 @@ pub fn write_bode(path: &Path, title: &str, lines: &[BodeLine<'_>]) -> Result<()
     if lines.is_empty() {
         return Err(PlotError::Empty);
     }
-    let size = (1200, 900);
-    let svg = path.extension().is_some_and(|e| e == "svg");
-    let drawn = if svg {
-        draw(
-            SVGBackend::new(path, size).into_drawing_area(),
-            title,
-            &lines,
-        )
-    } else {
-        draw(
-            BitMapBackend::new(path, size).into_drawing_area(),
-            title,
-            &lines,
-        )
-    };
-    drawn.map_err(|message| PlotError::Draw {
-        path: path.to_path_buf(),
-        message,
-    })
+    crate::figure::write(path, (1200, 900), &Bode { title, lines })
+}
+
+/// A Bode figure's content.
+struct Bode<'a, 'b> {
+    title: &'a str,
+    lines: Vec<&'a BodeLine<'b>>,
+}
+
+impl crate::figure::Figure for Bode<'_, '_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, Shift>,
+        _raster: bool,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw(root, self.title, &self.lines)
+    }
 }
 
 /// The range of a column of every line's points, with a little room.

@@ -38,8 +38,47 @@ pub fn write_convergence(
     } else {
         title.to_string()
     };
-    let draw = || -> Result<(), String> {
-        let root = BitMapBackend::new(path, (1000, 600)).into_drawing_area();
+    let figure = Convergence {
+        caption,
+        y_label,
+        candidates,
+        best,
+        lo,
+        hi,
+        n,
+    };
+    crate::figure::write(path, (1000, 600), &figure)
+}
+
+/// A convergence plot's content: the caption, the points, the value range and the last evaluation.
+struct Convergence<'a> {
+    caption: String,
+    y_label: &'a str,
+    candidates: &'a [(f64, f64)],
+    best: &'a [(f64, f64)],
+    lo: f64,
+    hi: f64,
+    n: f64,
+}
+
+impl crate::figure::Figure for Convergence<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+        _raster: bool,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        let Convergence {
+            ref caption,
+            y_label,
+            candidates,
+            best,
+            lo,
+            hi,
+            n,
+        } = *self;
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let blue = PALETTE[0];
         let orange = PALETTE[1];
@@ -109,9 +148,5 @@ pub fn write_convergence(
             );
         }
         root.present().map_err(|e| e.to_string())
-    };
-    draw().map_err(|message| PlotError::Draw {
-        path: path.to_path_buf(),
-        message,
-    })
+    }
 }

@@ -156,22 +156,8 @@ pub fn write_heatmap(path: &Path, map: &Heatmap<'_>) -> Result<(), PlotError> {
         room,
         colour: &colour,
     };
-    // SVG for a path ending in .svg (`sweep --format svg`), PNG otherwise.
-    let drawn = if path.extension().is_some_and(|e| e == "svg") {
-        draw(
-            SVGBackend::new(path, (width, height)).into_drawing_area(),
-            &frame,
-        )
-    } else {
-        draw(
-            BitMapBackend::new(path, (width, height)).into_drawing_area(),
-            &frame,
-        )
-    };
-    drawn.map_err(|message| PlotError::Draw {
-        path: path.to_path_buf(),
-        message,
-    })
+    // SVG or PDF for a path ending in .svg or .pdf (`sweep --format`), PNG otherwise.
+    crate::figure::write(path, (width, height), &frame)
 }
 
 /// What [`draw`] draws: the map and what [`write_heatmap`] worked out for it.
@@ -186,6 +172,19 @@ struct Frame<'a, 'm> {
     notes: Vec<&'a str>,
     room: u32,
     colour: &'a dyn Fn(f64) -> RGBColor,
+}
+
+impl crate::figure::Figure for Frame<'_, '_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+        _raster: bool,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw(root, self)
+    }
 }
 
 fn draw<DB: DrawingBackend>(

@@ -1,15 +1,18 @@
 //! Plotting on the bottom floor: what every pneuflex figure is drawn with, and nothing of the scene. Time
 //! series with bands and marks ([`series`]), heatmaps ([`heatmap`]), Bode plots ([`bode`]), stacked
 //! overlays ([`overlay`]), convergence plots ([`convergence`]); PNG (plotters' bitmap backend, our own
-//! encoder) or SVG, with an embedded DejaVu Sans font so the output does not depend on system fonts.
+//! encoder), SVG or PDF (from the SVG), each by the file's extension, with an embedded DejaVu Sans font so
+//! the output does not depend on system fonts.
 //! Every series is reduced to its per-pixel-column first/min/max/last before drawing ([`decimate`]), so the
 //! picture is the same and the cost does not grow with the length of the trace.
 
 pub mod bode;
 pub mod convergence;
 pub mod decimate;
+mod figure;
 pub mod heatmap;
 pub mod overlay;
+mod pdf;
 mod raster;
 pub mod series;
 
@@ -61,6 +64,8 @@ pub enum Format {
     Png,
     /// Vector image.
     Svg,
+    /// Vector document (one page), converted from the SVG.
+    Pdf,
 }
 
 impl Format {
@@ -69,6 +74,16 @@ impl Format {
         match self {
             Format::Png => "png",
             Format::Svg => "svg",
+            Format::Pdf => "pdf",
+        }
+    }
+
+    /// The format a figure path's extension names: `.svg`, `.pdf`, otherwise PNG.
+    pub fn of(path: &std::path::Path) -> Self {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("svg") => Format::Svg,
+            Some(e) if e.eq_ignore_ascii_case("pdf") => Format::Pdf,
+            _ => Format::Png,
         }
     }
 }

@@ -31,16 +31,31 @@ pub struct Panel<'a> {
     pub include_zero: bool,
 }
 
-/// Writes `panels` stacked vertically into a PNG at `path` (1200 px wide, 260 px per panel). The lines'
+/// Writes `panels` stacked vertically into `path` (1200 px wide, 260 px per panel; PNG, or SVG or PDF by the
+/// extension). The lines'
 /// labels go in each panel's title with their colours, not in a legend box over the data.
 pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), PlotError> {
     ensure_font()?;
     if panels.is_empty() || panels.iter().all(|p| p.series.is_empty()) {
         return Err(PlotError::Empty);
     }
-    let draw = || -> Result<(), String> {
-        let height = 260 * panels.len() as u32;
-        let root = BitMapBackend::new(path, (1200, height)).into_drawing_area();
+    let height = 260 * panels.len() as u32;
+    crate::figure::write(path, (1200, height), &Overlay(panels))
+}
+
+/// The stacked panels as a figure.
+struct Overlay<'a, 'b>(&'a [Panel<'b>]);
+
+impl crate::figure::Figure for Overlay<'_, '_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+        _raster: bool,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        let panels = self.0;
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let areas = root.split_evenly((panels.len(), 1));
         for (area, panel) in areas.iter().zip(panels) {
@@ -108,9 +123,5 @@ pub fn write_overlay(path: &Path, panels: &[Panel<'_>]) -> Result<(), PlotError>
             }
         }
         root.present().map_err(|e| e.to_string())
-    };
-    draw().map_err(|message| PlotError::Draw {
-        path: path.to_path_buf(),
-        message,
-    })
+    }
 }

@@ -1,14 +1,12 @@
-//! Rendering a figure: a reused pixel buffer per drawing thread for PNG, our own PNG encoder, or SVG.
+//! Pixels: a reused pixel buffer per drawing thread for PNG figures, and our own PNG encoder.
 
 use std::path::Path;
 
-use plotters::prelude::*;
-
-use crate::series::{Plot, draw_plot};
-use crate::{Format, PlotError};
+use crate::PlotError;
+use crate::series::Plot;
 
 thread_local! {
-    /// This thread's pixel buffer for PNG figures ([`render`]).
+    /// This thread's pixel buffer for PNG figures ([`with_pixels`]).
     static PIXELS: std::cell::RefCell<Option<Pixels>> = const { std::cell::RefCell::new(None) };
 }
 
@@ -51,35 +49,28 @@ impl Pixels {
     }
 }
 
-/// Draws `plot` into `path` (1200 x 700) as `format`.
-pub fn render(path: &Path, format: Format, plot: &Plot) -> Result<(), PlotError> {
-    let size = (1200, 700);
-    let r = match format {
-        // The figures of a command are drawn on a few threads, each reusing its pixel buffer: a fresh
-        // 2.5 MB buffer costs its page faults again (a third of drawing's kernel time). Every pixel is
-        // painted (the white background first), so what the buffer held does not matter.
-        Format::Png => Pixels::with(size.0 as usize * size.1 as usize * 3, |rgb| {
-            draw_plot(
-                BitMapBackend::with_buffer(rgb, size).into_drawing_area(),
-                plot,
-                true,
-            )
-            .and_then(|()| write_png(path, rgb, size))
-        })
-        .unwrap_or_else(|e| Err(format!("no memory for the pixels: {e}"))),
-        Format::Svg => draw_plot(SVGBackend::new(path, size).into_drawing_area(), plot, false),
-    };
-    r.map_err(|message| PlotError::Draw {
-        path: path.to_path_buf(),
-        message,
-    })
+/// Draws `plot` into `path` (1200 x 700), in the format of its extension (PNG, SVG or PDF).
+pub fn render(path: &Path, plot: &Plot) -> Result<(), PlotError> {
+    crate::figure::write(path, (1200, 700), plot)
+}
+
+/// Runs `draw` on this thread's RGB buffer for an image of `size` px. The figures of a command are drawn on
+/// a few threads, each reusing its pixel buffer: a fresh 2.5 MB buffer costs its page faults again (a third
+/// of drawing's kernel time). Every figure paints every pixel (its white background first), so what the
+/// buffer held does not matter.
+pub(crate) fn with_pixels(
+    size: (u32, u32),
+    draw: impl FnOnce(&mut [u8]) -> Result<(), String>,
+) -> Result<(), String> {
+    Pixels::with(size.0 as usize * size.1 as usize * 3, draw)
+        .unwrap_or_else(|e| Err(format!("no memory for the pixels: {e}")))
 }
 
 /// Writes an RGB image as PNG with one filter for every row (`Up`: a plot is long runs of one colour, the
 /// same from row to row) and zlib level 1 (flate2's zlib-rs backend). Against plotters' own encoder (five filters
 /// tried on every row, then fdeflate) the pixels are the same and the files about half the size (paper-fig3:
 /// 553 -> 338 KB; scripts/time_run.py, docs/performance.md).
-fn write_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<(), String> {
+pub(crate) fn write_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<(), String> {
     let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), w, h);
     encoder.set_color(png::ColorType::Rgb);
@@ -95,7 +86,8 @@ fn write_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<(), String> 
 mod tests {
     use super::*;
     use crate::ensure_font;
-    use crate::series::{Line, Plot};
+    use crate::series::{Line, Plot, draw_plot};
+    use plotters::prelude::*;
 
     fn pixels(path: &Path) -> (u32, u32, Vec<u8>) {
         let decoder =
@@ -156,7 +148,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let ours = dir.join("ours.png");
         let theirs = dir.join("theirs.png");
-        render(&ours, Format::Png, &plot).unwrap();
+        render(&ours, &plot).unwrap();
         draw_plot(
             BitMapBackend::new(&theirs, (1200, 700)).into_drawing_area(),
             &plot,

@@ -59,6 +59,8 @@ fn period_envelope(
 /// A time-series figure: what is drawn, in order.
 pub struct Plot<'a> {
     pub title: String,
+    /// A line under the title (the scene's description); empty for none.
+    pub subtitle: String,
     pub y_label: String,
     pub t_range: (f64, f64),
     pub bands: Vec<Band<'a>>,
@@ -78,6 +80,7 @@ impl<'a> Plot<'a> {
     pub fn new(title: String, y_label: &str, t_range: (f64, f64), events: Vec<f64>) -> Self {
         Plot {
             title,
+            subtitle: String::new(),
             y_label: y_label.into(),
             t_range,
             bands: Vec::new(),
@@ -175,6 +178,19 @@ fn short(v: f64) -> String {
 }
 
 /// `raster`: the backend is a pixel buffer (thick lines as side-by-side pixel lines, [`Stroke`]), not SVG.
+impl crate::figure::Figure for Plot<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+        raster: bool,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_plot(root, self, raster)
+    }
+}
+
 pub(crate) fn draw_plot<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     plot: &Plot,
@@ -189,8 +205,18 @@ where
     let notes: Vec<(String, RGBColor)> = (plot.notes.iter().cloned())
         .chain(clipped.into_iter().map(|n| (n, BLACK)))
         .collect();
-    let mut chart = ChartBuilder::on(&root)
-        .caption(&plot.title, (FAMILY, 26))
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    let body = root.titled(&plot.title, (FAMILY, 26)).map_err(e)?;
+    let body = if plot.subtitle.is_empty() {
+        body
+    } else {
+        body.titled(
+            &plot.subtitle,
+            (FAMILY, 15).into_font().color(&RGBColor(90, 90, 90)),
+        )
+        .map_err(e)?
+    };
+    let mut chart = ChartBuilder::on(&body)
         .margin(16)
         .x_label_area_size(50)
         .y_label_area_size(80)

@@ -56,6 +56,7 @@ pub fn identify_json(
         None => Default::default(),
     };
     let req = Request {
+        figure_format: pneuflex_plot::Format::Png,
         logs,
         actuator,
         free,

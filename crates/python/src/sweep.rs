@@ -192,7 +192,17 @@ pub fn tune_run(
     std::fs::create_dir_all(&out).map_err(|e| errors::other(format!("{}: {e}", out.display())))?;
     let command = command.unwrap_or_else(|| format!("pneuflex.tune({})", scene_path.display()));
     let summary = py
-        .detach(|| pneuflex_sweep::tune_output::write(&out, &t, &opts, &history, &command, None))
+        .detach(|| {
+            pneuflex_sweep::tune_output::write(
+                &out,
+                &t,
+                &opts,
+                &history,
+                &command,
+                None,
+                pneuflex_plot::Format::Png,
+            )
+        })
         .map_err(err)?;
     serde_json::to_string(&summary).map_err(errors::other)
 }

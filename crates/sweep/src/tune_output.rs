@@ -69,6 +69,7 @@ pub fn write(
     history: &[HistoryRow],
     command: &str,
     interrupted: Option<&str>,
+    figures: pneuflex_plot::Format,
 ) -> Result<TuneSummary, SweepError> {
     let io = |p: &Path, e: std::io::Error| {
         SweepError::Other(format!("{}: cannot write: {e}", p.display()))
@@ -220,7 +221,8 @@ pub fn write(
     }
     let hist_path = dir.join("history.csv");
     std::fs::write(&hist_path, csv).map_err(|e| io(&hist_path, e))?;
-    let conv = dir.join("convergence.png");
+    let conv_name = format!("convergence.{}", figures.ext());
+    let conv = dir.join(&conv_name);
     files.push(PathBuf::from("history.csv"));
     match pneuflex_plot::write_convergence(
         &conv,
@@ -232,7 +234,7 @@ pub fn write(
         &candidates,
         &best_line,
     ) {
-        Ok(()) => files.push(PathBuf::from("convergence.png")),
+        Ok(()) => files.push(PathBuf::from(conv_name)),
         // Every candidate infinite: nothing to draw; the report says so.
         Err(pneuflex_plot::PlotError::Empty) => {}
         Err(e) => return Err(SweepError::Other(e.to_string())),

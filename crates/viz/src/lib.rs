@@ -276,7 +276,12 @@ pub fn write_figures(
     }
     use rayon::prelude::*;
     jobs.par_iter()
-        .map(|(p, build)| render(p, format, &build()).map(|()| p.clone()))
+        .map(|(p, build)| {
+            // Every figure says which experiment it shows: the scene's description under its title.
+            let mut plot = build();
+            plot.subtitle = scene.description.clone();
+            render(p, &plot).map(|()| p.clone())
+        })
         .collect()
 }
 
