@@ -46,6 +46,11 @@ pub struct Identify {
     /// (docs/identification.md, "Other people's logs"). Default: pneuflex's trace.csv.
     #[arg(long, value_name = "FILE")]
     pub log_format: Option<PathBuf>,
+    /// Structure selection: fit the sheet as given and with each effect it lacks switched on (leaks, wall
+    /// heat, stick-slip or LuGre friction, a pressure-dependent seal, spool travel), their keys freed
+    /// beside --free, and keep the lowest BIC whose held-out residual is no worse (docs/identification.md).
+    #[arg(long)]
+    pub select: bool,
     /// The validation figures' format: png (default), svg or pdf.
     #[arg(long, value_enum, default_value_t = super::FigureFormat::Png)]
     pub format: super::FigureFormat,
@@ -123,6 +128,7 @@ impl Identify {
                 },
                 log_format: self.log_format,
                 figure_format: self.format.into(),
+                select: self.select,
             },
         )
     }

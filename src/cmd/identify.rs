@@ -18,6 +18,7 @@ use pneuflex_identify::log::LogLimits;
 use pneuflex_identify::params::Key;
 use pneuflex_identify::replay::ReplayOptions;
 use pneuflex_identify::request::{Request, identify_stoppable, stage_output, write_staged};
+use pneuflex_identify::select::{STRUCTURES, select};
 
 /// The options of `identify` beyond the logs and the sheet.
 #[derive(Clone, Debug)]
@@ -38,6 +39,8 @@ pub struct IdentifyArgs {
     pub log_format: Option<PathBuf>,
     /// `--format`: the validation figures'.
     pub figure_format: pneuflex_viz::Format,
+    /// `--select`: fit every candidate structure and keep the best (`pneuflex_identify::select`).
+    pub select: bool,
 }
 
 /// `pneuflex identify --log L... --actuator S --free K,... [--bounds K=[lo,hi]]... [--out DIR]`.
@@ -113,7 +116,15 @@ pub fn identify(
     }
     let stage = stage_output(&req, &dest)?;
     let stop = super::stop_flag()?;
-    let id = match identify_stoppable(&req, Some(&stop)) {
+    let fitted = if a.select {
+        // Each structure's sheet set in the output, beside the fit it led to.
+        let work = stage.path().join("structures");
+        let progress = |name: &str| eprintln!("fitting structure `{name}` ...");
+        select(&req, &STRUCTURES, &work, Some(&stop), &progress)
+    } else {
+        identify_stoppable(&req, Some(&stop))
+    };
+    let id = match fitted {
         Ok(id) => id,
         Err(IdentifyError::Interrupted {
             signal,
@@ -132,6 +143,33 @@ pub fn identify(
                 dest.display()
             ),
         ));
+    }
+    if let Some(sel) = &id.report.structure_selection {
+        outln!("structure selection ({}):", sel.criterion);
+        for c in &sel.candidates {
+            match &c.skipped {
+                Some(why) => outln!("  {:<16} not fitted: {why}", c.structure),
+                None => outln!(
+                    "  {:<16} BIC {:>12.1}  fit {:>8.3}  held-out {:>8.3}  adequate {}{}{}",
+                    c.structure,
+                    c.bic,
+                    c.fit_over_floor_sq,
+                    c.validation_over_floor_sq,
+                    c.adequate,
+                    if c.significant {
+                        ""
+                    } else {
+                        "  (effect not significant)"
+                    },
+                    if c.structure == sel.chosen {
+                        "  <- chosen"
+                    } else {
+                        ""
+                    }
+                ),
+            }
+        }
+        outln!("chosen: {}", sel.verdict);
     }
     let f = &id.report.fit;
     outln!(

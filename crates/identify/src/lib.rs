@@ -18,6 +18,7 @@ pub mod replay;
 pub mod report;
 pub mod request;
 pub mod seal;
+pub mod select;
 pub mod sheet;
 
 use std::path::PathBuf;

@@ -80,6 +80,9 @@ pub struct Report {
     pub warnings: Vec<String>,
     /// Wall time of the fit, s (for information only).
     pub fit_seconds: f64,
+    /// `identify --select`: every candidate structure's fit and the choice (absent without it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub structure_selection: Option<crate::select::Selection>,
 }
 
 /// One log in the report.
@@ -140,6 +143,9 @@ pub fn markdown(r: &Report) -> String {
         );
     }
     let _ = writeln!(s, "Sheet: `{}`\n", r.sheet);
+    if let Some(sel) = &r.structure_selection {
+        structure_table(&mut s, sel);
+    }
     let _ = writeln!(
         s,
         "| log | sha256 | rows | fit rows | validation rows | note |"
@@ -296,6 +302,55 @@ pub fn markdown(r: &Report) -> String {
         let _ = writeln!(s, "- {w}");
     }
     s
+}
+
+/// The `--select` table: every candidate structure with its figures, the chosen one first in words.
+fn structure_table(s: &mut String, sel: &crate::select::Selection) {
+    let _ = writeln!(
+        s,
+        "## Structure selection\n\nChosen: {}.\n\nCriterion: {}.\n",
+        sel.verdict, sel.criterion
+    );
+    let _ = writeln!(
+        s,
+        "| structure | adds | free keys | BIC | fit (res/floor)^2 | held-out (res/floor)^2 | adequate | fit s |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    for c in &sel.candidates {
+        let mark = if c.structure == sel.chosen {
+            " **(chosen)**"
+        } else if !c.significant {
+            " (effect not significant)"
+        } else {
+            ""
+        };
+        match &c.skipped {
+            Some(why) => {
+                let _ = writeln!(
+                    s,
+                    "| `{}` | {} | {} | not fitted: {why} | | | | |",
+                    c.structure,
+                    c.adds,
+                    c.keys.len()
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "| `{}`{mark} | {} | {} | {:.1} | {:.3} | {:.3} | {} | {:.1} |",
+                    c.structure,
+                    c.adds,
+                    c.keys.len(),
+                    c.bic,
+                    c.fit_over_floor_sq,
+                    c.validation_over_floor_sq,
+                    c.adequate,
+                    c.fit_seconds
+                );
+            }
+        }
+    }
+    let _ = writeln!(s);
 }
 
 /// How much of the held-out part the validation figure shows, s (20 periods of the paper's 40 Hz PWM).

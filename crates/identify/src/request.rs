@@ -271,6 +271,7 @@ pub fn identify_stoppable(
         model_check,
         warnings,
         fit_seconds,
+        structure_selection: None,
     };
     Ok(Identified {
         sheet,

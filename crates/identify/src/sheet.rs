@@ -69,6 +69,18 @@ pub fn write_sheets(
     dir: &Path,
     header: &str,
 ) -> Result<PathBuf, IdentifyError> {
+    write_sheets_with(src, values, &[], dir, header)
+}
+
+/// [`write_sheets`] with `mechanics` edits of the actuator sheet's `[mechanics]` table too: a key set to a
+/// value (`friction = "lugre"`), or removed (None): another friction law and its keys.
+pub fn write_sheets_with(
+    src: &ActuatorSheet,
+    values: &[(Key, f64)],
+    mechanics: &[(&str, Option<toml_edit::Value>)],
+    dir: &Path,
+    header: &str,
+) -> Result<PathBuf, IdentifyError> {
     let src_dir = src.path.parent().unwrap_or_else(|| Path::new(""));
     let text = read(&src.path)?;
     let mut doc = parse(&src.path, &text)?;
@@ -106,6 +118,18 @@ pub fn write_sheets(
         used_names.push(name.clone());
         write(&dir.join(&name), &cdoc.to_string())?;
         doc["components"][comp] = value(name);
+    }
+    for (k, v) in mechanics {
+        if let Some(t) = doc.get_mut("mechanics").and_then(Item::as_table_like_mut) {
+            match v {
+                Some(v) => {
+                    t.insert(k, Item::Value(v.clone()));
+                }
+                None => {
+                    t.remove(k);
+                }
+            }
+        }
     }
     for &(k, v) in values {
         if k.file() == Some("actuator") {

@@ -348,3 +348,123 @@ fn hidden_lines_are_flagged_and_named() {
 fn freed_lines_are_adequate() {
     freed("lines");
 }
+
+/// The structures of `names` (the full list of `identify --select` adds stick-slip, the seal term and spool
+/// travel; docs/identification.md): a few, for the test's time.
+fn some_structures(names: &[&str]) -> Vec<pneuflex_identify::select::Structure> {
+    pneuflex_identify::select::STRUCTURES
+        .iter()
+        .filter(|s| names.contains(&s.name))
+        .copied()
+        .collect()
+}
+
+fn select_on(log: std::path::PathBuf, work: &std::path::Path, names: &[&str]) -> Identified {
+    let req = Request {
+        logs: vec![log],
+        actuator: common::root().join("pneumatics").join(ACT),
+        free: KEYS.iter().map(|k| k.name().to_string()).collect(),
+        bounds: vec![],
+        limits: Default::default(),
+        log_format: Default::default(),
+        figure_format: Default::default(),
+        validation_fraction: 0.25,
+        options: FitOptions::default(),
+    };
+    let id = pneuflex_identify::select::select(&req, &some_structures(names), work, None, &|_| {})
+        .unwrap_or_else(|e| panic!("{e}"));
+    let sel = id.report.structure_selection.as_ref().unwrap();
+    for c in &sel.candidates {
+        eprintln!(
+            "  {}: bic {:.1} fit {:.3} held-out {:.3} adequate {} ({:.1} s) {:?}",
+            c.structure,
+            c.bic,
+            c.fit_over_floor_sq,
+            c.validation_over_floor_sq,
+            c.adequate,
+            c.fit_seconds,
+            c.skipped
+        );
+    }
+    id
+}
+
+/// Structure selection on the leak truth, fitted from the shipped sheet (no leaks): of the sheet as given,
+/// leakage, wall heat and LuGre friction it chooses leakage, whose fit the model check finds adequate, with
+/// the truth's leak and the six usual truths inside their intervals.
+#[test]
+fn structure_selection_finds_a_hidden_leak() {
+    let (scratch, _base, changes, log) = planted(effect("leak"), SEED);
+    let names = ["as_given", "leakage", "heat_transfer", "lugre"];
+    let id = select_on(log, &scratch.path().join("structures"), &names);
+    let sel = id.report.structure_selection.as_ref().unwrap();
+    assert_eq!(sel.chosen, "leakage", "{}", sel.verdict);
+    assert!(
+        id.report.model_check.adequate,
+        "{:?}",
+        id.report.model_check.failed
+    );
+    let (inside, total) = coverage("selected leak", &id, &changes);
+    assert_eq!((inside, total), (8, 8));
+    let md = pneuflex_identify::report::markdown(&id.report);
+    assert!(
+        md.contains("## Structure selection") && md.contains("`leakage` **(chosen)**"),
+        "{md}"
+    );
+}
+
+/// On a truth of the sheet's own model, the selection keeps the sheet as given: the other structures'
+/// extra keys fit only noise and pay their ln n (wall heat and LuGre friction here; measured with leakage
+/// too in docs/identification.md).
+#[test]
+fn structure_selection_keeps_a_matched_model() {
+    let scratch = common::scratch("model-check-select-matched");
+    let dir = scratch.path().to_path_buf();
+    let shipped = common::root().join("pneumatics").join(ACT);
+    let (truth, _changes) = perturb(&shipped, &KEYS, SEED, &dir.join("truth")).unwrap();
+    let log = dir.join("log.csv");
+    common::record(&truth, SEED, steps(SEED), SECONDS, None, &log);
+    // Leakage is left out for the test's time (its fit here takes 50-80 s: the leaks fall to their bound).
+    let id = select_on(
+        log,
+        &dir.join("structures"),
+        &["as_given", "heat_transfer", "lugre"],
+    );
+    let sel = id.report.structure_selection.as_ref().unwrap();
+    assert_eq!(sel.chosen, "as_given", "{}", sel.verdict);
+    assert!(id.report.model_check.adequate);
+}
+
+/// The full form (`--include-ignored`, ~10 min in a debug build): every structure of `identify --select`
+/// on every planted effect hidden from the shipped sheet. Prints the table of docs/identification.md and
+/// asserts that the chosen structure models the planted effect's family (friction for the LuGre and seal
+/// truths, valve dynamics for the spool and the lines), or that the choice is marked not adequate.
+#[test]
+#[ignore = "~10 min: every structure on every planted effect (the table of docs/identification.md)"]
+fn structure_selection_on_every_planted_effect() {
+    let family = |structure: &str| match structure {
+        "leakage" => "leakage",
+        "heat_transfer" => "heat_transfer",
+        "stick_slip" | "lugre" | "seal_pressure" => "friction",
+        "valve_dynamics" => "valve_dynamics",
+        _ => "none",
+    };
+    let names: Vec<&str> = pneuflex_identify::select::STRUCTURES
+        .iter()
+        .map(|s| s.name)
+        .collect();
+    for e in &EFFECTS {
+        let (scratch, _base, _changes, log) = planted(e, SEED);
+        eprintln!("{}:", e.name);
+        let id = select_on(log, &scratch.path().join("structures"), &names);
+        let sel = id.report.structure_selection.as_ref().unwrap();
+        eprintln!("  chosen {}: {}", sel.chosen, sel.verdict);
+        assert!(
+            family(sel.chosen) == e.missing || !id.report.model_check.adequate,
+            "{}: chose {} ({}), found adequate",
+            e.name,
+            sel.chosen,
+            family(sel.chosen)
+        );
+    }
+}

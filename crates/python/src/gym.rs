@@ -1,9 +1,9 @@
 //! The force-control task of `pneuflex.envs` (Gymnasium), stepped in Rust: a batch of episodes of a
-//! 1-DOF pneumatic scene, each its own plant (the scene crate's [`OneDofPneumatic`], the plant
+//! 1-DOF pneumatic or multibody scene, each its own plant (the scene crate's plant, the one
 //! `pneuflex.run` simulates), spring environment, events and domain-randomised parameters.
 //!
-//! One `step` advances every episode by one control tick under its valve command, in parallel over the
-//! machine's cores with the GIL released. `ForceControl` is a batch of one, `ForceControlVector` the
+//! One `step` advances every episode by one action (a valve command for a tick, or a retune of the
+//! impedance controller and its ticks), in parallel over the machine's cores with the GIL released. `ForceControl` is a batch of one, `ForceControlVector` the
 //! `gymnasium.vector.VectorEnv` over a batch of many: one implementation of the task for both.
 
 use std::path::{Path, PathBuf};
@@ -13,6 +13,7 @@ use pneuflex_control::{
     Controller, ImpedanceController, ImpedanceParams, Sensors, SetpointSchedule, Telemetry,
     ValveCommand,
 };
+use pneuflex_pneumatics::ValveKind;
 use pneuflex_scene::plants::{LinearSpring, MultibodyPlant, OneDofPneumatic, Plant};
 use pneuflex_scene::schema::{ControllerKind, EventSpec, PlantSpec};
 use pneuflex_scene::{Scene, SceneError};
@@ -41,6 +42,9 @@ struct Ranges {
     mass_scale: (f64, f64),
     /// The seal friction's Coulomb and break-away forces as a multiple of the sheet's, log-uniform.
     friction_scale: (f64, f64),
+    /// An on/off valve's switching delay as a multiple of the sheet's, log-uniform (kept below 0.9 of the
+    /// PWM period).
+    delay_scale: (f64, f64),
 }
 
 const RANGES: Ranges = Ranges {
@@ -48,6 +52,7 @@ const RANGES: Ranges = Ranges {
     t_change_s: (4.0, 8.0),
     mass_scale: (0.5, 2.0),
     friction_scale: (0.5, 2.0),
+    delay_scale: (0.5, 2.0),
 };
 
 fn log_uniform(rng: &mut StdRng, (lo, hi): (f64, f64)) -> f64 {
@@ -62,6 +67,7 @@ struct Draw {
     t_change_s: f64,
     mass_scale: f64,
     friction_scale: f64,
+    delay_scale: f64,
 }
 
 /// What an action is.
@@ -176,6 +182,7 @@ impl Task {
                 t_change_s,
                 mass_scale: 1.0,
                 friction_scale: 1.0,
+                delay_scale: 1.0,
             },
             dt: scene.dt_s,
             duration: scene.duration_s,
@@ -223,6 +230,11 @@ impl Task {
             },
             friction_scale: if one_dof {
                 log_uniform(rng, r.friction_scale)
+            } else {
+                1.0
+            },
+            delay_scale: if one_dof {
+                log_uniform(rng, r.delay_scale)
             } else {
                 1.0
             },
@@ -308,6 +320,14 @@ impl Episode {
                 let mut model = *p.model();
                 model.mechanics.moving_mass_kg *= draw.mass_scale;
                 model.mechanics.friction = model.mechanics.friction.scaled(draw.friction_scale);
+                if let ValveKind::OnOffPwm {
+                    pwm_frequency_hz,
+                    switching_delay_s,
+                } = &mut model.actuator.valve.kind
+                {
+                    *switching_delay_s =
+                        (*switching_delay_s * draw.delay_scale).min(0.9 / *pwm_frequency_hz);
+                }
                 let env = LinearSpring {
                     stiffness_n_per_m: draw.k_before,
                     x_e_m: task.x_e,
@@ -467,8 +487,8 @@ impl PyForceControlBatch {
     /// `num_envs` episodes of the scene at `scene_path` (a pneumatic 1-DOF or a multibody scene), at the
     /// scene's values until reset. `randomize`: draw each episode's stiffness before and after the change
     /// (log-uniform 350-2800 N/m), the change's time (uniform 4-8 s) and, on the 1-DOF plant, the moving
-    /// mass and the seal friction (each log-uniform 0.5-2x the sheet's) at every reset; otherwise the
-    /// scene's own values. `autoreset`: a step resets an episode that ended at the step before
+    /// mass, the seal friction and an on/off valve's switching delay (each log-uniform 0.5-2x the sheet's)
+    /// at every reset; otherwise the scene's own values. `autoreset`: a step resets an episode that ended at the step before
     /// (Gymnasium's next-step autoreset), returning its first observation. `action`: "valve" (u, one tick
     /// per step) or "impedance" (a_m, a_b retune the scene's impedance run: m_d = m_d0 4^a_m,
     /// b_d = b_d0 4^a_b, then `decision_ticks` ticks of that controller per step, the rewards summed).
@@ -598,7 +618,7 @@ impl PyForceControlBatch {
     }
 
     /// Each episode's parameters as arrays: stiffness_n_per_m (before the change),
-    /// stiffness_after_n_per_m, t_change_s, mass_scale, friction_scale.
+    /// stiffness_after_n_per_m, t_change_s, mass_scale, friction_scale, switching_delay_scale.
     fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         let col = |f: fn(&Draw) -> f64| {
@@ -613,6 +633,7 @@ impl PyForceControlBatch {
         d.set_item("t_change_s", col(|d| d.t_change_s))?;
         d.set_item("mass_scale", col(|d| d.mass_scale))?;
         d.set_item("friction_scale", col(|d| d.friction_scale))?;
+        d.set_item("switching_delay_scale", col(|d| d.delay_scale))?;
         Ok(d)
     }
 

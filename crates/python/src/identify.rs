@@ -28,7 +28,7 @@ fn err(e: IdentifyError) -> PyErr {
 /// settling was not compared). `log_format` names a format file for logs another tool wrote
 /// (docs/identification.md, "Other people's logs").
 #[pyfunction]
-#[pyo3(signature = (logs, actuator, free, bounds=Vec::new(), validation=0.2, segment=0.1, settle=0.015, out=None, log_format=None))]
+#[pyo3(signature = (logs, actuator, free, bounds=Vec::new(), validation=0.2, segment=0.1, settle=0.015, out=None, log_format=None, select=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify_json(
     py: Python<'_>,
@@ -41,6 +41,7 @@ pub fn identify_json(
     settle: f64,
     out: Option<PathBuf>,
     log_format: Option<PathBuf>,
+    select: bool,
 ) -> PyResult<String> {
     if !(segment.is_finite()
         && segment > 0.0
@@ -73,11 +74,31 @@ pub fn identify_json(
             ..FitOptions::default()
         },
     };
-    py.detach(|| -> Result<String, IdentifyError> {
-        let id = fit_logs(&req)?;
+    // `select`: each structure's sheets in a folder of this call's own, removed once the outputs are written.
+    let work =
+        std::env::temp_dir().join(format!("pneuflex-select-{}-{:p}", std::process::id(), &req));
+    let fitted = py.detach(|| -> Result<_, IdentifyError> {
+        let id = if select {
+            pneuflex_identify::select::select(
+                &req,
+                &pneuflex_identify::select::STRUCTURES,
+                &work,
+                None,
+                &|_| {},
+            )?
+        } else {
+            fit_logs(&req)?
+        };
         if let Some(dir) = &out {
             write_outputs(&id, &req, dir)?;
         }
+        Ok(id)
+    });
+    if select {
+        let _ = std::fs::remove_dir_all(&work);
+    }
+    let id = fitted.map_err(err)?;
+    py.detach(|| -> Result<String, IdentifyError> {
         let mut val = Vec::new();
         for d in &id.data {
             let pred = d.replay(&id.model, &id.offsets, &id.options.replay, d.log.len());

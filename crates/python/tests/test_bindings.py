@@ -213,7 +213,8 @@ def the_force_control_environment_is_the_scene_run_by_a_policy():
     _, _, _, i3 = episode(wave, seed=6, randomize=True, cap=500)
     assert i1 == i2 and np.array_equal(one, two) and i3 != i1, (i1, i3)
     assert 350 <= i1["stiffness_n_per_m"] <= 2800 and 4 <= i1["t_change_s"] <= 8, i1
-    assert all(0.5 <= i[k] <= 2 for i in (i1, i3) for k in ("mass_scale", "friction_scale")), (i1, i3)
+    scaled = ("mass_scale", "friction_scale", "switching_delay_scale")
+    assert all(0.5 <= i[k] <= 2 for i in (i1, i3) for k in scaled), (i1, i3)
     assert i1["mass_scale"] != i3["mass_scale"] and i1["friction_scale"] != i3["friction_scale"], (i1, i3)
 
 

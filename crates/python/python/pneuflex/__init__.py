@@ -93,9 +93,12 @@ def mujoco_plugin_path() -> str:
     )
 
 
-def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settle=0.015, out=None, log_format=None):
+def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settle=0.015, out=None, log_format=None,
+             select=False):
     """Fits the ``free`` keys of the actuator sheet to rig logs (see the module doc and docs/identification.md);
-    ``log_format`` names a format file for logs another tool wrote (docs/identification.md, "Other people's logs")."""
+    ``log_format`` names a format file for logs another tool wrote (docs/identification.md, "Other people's logs");
+    ``select=True`` is ``identify --select``: every candidate structure fitted, the best kept, and the table in
+    ``["selection"]`` (report.json's ``structure_selection``)."""
     import json
 
     import numpy as np
@@ -110,7 +113,7 @@ def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settl
         identify_json(
             [str(p) for p in logs], str(actuator), list(free), [str(b) for b in bounds],
             validation, segment, settle, None if out is None else str(out),
-            None if log_format is None else str(log_format),
+            None if log_format is None else str(log_format), bool(select),
         )
     )
     rep = raw["report"]
@@ -124,6 +127,7 @@ def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settl
         "rms_fit": dict(zip(names, fit["rms_fit"])),
         "rms_validation": dict(zip(names, [nan if v is None else v for v in fit["rms_validation"]])),
         "warnings": rep["warnings"],
+        "selection": rep.get("structure_selection"),
         "report": rep,
         "validation": [
             {k: (v if k == "log" else np.array([nan if x is None else x for x in v], dtype=float))

@@ -19,8 +19,8 @@ follow the scene's force reference while the environment's stiffness changes und
   flange reaches either end of the stroke.
 - **Domain randomisation** (on by default, off with ``reset(options={"randomize": False})``, which gives the
   scene's own values): the stiffness before and after the change, each log-uniform in 350-2800 N/m; the time
-  of the change, uniform in 4-8 s; the moving mass and the seal friction (Coulomb and break-away forces),
-  each log-uniform in 0.5-2x the sheet's. Seeded through ``reset(seed=...)``: the same seed and actions give
+  of the change, uniform in 4-8 s; the moving mass, the seal friction (Coulomb and break-away forces) and an
+  on/off valve's switching delay, each log-uniform in 0.5-2x the sheet's. Seeded through ``reset(seed=...)``: the same seed and actions give
   the same episode. The reset's info gives the draw (:data:`PARAMS`).
 
 The dynamics are Rust's (``pneuflex.ForceControlBatch``): the scene crate's 1-DOF pneumatic plant, the one
@@ -45,7 +45,8 @@ _DEFAULT_SCENE = _SCENES / "paper-fig3.toml"
 SCALES = np.array([10.0, 10.0, 0.01, 0.1, 1e5, 1e5])  # the batch's `scales`
 
 #: What a reset's info (or a vector reset's infos, as arrays) carries: each episode's drawn parameters.
-PARAMS = ("stiffness_n_per_m", "stiffness_after_n_per_m", "t_change_s", "mass_scale", "friction_scale")
+PARAMS = ("stiffness_n_per_m", "stiffness_after_n_per_m", "t_change_s", "mass_scale", "friction_scale",
+          "switching_delay_scale")
 
 
 def _scene(scene) -> str:
