@@ -139,8 +139,8 @@ pub struct Candidate {
     /// The model check's verdict on this structure's fit.
     pub adequate: bool,
     /// Whether the effect is there: one of its keys' 95 % interval excludes its absence (0 for a leak, wall
-    /// heat, the seal term, spool travel; F_c for a break-away force). An effect whose size the logs cannot
-    /// tell from none is not chosen, whatever its BIC.
+    /// heat, the seal term, spool travel); always for another friction law, which has no absent value. An
+    /// effect whose size the logs cannot tell from none is not chosen, whatever its BIC.
     pub significant: bool,
     /// The fit's wall time, s.
     pub fit_seconds: f64,
@@ -186,8 +186,16 @@ fn normalised(id: &Identified) -> (f64, f64, usize) {
     (mean(&fit), mean(&val), mc.rows * mc.channels.len())
 }
 
-/// Whether one of the structure's keys is told from the effect's absence by its 95 % interval.
+/// Whether one of the structure's keys is told from the effect's absence by its 95 % interval. Another
+/// friction law has no "absent" value (LuGre's bristles act at any F_s): it is judged by the BIC and the
+/// held-out rows alone.
 fn effect_seen(s: &Structure, id: &Identified) -> bool {
+    if s.edits
+        .iter()
+        .any(|e| matches!(e, Edit::Mechanics("friction", _)))
+    {
+        return true;
+    }
     let estimate = |k: Key| {
         (id.keys.iter().zip(&id.report.fit.estimates))
             .find(|(q, _)| **q == k)
