@@ -35,4 +35,4 @@ pub use force_element::PneumaticForceElement;
 pub use mechanics::ExtendedState;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};
 pub use tf::{Linearisation, OperatingPoint, OperatingPointError, TfParams, TransferFunction};
-pub use valve::{Openings, PATHS, ValveKind, ValveModel, ValveState};
+pub use valve::{Openings, PATHS, SpoolHold, ValveKind, ValveModel, ValveState};

@@ -6,9 +6,9 @@ use crate::actuator::{ChamberState, ChamberStep};
 use crate::mechanics::{OneDofModel, OneDofState};
 
 /// What stays constant over one step of [`OneDofModel::step`].
-struct StepConsts {
+struct StepConsts<'a> {
     /// Chamber-equation constants for the held spool.
-    chambers: ChamberStep,
+    chambers: &'a ChamberStep,
     /// G_alpha + f_ext, N.
     f_load: f64,
     /// 1 / m, 1/kg.
@@ -87,24 +87,81 @@ impl OneDofModel {
         if !self.is_paper_model() {
             return crate::extended::step(self, state, u, f_ext, gravity_n, dt);
         }
+        let inv_mass = 1.0 / self.mechanics.moving_mass_kg;
+        let mut held = Held::NONE;
+        self.paper_step(state, u, f_ext, gravity_n, inv_mass, dt, &mut held);
+    }
+
+    /// `substeps` steps of [`Self::step_with_gravity`], each `dt / substeps` long, the external force
+    /// `f_ext(x)` (N) evaluated at the start of each and held over it: a control period of a plant that
+    /// substeps. The result is bit-for-bit that of the steps taken one by one; the chamber constants of a
+    /// spool position are evaluated once for the period rather than once per substep.
+    pub fn advance(
+        &self,
+        state: &mut OneDofState,
+        u: f64,
+        gravity_n: f64,
+        dt: f64,
+        substeps: u32,
+        mut f_ext: impl FnMut(f64) -> f64,
+    ) {
+        let h = dt / f64::from(substeps.max(1));
+        if !self.is_paper_model() {
+            for _ in 0..substeps.max(1) {
+                let f = f_ext(state.x);
+                crate::extended::step(self, state, u, f, gravity_n, h);
+            }
+            return;
+        }
+        let inv_mass = 1.0 / self.mechanics.moving_mass_kg;
+        let mut held = Held::NONE;
+        for _ in 0..substeps.max(1) {
+            let f = f_ext(state.x);
+            self.paper_step(state, u, f, gravity_n, inv_mass, h, &mut held);
+        }
+    }
+
+    /// One step of the paper's model; `held` keeps, between calls, the chamber constants of the last
+    /// spool position (they depend on nothing else) and how long the spool holds (while it does, the
+    /// valve's [`crate::ValveModel::segment`] would change nothing and is not called).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn paper_step(
+        &self,
+        state: &mut OneDofState,
+        u: f64,
+        f_ext: f64,
+        gravity_n: f64,
+        inv_mass: f64,
+        dt: f64,
+        held: &mut Held,
+    ) {
         // f_load = G_alpha + f_ext is held over the step.
         let f_load = gravity_n + f_ext;
-        let inv_mass = 1.0 / self.mechanics.moving_mass_kg;
         let (mut x, mut v, mut c) = (state.x, state.x_dot, state.chambers);
         let t_end = state.t + dt;
         let (mut tau, mut rest) = (state.t, dt);
-        let mut chambers;
         loop {
-            let (spool, edge) = self.actuator.valve.segment(&mut state.valve, u, tau, rest);
+            let valve = &self.actuator.valve;
+            let (spool, edge) = if held.spool.covers(tau, rest) {
+                (state.valve.spool, None)
+            } else {
+                let piece = valve.segment(&mut state.valve, u, tau, rest);
+                held.spool = valve.hold(&state.valve, tau);
+                piece
+            };
             // The spool is held over the piece: openings, areas and flow constants are evaluated once.
+            let consts = match &mut held.consts {
+                Some((s, k)) if s.to_bits() == spool.to_bits() => k,
+                consts => &mut consts.insert((spool, self.actuator.step_consts(spool))).1,
+            };
             let k = StepConsts {
-                chambers: self.actuator.step_consts(spool),
+                chambers: consts,
                 f_load,
                 inv_mass,
             };
             let h = edge.map_or(rest, |e| e - tau);
             (x, v, c) = self.rk4(&k, x, v, c, h);
-            chambers = k.chambers;
             match edge {
                 Some(e) if e < t_end => {
                     tau = e;
@@ -129,7 +186,10 @@ impl OneDofModel {
             ..
         } = self.mechanics.friction
             && v.abs() < stick_velocity_m_per_s
-            && (chambers.piston_force(&c) + f_load).abs() <= static_n
+            && held
+                .consts
+                .as_ref()
+                .is_some_and(|(_, k)| (k.piston_force(&c) + f_load).abs() <= static_n)
         {
             v = 0.0;
         }
@@ -138,6 +198,21 @@ impl OneDofModel {
         state.chambers = c;
         state.t += dt;
     }
+}
+
+/// What [`OneDofModel::paper_step`] carries from one step to the next within a control period.
+struct Held {
+    /// The chamber constants of the last spool position.
+    consts: Option<(f64, ChamberStep)>,
+    /// How long the spool holds after the last call of the valve.
+    spool: crate::SpoolHold,
+}
+
+impl Held {
+    const NONE: Self = Self {
+        consts: None,
+        spool: crate::SpoolHold::NONE,
+    };
 }
 
 #[inline]

@@ -290,6 +290,42 @@ impl ValveModel {
         }
     }
 
+    /// How long the spool holds after a call of [`Self::segment`] that started at `tau`: a later call
+    /// from `t` over `dt` with `t + dt < until` and `t + snap < latch` would change no state and return
+    /// `(state.spool, None)` whatever its command (no period starts, so no duty is latched, and no edge
+    /// lies before `until`), so a caller may skip it. An on/off valve holds until its next spool edge or
+    /// period start; a proportional valve follows its command at every step and never holds.
+    pub fn hold(&self, state: &ValveState, tau: f64) -> SpoolHold {
+        let ValveKind::OnOffPwm {
+            pwm_frequency_hz,
+            switching_delay_s,
+        } = self.kind
+        else {
+            return SpoolHold::NONE;
+        };
+        if !state.started {
+            return SpoolHold::NONE;
+        }
+        let pwm = Pwm {
+            period: 1.0 / pwm_frequency_hz,
+            delay: switching_delay_s,
+        };
+        let next_start = pwm.start(state, state.period + 1);
+        let mut until = next_start - pwm.snap();
+        // The spool is piecewise constant between these candidates (`segment`'s), so the first that
+        // changes it ends the hold.
+        for c in [pwm.fall_prev(state), pwm.rise(state), pwm.fall(state)] {
+            if c > tau && c < until && pwm.spool_at(state, c) != state.spool {
+                until = c;
+            }
+        }
+        SpoolHold {
+            until,
+            next_start,
+            snap: pwm.snap(),
+        }
+    }
+
     /// The duty-cycle (PWM) or spool (proportional) weights used to average the flows of a steady
     /// command `u`: returns `(w, s_hi, s_lo)` so that mean flow = w q(s_hi) + (1 - w) q(s_lo).
     pub fn averaging(&self, u: f64) -> (f64, f64, f64) {
@@ -298,6 +334,32 @@ impl ValveModel {
             ValveKind::Proportional { .. } => (1.0, u, u),
             ValveKind::OnOffPwm { .. } => (0.5 * (1.0 + u), 1.0, -1.0),
         }
+    }
+}
+
+/// How long a valve's spool holds without a call of [`ValveModel::segment`] ([`ValveModel::hold`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpoolHold {
+    /// A call ending before this time (s) would find no edge.
+    until: f64,
+    /// The next period start (s) and the snap before it (`Pwm::snap`): a call from `t` with
+    /// `t + snap < next_start` latches nothing.
+    next_start: f64,
+    snap: f64,
+}
+
+impl SpoolHold {
+    /// No hold: every step calls [`ValveModel::segment`].
+    pub const NONE: Self = Self {
+        until: f64::NEG_INFINITY,
+        next_start: f64::NEG_INFINITY,
+        snap: 0.0,
+    };
+
+    /// Whether a call of [`ValveModel::segment`] from `t` over `dt` may be skipped.
+    #[inline]
+    pub fn covers(&self, t: f64, dt: f64) -> bool {
+        t + dt < self.until && t + self.snap < self.next_start
     }
 }
 
@@ -357,11 +419,17 @@ impl Pwm {
             // Before the first period the coil was off: spring position.
             st.prev_duty = 0.0;
         }
-        // Estimate floor((t - t0) / T) (the cast truncates: the floor for positive values, without a
-        // libm call), then settle it with the exact comparisons against start(k).
-        let k = (t - st.t0) / self.period;
-        let mut k = if k > 0.0 { k as u64 } else { 0 };
         let t = t + self.snap();
+        // A first guess of the period, settled below by the exact comparisons against start(k) (so any
+        // guess gives the same k): the current period while `t` lies within the next two (a step is
+        // shorter than a period; this skips a division at every step), else floor((t - t0) / T) (the cast
+        // truncates: the floor for positive values, without a libm call).
+        let mut k = if self.start(st, st.period + 2) > t {
+            st.period
+        } else {
+            let k = (t - st.t0) / self.period;
+            if k > 0.0 { k as u64 } else { 0 }
+        };
         while self.start(st, k + 1) <= t {
             k += 1;
         }

@@ -222,3 +222,60 @@ fn retract_to_cap_end_is_stable_at_documented_step() {
         st.chambers.p_b
     );
 }
+
+/// `OneDofModel::advance` (a control period of substeps, the chamber constants and the valve's spool held
+/// between them) gives bit for bit the state of its substeps taken one by one with `step_with_gravity`:
+/// on/off valves whose PWM edges fall inside substeps and exactly on their boundaries (delays and periods
+/// that are multiples of the substep, duty 0.5), a proportional valve with a spool lag, smooth and
+/// stick-slip friction, a contact spring re-evaluated at each substep, commands that change every period.
+#[test]
+fn advance_is_its_substeps_bit_for_bit() {
+    let smooth = Friction::Smooth {
+        coulomb_n: 2.0,
+        smooth_velocity_m_per_s: 1e-3,
+    };
+    let stick = Friction::StickSlip {
+        coulomb_n: 2.0,
+        static_n: 3.0,
+        stribeck_velocity_m_per_s: 0.01,
+        stick_velocity_m_per_s: 1e-4,
+    };
+    let cases = [
+        (pwm(40.0, 0.005), smooth),
+        (pwm(50.0, 0.002), stick),
+        (pwm(100.0, 0.0), smooth),
+        (pwm(37.0, 0.00123), stick),
+        (proportional(0.02, 0.003), smooth),
+    ];
+    let (dt, substeps) = (1e-3, 10);
+    let spring = |x: f64| -700.0 * (x - 0.02).max(0.0);
+    for (i, (valve, friction)) in cases.into_iter().enumerate() {
+        let m = model(valve, friction, 30.0);
+        let start = OneDofState::at_rest(0.02, ChamberState::new(2.6e5, 3.5e5), 0.0);
+        let (mut whole, mut pieces) = (start, start);
+        let g = m.mechanics.gravity_force();
+        let mut seed = 0x2545_f491_4f6c_dd1du64 ^ i as u64;
+        for tick in 0..3000 {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            // Every fourth period one of the commands whose edges land on substep boundaries.
+            let u = match tick % 4 {
+                0 => [0.0, -1.0, 1.0, 0.5][(seed >> 62) as usize],
+                _ => 2.0 * ((seed >> 11) as f64 / (1u64 << 53) as f64) - 1.0,
+            };
+            m.advance(&mut whole, u, g, dt, substeps, spring);
+            let h = dt / f64::from(substeps);
+            for _ in 0..substeps {
+                let f = spring(pieces.x);
+                m.step_with_gravity(&mut pieces, u, f, g, h);
+            }
+            assert_eq!(whole, pieces, "case {i}, tick {tick}");
+        }
+        assert!(
+            (whole.x - start.x).abs() > 1e-4,
+            "case {i}: the flange never moved ({} m)",
+            whole.x
+        );
+    }
+}
