@@ -247,17 +247,7 @@ impl Actuator {
     /// Advances the chambers by `dt` with classic RK4, the piston moving as `x + x_dot * tau` inside the
     /// step and the spool held. Allocation-free; callers may substep.
     pub fn step_chambers(&self, s: &mut ChamberState, x: f64, x_dot: f64, spool: f64, dt: f64) {
-        let cs = self.step_consts(spool);
-        let h = 0.5 * dt;
-        let k1 = cs.rates(s, x, x_dot);
-        let k2 = cs.rates(&s.axpy(h, &k1), x + x_dot * h, x_dot);
-        let k3 = cs.rates(&s.axpy(h, &k2), x + x_dot * h, x_dot);
-        let k4 = cs.rates(&s.axpy(dt, &k3), x + x_dot * dt, x_dot);
-        let w = dt / 6.0;
-        s.p_a += w * (k1.p_a + 2.0 * k2.p_a + 2.0 * k3.p_a + k4.p_a);
-        s.p_b += w * (k1.p_b + 2.0 * k2.p_b + 2.0 * k3.p_b + k4.p_b);
-        s.t_a += w * (k1.t_a + 2.0 * k2.t_a + 2.0 * k3.t_a + k4.t_a);
-        s.t_b += w * (k1.t_b + 2.0 * k2.t_b + 2.0 * k3.t_b + k4.t_b);
+        self.step_consts(spool).step(s, x, x_dot, dt);
     }
 
     /// Gas masses (M_a, M_b) in the chambers at extension `x`, kg (ideal gas, M = p V / (R T)).
@@ -326,6 +316,22 @@ pub(crate) struct ChamberStep {
 }
 
 impl ChamberStep {
+    /// [`Actuator::step_chambers`] with these constants (the spool's).
+    #[inline]
+    pub(crate) fn step(&self, s: &mut ChamberState, x: f64, x_dot: f64, dt: f64) {
+        let cs = self;
+        let h = 0.5 * dt;
+        let k1 = cs.rates(s, x, x_dot);
+        let k2 = cs.rates(&s.axpy(h, &k1), x + x_dot * h, x_dot);
+        let k3 = cs.rates(&s.axpy(h, &k2), x + x_dot * h, x_dot);
+        let k4 = cs.rates(&s.axpy(dt, &k3), x + x_dot * dt, x_dot);
+        let w = dt / 6.0;
+        s.p_a += w * (k1.p_a + 2.0 * k2.p_a + 2.0 * k3.p_a + k4.p_a);
+        s.p_b += w * (k1.p_b + 2.0 * k2.p_b + 2.0 * k3.p_b + k4.p_b);
+        s.t_a += w * (k1.t_a + 2.0 * k2.t_a + 2.0 * k3.t_a + k4.t_a);
+        s.t_b += w * (k1.t_b + 2.0 * k2.t_b + 2.0 * k3.t_b + k4.t_b);
+    }
+
     /// Net pneumatic force on the rod along +x, N (same as [`Actuator::piston_force`]).
     #[inline(always)]
     pub(crate) fn piston_force(&self, s: &ChamberState) -> f64 {

@@ -4,7 +4,7 @@
 //! returns the piston force. It lives here, beside the chamber equations, because it is pneumatics only;
 //! every engine uses this one implementation.
 
-use crate::actuator::{Actuator, ChamberState};
+use crate::actuator::{Actuator, ChamberState, ChamberStep};
 use crate::valve::ValveState;
 
 /// The pneumatic cylinder as a force element: it integrates the two chamber states (eqs. (2)-(10), via
@@ -127,6 +127,10 @@ impl PneumaticForceElement {
         let n = self.substeps;
         let h = dt / f64::from(n);
         let mut f_sum = 0.0;
+        // Over the step: the chamber constants of the last spool position, and how long the spool holds
+        // (while it does, `segment` would change nothing and is not called). Bit for bit the same.
+        let mut consts: Option<(f64, ChamberStep)> = None;
+        let mut hold = crate::SpoolHold::NONE;
         for i in 0..n {
             let xi = x + x_dot * h * f64::from(i);
             // The substep is split at every spool edge inside it (`ValveModel::segment`: the delayed PWM
@@ -135,10 +139,14 @@ impl PneumaticForceElement {
             let (t_sub, t_end) = (self.time_s, self.time_s + h);
             let (mut tau, mut rest) = (t_sub, h);
             loop {
-                let (spool, edge) =
-                    self.actuator
-                        .valve
-                        .segment(&mut self.valve, self.command, tau, rest);
+                let valve = &self.actuator.valve;
+                let (spool, edge) = if hold.covers(tau, rest) {
+                    (self.valve.spool, None)
+                } else {
+                    let piece = valve.segment(&mut self.valve, self.command, tau, rest);
+                    hold = valve.hold(&self.valve, tau);
+                    piece
+                };
                 let len = edge.map_or(rest, |e| e - tau);
                 // Average of the force at both ends of the piece (trapezoid over the physics step,
                 // weighted by the piece's share of the substep: 1 for an unsplit substep).
@@ -148,8 +156,11 @@ impl PneumaticForceElement {
                 } else {
                     xi + x_dot * (tau - t_sub)
                 };
-                self.actuator
-                    .step_chambers(&mut self.chambers, x_piece, x_dot, spool, len);
+                let k = match &mut consts {
+                    Some((s, k)) if s.to_bits() == spool.to_bits() => k,
+                    c => &mut c.insert((spool, self.actuator.step_consts(spool))).1,
+                };
+                k.step(&mut self.chambers, x_piece, x_dot, len);
                 f_sum += 0.5 * (f0 + self.actuator.piston_force(&self.chambers)) * (len / h);
                 match edge {
                     Some(e) if e < t_end => {

@@ -65,3 +65,62 @@ fn numbers_the_element_never_writes_are_refused() {
     }
     assert!(el.set_state(&good));
 }
+
+/// The element's step is, bit for bit, its substeps split at every spool edge and integrated piece by piece
+/// with the valve asked at every piece (`ValveModel::segment`, `Actuator::step_chambers`), the force the
+/// trapezoid of each piece weighted by its share: the element holds the spool between the valve's edges
+/// and the chamber constants between spool changes without changing a bit. On/off valves with edges inside
+/// substeps and on their boundaries, and a lagging proportional valve.
+#[test]
+fn a_step_is_its_pieces_bit_for_bit() {
+    for (valve, substeps, dt) in [
+        (pwm(40.0, 0.005), 10, 1e-3),
+        (pwm(50.0, 0.002), 4, 1e-3),
+        (pwm(37.0, 0.00123), 3, 25e-6),
+        (proportional(0.02, 0.005), 10, 1e-3),
+    ] {
+        let act = actuator(valve, 1.4);
+        let start = ChamberState::new(3.0e5, 3.5e5);
+        let mut el = PneumaticForceElement::new(act, start, substeps);
+        let (mut chambers, mut spool_state, mut t) = (start, el.valve, 0.0);
+        for k in 0..4000 {
+            let u = [0.0, 0.6, -0.35, 1.0, -1.0, 0.5][k % 6];
+            let tk = k as f64 * dt;
+            let (x, x_dot) = (0.02 + 0.01 * (7.0 * tk).sin(), 0.07 * (7.0 * tk).cos());
+            el.set_command(u);
+            let f = el.step(x, x_dot, dt);
+            // The reference: the valve at every piece.
+            let h = dt / f64::from(substeps);
+            let mut f_sum = 0.0;
+            for i in 0..substeps {
+                let xi = x + x_dot * h * f64::from(i);
+                let (t_sub, t_end) = (t, t + h);
+                let (mut tau, mut rest) = (t_sub, h);
+                loop {
+                    let (spool, edge) = act.valve.segment(&mut spool_state, u, tau, rest);
+                    let len = edge.map_or(rest, |e| e - tau);
+                    let f0 = act.piston_force(&chambers);
+                    let x_piece = if tau == t_sub {
+                        xi
+                    } else {
+                        xi + x_dot * (tau - t_sub)
+                    };
+                    act.step_chambers(&mut chambers, x_piece, x_dot, spool, len);
+                    f_sum += 0.5 * (f0 + act.piston_force(&chambers)) * (len / h);
+                    match edge {
+                        Some(e) if e < t_end => (tau, rest) = (e, t_end - e),
+                        _ => break,
+                    }
+                }
+                t += h;
+            }
+            assert_eq!(
+                f,
+                f_sum / f64::from(substeps),
+                "{:?}, step {k}",
+                act.valve.kind
+            );
+            assert_eq!((el.chambers, el.valve), (chambers, spool_state), "step {k}");
+        }
+    }
+}
