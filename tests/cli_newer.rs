@@ -1221,7 +1221,7 @@ fn identify_select_reports_every_structure_and_chooses_by_its_rule() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let sel = &report["structure_selection"];
     let cands = sel["candidates"].as_array().unwrap();
-    assert_eq!(cands.len(), 7);
+    assert_eq!(cands.len(), 8);
     let base =
         cands.iter().find(|c| c["structure"] == "as_given").unwrap()["validation_over_floor_sq"]
             .as_f64()

@@ -47,7 +47,7 @@ pub struct Identify {
     #[arg(long, value_name = "FILE")]
     pub log_format: Option<PathBuf>,
     /// Structure selection: fit the sheet as given and with each effect it lacks switched on (leaks, wall
-    /// heat, stick-slip or LuGre friction, a pressure-dependent seal, spool travel), their keys freed
+    /// heat, a polytropic chamber process, stick-slip or LuGre friction, a pressure-dependent seal, spool travel), their keys freed
     /// beside --free, and keep the lowest BIC whose held-out residual is no worse (docs/identification.md).
     #[arg(long)]
     pub select: bool,

@@ -70,6 +70,9 @@ pub enum Key {
     BristleStiffness,
     /// LuGre bristle damping sigma1, N s/m.
     BristleDamping,
+    /// Polytropic exponent n of the chamber process (1 isothermal, 1.4 adiabatic air; eqs. 5-10 with n
+    /// for k): a chamber that exchanges heat with its wall, lumped.
+    PolytropicExponent,
 }
 
 /// The per-path keys' names, in the order of `pneuflex_pneumatics::PATHS`.
@@ -99,7 +102,7 @@ const LEAK_B: [&str; 3] = [
 ];
 
 /// Every key, in the order of the report.
-pub const ALL: [Key; 41] = [
+pub const ALL: [Key; 42] = [
     Key::SonicConductance,
     Key::CriticalRatio,
     Key::SwitchingDelay,
@@ -141,6 +144,7 @@ pub const ALL: [Key; 41] = [
     Key::CoulombPressure,
     Key::BristleStiffness,
     Key::BristleDamping,
+    Key::PolytropicExponent,
 ];
 
 /// Sensor offsets (not in the actuator sheet; reported, and subtracted from the readings in the replay).
@@ -189,6 +193,7 @@ impl Key {
             Key::CoulombPressure => "mechanics.coulomb_pressure_n_per_pa",
             Key::BristleStiffness => "mechanics.bristle_stiffness_n_per_m",
             Key::BristleDamping => "mechanics.bristle_damping_n_s_per_m",
+            Key::PolytropicExponent => "gas.polytropic_exponent",
         }
     }
 
@@ -231,7 +236,8 @@ impl Key {
             | Key::LineSoundSpeed
             | Key::CoulombPressure
             | Key::BristleStiffness
-            | Key::BristleDamping => Some("actuator"),
+            | Key::BristleDamping
+            | Key::PolytropicExponent => Some("actuator"),
             Key::OffsetPa | Key::OffsetPb | Key::OffsetX => None,
         }
     }
@@ -345,6 +351,7 @@ impl Key {
             Key::OffsetX => o.x,
             Key::PathConductance(i) => v.path(usize::from(i) & 3).sonic_conductance_m3_per_s_pa,
             Key::PathCritical(i) => v.path(usize::from(i) & 3).critical_pressure_ratio,
+            Key::PolytropicExponent => m.actuator.gas.polytropic_exponent,
             _ => self.get_effect(m),
         }
     }
@@ -512,6 +519,7 @@ impl Key {
                 p.critical_pressure_ratio = x;
                 v.paths[i] = Some(p);
             }
+            Key::PolytropicExponent => m.actuator.gas.polytropic_exponent = x,
             _ => self.set_effect(m, x),
         }
     }
@@ -539,6 +547,8 @@ impl Key {
             Key::Viscous | Key::Coulomb | Key::Static => (0.0, (5.0 * x0).max(1.0)),
             Key::OffsetPa | Key::OffsetPb => (x0 - 20e3, x0 + 20e3),
             Key::OffsetX => (x0 - 2e-3, x0 + 2e-3),
+            // The sheet's range: isothermal to monatomic (above 1.4 is not air, but a fit may say so).
+            Key::PolytropicExponent => (1.0, 1.67),
             _ => self.effect_bounds(x0, m),
         }
     }
@@ -660,6 +670,10 @@ impl Key {
             Key::BristleStiffness | Key::BristleDamping => {
                 "small reversals below the break-away force: the pre-sliding displacement (rig excite \
                  --signal chirp --amplitude 0.01)"
+            }
+            Key::PolytropicExponent => {
+                "fills and exhausts with the piston moving and held, fast and slow: the pressure's answer \
+                 to a volume change against its answer to a flow (rig excite --signal steps)"
             }
         }
     }

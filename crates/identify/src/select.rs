@@ -1,6 +1,6 @@
 //! Structure selection (issue 26): which effects the model needs to explain the logs. Each candidate
-//! structure is the sheet with one effect switched on at a modest start (leaks, wall heat, another friction
-//! law, a pressure-dependent seal, spool travel) and that effect's keys freed beside the user's; each is fitted
+//! structure is the sheet with one effect switched on at a modest start (leaks, wall heat, a polytropic
+//! chamber process, another friction law, a pressure-dependent seal, spool travel) and that effect's keys freed beside the user's; each is fitted
 //! to the same logs. The choice is the lowest BIC on the fit rows, with the residuals measured in units of
 //! each channel's noise floor (the model check's), among the structures whose held-out residual is not worse
 //! than the sheet's own: an effect that only fits the noise pays its keys' ln n and loses.
@@ -50,7 +50,7 @@ fn coulomb(m: &pneuflex_pneumatics::OneDofModel) -> f64 {
 }
 
 /// The structures `identify --select` compares, the sheet as given first.
-pub const STRUCTURES: [Structure; 7] = [
+pub const STRUCTURES: [Structure; 8] = [
     Structure {
         name: "as_given",
         adds: "nothing: the sheet's own model",
@@ -76,6 +76,12 @@ pub const STRUCTURES: [Structure; 7] = [
         adds: "wall heat transfer (Newton cooling, h from 20 W/(m^2 K))",
         edits: &[Edit::Value(Key::WallHeat, |_| 20.0)],
         keys: &[Key::WallHeat],
+    },
+    Structure {
+        name: "polytropic",
+        adds: "a polytropic chamber process (the exponent n free, from 1.25: between isothermal 1 and the sheet's)",
+        edits: &[Edit::Value(Key::PolytropicExponent, |_| 1.25)],
+        keys: &[Key::PolytropicExponent],
     },
     Structure {
         name: "stick_slip",
@@ -186,10 +192,10 @@ fn normalised(id: &Identified) -> (f64, f64, usize) {
     (mean(&fit), mean(&val), mc.rows * mc.channels.len())
 }
 
-/// Whether one of the structure's keys is told from the effect's absence by its 95 % interval. Another
-/// friction law has no "absent" value (LuGre's bristles act at any F_s): it is judged by the BIC and the
-/// held-out rows alone.
-fn effect_seen(s: &Structure, id: &Identified) -> bool {
+/// Whether one of the structure's keys is told from the effect's absence by its 95 % interval (for the
+/// exponent, the sheet's own value `n0`). Another friction law has no "absent" value (LuGre's bristles act
+/// at any F_s): it is judged by the BIC and the held-out rows alone.
+fn effect_seen(s: &Structure, id: &Identified, n0: f64) -> bool {
     if s.edits
         .iter()
         .any(|e| matches!(e, Edit::Mechanics("friction", _)))
@@ -208,6 +214,7 @@ fn effect_seen(s: &Structure, id: &Identified) -> bool {
             Key::Static => e.ci95[0] > f_c,
             // The bristles have no "absent" value: LuGre is judged by its break-away force.
             Key::BristleStiffness | Key::BristleDamping => false,
+            Key::PolytropicExponent => e.ci95[1] < n0 || e.ci95[0] > n0,
             _ => e.ci95[0] > 0.0,
         }
     })
@@ -239,9 +246,10 @@ fn structure_sheet(
         {
             return Ok(Err(format!("{} is free already", k.name())));
         }
-        // An absent effect reads NaN (leaks, wall heat, the seal term) or 0 (spool travel).
+        // An absent effect reads NaN (leaks, wall heat, the seal term) or 0 (spool travel); F_s and the
+        // exponent are always there.
         let v = k.get(&model, &offsets);
-        if v.is_finite() && v != 0.0 && !matches!(k, Key::Static) {
+        if v.is_finite() && v != 0.0 && !matches!(k, Key::Static | Key::PolytropicExponent) {
             return Ok(Err(format!("the sheet has {} already", k.name())));
         }
     }
@@ -269,8 +277,13 @@ fn structure_sheet(
     })?;
     let mut values: Vec<(Key, f64)> = warm.to_vec();
     values.extend(s.edits.iter().filter_map(|e| match e {
-        // `scale` shrinks the effect's start (not F_s, which must stay above F_c).
+        // `scale` shrinks the effect's start (not F_s, which must stay above F_c; for the exponent, its
+        // departure from the sheet's).
         Edit::Value(Key::Static, start) => Some((Key::Static, start(&warmed))),
+        Edit::Value(Key::PolytropicExponent, start) => {
+            let n0 = model.actuator.gas.polytropic_exponent;
+            Some((Key::PolytropicExponent, n0 - scale * (n0 - start(&warmed))))
+        }
         Edit::Value(k, start) => Some((*k, scale * start(&warmed))),
         Edit::Mechanics(..) => None,
     }));
@@ -422,7 +435,8 @@ pub fn select(
                 c.validation_over_floor_sq = val;
                 c.bic = n as f64 * fit.ln() + k * (n as f64).ln();
                 c.adequate = id.report.model_check.adequate;
-                c.significant = s.edits.is_empty() || effect_seen(s, &id);
+                c.significant = s.edits.is_empty()
+                    || effect_seen(s, &id, sheet_model.actuator.gas.polytropic_exponent);
                 c.fit_seconds = id.report.fit_seconds;
                 candidates.push(c);
                 fits.push(Some(id));

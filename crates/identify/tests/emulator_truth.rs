@@ -59,6 +59,22 @@ fn perturbation_is_seeded_and_within_20_to_40_percent() {
     }
 }
 
+/// The polytropic exponent is perturbed towards isothermal (its distance from 1 down by 20-40 %), never out
+/// of the sheet's range [1, 1.67]: for every seed the 1.4 of the shipped sheet becomes 1.24-1.32 in a sheet
+/// that loads, and the written sheet carries it.
+#[test]
+fn the_polytropic_exponent_is_perturbed_towards_isothermal() {
+    let dir = common::scratch("perturb-n");
+    for seed in 0..12 {
+        let out = dir.path().join(format!("s{seed}"));
+        let (sheet, changes) = perturb(&shipped(), &[Key::PolytropicExponent], seed, &out).unwrap();
+        let n = changes[0].truth;
+        assert!((1.24..=1.32).contains(&n), "seed {seed}: n = {n}");
+        let m = ActuatorSheet::load(&sheet).unwrap().model();
+        assert_eq!(m.actuator.gas.polytropic_exponent, n);
+    }
+}
+
 fn rms_of(p: &Prepared, model: &pneuflex_pneumatics::OneDofModel) -> [f64; 2] {
     let o = ReplayOptions::default();
     let pred = p.replay(model, &Offsets::default(), &o, p.log.len());

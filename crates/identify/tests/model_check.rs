@@ -33,7 +33,7 @@ struct Effect {
     missing: &'static str,
 }
 
-const EFFECTS: [Effect; 6] = [
+const EFFECTS: [Effect; 7] = [
     Effect {
         name: "leak",
         edits: &[(
@@ -88,6 +88,18 @@ const EFFECTS: [Effect; 6] = [
         edits: &[(VALVE, "", "spool_time_constant_s = 0.0002")],
         keys: &[Key::SpoolTimeConstant],
         missing: "valve_dynamics",
+    },
+    Effect {
+        // The example: a gas that exchanges heat with the wall, lumped as n = 1.25 (the exponent is
+        // planted, not perturbed).
+        name: "polytropic",
+        edits: &[(
+            ACT,
+            "polytropic_exponent = 1.4",
+            "polytropic_exponent = 1.25",
+        )],
+        keys: &[],
+        missing: "heat_transfer",
     },
 ];
 
@@ -393,6 +405,7 @@ fn select_on(log: std::path::PathBuf, work: &std::path::Path, names: &[&str]) ->
 /// leakage, wall heat and LuGre friction it chooses leakage, whose fit the model check finds adequate, with
 /// the truth's leak and the six usual truths inside their intervals.
 #[test]
+#[ignore = "45-90 s in a debug build (the leaks' fit); structure_selection_finds_a_polytropic_chamber and the CLI's select test keep the rule checked"]
 fn structure_selection_finds_a_hidden_leak() {
     let (scratch, _base, changes, log) = planted(effect("leak"), SEED);
     let names = ["as_given", "leakage", "heat_transfer", "lugre"];
@@ -411,6 +424,35 @@ fn structure_selection_finds_a_hidden_leak() {
         md.contains("## Structure selection") && md.contains("`leakage` **(chosen)**"),
         "{md}"
     );
+}
+
+/// Structure selection on a truth whose chambers are polytropic at n = 1.25 (the shipped sheet's are
+/// adiabatic, 1.4): of the sheet as given, wall heat and the polytropic process it chooses the polytropic
+/// one, found adequate, with n's interval holding 1.25 and excluding 1.4, and the six usual truths inside
+/// theirs.
+#[test]
+fn structure_selection_finds_a_polytropic_chamber() {
+    let (scratch, _base, changes, log) = planted(effect("polytropic"), SEED);
+    let names = ["as_given", "heat_transfer", "polytropic"];
+    let id = select_on(log, &scratch.path().join("structures"), &names);
+    let sel = id.report.structure_selection.as_ref().unwrap();
+    assert_eq!(sel.chosen, "polytropic", "{}", sel.verdict);
+    assert!(
+        id.report.model_check.adequate,
+        "{:?}",
+        id.report.model_check.failed
+    );
+    let n = (id.keys.iter().zip(&id.report.fit.estimates))
+        .find(|(k, _)| **k == Key::PolytropicExponent)
+        .map(|(_, e)| e)
+        .expect("the exponent is fitted");
+    eprintln!("n = {} ci95 {:?}", n.value, n.ci95);
+    assert!(
+        n.ci95[0] <= 1.25 && 1.25 <= n.ci95[1] && n.ci95[1] < 1.4,
+        "{:?}",
+        n.ci95
+    );
+    assert_eq!(coverage("selected polytropic", &id, &changes), (6, 6));
 }
 
 /// On a truth of the sheet's own model, the selection keeps the sheet as given: the other structures'
@@ -444,7 +486,7 @@ fn structure_selection_keeps_a_matched_model() {
 fn structure_selection_on_every_planted_effect() {
     let family = |structure: &str| match structure {
         "leakage" => "leakage",
-        "heat_transfer" => "heat_transfer",
+        "heat_transfer" | "polytropic" => "heat_transfer",
         "stick_slip" | "lugre" | "seal_pressure" => "friction",
         "valve_dynamics" => "valve_dynamics",
         _ => "none",
