@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # Tests of the Python bindings (crates/python) and of the MuJoCo equivalent model (crossval/):
-# creates/updates .venv (scripts/venv), builds and installs the bindings (maturin, release), runs
+# creates/updates .venv (scripts/venv), builds and installs the bindings (scripts/build_python: release, or dev with PNEUFLEX_PY_DEV=1), runs
 # crates/python/tests/test_bindings.py, then the MuJoCo plugin's tests (crates/python/tests/test_mujoco_plugin.py;
 # the plugin built in release unless PNEUFLEX_MUJOCO_PLUGIN names a build). Exit status non-zero on any failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/venv
-VIRTUAL_ENV="$PWD/.venv" .venv/bin/maturin develop --release --quiet -m crates/python/Cargo.toml
+scripts/build_python
 [ -n "${PNEUFLEX_MUJOCO_PLUGIN:-}" ] || cargo build --release --quiet -p pneuflex-mujoco
 .venv/bin/python crates/python/tests/test_bindings.py
 exec .venv/bin/python crates/python/tests/test_mujoco_plugin.py
