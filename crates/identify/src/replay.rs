@@ -207,7 +207,9 @@ impl Prepared {
         let mut valve = ValveState::default();
         let mut extra = ExtendedState::default();
         let mut v_end = None;
-        let sub = o.substeps.max(1);
+        let sub = u32::try_from(o.substeps.max(1)).unwrap_or(u32::MAX);
+        // G_alpha of eq. (1), once for the replay rather than at every step.
+        let gravity_n = model.mechanics.gravity_force();
         for (seg, &(s, e)) in self.segments.iter().enumerate() {
             if s >= upto {
                 break;
@@ -244,14 +246,15 @@ impl Prepared {
             out.p_a[s] = st.chambers.p_a + off.p_a;
             out.p_b[s] = st.chambers.p_b + off.p_b;
             for k in s..e {
-                let h = (l.t[k + 1] - l.t[k]) / sub as f64;
                 let t_end = l.t[k + 1];
-                for i in 0..sub {
-                    // The contact force varies with the position inside the period: interpolated.
-                    let w = (i as f64 + 0.5) / sub as f64;
-                    let f_e = l.f_e[k] + w * (l.f_e[k + 1] - l.f_e[k]);
-                    model.step(&mut st, l.u[k], -f_e, h);
-                }
+                // `sub` substeps of the log's period (the chamber constants and the spool held between
+                // them: OneDofModel::advance), the contact force interpolated inside the period.
+                let mut i = 0u32;
+                model.advance(&mut st, l.u[k], gravity_n, t_end - l.t[k], sub, |_| {
+                    let w = (f64::from(i) + 0.5) / f64::from(sub);
+                    i += 1;
+                    -(l.f_e[k] + w * (l.f_e[k + 1] - l.f_e[k]))
+                });
                 // No drift of the model's clock against the log's.
                 st.t = t_end;
                 out.x[k + 1] = st.x + off.x;

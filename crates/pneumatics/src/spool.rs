@@ -81,7 +81,8 @@ impl SpoolLaw {
         if self.is_held() {
             self.target
         } else {
-            self.target + (self.start - self.target) * (-(t - self.t0) / self.tau).exp()
+            self.target
+                + (self.start - self.target) * crate::mechanics::decay((t - self.t0) / self.tau)
         }
     }
 }
