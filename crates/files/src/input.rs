@@ -20,6 +20,8 @@ pub enum InputKind {
     RigFile,
     /// A recorded trace (CSV).
     Trace,
+    /// A collision mesh of a URDF (STL or OBJ).
+    Mesh,
 }
 
 impl InputKind {
@@ -29,6 +31,8 @@ impl InputKind {
             InputKind::Scene | InputKind::Sheet | InputKind::RigFile => 1 << 20,
             InputKind::Urdf => 8 << 20,
             InputKind::Trace => 2 << 30,
+            // A 1-million-triangle binary STL is 50 MB.
+            InputKind::Mesh => 256 << 20,
         }
     }
 
@@ -40,6 +44,7 @@ impl InputKind {
             InputKind::Urdf => "URDF file",
             InputKind::RigFile => "rig file",
             InputKind::Trace => "trace",
+            InputKind::Mesh => "mesh file",
         }
     }
 }
@@ -148,8 +153,8 @@ pub fn check_regular(path: &Path, kind: InputKind) -> Result<u64, InputError> {
     Ok(meta.len())
 }
 
-/// Reads a text input: a regular file, at most `kind.max_bytes()`, UTF-8.
-pub fn read_text(path: &Path, kind: InputKind) -> Result<String, InputError> {
+/// Reads a binary input: a regular file, at most `kind.max_bytes()`.
+pub fn read_bytes(path: &Path, kind: InputKind) -> Result<Vec<u8>, InputError> {
     let size = check_regular(path, kind)?;
     let io = |os_error| InputError::Io {
         path: path.to_path_buf(),
@@ -167,6 +172,12 @@ pub fn read_text(path: &Path, kind: InputKind) -> Result<String, InputError> {
             noun: kind.noun(),
         });
     }
+    Ok(bytes)
+}
+
+/// Reads a text input: a regular file, at most `kind.max_bytes()`, UTF-8.
+pub fn read_text(path: &Path, kind: InputKind) -> Result<String, InputError> {
+    let bytes = read_bytes(path, kind)?;
     let mut text = String::from_utf8(bytes).map_err(|e| InputError::NotText {
         path: path.to_path_buf(),
         offset: e.utf8_error().valid_up_to(),

@@ -15,7 +15,7 @@ pub mod path;
 pub mod position;
 pub mod provenance;
 
-pub use input::{InputError, InputKind, read_text};
+pub use input::{InputError, InputKind, read_bytes, read_text};
 pub use output::{OutputDir, OutputError};
 pub use position::{Position, line_col, toml_key_position};
 pub use provenance::{InputDigest, sha256_hex};

@@ -6,12 +6,14 @@
 
 pub mod actuator;
 pub mod error;
+pub mod mesh;
 pub mod urdf_build;
 pub mod urdf_scan;
 pub mod world;
 
 pub use actuator::{AxialActuator, ConstantForce, PneumaticForceElement, SpringActuator};
 pub use error::MultibodyError;
+pub use mesh::ConvexHull;
 /// The Rapier crate this world is built on.
 pub use rapier3d_f64;
 /// Rapier's f64 math types (glam), used for poses in the public API.

@@ -6,7 +6,8 @@
 //!   joint would only cost solver work), so base + platform + cylinder are one fixed body;
 //! - the root link is a fixed body; links named as kinematic become position-driven kinematic bodies
 //!   (their URDF joint only declares the degrees of freedom the scene drives);
-//! - `<collision>` box / cylinder / sphere / capsule become colliders (mesh -> "unsupported" error);
+//! - `<collision>` box / cylinder / sphere / capsule become colliders, and a mesh (STL or OBJ) its convex
+//!   hull ([`crate::mesh`]);
 //! - `<inertial>` become the bodies' mass properties (colliders carry no density);
 //! - prismatic / revolute / continuous / planar / spherical joints become Rapier impulse joints with the
 //!   URDF limits; `<dynamics damping>` becomes a force-based velocity motor (a true viscous damper).
@@ -24,8 +25,8 @@ use rapier3d_f64::prelude::*;
 
 use crate::error::MultibodyError;
 
-/// A collision primitive of a link, in the link frame, for visualisation.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A collision shape of a link, in the link frame, for visualisation.
+#[derive(Debug, Clone, PartialEq)]
 pub enum LinkShape {
     /// A box with full edge lengths, m.
     Box {
@@ -51,10 +52,12 @@ pub enum LinkShape {
         /// Length of the cylindrical part, m.
         length_m: f64,
     },
+    /// The convex hull of a mesh file (scaled), which is what collides.
+    ConvexHull(crate::mesh::ConvexHull),
 }
 
 /// One collision element of a link: where it sits in the link frame and what it is.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LinkGeometry {
     /// Pose of the shape in the link frame.
     pub origin: Pose,
@@ -289,10 +292,19 @@ fn geometry_of(file: &Path, link: &urdf_rs::Link) -> Result<Vec<LinkGeometry>, M
                 radius_m: pos(*radius, "capsule radius")?,
                 length_m: pos(*length, "capsule length")?,
             },
-            urdf_rs::Geometry::Mesh { filename, .. } => {
-                return Err(bad(format!(
-                    "mesh '{filename}' is unsupported: use box, cylinder, sphere or capsule"
-                )));
+            urdf_rs::Geometry::Mesh { filename, scale } => {
+                let scale = scale.map_or([1.0; 3], |s| s.0);
+                if !scale.iter().all(|s| s.is_finite() && *s > 0.0) {
+                    return Err(bad(format!(
+                        "mesh '{filename}': scale {scale:?} must be three finite factors > 0"
+                    )));
+                }
+                let path = crate::mesh::resolve(file, filename).map_err(&bad)?;
+                let points = crate::mesh::read_vertices(&path, scale)
+                    .map_err(|e| bad(format!("mesh '{filename}': {e}")))?;
+                let hull = crate::mesh::convex_hull(&points)
+                    .map_err(|e| bad(format!("mesh '{filename}' ({}): {e}", path.display())))?;
+                LinkShape::ConvexHull(hull)
             }
         };
         out.push(LinkGeometry {
@@ -307,20 +319,22 @@ fn geometry_of(file: &Path, link: &urdf_rs::Link) -> Result<Vec<LinkGeometry>, M
 fn collider_for(g: &LinkGeometry, body_from_link: &Pose, friction: f64) -> Collider {
     // parry's cylinder and capsule run along y, URDF's along z: turn y onto z.
     let y_to_z = Pose::from_rotation(Rotation::from_rotation_x(core::f64::consts::FRAC_PI_2));
-    let (builder, local) = match g.shape {
+    let (builder, local) = match &g.shape {
         LinkShape::Box { size_m } => (
             ColliderBuilder::cuboid(size_m[0] / 2.0, size_m[1] / 2.0, size_m[2] / 2.0),
             g.origin,
         ),
         LinkShape::Cylinder { radius_m, length_m } => (
-            ColliderBuilder::cylinder(length_m / 2.0, radius_m),
+            ColliderBuilder::cylinder(length_m / 2.0, *radius_m),
             g.origin * y_to_z,
         ),
-        LinkShape::Sphere { radius_m } => (ColliderBuilder::ball(radius_m), g.origin),
+        LinkShape::Sphere { radius_m } => (ColliderBuilder::ball(*radius_m), g.origin),
         LinkShape::Capsule { radius_m, length_m } => (
-            ColliderBuilder::capsule_y(length_m / 2.0, radius_m),
+            ColliderBuilder::capsule_y(length_m / 2.0, *radius_m),
             g.origin * y_to_z,
         ),
+        // The hull's own vertices and faces: checked convex and solid when the mesh was read.
+        LinkShape::ConvexHull(hull) => (hull.collider(), g.origin),
     };
     builder
         .position(*body_from_link * local)

@@ -112,13 +112,18 @@ fn inertia_not_positive_definite() {
     );
 }
 
+/// A `package://` mesh (a ROS package path) is refused naming the URDF, the link and the fix (meshes that
+/// load: tests/mesh.rs).
 #[test]
-fn mesh_collision_is_unsupported() {
+fn a_package_mesh_path_is_refused_with_the_fix() {
     let p = fixture("mesh.urdf");
     let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
     assert!(matches!(e, MultibodyError::BadGeometry { .. }), "{msg}");
     assert!(
-        msg.contains("mesh.urdf") && msg.contains("'flange'") && msg.contains("unsupported"),
+        msg.contains("mesh.urdf")
+            && msg.contains("'flange'")
+            && msg.contains("package://rig/flange.stl")
+            && msg.contains("relative to the URDF"),
         "{msg}"
     );
 }

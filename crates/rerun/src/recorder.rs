@@ -5,8 +5,8 @@ use std::time::Duration;
 
 use rerun::{
     Arrows3D, Boxes3D, Color, Cylinders3D, Ellipsoids3D, EntityPath, FillMode, LineStrips3D,
-    Points3D, RecordingStream, RecordingStreamBuilder, Scalars, SeriesLines, TextLog, TimeCell,
-    TimeColumn, Transform3D, ViewCoordinates,
+    Mesh3D, Points3D, RecordingStream, RecordingStreamBuilder, Scalars, SeriesLines, TextLog,
+    TimeCell, TimeColumn, Transform3D, ViewCoordinates,
 };
 
 use crate::RerunError;
@@ -89,7 +89,7 @@ impl RecorderOptions {
 }
 
 /// A collision shape in its link frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Shape {
     /// Box with half side lengths along the link's x, y, z (m).
     Box {
@@ -107,6 +107,13 @@ pub enum Shape {
     Sphere {
         /// Radius (m).
         radius_m: f64,
+    },
+    /// A triangle mesh in the link frame (a URDF mesh's convex hull).
+    Mesh {
+        /// Vertices (m).
+        vertices_m: Vec<[f64; 3]>,
+        /// Triangles, indices into the vertices.
+        triangles: Vec<[u32; 3]>,
     },
 }
 
@@ -471,7 +478,7 @@ impl RunRecorder {
         let entity = EntityPath::from(link.entity.as_str());
         let [r, g, b, a] = link.colour;
         let colour = Color::from_unmultiplied_rgba(r, g, b, a);
-        let res = match link.shape {
+        let res = match &link.shape {
             Shape::Box { half_extents_m: h } => {
                 let h = [
                     positive("half_extents_m[0]", h[0])?,
@@ -489,8 +496,8 @@ impl RunRecorder {
                 radius_m,
                 half_length_m,
             } => {
-                let r = positive("radius_m", radius_m)?;
-                let l = 2.0 * positive("half_length_m", half_length_m)?;
+                let r = positive("radius_m", *radius_m)?;
+                let l = 2.0 * positive("half_length_m", *half_length_m)?;
                 self.rec.log_static(
                     entity.clone(),
                     &Cylinders3D::from_lengths_and_radii([l], [r])
@@ -499,12 +506,35 @@ impl RunRecorder {
                 )
             }
             Shape::Sphere { radius_m } => {
-                let r = positive("radius_m", radius_m)?;
+                let r = positive("radius_m", *radius_m)?;
                 self.rec.log_static(
                     entity.clone(),
                     &Ellipsoids3D::from_radii([r])
                         .with_colors([colour])
                         .with_fill_mode(FillMode::Solid),
+                )
+            }
+            Shape::Mesh {
+                vertices_m,
+                triangles,
+            } => {
+                let n = vertices_m.len();
+                if let Some(v) = vertices_m.iter().find(|v| v.iter().any(|c| !c.is_finite())) {
+                    return Err(bad(format!("a mesh vertex is not finite: {v:?}")));
+                }
+                if let Some(t) = triangles
+                    .iter()
+                    .find(|t| t.iter().any(|&i| i as usize >= n))
+                {
+                    return Err(bad(format!(
+                        "a triangle {t:?} indexes past the {n} vertices"
+                    )));
+                }
+                self.rec.log_static(
+                    entity.clone(),
+                    &Mesh3D::new(vertices_m.iter().map(|v| v.map(|c| c as f32)))
+                        .with_triangle_indices(triangles.iter().copied())
+                        .with_vertex_colors(std::iter::repeat_n(colour, n)),
                 )
             }
         };

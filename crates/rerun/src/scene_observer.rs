@@ -340,7 +340,7 @@ impl Drawing {
         let (mut flange, mut cylinder) = (None, None);
         for (i, v) in visuals.iter().enumerate() {
             let entity = paths::link(&v.name);
-            let shape = match v.shape {
+            let shape = match v.shape.clone() {
                 VisualShape::Box { half_extents_m } => Shape::Box { half_extents_m },
                 VisualShape::Cylinder {
                     radius_m,
@@ -350,6 +350,13 @@ impl Drawing {
                     half_length_m,
                 },
                 VisualShape::Sphere { radius_m } => Shape::Sphere { radius_m },
+                VisualShape::Mesh {
+                    vertices_m,
+                    triangles,
+                } => Shape::Mesh {
+                    vertices_m,
+                    triangles,
+                },
             };
             shapes.push(LinkShape {
                 entity: entity.clone(),
@@ -358,26 +365,40 @@ impl Drawing {
             });
             match v.role {
                 VisualRole::Flange if flange.is_none() => {
-                    let (half, width) = match v.shape {
+                    let (half, width) = match &v.shape {
                         VisualShape::Box { half_extents_m } => {
                             (half_extents_m[0], half_extents_m[1].max(half_extents_m[2]))
                         }
                         VisualShape::Cylinder {
                             radius_m,
                             half_length_m,
-                        } => (half_length_m, radius_m),
-                        VisualShape::Sphere { radius_m } => (radius_m, radius_m),
+                        } => (*half_length_m, *radius_m),
+                        VisualShape::Sphere { radius_m } => (*radius_m, *radius_m),
+                        // Its extent along x and across, from the vertices.
+                        VisualShape::Mesh { vertices_m, .. } => {
+                            let span = |k: usize| {
+                                let (lo, hi) = vertices_m
+                                    .iter()
+                                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                                        (lo.min(v[k]), hi.max(v[k]))
+                                    });
+                                0.5 * (hi - lo)
+                            };
+                            (span(0), span(1).max(span(2)))
+                        }
                     };
                     flange = Some((i, half, width));
                 }
                 VisualRole::Cylinder if cylinder.is_none() => {
                     // A cylinder shape runs along its z, a box is taken along its x.
-                    let axis = match v.shape {
+                    let axis = match &v.shape {
                         VisualShape::Cylinder { .. } => CylinderAxis {
                             to_z: [0.0, 0.0, 0.0, 1.0],
                             axis: [0.0, 0.0, 1.0],
                         },
-                        VisualShape::Box { .. } | VisualShape::Sphere { .. } => CylinderAxis {
+                        VisualShape::Box { .. }
+                        | VisualShape::Sphere { .. }
+                        | VisualShape::Mesh { .. } => CylinderAxis {
                             to_z: Z_TO_X,
                             axis: [1.0, 0.0, 0.0],
                         },

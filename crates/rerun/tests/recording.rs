@@ -30,6 +30,21 @@ fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
         colour: [90, 90, 90, 255],
     })
     .unwrap();
+    // A mesh (a URDF mesh's convex hull): a tetrahedron.
+    rec.log_link_shape(&LinkShape {
+        entity: paths::link("wedge"),
+        shape: Shape::Mesh {
+            vertices_m: vec![
+                [0.0; 3],
+                [0.02, 0.0, 0.0],
+                [0.0, 0.02, 0.0],
+                [0.0, 0.0, 0.02],
+            ],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+        },
+        colour: [120, 90, 60, 255],
+    })
+    .unwrap();
     rec.set_chamber_bore(0.032).unwrap();
     rec.register_series(paths::VALVE_U, "u [-]", [0, 200, 0, 255], 1.5)
         .unwrap();
@@ -126,6 +141,11 @@ fn saved_recording_reads_back_with_one_row_per_step_and_a_footer() {
     let flange = format!("/{}", paths::link("flange"));
     assert_eq!(rows(&flange, "sim_time"), steps);
     assert!(back.static_entities.contains(&flange));
+    assert!(
+        back.static_entities
+            .contains(&format!("/{}", paths::link("wedge"))),
+        "the mesh link is in the recording"
+    );
     assert_eq!(
         rows(&format!("/{}", paths::CONTACT_FORCE), "sim_time"),
         steps
@@ -246,11 +266,20 @@ fn invalid_shapes_and_options_are_rejected() {
             radius_m: 0.1,
             half_length_m: f64::INFINITY,
         },
+        // A mesh with a vertex that is not finite, and one whose triangle indexes past its vertices.
+        Shape::Mesh {
+            vertices_m: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, f64::NAN, 0.0]],
+            triangles: vec![[0, 1, 2]],
+        },
+        Shape::Mesh {
+            vertices_m: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            triangles: vec![[0, 1, 3]],
+        },
     ] {
         let err = rec
             .log_link_shape(&LinkShape {
                 entity: "world/links/x".into(),
-                shape,
+                shape: shape.clone(),
                 colour: [0, 0, 0, 255],
             })
             .unwrap_err();

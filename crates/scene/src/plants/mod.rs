@@ -214,8 +214,8 @@ pub struct Visual {
     pub role: VisualRole,
 }
 
-/// A primitive shape for viewers (SI).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A shape for viewers (SI).
+#[derive(Clone, Debug, PartialEq)]
 pub enum VisualShape {
     /// Box with half edge lengths along its x, y, z, m.
     Box {
@@ -233,6 +233,13 @@ pub enum VisualShape {
     Sphere {
         /// Radius, m.
         radius_m: f64,
+    },
+    /// A triangle mesh (a URDF mesh's convex hull): vertices, m, and triangles, indices into them.
+    Mesh {
+        /// Vertices, m.
+        vertices_m: Vec<[f64; 3]>,
+        /// Triangles, counter-clockwise seen from outside.
+        triangles: Vec<[u32; 3]>,
     },
 }
 

@@ -442,7 +442,7 @@ impl Plant for MultibodyPlant {
         let mut out = Vec::new();
         for (link_name, _, geoms) in self.world.link_poses() {
             for (j, g) in geoms.iter().enumerate() {
-                let shape = match g.shape {
+                let shape = match g.shape.clone() {
                     LinkShape::Box { size_m } => VisualShape::Box {
                         half_extents_m: size_m.map(|v| 0.5 * v),
                     },
@@ -456,6 +456,10 @@ impl Plant for MultibodyPlant {
                         half_length_m: 0.5 * length_m + radius_m,
                     },
                     LinkShape::Sphere { radius_m } => VisualShape::Sphere { radius_m },
+                    LinkShape::ConvexHull(hull) => VisualShape::Mesh {
+                        vertices_m: hull.vertices,
+                        triangles: hull.triangles,
+                    },
                 };
                 let name = if geoms.len() == 1 {
                     link_name.to_string()
