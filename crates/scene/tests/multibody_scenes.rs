@@ -151,3 +151,82 @@ fn a_wrong_surface_position_is_checked_against_the_urdf() {
 
 // The paper's Fig. 7 claims (peak, overshoot, settling, steady RMS) are the scene's [[claims]], asserted in
 // paper_claims.rs.
+
+/// Link and joint names come from the scene (`plant.flange_link`, `flange_joint`, `cylinder_link`,
+/// `carriage_link`): the shipped rig with those four renamed runs, named by the scene, exactly as the
+/// shipped scene does (the same trace bit for bit over its first second); a name the URDF lacks is refused
+/// at the scene's key, with the URDF and the name.
+#[test]
+fn the_rig_roles_are_named_by_the_scene() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = std::fs::read_to_string(root.join("urdf/rig.urdf"))
+        .unwrap()
+        .replace("\"flange_slide\"", "\"rod_slide\"")
+        .replace("\"flange\"", "\"plate\"")
+        .replace("\"cylinder\"", "\"barrel\"")
+        .replace("\"carriage\"", "\"sled\"");
+    let renamed = dir.path().join("renamed.urdf");
+    std::fs::write(&renamed, urdf).unwrap();
+    let roles = "flange_link = \"plate\"\nflange_joint = \"rod_slide\"\ncylinder_link = \"barrel\"\n\
+                 carriage_link = \"sled\"\n";
+    let text = fig7_text().replace(
+        "urdf = \"../urdf/rig.urdf\"",
+        &format!("urdf = {:?}\n{roles}", renamed.display().to_string()),
+    );
+    let base = root.join("scenes");
+    let first_second = |mut s: Scene| {
+        s.duration_s = 1.0;
+        s.events.clear();
+        s.metrics.clear();
+        s.claims.clear();
+        s.runs.truncate(1);
+        let r = run_scene(&s, &mut |_| {}).unwrap_or_else(|e| panic!("{e}"));
+        r.into_iter().next().unwrap()
+    };
+    let named = Scene::from_toml_str(&text, Path::new("scenes/x.toml"), &base)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let (a, b) = (
+        first_second(named),
+        first_second(load("paper-fig7-wood-to-iron.toml")),
+    );
+    assert_eq!(a.trace.f_e(), b.trace.f_e());
+    assert_eq!(a.trace.x(), b.trace.x());
+    assert!(
+        a.trace.f_e().iter().any(|f| *f > 5.0),
+        "the flange pushed the wood"
+    );
+    // Each role named wrong: refused at its key.
+    for (key, good, bad) in [
+        (
+            "plant.flange_link",
+            "flange_link = \"plate\"",
+            "flange_link = \"plat\"",
+        ),
+        (
+            "plant.flange_joint",
+            "flange_joint = \"rod_slide\"",
+            "flange_joint = \"rod\"",
+        ),
+        (
+            "plant.cylinder_link",
+            "cylinder_link = \"barrel\"",
+            "cylinder_link = \"barre\"",
+        ),
+        (
+            "plant.carriage_link",
+            "carriage_link = \"sled\"",
+            "carriage_link = \"sle\"",
+        ),
+    ] {
+        let msg = scene_err(&text.replace(good, bad));
+        let name = bad.split('"').nth(1).unwrap();
+        assert!(
+            msg.starts_with("scenes/x.toml:")
+                && msg.contains(&format!("{key}: "))
+                && msg.contains("renamed.urdf")
+                && msg.contains(&format!("'{name}'")),
+            "{key}: {msg}"
+        );
+    }
+}

@@ -296,10 +296,20 @@ impl MultibodyPlant {
     }
 }
 
-/// The world configuration of a multibody scene: the paper rig's link and joint roles with the scene's
-/// materials, step, iterations and incline.
+/// The world configuration of a multibody scene: the link and joint roles the scene names (the paper rig's
+/// names where it names none), its materials, step, iterations and incline.
 fn config_of(mb: &MultibodySpec, sheet: &ActuatorSheet) -> MultibodyConfig {
     let mut c = MultibodyConfig::paper_rig();
+    for (name, role) in [
+        (&mb.flange_link, &mut c.flange_link),
+        (&mb.flange_joint, &mut c.flange_joint),
+        (&mb.cylinder_link, &mut c.cylinder_link),
+        (&mb.carriage_link, &mut c.carriage_link),
+    ] {
+        if let Some(n) = name {
+            role.clone_from(n);
+        }
+    }
     c.materials = mb
         .materials
         .iter()
@@ -336,6 +346,22 @@ fn multibody_field(mb: &MultibodySpec, e: &MultibodyError) -> String {
             }
         }
         MultibodyError::BadConfig { field, .. } => format!("plant ({field})"),
+        // A role's link or joint the URDF lacks: the scene's key when the scene names it.
+        MultibodyError::MissingLink { field, .. } | MultibodyError::MissingJoint { field, .. } => {
+            let key = match *field {
+                "flange_link" => Some(("plant.flange_link", &mb.flange_link)),
+                "flange_joint" => Some(("plant.flange_joint", &mb.flange_joint)),
+                "cylinder_link" => Some(("plant.cylinder_link", &mb.cylinder_link)),
+                "carriage_link" | "kinematic link" => {
+                    Some(("plant.carriage_link", &mb.carriage_link))
+                }
+                _ => None,
+            };
+            match key {
+                Some((key, Some(_))) => key.into(),
+                _ => "plant.urdf".into(),
+            }
+        }
         _ => "plant.urdf".into(),
     }
 }

@@ -224,6 +224,18 @@ pub struct MultibodySpec {
     pub contact_friction: f64,
     /// Environment materials on the carriage (at least one).
     pub materials: Vec<MaterialSpec>,
+    /// The URDF's link that the cylinder pushes (rod and flange). Absent: `flange` (urdf/rig.urdf).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_link: Option<String>,
+    /// The prismatic joint between the cylinder and the flange link. Absent: `flange_slide`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_joint: Option<String>,
+    /// The URDF's link of the cylinder body (the force's reaction side). Absent: `cylinder`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cylinder_link: Option<String>,
+    /// The URDF's link that carries the materials, driven kinematically. Absent: `carriage`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub carriage_link: Option<String>,
 }
 
 impl MultibodySpec {
