@@ -136,7 +136,7 @@ impl Identify {
 
 impl Perturb {
     pub fn call(self) -> anyhow::Result<()> {
-        cmd::identify::perturb(&self.actuator, &self.keys, self.seed, &self.out)
+        cmd::perturb::perturb(&self.actuator, &self.keys, self.seed, &self.out)
     }
 }
 

@@ -84,6 +84,7 @@ pub mod excite;
 pub mod identify;
 pub mod live;
 pub mod new_rig;
+pub mod perturb;
 pub mod pil;
 mod recording;
 pub mod rig;
