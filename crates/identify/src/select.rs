@@ -253,6 +253,14 @@ fn structure_sheet(
             return Ok(Err(format!("the sheet has {} already", k.name())));
         }
     }
+    // With wall heat the energy balance takes n as the heat-capacity ratio (docs/pneumatics.md): an exponent
+    // fitted beside it would count the heat twice.
+    if s.keys.contains(&Key::PolytropicExponent) && model.effects.wall_heat.is_some() {
+        return Ok(Err(
+            "the sheet has wall heat transfer, whose balance takes n as the heat-capacity ratio"
+                .into(),
+        ));
+    }
     if s.keys.contains(&Key::SpoolTimeConstant)
         && !matches!(
             model.actuator.valve.kind,

@@ -510,3 +510,42 @@ fn structure_selection_on_every_planted_effect() {
         );
     }
 }
+
+/// On a sheet with wall heat transfer the polytropic structure is not fitted, and says why: the wall-heat
+/// balance takes n as the heat-capacity ratio, so a free n would count the heat twice.
+#[test]
+fn the_polytropic_structure_stands_aside_for_wall_heat() {
+    let (scratch, base, _changes, log) = planted(effect("wall heat"), SEED);
+    let req = Request {
+        logs: vec![log],
+        actuator: base,
+        free: KEYS.iter().map(|k| k.name().to_string()).collect(),
+        bounds: vec![],
+        limits: Default::default(),
+        log_format: Default::default(),
+        figure_format: Default::default(),
+        validation_fraction: 0.25,
+        options: FitOptions::default(),
+    };
+    let structures = some_structures(&["as_given", "polytropic"]);
+    let id = pneuflex_identify::select::select(
+        &req,
+        &structures,
+        &scratch.path().join("structures"),
+        None,
+        &|_| {},
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let sel = id.report.structure_selection.as_ref().unwrap();
+    let poly = sel
+        .candidates
+        .iter()
+        .find(|c| c.structure == "polytropic")
+        .unwrap();
+    let why = poly.skipped.as_deref().unwrap_or("");
+    assert!(
+        why.contains("wall heat") && why.contains("heat-capacity ratio"),
+        "{why:?}"
+    );
+    assert_eq!(sel.chosen, "as_given");
+}
