@@ -9,7 +9,8 @@
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 use pneuflex_protocol::{
-    ConfigPayload, Message, RESET_MAGIC, SamplePayload, ValveMode, fault_code, status,
+    AppliedPayload, ConfigPayload, Message, RESET_MAGIC, SamplePayload, ValveMode, fault_code,
+    status,
 };
 use pneuflex_valve_driver::{AdcChannel, SafeMode, Sampler, ValveDriver, command_from_q15};
 
@@ -43,6 +44,16 @@ impl<P: AdcChannel, C1: AdcChannel, CB: AdcChannel, S: AdcChannel> IoBoard<P, C1
     pub fn period_ns(&self) -> Option<u64> {
         self.config
             .map(|c| u64::from(c.sample_period_us.max(1)) * 1000)
+    }
+
+    /// What the valve does now, as the Applied echo reports it (a safe state is the board's configured one,
+    /// as the Sample's status bits report it).
+    fn mode(&self) -> ValveMode {
+        match (self.safe, self.safe_mode()) {
+            (false, _) => ValveMode::Run,
+            (true, SafeMode::Hold) => ValveMode::SafeHold,
+            (true, SafeMode::Vent) => ValveMode::SafeVent,
+        }
     }
 
     fn safe_mode(&self) -> SafeMode {
@@ -81,29 +92,44 @@ impl<P: AdcChannel, C1: AdcChannel, CB: AdcChannel, S: AdcChannel> IoBoard<P, C1
                     self.last_cmd_ns = Some(now_ns);
                 }
                 // A latched fault keeps the valve safe; the command's tick is still echoed.
-                if self.latched {
-                    return;
+                if !self.latched {
+                    self.apply(&v, valve);
                 }
-                if v.mode == ValveMode::Run {
-                    let _ = valve.apply(command_from_q15(v.duty_q15));
-                    self.duty_q15 = v.duty_q15;
-                    self.safe = false;
-                } else {
-                    valve.set_safe_mode(if v.mode == ValveMode::SafeHold {
-                        SafeMode::Hold
-                    } else {
-                        SafeMode::Vent
-                    });
-                    let _ = valve.go_safe();
-                    self.duty_q15 = 0;
-                    self.safe = true;
-                }
+                // What the valve now does, by the samples' clock (docs/protocol.md §3, 0x07).
+                send(&Message::Applied(AppliedPayload {
+                    board_time_us: (now_ns / 1000) as u32,
+                    tick: v.tick,
+                    duty_q15: self.duty_q15,
+                    mode: self.mode(),
+                }));
             }
             Message::Reset(m) if m == RESET_MAGIC => {
                 // Clears the latch; the valve stays safe until the next Run command.
                 self.latched = false;
             }
             _ => {}
+        }
+    }
+
+    /// Drives the valve as a Valve frame says.
+    fn apply<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin>(
+        &mut self,
+        v: &pneuflex_protocol::ValvePayload,
+        valve: &mut ValveDriver<A, B, D>,
+    ) {
+        if v.mode == ValveMode::Run {
+            let _ = valve.apply(command_from_q15(v.duty_q15));
+            self.duty_q15 = v.duty_q15;
+            self.safe = false;
+        } else {
+            valve.set_safe_mode(if v.mode == ValveMode::SafeHold {
+                SafeMode::Hold
+            } else {
+                SafeMode::Vent
+            });
+            let _ = valve.go_safe();
+            self.duty_q15 = 0;
+            self.safe = true;
         }
     }
 

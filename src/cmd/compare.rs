@@ -59,7 +59,7 @@ fn read_log(scene: &Scene, run: usize, path: PathBuf) -> anyhow::Result<Log> {
     let shown = path.display().to_string();
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("--rig-log {shown}: cannot read"))?;
-    let trace = Trace::from_csv(&text, &["wall_time", "fault"])
+    let trace = Trace::from_csv(&text, &pneuflex_files::output::RIG_TRACE_COLUMNS)
         .map_err(|e| anyhow::anyhow!("--rig-log {shown}: {e}"))?;
     if trace.len() < 2 {
         bail!("--rig-log {shown}: fewer than two rows");

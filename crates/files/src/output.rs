@@ -350,6 +350,12 @@ pub fn read_manifest(dir: &Path) -> Option<Manifest> {
     serde_json::from_slice(&fs::read(&path).ok()?).ok()
 }
 
+/// The columns a rig trace has after the loop's and the controller's signals (docs/rig.md, "Trace"): the
+/// board clock of the row's sample, the board's echo of the valve command it applied (when, what), the
+/// host's wall clock and the fault. Readers that treat a trace's columns as signals skip these.
+pub const RIG_TRACE_COLUMNS: [&str; 5] =
+    ["board_t", "applied_t", "applied_u", "wall_time", "fault"];
+
 /// Why a directory is a rig recording, if it is one: its manifest says so (or names a recording command),
 /// or a `trace.csv` in it has the rig trace's `wall_time` column (recognised without the manifest, so that
 /// a recording whose manifest was edited or lost is still never replaced).

@@ -258,7 +258,10 @@ fn still_noise(d: &[Prepared], q_x: f64) -> ([f64; 3], usize) {
                     });
                 hi - lo
             };
-            if span(&l.u) <= STILL_COMMAND && span(&l.x) <= tol_x {
+            if span(&l.u) <= STILL_COMMAND
+                && span(&l.x) <= tol_x
+                && l.measured[w.clone()].iter().all(|&m| m)
+            {
                 still.push((i, a, a + STILL_WINDOW));
             }
             a += STILL_WINDOW;
@@ -893,6 +896,7 @@ mod tests {
             ),
             f_e: vec![0.0; n],
             t,
+            measured: vec![true; n],
             note: None,
         };
         let expected = std::array::from_fn(|i| {

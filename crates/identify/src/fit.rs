@@ -731,8 +731,8 @@ fn restart_bootstrap(
                         // Restarts from the reading, the first velocity from the local fit (linear:
                         // fit(y_hat + n) = fit(y_hat) + fit(n)).
                         s.x0[seg] = d.x0[seg] + nx[a];
-                        s.v0[seg] =
-                            d.v0[seg] + local_fit(&l.t, &nx, a, pb.opts.velocity_half_window)[1];
+                        s.v0[seg] = d.v0[seg]
+                            + local_fit(&l.t, &nx, &l.measured, a, pb.opts.velocity_half_window)[1];
                     }
                     s
                 })

@@ -6,6 +6,7 @@
 //! identify ([`report`]); the fitted values are written back into copies of the sheets ([`sheet`]).
 //! [`excite`] designs the experiments, [`perturb`] makes hidden truths for tests.
 
+pub mod board_time;
 pub mod check;
 pub mod excite;
 pub mod fit;

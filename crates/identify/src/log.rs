@@ -6,7 +6,16 @@
 use std::path::{Path, PathBuf};
 
 use crate::IdentifyError;
+use crate::board_time::BoardColumns;
 use crate::log_format::LogFormat;
+use pneuflex_files::output::RIG_TRACE_COLUMNS;
+
+/// The board's columns of a rig trace (schema 2) that lay a log on the board's clock (crate::board_time).
+const BOARD_COLUMNS: [&str; 3] = [
+    RIG_TRACE_COLUMNS[0],
+    RIG_TRACE_COLUMNS[1],
+    RIG_TRACE_COLUMNS[2],
+];
 
 /// The columns identification reads, in this order.
 pub const COLUMNS: [&str; 6] = ["t", "u", "x", "p_a", "p_b", "f_e"];
@@ -30,6 +39,9 @@ pub struct Log {
     pub p_b: Vec<f64>,
     /// Contact force, N (the flange pushing is positive; f_ext on the flange = -f_e).
     pub f_e: Vec<f64>,
+    /// Whether each row holds a measurement: false for a sample period of the board's grid whose sample
+    /// the host did not read (its sensors hold the last measured row's; crate::board_time), never compared.
+    pub measured: Vec<bool>,
     /// Rows dropped at the end, and why (a fault, a cut trace), for the report.
     pub note: Option<String>,
 }
@@ -63,6 +75,7 @@ impl Log {
             p_a: self.p_a[a..b].to_vec(),
             p_b: self.p_b[a..b].to_vec(),
             f_e: self.f_e[a..b].to_vec(),
+            measured: self.measured[a..b].to_vec(),
             note: self.note.clone(),
         }
     }
@@ -261,6 +274,9 @@ struct LogParser<'a> {
     row_lines: Vec<usize>,
     end_marker: bool,
     log: Log,
+    /// pneuflex's rig trace with the board's columns: their indices (`board_t`, `applied_t`,
+    /// `applied_u`) and what they held.
+    board: Option<([usize; 3], BoardColumns)>,
 }
 
 impl<'a> LogParser<'a> {
@@ -284,8 +300,10 @@ impl<'a> LogParser<'a> {
                 p_a: Vec::new(),
                 p_b: Vec::new(),
                 f_e: Vec::new(),
+                measured: Vec::new(),
                 note: None,
             },
+            board: None,
         }
     }
 
@@ -371,7 +389,57 @@ impl<'a> LogParser<'a> {
             v[i] = x;
         }
         self.row(line_no, v)?;
+        if let Some((idx, _)) = &self.board {
+            let read = self.board_cells(line_no, &fields, *idx)?;
+            if let Some((_, cols)) = &mut self.board {
+                cols.sample_t.push(read[0]);
+                cols.lines.push(line_no);
+                if read[1].is_finite() {
+                    cols.applied.push((read[1], read[2]));
+                }
+            }
+        }
         Ok(true)
+    }
+
+    /// A row's `board_t`, `applied_t`, `applied_u` (NaN where empty): finite numbers, and an echo whole,
+    /// its duty in [-1, 1].
+    fn board_cells(
+        &self,
+        line_no: usize,
+        fields: &[&str],
+        idx: [usize; 3],
+    ) -> Result<[f64; 3], IdentifyError> {
+        let mut read = [f64::NAN; 3];
+        for (r, (&i, c)) in read.iter_mut().zip(idx.iter().zip(BOARD_COLUMNS)) {
+            let cell = fields[i].trim();
+            if cell.is_empty() {
+                continue;
+            }
+            *r = cell
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| {
+                    self.err(
+                        Some(line_no),
+                        Some(c),
+                        format!(
+                            "`{}` is not a finite number (an empty cell is none)",
+                            cell.chars().take(40).collect::<String>()
+                        ),
+                    )
+                })?;
+        }
+        let [_, t, u] = read;
+        if t.is_finite() != u.is_finite() || (u.is_finite() && !(-1.0..=1.0).contains(&u)) {
+            return Err(self.err(
+                Some(line_no),
+                Some("applied_u"),
+                format!("an applied echo needs its time and a duty in [-1, 1] (applied_t {t}, applied_u {u})"),
+            ));
+        }
+        Ok(read)
     }
 
     fn header(&mut self, line_no: usize, line: &str) -> Result<(), IdentifyError> {
@@ -419,6 +487,13 @@ impl<'a> LogParser<'a> {
                         ),
                     ));
                 }
+            }
+        }
+        // pneuflex's rig trace since schema 2: the board's clock and applied-command echoes.
+        if self.format.own_trace {
+            let at = |c: &str| names.iter().position(|n| n == c);
+            if let [Some(b), Some(a), Some(u)] = BOARD_COLUMNS.map(at) {
+                self.board = Some(([b, a, u], BoardColumns::default()));
             }
         }
         // Only pneuflex's trace has a fault column (another tool's export is used as it is).
@@ -487,6 +562,7 @@ impl<'a> LogParser<'a> {
         log.p_a.push(v[3]);
         log.p_b.push(v[4]);
         log.f_e.push(v[5]);
+        log.measured.push(true);
         self.row_lines.push(line_no);
         Ok(())
     }
@@ -528,6 +604,11 @@ impl<'a> LogParser<'a> {
             self.log.note = Some("no end marker: the trace was cut (its rows are used)".into());
         }
         self.log.sha256 = sha256;
+        if let Some((_, cols)) = &self.board
+            && let Some((grid, _)) = crate::board_time::on_board_grid(&self.log, cols)?
+        {
+            return Ok(grid);
+        }
         Ok(self.log)
     }
 }

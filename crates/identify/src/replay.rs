@@ -108,7 +108,11 @@ impl Prepared {
     /// (a segment boundary lies at `fit_end`; `fit_end = len - 1` holds nothing out).
     pub fn new(log: Log, o: &ReplayOptions, fit_end: usize) -> Self {
         let n = log.len();
-        let fit_end = fit_end.clamp(1, n - 1);
+        let mut fit_end = fit_end.clamp(1, n - 1);
+        // The held-out part starts from a measurement too.
+        while fit_end < n - 1 && !log.measured[fit_end] {
+            fit_end += 1;
+        }
         let dt = log.dt().max(1e-9);
         let per = ((o.segment_s / dt).round() as usize).max(2);
         let settle = (o.settle_s / dt).round() as usize;
@@ -121,13 +125,18 @@ impl Prepared {
                 if b - e < per / 4 {
                     e = b;
                 }
+                // A segment starts from a measurement (on the board's grid a sample the host did not
+                // read is no start): the boundary moves on to the next measured row.
+                while e < b && !log.measured[e] {
+                    e += 1;
+                }
                 segments.push((s, e));
                 s = e;
             }
         }
         let fits: Vec<[f64; 2]> = segments
             .iter()
-            .map(|&(s, _)| local_fit(&log.t, &log.x, s, o.velocity_half_window))
+            .map(|&(s, _)| local_fit(&log.t, &log.x, &log.measured, s, o.velocity_half_window))
             .collect();
         let v0 = fits.iter().map(|f| f[1]).collect();
         let x0 = segments.iter().map(|&(s, _)| log.x[s]).collect();
@@ -158,6 +167,7 @@ impl Prepared {
                 .filter(|&(i, &(s, e))| s >= lo && e <= hi && !skip[i])
                 .map(|(_, se)| se)
                 .flat_map(|&(s, e)| (s + 1 + settle).min(e + 1)..=e)
+                .filter(|&k| log.measured[k])
                 .collect()
         };
         let compared = rows(0, fit_end);
@@ -272,24 +282,24 @@ impl Prepared {
     }
 }
 
-/// Value and slope at row `c` of a least-squares quadratic through rows `[c - w, c + w]` (clipped to the
-/// log). A quadratic, not a line: under PWM the piston oscillates at the carrier frequency, and a line over a
-/// good part of a period would average the velocity away.
-pub(crate) fn local_fit(t: &[f64], y: &[f64], c: usize, w: usize) -> [f64; 2] {
+/// Value and slope at row `c` of a least-squares quadratic through the measured rows of `[c - w, c + w]`
+/// (clipped to the log). A quadratic, not a line: under PWM the piston oscillates at the carrier frequency,
+/// and a line over a good part of a period would average the velocity away.
+pub(crate) fn local_fit(t: &[f64], y: &[f64], measured: &[bool], c: usize, w: usize) -> [f64; 2] {
     let a = c.saturating_sub(w);
     let b = (c + w).min(t.len() - 1);
-    if b - a < 2 {
-        let v = if b > a {
-            (y[b] - y[a]) / (t[b] - t[a])
-        } else {
-            0.0
+    let rows: Vec<usize> = (a..=b).filter(|&i| measured[i]).collect();
+    if rows.len() < 3 {
+        let v = match (rows.first(), rows.last()) {
+            (Some(&a), Some(&b)) if b > a => (y[b] - y[a]) / (t[b] - t[a]),
+            _ => 0.0,
         };
         return [y[c], v];
     }
     // Normal equations of y = c0 + c1 s + c2 s^2 in s = t - t[c]; the slope at c is c1.
     let mut m = [[0.0f64; 3]; 3];
     let mut r = [0.0f64; 3];
-    for i in a..=b {
+    for i in rows {
         let s = t[i] - t[c];
         let p = [1.0, s, s * s];
         for (j, pj) in p.iter().enumerate() {

@@ -31,6 +31,7 @@ fn the_validation_figure_shows_a_readable_window_with_its_residuals() {
         p_a: p_a.clone(),
         p_b: p_b.clone(),
         f_e: vec![0.0; n],
+        measured: vec![true; n],
         note: None,
     };
     // A model off by 2 kPa and 0.1 mm.

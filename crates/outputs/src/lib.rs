@@ -345,7 +345,8 @@ pub fn judge_recording(
         let text =
             std::fs::read_to_string(&path).map_err(|e| unreadable(format!("cannot read: {e}")))?;
         let trace =
-            pneuflex_scene::Trace::from_csv(&text, &["wall_time", "fault"]).map_err(unreadable)?;
+            pneuflex_scene::Trace::from_csv(&text, &pneuflex_files::output::RIG_TRACE_COLUMNS)
+                .map_err(unreadable)?;
         // N ticks cover N·dt (the last one's time + dt): a full-length recording keeps its last window.
         let one = scene.one_run(index, trace.t().last().map_or(0.0, |t| t + scene.dt_s));
         let (fault, interrupted) = match end {

@@ -318,12 +318,20 @@ fn a_panic_in_the_firmware_puts_the_valve_safe_and_is_reported() {
     assert!(link.recv_within(Duration::from_millis(500)).is_err());
 }
 
-/// The next Sample, skipping other frames (a Fault is returned through `fault`).
-fn next_sample(link: &mut Link, fault: &mut Option<(u8, u16)>) -> pneuflex_protocol::SamplePayload {
+/// What the I/O board said besides its Samples: the Fault, and the Applied echoes in order.
+#[derive(Default)]
+struct BoardSaid {
+    fault: Option<(u8, u16)>,
+    applied: Vec<pneuflex_protocol::AppliedPayload>,
+}
+
+/// The next Sample, keeping the Fault and Applied frames on the way in `said`.
+fn next_sample(link: &mut Link, said: &mut BoardSaid) -> pneuflex_protocol::SamplePayload {
     loop {
         match link.recv().unwrap().msg {
             Message::Sample(s) => return s,
-            Message::Fault { code, detail } => *fault = Some((code, detail)),
+            Message::Fault { code, detail } => said.fault = Some((code, detail)),
+            Message::Applied(a) => said.applied.push(a),
             _ => {}
         }
     }
@@ -343,7 +351,7 @@ fn io_board_mode_applies_valve_commands_and_trips_its_own_watchdog_latched() {
     }))
     .unwrap();
     link.send(&Message::Heartbeat(0xC0DE_0001)).unwrap();
-    let mut fault = None;
+    let mut said = BoardSaid::default();
     loop {
         if let Message::Heartbeat(c) = link.recv().unwrap().msg {
             assert_eq!(c, 0xC0DE_0001, "echoed unchanged");
@@ -351,7 +359,7 @@ fn io_board_mode_applies_valve_commands_and_trips_its_own_watchdog_latched() {
         }
     }
     // Before any command the valve is safe (vent) and the watchdog does not run.
-    let s = next_sample(&mut link, &mut fault);
+    let s = next_sample(&mut link, &mut said);
     assert_eq!((s.status, s.duty_q15), (st::SAFE, 0));
     // A Run command: applied and echoed.
     let mut burst = Vec::new();
@@ -369,17 +377,29 @@ fn io_board_mode_applies_valve_commands_and_trips_its_own_watchdog_latched() {
         burst.extend_from_slice(&buf[..n]);
     }
     link.send_raw(&burst).unwrap();
-    let mut s = next_sample(&mut link, &mut fault);
+    let mut s = next_sample(&mut link, &mut said);
     while s.last_cmd_tick != 5 {
-        s = next_sample(&mut link, &mut fault);
+        s = next_sample(&mut link, &mut said);
     }
     assert_eq!((s.status, s.duty_q15), (0, 16384), "running at duty 0.5");
+    // Each command echoed as applied, in order, on the samples' clock, before the sample that shows it.
+    let ticks: Vec<u32> = said.applied.iter().map(|a| a.tick).collect();
+    assert_eq!(ticks, [1, 2, 3, 4, 5]);
+    for a in &said.applied {
+        assert_eq!((a.duty_q15, a.mode), (16384, ValveMode::Run));
+        assert!(
+            a.board_time_us <= s.board_time_us,
+            "applied at {} us",
+            a.board_time_us
+        );
+    }
+    said.applied.clear();
     let last_cmd_seen_us = s.board_time_us;
     // Silence: the board's own watchdog trips, latched, with the Fault frame.
     while s.status == 0 {
-        s = next_sample(&mut link, &mut fault);
+        s = next_sample(&mut link, &mut said);
     }
-    assert_eq!(fault, Some((fault_code::HOST_SILENT, 20)));
+    assert_eq!(said.fault, Some((fault_code::HOST_SILENT, 20)));
     assert_eq!(s.status, st::SAFE | st::BOARD_FAULT | st::WATCHDOG);
     assert_eq!(s.duty_q15, 0);
     let waited = s.board_time_us - last_cmd_seen_us;
@@ -396,15 +416,21 @@ fn io_board_mode_applies_valve_commands_and_trips_its_own_watchdog_latched() {
     }))
     .unwrap();
     while s.last_cmd_tick != 6 {
-        s = next_sample(&mut link, &mut fault);
+        s = next_sample(&mut link, &mut said);
     }
     assert_eq!(
         (s.status & st::BOARD_FAULT, s.duty_q15),
         (st::BOARD_FAULT, 0)
     );
+    // The echo says what the valve does: the safe state, not the command.
+    let echo = said.applied.last().expect("tick 6 echoed");
+    assert_eq!(
+        (echo.tick, echo.duty_q15, echo.mode),
+        (6, 0, ValveMode::SafeVent)
+    );
     link.send(&Message::Reset(RESET_MAGIC)).unwrap();
     while s.status & st::BOARD_FAULT != 0 {
-        s = next_sample(&mut link, &mut fault);
+        s = next_sample(&mut link, &mut said);
     }
     assert_eq!((s.status, s.duty_q15), (st::SAFE, 0), "cleared, still safe");
 }

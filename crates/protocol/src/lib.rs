@@ -46,6 +46,8 @@ pub mod msg_type {
     pub const RESET: u8 = 0x05;
     /// Host -> board: sample period, board watchdog and safe state.
     pub const CONFIG: u8 = 0x06;
+    /// Board -> host: the valve command the board applied, and when (its own clock).
+    pub const APPLIED: u8 = 0x07;
     /// Host -> embedded controller: one controller parameter (setup).
     pub const CTRL_PARAM: u8 = 0x10;
     /// Host -> embedded controller: one reference schedule segment (setup).
@@ -163,6 +165,21 @@ pub struct ValvePayload {
     pub mode: ValveMode,
 }
 
+/// The board's echo of a valve command it applied: which one, what it drives, and when by the board's clock
+/// (the clock that stamps the samples), so that a log replays what the valve did and when, whatever the
+/// host's timing (docs/protocol.md §3, 0x07).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AppliedPayload {
+    /// Board clock when the command took effect, µs (the samples' clock).
+    pub board_time_us: u32,
+    /// The `tick` of the Valve frame applied.
+    pub tick: u32,
+    /// Signed duty now driven, Q15 (0 in a safe state, or while a latched fault keeps the valve safe).
+    pub duty_q15: i16,
+    /// What the valve now does: Run, or the safe state it is in.
+    pub mode: ValveMode,
+}
+
 /// Board configuration sent by the host before a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ConfigPayload {
@@ -194,6 +211,8 @@ pub enum Message {
     Reset(u16),
     /// Board configuration.
     Config(ConfigPayload),
+    /// Board -> host: the valve command applied, and when.
+    Applied(AppliedPayload),
     /// Embedded-controller setup: one parameter.
     CtrlParam(ParamPayload),
     /// Embedded-controller setup: one schedule segment.
@@ -222,6 +241,7 @@ pub fn payload_len(msg_type: u8) -> Option<usize> {
         msg_type::FAULT => Some(3),
         msg_type::RESET => Some(2),
         msg_type::CONFIG => Some(7),
+        msg_type::APPLIED => Some(11),
         t => ctrl::payload_len(t),
     }
 }
@@ -309,6 +329,7 @@ impl Message {
             Message::Fault { .. } => msg_type::FAULT,
             Message::Reset(_) => msg_type::RESET,
             Message::Config(_) => msg_type::CONFIG,
+            Message::Applied(_) => msg_type::APPLIED,
             Message::CtrlParam(_) => msg_type::CTRL_PARAM,
             Message::CtrlSegment(_) => msg_type::CTRL_SEGMENT,
             Message::CtrlStart(_) => msg_type::CTRL_START,
@@ -357,6 +378,12 @@ impl Message {
                 w.put(&c.sample_period_us.to_le_bytes());
                 w.put(&c.watchdog_ms.to_le_bytes());
                 w.put(&[c.safe_mode.code()]);
+            }
+            Message::Applied(a) => {
+                w.put(&a.board_time_us.to_le_bytes());
+                w.put(&a.tick.to_le_bytes());
+                w.put(&a.duty_q15.to_le_bytes());
+                w.put(&[a.mode.code()]);
             }
             m => ctrl::write_payload(m, w),
         }
@@ -411,6 +438,12 @@ impl Message {
                 sample_period_us: r.u32()?,
                 watchdog_ms: r.u16()?,
                 safe_mode: ValveMode::from_code(r.u8()?)?,
+            }),
+            msg_type::APPLIED => Message::Applied(AppliedPayload {
+                board_time_us: r.u32()?,
+                tick: r.u32()?,
+                duty_q15: r.i16()?,
+                mode: ValveMode::from_code(r.u8()?)?,
             }),
             t => return ctrl::parse_fields(t, &mut r),
         };
@@ -657,6 +690,14 @@ mod tests {
                     safe_mode: m,
                 })
             }),
+            (any::<u32>(), any::<u32>(), any::<i16>(), arb_mode()).prop_map(
+                |(board_time_us, tick, duty_q15, mode)| Message::Applied(AppliedPayload {
+                    board_time_us,
+                    tick,
+                    duty_q15,
+                    mode,
+                })
+            ),
             // CtrlOutput's length follows its signal count: every count from none to the most.
             (
                 any::<(u32, u32, u32, u8)>(),
@@ -775,6 +816,20 @@ mod tests {
                 0xA5, 0x5A, 0x07, 0x2A, 0x02, 0xE8, 0x03, 0x00, 0x00, 0x00, 0x40, 0x00, 0x63, 0x72
             ]
         );
+        let a = Message::Applied(AppliedPayload {
+            board_time_us: 2_000_000,
+            tick: 1000,
+            duty_q15: 0x4000,
+            mode: ValveMode::Run,
+        });
+        let n = encode(0x10, &a, &mut buf);
+        assert_eq!(
+            &buf[..n],
+            &[
+                0xA5, 0x5A, 0x0B, 0x10, 0x07, 0x80, 0x84, 0x1E, 0x00, 0xE8, 0x03, 0x00, 0x00, 0x00,
+                0x40, 0x00, 0x1D, 0x79
+            ]
+        );
     }
 
     /// A frame with any header and payload and a correct CRC: what a buggy or newer board could send.
@@ -814,10 +869,25 @@ mod tests {
                 UnknownType,
             ),
             (
-                "unknown type 0x07",
-                raw_frame(1, 0x07, &[0; 7]),
-                0x07,
+                "unknown type 0x08",
+                raw_frame(1, 0x08, &[0; 7]),
+                0x08,
                 UnknownType,
+            ),
+            (
+                "Applied of a Valve's length",
+                raw_frame(1, msg_type::APPLIED, &[0; 7]),
+                msg_type::APPLIED,
+                BadLength {
+                    len: 7,
+                    expected: 11,
+                },
+            ),
+            (
+                "Applied with mode 3",
+                raw_frame(1, msg_type::APPLIED, &[0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3]),
+                msg_type::APPLIED,
+                BadField,
             ),
             (
                 "unknown type 0xFF, empty",

@@ -16,8 +16,8 @@ use crate::clock::SimClock;
 use crate::error::{ErrorKind, RigError};
 use crate::plant::{EmulatedPlant, Environment, ValveDrive};
 use crate::protocol::{
-    DecodeEvent, Decoder, MAX_FRAME, Message, RESET_MAGIC, SamplePayload, ValveMode, encode,
-    fault_code, from_q15, status,
+    AppliedPayload, DecodeEvent, Decoder, MAX_FRAME, Message, RESET_MAGIC, SamplePayload,
+    ValveMode, encode, fault_code, from_q15, status,
 };
 use crate::rigfile::{Calibration, EmulatorConfig, InjectedFault};
 use crate::serial::Link;
@@ -233,7 +233,9 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
     }
 
     /// Runs in the calling thread, one [`Board::step`] per sample period of the wall clock, until `stop`
-    /// is set or the link closes.
+    /// is set or the link closes. The board's clock is its own sample tick, k periods, as a board's timer
+    /// is: when this thread is descheduled it catches up, and its late samples read like a slow link, each
+    /// stamped with the time its physics reached (what an exact replay needs: docs/protocol.md, 0x07).
     pub fn run(self, stop: &AtomicBool, log: Arc<Mutex<EmulatorLog>>) {
         let mut board = self.board(log);
         let period = Duration::from_secs_f64(board.period_s);
@@ -245,8 +247,9 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
             if deadline > now {
                 std::thread::sleep(deadline - now);
             }
+            let board_time = k as f64 * board.period_s;
             k += 1;
-            if !board.step(start.elapsed().as_secs_f64()) {
+            if !board.step(board_time) {
                 break;
             }
         }
@@ -288,6 +291,7 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
             frozen: None,
             supply_lost: false,
             pending: Vec::with_capacity(8),
+            echoes: Vec::with_capacity(8),
             finished: false,
             delay_line: VecDeque::new(),
         }
@@ -322,6 +326,8 @@ pub struct Board<P: EmulatedPlant, L: Link> {
     frozen: Option<SamplePayload>,
     supply_lost: bool,
     pending: Vec<Message>,
+    /// Applied echoes of this period, sent before its Sample.
+    echoes: Vec<Message>,
     finished: bool,
     /// Run commands on their way to the valve (`transport_delay_s`, whole sample periods).
     delay_line: VecDeque<ValveDrive>,
@@ -416,6 +422,13 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
                         self.duty_q15 = v.duty_q15;
                     }
                     self.last_tick = v.tick;
+                    // The echo of what the valve now does, by the samples' clock (docs/protocol.md, 0x07).
+                    self.echoes.push(Message::Applied(AppliedPayload {
+                        board_time_us: board_time_us(now),
+                        tick: v.tick,
+                        duty_q15: self.duty_q15,
+                        mode: self.drive_mode,
+                    }));
                     if let Ok(mut l) = self.log.lock()
                         && l.commands.len() < LOG_CAP
                     {
@@ -516,7 +529,7 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         };
         let a = self.cfg.adc_noise_counts;
         let mut sample = SamplePayload {
-            board_time_us: ((now * 1e6) as u64 & 0xFFFF_FFFF) as u32,
+            board_time_us: board_time_us(now),
             last_cmd_tick: self.last_tick,
             position: add_noise(c.position.from_si(ps.x), noise.counts(a), full(&c.position)),
             p_a: add_noise(ch1, noise.counts(a), ch1_full),
@@ -559,9 +572,11 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         let mut tx = [0u8; MAX_FRAME];
         let mut dropped = 0;
         let mut sent = 0;
+        let echoes = std::mem::take(&mut self.echoes);
         let out = replies
             .iter()
             .flatten()
+            .chain(&echoes)
             .copied()
             .chain((!dropping).then_some(Message::Sample(sample)));
         for msg in out {
@@ -579,12 +594,19 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
                 }
             }
         }
+        self.echoes = echoes;
+        self.echoes.clear();
         if let Ok(mut l) = self.log.lock() {
             l.samples_sent += sent;
             l.tx_dropped += dropped;
         }
         true
     }
+}
+
+/// Board time `now` (s) as the protocol's µs field (it wraps after ~71 min).
+fn board_time_us(now: f64) -> u32 {
+    ((now * 1e6).round() as u64 & 0xFFFF_FFFF) as u32
 }
 
 /// One direction of an in-memory byte pipe.

@@ -22,6 +22,8 @@ pub struct LinkStats {
     pub seq_gaps: u64,
     /// Frames sent.
     pub sent: u64,
+    /// Applied echoes dropped because nobody took them (more than `serial::APPLIED_CAP` waiting).
+    pub applied_dropped: u64,
 }
 
 /// A raw sample as the board sent it, stamped with host and board time.
@@ -33,6 +35,19 @@ pub struct RawSample {
     pub board_time_s: f64,
     /// The counts.
     pub raw: SamplePayload,
+}
+
+/// The board's echo of a valve command it applied (docs/protocol.md, 0x07), on the samples' clock.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Applied {
+    /// Board time when the command took effect, s (the clock of [`RawSample::board_time_s`]).
+    pub board_time_s: f64,
+    /// The host tick whose command it was.
+    pub tick: u32,
+    /// The duty now driven in [-1, 1] (0 in a safe state).
+    pub u: f64,
+    /// Run, or the safe state the valve is in.
+    pub mode: crate::protocol::ValveMode,
 }
 
 /// A calibrated sample: the controller's [`Sensors`] plus what the limits need.
@@ -71,6 +86,12 @@ pub trait Rig {
     fn link_stats(&self) -> Option<LinkStats> {
         None
     }
+
+    /// The oldest echo of an applied valve command not taken yet, in the order the board applied them
+    /// (`None` when none is waiting, or the rig sends none).
+    fn take_applied(&mut self) -> Option<Applied> {
+        None
+    }
 }
 
 impl<R: Rig + ?Sized> Rig for &mut R {
@@ -89,6 +110,9 @@ impl<R: Rig + ?Sized> Rig for &mut R {
     }
     fn link_stats(&self) -> Option<LinkStats> {
         (**self).link_stats()
+    }
+    fn take_applied(&mut self) -> Option<Applied> {
+        (**self).take_applied()
     }
 }
 
@@ -138,6 +162,9 @@ impl<R: Rig<Sample = RawSample>> Rig for Watchdog<R> {
 
     fn link_stats(&self) -> Option<LinkStats> {
         self.inner.link_stats()
+    }
+    fn take_applied(&mut self) -> Option<Applied> {
+        self.inner.take_applied()
     }
 
     fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
@@ -260,6 +287,9 @@ impl<R: Rig<Sample = RawSample>> Rig for Calibrated<R> {
     fn link_stats(&self) -> Option<LinkStats> {
         self.inner.link_stats()
     }
+    fn take_applied(&mut self) -> Option<Applied> {
+        self.inner.take_applied()
+    }
 
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {
         Ok(self.inner.read(now_s)?.map(|s| self.convert(&s)))
@@ -354,6 +384,9 @@ impl<R: Rig<Sample = SiSample>> Rig for Limited<R> {
 
     fn link_stats(&self) -> Option<LinkStats> {
         self.inner.link_stats()
+    }
+    fn take_applied(&mut self) -> Option<Applied> {
+        self.inner.take_applied()
     }
 
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {

@@ -10,9 +10,9 @@ use crate::clock::{Clock, WallClock};
 use crate::error::{ErrorKind, RigError};
 use crate::protocol::{
     ConfigPayload, DecodeEvent, Decoder, MAX_FRAME, Message, RESET_MAGIC, ValveMode, ValvePayload,
-    encode, fault_code, status, to_q15,
+    encode, fault_code, from_q15, status, to_q15,
 };
-use crate::rig::{LinkStats, RawSample, Rig};
+use crate::rig::{Applied, LinkStats, RawSample, Rig};
 use crate::rigfile::{RigFile, SafeState};
 
 /// A byte link to the board: non-blocking reads, whole-frame writes.
@@ -113,6 +113,10 @@ pub const LINK_SIGNALS: [pneuflex_control::Signal; 4] = [
     },
 ];
 
+/// Applied echoes a [`SerialRig`] keeps for its reader (a loop that takes one a tick keeps up: the board
+/// sends one per command).
+pub const APPLIED_CAP: usize = 4096;
+
 /// The serial host driver: decodes samples, sends valve commands, counts CRC errors against a threshold.
 pub struct SerialRig<L: Link> {
     link: L,
@@ -120,6 +124,8 @@ pub struct SerialRig<L: Link> {
     tx_seq: u8,
     rx_seq: Option<u8>,
     latest: Option<RawSample>,
+    /// Applied echoes not taken yet (at most [`APPLIED_CAP`]: the oldest go first).
+    applied: VecDeque<Applied>,
     board_last_us: Option<u32>,
     board_time_s: f64,
     crc_times: VecDeque<f64>,
@@ -139,6 +145,7 @@ impl<L: Link> SerialRig<L> {
             tx_seq: 0,
             rx_seq: None,
             latest: None,
+            applied: VecDeque::with_capacity(64),
             board_last_us: None,
             board_time_s: 0.0,
             crc_times: VecDeque::with_capacity(crc_max as usize + 2),
@@ -179,6 +186,7 @@ impl<L: Link> SerialRig<L> {
             let Self {
                 decoder,
                 latest,
+                applied,
                 board_last_us,
                 board_time_s,
                 crc_times,
@@ -215,6 +223,22 @@ impl<L: Link> SerialRig<L> {
                             if s.status & status::BOARD_FAULT != 0 && board_fault.is_none() {
                                 *board_fault = Some((0, 0));
                             }
+                        }
+                        Message::Applied(a) => {
+                            // On the samples' unwrapped clock: the echo's offset from the last
+                            // sample's stamp, either side of it (a wrap of the µs counter included).
+                            let last = *board_last_us.get_or_insert(a.board_time_us);
+                            let offset = a.board_time_us.wrapping_sub(last) as i32;
+                            if applied.len() == APPLIED_CAP {
+                                applied.pop_front();
+                                stats.applied_dropped += 1;
+                            }
+                            applied.push_back(Applied {
+                                board_time_s: *board_time_s + f64::from(offset) * 1e-6,
+                                tick: a.tick,
+                                u: from_q15(a.duty_q15),
+                                mode: a.mode,
+                            });
                         }
                         Message::Heartbeat(c) => *heartbeat_echo = Some(c),
                         Message::Fault { code, detail } => *board_fault = Some((code, detail)),
@@ -313,6 +337,10 @@ impl<L: Link> Rig for SerialRig<L> {
     fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
         self.pump(now_s)?;
         Ok(self.latest.take())
+    }
+
+    fn take_applied(&mut self) -> Option<Applied> {
+        self.applied.pop_front()
     }
 
     fn write(&mut self, tick: u32, cmd: ValveCommand) -> Result<(), RigError> {

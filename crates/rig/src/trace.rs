@@ -1,5 +1,6 @@
-//! The rig's `trace.csv`: provenance comment lines, the simulation's columns plus `wall_time` and `fault`,
-//! then an end marker. Rows are formatted into a reusable buffer and written whole, flushed every N rows, on
+//! The rig's `trace.csv`: provenance comment lines, the simulation's columns plus the board's clock and
+//! applied-command echo, `wall_time` and `fault` ([`pneuflex_files::output::RIG_TRACE_COLUMNS`]), then an
+//! end marker. Rows are formatted into a reusable buffer and written whole, flushed every N rows, on
 //! every fault and at exit; a failed write is cut back to the last complete row. Format: docs/rig.md "Trace".
 
 use std::fs::File;
@@ -7,20 +8,24 @@ use std::io::{self, Seek, SeekFrom, Write};
 
 use pneuflex_control::Signal;
 use pneuflex_files::InputDigest;
+use pneuflex_files::output::RIG_TRACE_COLUMNS;
+
+use crate::rig::Applied;
 
 /// The column header: the loop's signals (`pneuflex_control::LOOP_SIGNALS`), the controller's own signals
-/// as it declares them, then wall time (s since the Unix epoch) and the fault.
+/// as it declares them, then the rig's own columns ([`RIG_TRACE_COLUMNS`]: board time, the applied-command
+/// echo, wall time in s since the Unix epoch, the fault).
 pub fn header_for(own: &[Signal]) -> String {
     let names: Vec<&str> = pneuflex_control::LOOP_SIGNALS
         .iter()
         .chain(own)
         .map(|s| s.name)
-        .chain(["wall_time", "fault"])
+        .chain(RIG_TRACE_COLUMNS)
         .collect();
     names.join(",")
 }
-/// Layout version of the trace (comment lines, columns, end marker).
-pub const TRACE_SCHEMA: u32 = 1;
+/// Layout version of the trace (comment lines, columns, end marker). 2: the board's columns.
+pub const TRACE_SCHEMA: u32 = 2;
 /// Start of the last line of a trace that was closed properly: `# end: <reason>, <n> rows`.
 pub const END_MARKER: &str = "# end: ";
 
@@ -30,6 +35,12 @@ pub struct TraceRow<'a> {
     /// The loop's signals then the controller's, in the order of the header ([`header_for`]); the valve
     /// command is the one sent (0 in the safe state).
     pub values: &'a [f64],
+    /// Board time of the sample the row's sensors come from, s (NaN before the first; the same as the last
+    /// row's when no new sample arrived).
+    pub board_t: f64,
+    /// The oldest applied-command echo not written yet (one per row at most: the host sends one command a
+    /// tick, so the echoes keep up), or none.
+    pub applied: Option<Applied>,
     /// Wall-clock time, s since the Unix epoch.
     pub wall_time: f64,
     /// Empty when healthy, the fault kind while latched; the first faulty row also carries the message.
@@ -108,7 +119,7 @@ impl<W: TraceSink> TraceWriter<W> {
         Self::create(inner, flush_every, "trace.csv", &[])
     }
 
-    /// Writes the provenance lines (`# pneuflex <version>, trace schema 1`, one `# input <role> <path>
+    /// Writes the provenance lines (`# pneuflex <version>, trace schema N`, one `# input <role> <path>
     /// sha256 <hex>` per input) and flushes them; the column header follows with [`TraceWriter::columns`].
     /// `name` (the file's path) is named in every error.
     pub fn create(
@@ -179,6 +190,16 @@ impl<W: TraceSink> TraceWriter<W> {
         let start = self.buf.len();
         for v in r.values {
             let _ = write!(self.buf, "{v},");
+        }
+        // The board's clock to the µs it counts; an empty cell where there is nothing to say.
+        if r.board_t.is_finite() {
+            let _ = write!(self.buf, "{:.6}", r.board_t);
+        }
+        match r.applied {
+            Some(a) => {
+                let _ = write!(self.buf, ",{:.6},{},", a.board_time_s, a.u);
+            }
+            None => self.buf.extend_from_slice(b",,,"),
         }
         let _ = write!(self.buf, "{:.6},", r.wall_time);
         // Keep the CSV one field per fault: no commas, quotes or newlines from messages.
@@ -443,13 +464,16 @@ mod tests {
         let lines: Vec<&str> = t.lines().collect();
         assert_eq!(
             lines[0],
-            format!("# pneuflex {}, trace schema 1", env!("CARGO_PKG_VERSION"))
+            format!("# pneuflex {}, trace schema 2", env!("CARGO_PKG_VERSION"))
         );
         assert_eq!(
             lines[1],
             format!("# input scene scenes/a b.toml sha256 {}", "ab".repeat(32))
         );
-        assert_eq!(lines[2], "t,f_ref,f_e,x,x_r,p_a,p_b,u,g,wall_time,fault");
+        assert_eq!(
+            lines[2],
+            "t,f_ref,f_e,x,x_r,p_a,p_b,u,g,board_t,applied_t,applied_u,wall_time,fault"
+        );
         assert_eq!(*lines.last().unwrap(), "# end: complete, 2 rows");
         let (rows, end) = data_lines(&t);
         assert_eq!((rows.len(), end), (2, Some("complete, 2 rows")));

@@ -52,8 +52,8 @@ struct Run {
     end: Option<String>,
 }
 
-/// Column of the fault field in these tests' traces (t … u, wall_time, fault).
-const FAULT: usize = 9;
+/// Column of the fault field in these tests' traces (t … u, then the rig's own columns, fault last).
+const FAULT: usize = 8 + pneuflex_files::output::RIG_TRACE_COLUMNS.len() - 1;
 
 /// Parses a trace: data rows split into fields, and the end marker's text.
 fn parse_trace(text: &str) -> (Vec<Vec<String>>, Option<String>) {

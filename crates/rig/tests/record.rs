@@ -88,7 +88,7 @@ fn a_run_writes_trace_with_provenance_end_marker_and_manifest() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next().unwrap(),
-        format!("# pneuflex {}, trace schema 1", env!("CARGO_PKG_VERSION"))
+        format!("# pneuflex {}, trace schema 2", env!("CARGO_PKG_VERSION"))
     );
     let input = lines.next().unwrap();
     let sha = pneuflex_files::InputDigest::of_file(&rig_path(), "rig")
