@@ -351,10 +351,20 @@ pub fn read_manifest(dir: &Path) -> Option<Manifest> {
 }
 
 /// The columns a rig trace has after the loop's and the controller's signals (docs/rig.md, "Trace"): the
-/// board clock of the row's sample, the board's echo of the valve command it applied (when, what), the
-/// host's wall clock and the fault. Readers that treat a trace's columns as signals skip these.
-pub const RIG_TRACE_COLUMNS: [&str; 5] =
-    ["board_t", "applied_t", "applied_u", "wall_time", "fault"];
+/// board's record, one sample it sent (its board time and readings) and one echo of a valve command it
+/// applied (when, what) a row; then the host's wall clock and the fault. Readers that treat a trace's
+/// columns as signals skip these.
+pub const RIG_TRACE_COLUMNS: [&str; 9] = [
+    "board_t",
+    "board_x",
+    "board_f_e",
+    "board_p_a",
+    "board_p_b",
+    "applied_t",
+    "applied_u",
+    "wall_time",
+    "fault",
+];
 
 /// Why a directory is a rig recording, if it is one: its manifest says so (or names a recording command),
 /// or a `trace.csv` in it has the rig trace's `wall_time` column (recognised without the manifest, so that

@@ -1,9 +1,10 @@
-//! A rig log on the board's clock (docs/identification.md, "Real-time logs"): `rig run` and `rig excite`
-//! write, beside each row's sensors, the board time of the sample they came from (`board_t`) and the
-//! board's echoes of the valve commands it applied, with the board time each took effect (`applied_t`,
-//! `applied_u`; docs/protocol.md, 0x07). The host's own timing (late ticks, samples read twice, commands
-//! sent in a burst) is then beside the point: the log is laid on the board's sample grid, each period's
-//! command is the one the valve had, and a sample the host never read is a row that is not compared.
+//! A rig log on the board's clock (docs/identification.md, "Real-time logs"). `rig run` and `rig excite`
+//! write, beside the loop's columns, the board's own record: every sample the board sent, with its board
+//! time (`board_t`, `board_x`, `board_f_e`, `board_p_a`, `board_p_b`), and every echo of a valve command it
+//! applied, with the board time it took effect (`applied_t`, `applied_u`; docs/protocol.md, 0x07), one of
+//! each a row in the order the board sent them. The host's own timing (late ticks, samples it read twice or
+//! never, commands sent in a burst) is then beside the point: the log is the board's samples on its sample
+//! grid, and each period's command is the one the valve had.
 //!
 //! Timing, as the emulated board runs it and the lockstep log assumes: the Sample stamped s_j holds the
 //! state at the end of the sample period whose physics ran with the command in effect at s_j. So grid row
@@ -15,13 +16,29 @@ use crate::log::Log;
 /// A sample's board time may sit this far off the grid, in sample periods (the board counts whole µs).
 const GRID_TOLERANCE: f64 = 0.1;
 
-/// What the parser read of the board's columns, row by row.
+/// One sample of the board's record: board time, position, contact force, chamber pressures (SI), and the
+/// line it stands on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecordedSample {
+    /// Board time, s.
+    pub t: f64,
+    /// Position, m.
+    pub x: f64,
+    /// Contact force, N.
+    pub f_e: f64,
+    /// Chamber A pressure, Pa absolute.
+    pub p_a: f64,
+    /// Chamber B pressure, Pa absolute.
+    pub p_b: f64,
+    /// The file's line.
+    pub line: usize,
+}
+
+/// The board's record as the parser read it.
 #[derive(Clone, Debug, Default)]
 pub struct BoardColumns {
-    /// `board_t` of each data row (NaN where empty), aligned with the log's rows.
-    pub sample_t: Vec<f64>,
-    /// File line of each data row, for messages.
-    pub lines: Vec<usize>,
+    /// Every sample of the record, in the order written.
+    pub samples: Vec<RecordedSample>,
     /// Every applied echo, (board time, duty), in the order written.
     pub applied: Vec<(f64, f64)>,
 }
@@ -31,16 +48,16 @@ pub struct BoardColumns {
 pub struct GridSummary {
     /// The board's sample period, s.
     pub period_s: f64,
-    /// Grid rows, and those with a sample the host read.
+    /// Grid rows.
     pub rows: usize,
-    /// Rows with a measurement.
+    /// Rows with a sample in the record.
     pub measured: usize,
     /// Applied echoes used.
     pub echoes: usize,
 }
 
-/// `host` (one row per host tick) laid on the board's sample grid, or `None` when the log carries no
-/// applied echo (a board that does not send them: the host's rows are replayed as they are).
+/// The board's record of `host`'s file as a log on the board's sample grid, or `None` when it holds no
+/// sample or no applied echo (a board that sends none: the host's rows are replayed as they are).
 pub fn on_board_grid(
     host: &Log,
     board: &BoardColumns,
@@ -51,47 +68,48 @@ pub fn on_board_grid(
         column: Some(column.to_string()),
         message,
     };
-    if board.applied.is_empty() {
+    let samples = &board.samples;
+    if board.applied.is_empty() || samples.is_empty() {
         return Ok(None);
-    }
-    // The samples the host read: a row whose board time does not move on reused the last one.
-    let mut samples: Vec<usize> = Vec::new();
-    for (k, &b) in board.sample_t.iter().enumerate() {
-        if b.is_finite() && samples.last().is_none_or(|&p| b > board.sample_t[p]) {
-            samples.push(k);
-        }
     }
     if samples.len() < 10 {
         return Err(err(
             None,
             "board_t",
             format!(
-                "{} distinct board times: too few samples to replay",
+                "{} samples in the board's record: too few to replay",
                 samples.len()
             ),
         ));
     }
-    let b0 = board.sample_t[samples[0]];
-    let mut steps: Vec<f64> = samples
-        .windows(2)
-        .map(|w| board.sample_t[w[1]] - board.sample_t[w[0]])
-        .collect();
+    if let Some(w) = samples.windows(2).find(|w| w[1].t <= w[0].t) {
+        return Err(err(
+            Some(w[1].line),
+            "board_t",
+            format!(
+                "{} s after {} s: the board's record must go forward in time",
+                w[1].t, w[0].t
+            ),
+        ));
+    }
+    let b0 = samples[0].t;
+    let mut steps: Vec<f64> = samples.windows(2).map(|w| w[1].t - w[0].t).collect();
     steps.sort_by(f64::total_cmp);
-    // The period is the step between consecutive samples: a low percentile of the steps, since a lost
-    // sample makes a step of two periods or more (as many as a quarter of them on a loaded host).
+    // The period is the step between consecutive samples: a low percentile of the steps, robust to samples
+    // missing from the record (a step of two periods or more).
     let period = steps[steps.len() / 20];
     // Each sample's place on the grid; off it by more than a tenth of a period is no board's clock.
     let mut index = Vec::with_capacity(samples.len());
-    for &k in &samples {
-        let b = board.sample_t[k];
-        let j = ((b - b0) / period).round();
-        if ((b - b0) - j * period).abs() > GRID_TOLERANCE * period {
+    for s in samples {
+        let j = ((s.t - b0) / period).round();
+        if ((s.t - b0) - j * period).abs() > GRID_TOLERANCE * period {
             return Err(err(
-                Some(board.lines[k]),
+                Some(s.line),
                 "board_t",
                 format!(
-                    "{b} s is not on the board's sample grid ({b0} s + multiples of its period {period} s): \
-                     the board's clock must stamp one sample a period"
+                    "{} s is not on the board's sample grid ({b0} s + multiples of its period {period} s): \
+                     the board's clock must stamp one sample a period",
+                    s.t
                 ),
             ));
         }
@@ -117,7 +135,7 @@ pub fn on_board_grid(
     };
     let j0 = index[first];
     // The echoes are written in the order applied, so the valve's command is known up to the last one
-    // written and no further (the host's last rows may not have had room for the last few): the grid ends
+    // written and no further (the loop's last rows may not have had room for the last few): the grid ends
     // at the last sample at or before it.
     let known_until = echoes.last().map_or(f64::NEG_INFINITY, |e| e.0);
     let j1 = index
@@ -146,26 +164,28 @@ pub fn on_board_grid(
         measured: Vec::with_capacity(n),
         note: host.note.clone(),
     };
-    let t0 = host.t[samples[first]];
+    // The run's clock starts with its first command (the emulated plant's does, and with it the valve's PWM
+    // carrier): the Sample stamped s holds the state at the end of its period, at run time s + T - a_0.
+    let run_start = echoes[0].0;
     let mut next = first;
-    let mut held = samples[first];
+    let mut held = &samples[first];
     for j in j0..=j1 {
         let measured = next < samples.len() && index[next] == j;
         if measured {
-            held = samples[next];
+            held = &samples[next];
             next += 1;
         }
-        grid.t.push(t0 + (j - j0) as f64 * period);
+        grid.t.push(grid_t(j) - run_start + period);
         // The last row's command is never used (it acts after the log ends).
         grid.u.push(in_effect(grid_t(j + 1)).unwrap_or(0.0));
-        grid.x.push(host.x[held]);
-        grid.p_a.push(host.p_a[held]);
-        grid.p_b.push(host.p_b[held]);
-        grid.f_e.push(host.f_e[held]);
+        grid.x.push(held.x);
+        grid.p_a.push(held.p_a);
+        grid.p_b.push(held.p_b);
+        grid.f_e.push(held.f_e);
         grid.measured.push(measured);
     }
-    // The contact force drives the replay (it is an input, not compared): across a sample the host did
-    // not read it is the line between the samples either side, not the last one held.
+    // A sample missing from the record (it overflowed, or the board skipped one) is not compared; the
+    // contact force, an input of the replay, is the line between the samples either side across it.
     let mut k = 0;
     while k < n {
         if grid.measured[k] {
@@ -186,11 +206,11 @@ pub fn on_board_grid(
         measured: grid.measured.iter().filter(|&&m| m).count(),
         echoes: echoes.len(),
     };
-    let lost = summary.rows - summary.measured;
+    let missing = summary.rows - summary.measured;
     let said = format!(
-        "replayed on the board's clock: {} of {} sample periods measured ({lost} samples the host did not \
-         read), the valve's commands from {} applied echoes",
-        summary.measured, summary.rows, summary.echoes
+        "replayed on the board's clock: its record of {} sample periods ({missing} missing from it), the \
+         valve's commands from {} applied echoes",
+        summary.rows, summary.echoes
     );
     grid.note = Some(match grid.note {
         Some(n) => format!("{said}; {n}"),
@@ -205,37 +225,36 @@ mod tests {
     use crate::log::parse_log;
     use std::path::Path;
 
-    /// A rig trace (schema 2) of `n` host ticks at 1 ms: the host reads sample `sample(k)` at tick k
-    /// (None: no new one) and writes echo `echo(k)` = (board time, duty) in row k.
+    /// A rig trace (schema 2) of `n` host ticks at 1 ms, whose row k records sample `sample(k)` of the board
+    /// (sample j at board time 5 s + j ms reads x = j mm, f_e = j N, p_a = 2e5 + j Pa) and echo `echo(k)` =
+    /// (board time, duty). The loop's own columns hold a constant the grid must not use.
     fn trace(
         n: usize,
         sample: impl Fn(usize) -> Option<usize>,
         echo: impl Fn(usize) -> Option<(f64, f64)>,
     ) -> String {
         let mut s = String::from(
-            "# pneuflex 0.1.0, trace schema 2\nt,f_ref,f_e,x,x_r,p_a,p_b,u,board_t,applied_t,applied_u,wall_time,fault\n",
+            "# pneuflex 0.1.0, trace schema 2\nt,f_ref,f_e,x,x_r,p_a,p_b,u,board_t,board_x,board_f_e,board_p_a,\
+             board_p_b,applied_t,applied_u,wall_time,fault\n",
         );
-        let mut last = None;
         for k in 0..n {
-            last = sample(k).or(last);
-            // Sample j reads x = j mm, p_a = 2e5 + j Pa, f_e = j N: which sample a row holds is plain.
-            let (b, x, f) = match last {
-                Some(j) => (
-                    format!("{:.6}", 5.0 + j as f64 * 1e-3),
+            let board = match sample(k) {
+                Some(j) => format!(
+                    "{:.6},{},{},{},2e5",
+                    5.0 + j as f64 * 1e-3,
                     j as f64 * 1e-3,
                     j as f64,
+                    2e5 + j as f64
                 ),
-                None => (String::new(), 0.0, 0.0),
+                None => ",,,,".into(),
             };
-            let (at, au) = match echo(k) {
-                Some((t, u)) => (format!("{t:.6}"), format!("{u}")),
-                None => (String::new(), String::new()),
+            let applied = match echo(k) {
+                Some((t, u)) => format!("{t:.6},{u}"),
+                None => ",".into(),
             };
             s += &format!(
-                "{},0,{f},{x},0,{},{},0.9,{b},{at},{au},0,\n",
-                k as f64 * 1e-3,
-                2e5 + x * 1e3,
-                2e5
+                "{},0,7,0.01,0,3e5,3e5,0.9,{board},{applied},0,\n",
+                k as f64 * 1e-3
             );
         }
         s + &format!("# end: complete, {n} rows\n")
@@ -246,25 +265,24 @@ mod tests {
     }
 
     #[test]
-    fn a_log_is_laid_on_the_board_grid_with_the_commands_the_valve_had() {
-        // Samples 0..60, every third not read by the host (it read the next one late instead); the
-        // board applied duty j/100 at sample j's time for j = 2..60, echoed two rows late.
-        let n = 62;
-        let sample = |k: usize| (k < 60 && k % 3 != 1).then_some(k);
+    fn a_log_is_the_boards_record_on_its_grid_with_the_commands_the_valve_had() {
+        // The board's samples 0..60, recorded three rows late (the loop's FIFO), sample 30 missing from
+        // the record; the board applied duty j/100 at sample j's time for j = 2..60, echoed two rows late.
+        let n = 64;
+        let sample = |k: usize| (3..63).contains(&k).then(|| k - 3).filter(|&j| j != 30);
         let echo = |k: usize| {
             (4..62)
                 .contains(&k)
-                .then(|| ((5.0 + (k - 2) as f64 * 1e-3), (k - 2) as f64 / 100.0))
+                .then(|| (5.0 + (k - 2) as f64 * 1e-3, (k - 2) as f64 / 100.0))
         };
         let log = read(&trace(n, sample, echo)).unwrap();
-        // The first row is the first sample read whose next period ran with a command: sample 2's
-        // command is the first, so sample 1 would do, but the host did not read it; row r holds sample
-        // 2 + r.
+        // The first row is the first sample whose next period had a command: sample 1 (sample 2's period
+        // ran with the first echo); row r holds sample 1 + r, up to sample 59.
         let j0 = (log.x[0] * 1e3).round() as usize;
-        assert_eq!(j0, 2);
-        for (r, &m) in log.measured.iter().enumerate() {
+        assert_eq!((j0, log.len()), (1, 59));
+        for r in 0..log.len() {
             let j = j0 + r;
-            assert_eq!(m, j % 3 != 1, "row {r} (sample {j})");
+            assert_eq!(log.measured[r], j != 30, "row {r} (sample {j})");
             // Row j's command acts over the next period: the duty applied at sample j + 1's time (the last
             // row's acts after the log and is not used).
             assert!(
@@ -272,20 +290,23 @@ mod tests {
                 "row {r}: u {} for sample {j}",
                 log.u[r]
             );
-            if m {
-                assert!((log.x[r] - j as f64 * 1e-3).abs() < 1e-12);
-            } else {
-                // A lost sample: its force the line between its neighbours (exact here), its sensors held.
-                assert!(
-                    (log.f_e[r] - j as f64).abs() < 1e-9,
-                    "row {r}: f_e {}",
-                    log.f_e[r]
-                );
-                assert!((log.x[r] - (j - 1) as f64 * 1e-3).abs() < 1e-12);
-            }
-            assert!((log.t[r] - log.t[0] - r as f64 * 1e-3).abs() < 1e-9);
+            // The board's readings, not the loop's columns; across the missing sample the force is the
+            // line between its neighbours (exact here) and the rest held.
+            assert!(
+                (log.f_e[r] - j as f64).abs() < 1e-9,
+                "row {r}: f_e {}",
+                log.f_e[r]
+            );
+            let shown = if j == 30 { 29 } else { j };
+            assert!((log.x[r] - shown as f64 * 1e-3).abs() < 1e-12);
+            assert!((log.p_a[r] - 2e5 - shown as f64).abs() < 1e-9);
+            // Run time: sample j ends its period at j + 1 ms past the first command (sample 2's time).
+            assert!(
+                (log.t[r] - (j as f64 + 1.0 - 2.0) * 1e-3).abs() < 1e-9,
+                "row {r}: t {}",
+                log.t[r]
+            );
         }
-        assert!(log.measured.last() == Some(&true));
         assert!(
             log.note.as_deref().unwrap().contains("board's clock"),
             "{:?}",
@@ -296,7 +317,8 @@ mod tests {
     #[test]
     fn a_replay_starts_and_compares_only_on_measured_rows() {
         use crate::replay::{Prepared, ReplayOptions};
-        // 400 periods, one sample in three lost; segments of 10 rows, the held-out part from row 301.
+        // 400 periods, one sample in three missing from the record; segments of 10 rows, the held-out
+        // part from row 301.
         let log = read(&trace(
             402,
             |k| (k < 400 && k % 3 != 1).then_some(k),
@@ -311,7 +333,7 @@ mod tests {
         let p = Prepared::new(log.clone(), &o, 301);
         assert!(
             !log.measured[301],
-            "the held-out part's nominal start is a lost sample"
+            "the held-out part's nominal start is a missing sample"
         );
         assert!(
             log.measured[p.fit_end],
@@ -351,27 +373,43 @@ mod tests {
         let log = read(&trace(30, Some, |_| None)).unwrap();
         assert_eq!(log.len(), 30);
         assert!(log.measured.iter().all(|&m| m));
-        assert!(log.u.iter().all(|&u| u == 0.9), "the host's command column");
+        assert!(log.u.iter().all(|&u| u == 0.9), "the loop's command column");
+        assert!(
+            log.x.iter().all(|&x| x == 0.01),
+            "the loop's position column"
+        );
     }
 
     #[test]
     fn bad_board_cells_name_the_line_and_column() {
         let good = trace(30, Some, |k| Some((5.0 + k as f64 * 1e-3, 0.1)));
-        // Line 3 is the first data row.
+        // Line 3 is the first data row: `...,0.9,5.000000,0,0,200000,2e5,5.000000,0.1,0,`.
         let cases = [
             (",0.1,0,\n", ",1.5,0,\n", "applied_u", "duty in [-1, 1]"),
             (",0.1,0,\n", ",,0,\n", "applied_u", "needs its time"),
             (
-                "5.000000,5.000000",
-                "5.000000,x",
+                "2e5,5.000000,",
+                "2e5,x,",
                 "applied_t",
                 "not a finite number",
             ),
             (
-                "5.000000,5.000000",
-                "NaN,5.000000",
+                "0.9,5.000000,",
+                "0.9,NaN,",
                 "board_t",
                 "not a finite number",
+            ),
+            (
+                "0.9,5.000000,0,0,",
+                "0.9,5.000000,,0,",
+                "board_x",
+                "recorded whole",
+            ),
+            (
+                "0.9,5.000000,0,0,200000,",
+                "0.9,5.000000,0,0,-5,",
+                "board_p_a",
+                "Pa absolute",
             ),
         ];
         for (from, to, column, what) in cases {
@@ -384,12 +422,18 @@ mod tests {
                 "{e}"
             );
         }
-        // A sample off the board's 1 ms grid.
-        let bad = good.replacen("5.010000,5.010000", "5.010400,5.010000", 1);
+        // A sample off the board's 1 ms grid, and one back in time.
+        let bad = good.replacen("0.9,5.010000,", "0.9,5.010400,", 1);
         let e = read(&bad).expect_err("off the grid").to_string();
         assert!(
             e.starts_with("rt/trace.csv:13: column `board_t`")
                 && e.contains("not on the board's sample grid"),
+            "{e}"
+        );
+        let bad = good.replacen("0.9,5.010000,", "0.9,5.008000,", 1);
+        let e = read(&bad).expect_err("back in time").to_string();
+        assert!(
+            e.starts_with("rt/trace.csv:13: column `board_t`") && e.contains("go forward in time"),
             "{e}"
         );
     }

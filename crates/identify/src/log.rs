@@ -6,15 +6,20 @@
 use std::path::{Path, PathBuf};
 
 use crate::IdentifyError;
-use crate::board_time::BoardColumns;
+use crate::board_time::{BoardColumns, RecordedSample};
 use crate::log_format::LogFormat;
 use pneuflex_files::output::RIG_TRACE_COLUMNS;
 
-/// The board's columns of a rig trace (schema 2) that lay a log on the board's clock (crate::board_time).
-const BOARD_COLUMNS: [&str; 3] = [
+/// The board's record in a rig trace (schema 2: a sample and an applied echo a row), which lays a log on the
+/// board's clock (crate::board_time): the first nine of the rig's own columns but the wall time and fault.
+const BOARD_COLUMNS: [&str; 7] = [
     RIG_TRACE_COLUMNS[0],
     RIG_TRACE_COLUMNS[1],
     RIG_TRACE_COLUMNS[2],
+    RIG_TRACE_COLUMNS[3],
+    RIG_TRACE_COLUMNS[4],
+    RIG_TRACE_COLUMNS[5],
+    RIG_TRACE_COLUMNS[6],
 ];
 
 /// The columns identification reads, in this order.
@@ -274,9 +279,8 @@ struct LogParser<'a> {
     row_lines: Vec<usize>,
     end_marker: bool,
     log: Log,
-    /// pneuflex's rig trace with the board's columns: their indices (`board_t`, `applied_t`,
-    /// `applied_u`) and what they held.
-    board: Option<([usize; 3], BoardColumns)>,
+    /// pneuflex's rig trace with the board's record: the indices of [`BOARD_COLUMNS`] and what they held.
+    board: Option<([usize; 7], BoardColumns)>,
 }
 
 impl<'a> LogParser<'a> {
@@ -390,33 +394,41 @@ impl<'a> LogParser<'a> {
         }
         self.row(line_no, v)?;
         if let Some((idx, _)) = &self.board {
-            let read = self.board_cells(line_no, &fields, *idx)?;
+            let [t, x, f_e, p_a, p_b, at, au] = self.board_cells(line_no, &fields, *idx)?;
             if let Some((_, cols)) = &mut self.board {
-                cols.sample_t.push(read[0]);
-                cols.lines.push(line_no);
-                if read[1].is_finite() {
-                    cols.applied.push((read[1], read[2]));
+                if t.is_finite() {
+                    cols.samples.push(RecordedSample {
+                        t,
+                        x,
+                        f_e,
+                        p_a,
+                        p_b,
+                        line: line_no,
+                    });
+                }
+                if at.is_finite() {
+                    cols.applied.push((at, au));
                 }
             }
         }
         Ok(true)
     }
 
-    /// A row's `board_t`, `applied_t`, `applied_u` (NaN where empty): finite numbers, and an echo whole,
-    /// its duty in [-1, 1].
+    /// A row's board record ([`BOARD_COLUMNS`], NaN where empty): finite numbers, a sample whole and within
+    /// the readings' plausible ranges, an echo whole with its duty in [-1, 1].
     fn board_cells(
         &self,
         line_no: usize,
         fields: &[&str],
-        idx: [usize; 3],
-    ) -> Result<[f64; 3], IdentifyError> {
-        let mut read = [f64::NAN; 3];
+        idx: [usize; 7],
+    ) -> Result<[f64; 7], IdentifyError> {
+        let mut read = [f64::NAN; 7];
         for (r, (&i, c)) in read.iter_mut().zip(idx.iter().zip(BOARD_COLUMNS)) {
             let cell = fields[i].trim();
             if cell.is_empty() {
                 continue;
             }
-            *r = cell
+            let v = cell
                 .parse::<f64>()
                 .ok()
                 .filter(|x| x.is_finite())
@@ -430,9 +442,31 @@ impl<'a> LogParser<'a> {
                         ),
                     )
                 })?;
+            // The readings' ranges are the loop's columns' (board_x is an x).
+            if let Some((lo, hi, what)) = c.strip_prefix("board_").and_then(plausible)
+                && !(lo..=hi).contains(&v)
+            {
+                return Err(self.err(
+                    Some(line_no),
+                    Some(c),
+                    format!("{v}: outside [{lo:e}, {hi:e}] {what}: not a reading of a pneumatic cylinder"),
+                ));
+            }
+            *r = v;
         }
-        let [_, t, u] = read;
-        if t.is_finite() != u.is_finite() || (u.is_finite() && !(-1.0..=1.0).contains(&u)) {
+        let whole =
+            |cells: &[f64]| cells.iter().all(|v| v.is_finite()) || cells.iter().all(|v| v.is_nan());
+        if !whole(&read[..5]) {
+            let c = (0..5).find(|&i| read[i].is_nan()).unwrap_or(0);
+            return Err(self.err(
+                Some(line_no),
+                Some(BOARD_COLUMNS[c]),
+                "empty where the rest of the board's sample is given: a sample is recorded whole"
+                    .into(),
+            ));
+        }
+        let [t, u] = [read[5], read[6]];
+        if !whole(&read[5..]) || (u.is_finite() && !(-1.0..=1.0).contains(&u)) {
             return Err(self.err(
                 Some(line_no),
                 Some("applied_u"),
@@ -492,8 +526,17 @@ impl<'a> LogParser<'a> {
         // pneuflex's rig trace since schema 2: the board's clock and applied-command echoes.
         if self.format.own_trace {
             let at = |c: &str| names.iter().position(|n| n == c);
-            if let [Some(b), Some(a), Some(u)] = BOARD_COLUMNS.map(at) {
-                self.board = Some(([b, a, u], BoardColumns::default()));
+            if let [
+                Some(a),
+                Some(b),
+                Some(c),
+                Some(d),
+                Some(e),
+                Some(f),
+                Some(g),
+            ] = BOARD_COLUMNS.map(at)
+            {
+                self.board = Some(([a, b, c, d, e, f, g], BoardColumns::default()));
             }
         }
         // Only pneuflex's trace has a fault column (another tool's export is used as it is).

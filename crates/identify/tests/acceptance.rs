@@ -247,14 +247,26 @@ fn recovers_delay_viscous_friction_and_an_offset() {
     let dir = dir.path().to_path_buf();
     let (truth, changes) = perturb(&shipped(), &keys, 3, &dir.join("truth")).unwrap();
     let text = common::record(&truth, 3, excitation(3), 6.0, None, &dir.join("raw.csv"));
-    // p_b is the 7th column of the rig trace.
+    // The p_b sensor's readings: the loop's column and the board's record of them.
+    let header = text.lines().find(|l| l.starts_with("t,")).unwrap();
+    let cols: Vec<usize> = header
+        .split(',')
+        .enumerate()
+        .filter(|(_, c)| *c == "p_b" || *c == "board_p_b")
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(cols.len(), 2, "{header}");
     let mut out = String::new();
     for line in text.lines() {
         if line.starts_with('#') || line.starts_with("t,") {
             out += line;
         } else {
             let mut f: Vec<String> = line.split(',').map(str::to_string).collect();
-            f[6] = (f[6].parse::<f64>().unwrap() + 2000.0).to_string();
+            for &i in &cols {
+                if let Ok(v) = f[i].parse::<f64>() {
+                    f[i] = (v + 2000.0).to_string();
+                }
+            }
             out += &f.join(",");
         }
         out.push('\n');

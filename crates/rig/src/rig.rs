@@ -22,8 +22,9 @@ pub struct LinkStats {
     pub seq_gaps: u64,
     /// Frames sent.
     pub sent: u64,
-    /// Applied echoes dropped because nobody took them (more than `serial::APPLIED_CAP` waiting).
-    pub applied_dropped: u64,
+    /// Samples and applied echoes dropped from the record because nobody took them (more than
+    /// `serial::RECORD_CAP` waiting).
+    pub record_dropped: u64,
 }
 
 /// A raw sample as the board sent it, stamped with host and board time.
@@ -48,6 +49,18 @@ pub struct Applied {
     pub u: f64,
     /// Run, or the safe state the valve is in.
     pub mode: crate::protocol::ValveMode,
+}
+
+/// One sample as the board sent it, for the record ([`Rig::take_sampled`]): its board time and counts, and
+/// in SI once a [`Calibrated`] layer has seen it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoardSample {
+    /// Board time, s (the clock of [`RawSample::board_time_s`]).
+    pub board_time_s: f64,
+    /// The counts.
+    pub raw: SamplePayload,
+    /// Position, contact force and chamber pressures in SI (`x_dot` NaN: no filter runs on the record).
+    pub si: Option<Sensors>,
 }
 
 /// A calibrated sample: the controller's [`Sensors`] plus what the limits need.
@@ -92,6 +105,13 @@ pub trait Rig {
     fn take_applied(&mut self) -> Option<Applied> {
         None
     }
+
+    /// The oldest sample the board sent that is not taken yet: every sample once, in order, whether or not
+    /// `read` handed it to the loop (a late loop reads only the newest), for the trace's record of what the
+    /// board measured. `None` when none is waiting, or the rig keeps no such record.
+    fn take_sampled(&mut self) -> Option<BoardSample> {
+        None
+    }
 }
 
 impl<R: Rig + ?Sized> Rig for &mut R {
@@ -113,6 +133,9 @@ impl<R: Rig + ?Sized> Rig for &mut R {
     }
     fn take_applied(&mut self) -> Option<Applied> {
         (**self).take_applied()
+    }
+    fn take_sampled(&mut self) -> Option<BoardSample> {
+        (**self).take_sampled()
     }
 }
 
@@ -165,6 +188,9 @@ impl<R: Rig<Sample = RawSample>> Rig for Watchdog<R> {
     }
     fn take_applied(&mut self) -> Option<Applied> {
         self.inner.take_applied()
+    }
+    fn take_sampled(&mut self) -> Option<BoardSample> {
+        self.inner.take_sampled()
     }
 
     fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
@@ -248,6 +274,20 @@ impl<R: Rig<Sample = RawSample>> Calibrated<R> {
         &mut self.inner
     }
 
+    /// Position, contact force and pressures of raw counts, in SI (no velocity: `x_dot` NaN).
+    pub fn sensors_of(&self, raw: &SamplePayload) -> Sensors {
+        let c = &self.cal;
+        let (p_a, p_b) = c.pressures(raw.p_a, raw.p_b);
+        Sensors {
+            t: f64::NAN,
+            x: c.position.to_si(raw.position),
+            x_dot: f64::NAN,
+            f_e: c.load_to_si(raw.load),
+            p_a,
+            p_b,
+        }
+    }
+
     /// Converts one raw sample (updates the velocity filter).
     pub fn convert(&mut self, s: &RawSample) -> SiSample {
         let c = &self.cal;
@@ -289,6 +329,12 @@ impl<R: Rig<Sample = RawSample>> Rig for Calibrated<R> {
     }
     fn take_applied(&mut self) -> Option<Applied> {
         self.inner.take_applied()
+    }
+    fn take_sampled(&mut self) -> Option<BoardSample> {
+        self.inner.take_sampled().map(|mut b| {
+            b.si = Some(self.sensors_of(&b.raw));
+            b
+        })
     }
 
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {
@@ -387,6 +433,9 @@ impl<R: Rig<Sample = SiSample>> Rig for Limited<R> {
     }
     fn take_applied(&mut self) -> Option<Applied> {
         self.inner.take_applied()
+    }
+    fn take_sampled(&mut self) -> Option<BoardSample> {
+        self.inner.take_sampled()
     }
 
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {

@@ -407,9 +407,10 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
         row: &mut [f64],
     ) -> std::io::Result<pneuflex_control::tick::Flow> {
         let wall_time = self.wall0 + self.now_s;
-        // What the board says of its own timing: the clock of this row's sample, and the oldest echo of an
-        // applied command (docs/protocol.md, 0x07), so that a replay knows what the valve did and when.
-        let board_t = self.last.map_or(f64::NAN, |s| s.board_time_s);
+        // The board's record: the oldest sample and the oldest echo of an applied command (docs/protocol.md,
+        // 0x07) not written yet, on the board's clock, so that a replay knows what the board measured and
+        // what the valve did, and when, whatever this loop's timing.
+        let sampled = self.sup.rig_mut().take_sampled();
         let applied = self.sup.rig_mut().take_applied();
         let written = match (self.sup.fault(), self.fault_tick) {
             (Some(f), None) => {
@@ -427,7 +428,7 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
                 self.trace
                     .row(&TraceRow {
                         values: &row[..self.n_trace],
-                        board_t,
+                        sampled,
                         applied,
                         wall_time,
                         fault: &msg,
@@ -442,7 +443,7 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
                 };
                 self.trace.row(&TraceRow {
                     values: &row[..self.n_trace],
-                    board_t,
+                    sampled,
                     applied,
                     wall_time,
                     fault: label,

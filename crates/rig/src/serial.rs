@@ -12,7 +12,7 @@ use crate::protocol::{
     ConfigPayload, DecodeEvent, Decoder, MAX_FRAME, Message, RESET_MAGIC, ValveMode, ValvePayload,
     encode, fault_code, from_q15, status, to_q15,
 };
-use crate::rig::{Applied, LinkStats, RawSample, Rig};
+use crate::rig::{Applied, BoardSample, LinkStats, RawSample, Rig};
 use crate::rigfile::{RigFile, SafeState};
 
 /// A byte link to the board: non-blocking reads, whole-frame writes.
@@ -113,9 +113,9 @@ pub const LINK_SIGNALS: [pneuflex_control::Signal; 4] = [
     },
 ];
 
-/// Applied echoes a [`SerialRig`] keeps for its reader (a loop that takes one a tick keeps up: the board
-/// sends one per command).
-pub const APPLIED_CAP: usize = 4096;
+/// Samples and applied echoes a [`SerialRig`] keeps each for the record (a loop that takes one of each a
+/// tick keeps up: the board sends one sample a period and one echo per command).
+pub const RECORD_CAP: usize = 4096;
 
 /// The serial host driver: decodes samples, sends valve commands, counts CRC errors against a threshold.
 pub struct SerialRig<L: Link> {
@@ -124,8 +124,12 @@ pub struct SerialRig<L: Link> {
     tx_seq: u8,
     rx_seq: Option<u8>,
     latest: Option<RawSample>,
-    /// Applied echoes not taken yet (at most [`APPLIED_CAP`]: the oldest go first).
+    /// Applied echoes not taken yet (at most [`RECORD_CAP`]: the oldest go first).
     applied: VecDeque<Applied>,
+    /// Samples not taken for the record yet (at most [`RECORD_CAP`]).
+    sampled: VecDeque<BoardSample>,
+    /// Whether the loop has read: the record starts with the sample of its first read.
+    record_started: bool,
     board_last_us: Option<u32>,
     board_time_s: f64,
     crc_times: VecDeque<f64>,
@@ -146,6 +150,8 @@ impl<L: Link> SerialRig<L> {
             rx_seq: None,
             latest: None,
             applied: VecDeque::with_capacity(64),
+            sampled: VecDeque::with_capacity(64),
+            record_started: false,
             board_last_us: None,
             board_time_s: 0.0,
             crc_times: VecDeque::with_capacity(crc_max as usize + 2),
@@ -187,6 +193,7 @@ impl<L: Link> SerialRig<L> {
                 decoder,
                 latest,
                 applied,
+                sampled,
                 board_last_us,
                 board_time_s,
                 crc_times,
@@ -220,6 +227,15 @@ impl<L: Link> SerialRig<L> {
                                 board_time_s: *board_time_s,
                                 raw: s,
                             });
+                            if sampled.len() == RECORD_CAP {
+                                sampled.pop_front();
+                                stats.record_dropped += 1;
+                            }
+                            sampled.push_back(BoardSample {
+                                board_time_s: *board_time_s,
+                                raw: s,
+                                si: None,
+                            });
                             if s.status & status::BOARD_FAULT != 0 && board_fault.is_none() {
                                 *board_fault = Some((0, 0));
                             }
@@ -229,9 +245,9 @@ impl<L: Link> SerialRig<L> {
                             // sample's stamp, either side of it (a wrap of the µs counter included).
                             let last = *board_last_us.get_or_insert(a.board_time_us);
                             let offset = a.board_time_us.wrapping_sub(last) as i32;
-                            if applied.len() == APPLIED_CAP {
+                            if applied.len() == RECORD_CAP {
                                 applied.pop_front();
-                                stats.applied_dropped += 1;
+                                stats.record_dropped += 1;
                             }
                             applied.push_back(Applied {
                                 board_time_s: *board_time_s + f64::from(offset) * 1e-6,
@@ -336,11 +352,24 @@ impl<L: Link> Rig for SerialRig<L> {
 
     fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
         self.pump(now_s)?;
+        if !self.record_started {
+            // What came during the handshake and the set-up is no part of the run's record: it starts with
+            // the sample the loop reads first.
+            let first = self.sampled.pop_back();
+            self.sampled.clear();
+            self.sampled.extend(first);
+            self.applied.clear();
+            self.record_started = true;
+        }
         Ok(self.latest.take())
     }
 
     fn take_applied(&mut self) -> Option<Applied> {
         self.applied.pop_front()
+    }
+
+    fn take_sampled(&mut self) -> Option<BoardSample> {
+        self.sampled.pop_front()
     }
 
     fn write(&mut self, tick: u32, cmd: ValveCommand) -> Result<(), RigError> {

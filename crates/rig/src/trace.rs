@@ -10,7 +10,7 @@ use pneuflex_control::Signal;
 use pneuflex_files::InputDigest;
 use pneuflex_files::output::RIG_TRACE_COLUMNS;
 
-use crate::rig::Applied;
+use crate::rig::{Applied, BoardSample};
 
 /// The column header: the loop's signals (`pneuflex_control::LOOP_SIGNALS`), the controller's own signals
 /// as it declares them, then the rig's own columns ([`RIG_TRACE_COLUMNS`]: board time, the applied-command
@@ -35,11 +35,11 @@ pub struct TraceRow<'a> {
     /// The loop's signals then the controller's, in the order of the header ([`header_for`]); the valve
     /// command is the one sent (0 in the safe state).
     pub values: &'a [f64],
-    /// Board time of the sample the row's sensors come from, s (NaN before the first; the same as the last
-    /// row's when no new sample arrived).
-    pub board_t: f64,
-    /// The oldest applied-command echo not written yet (one per row at most: the host sends one command a
-    /// tick, so the echoes keep up), or none.
+    /// The oldest sample the board sent not written yet (one a row: the board sends one a period, so the
+    /// record keeps up even when the loop, late, read only the newest), or none.
+    pub sampled: Option<BoardSample>,
+    /// The oldest applied-command echo not written yet (one a row: the host sends one command a tick), or
+    /// none.
     pub applied: Option<Applied>,
     /// Wall-clock time, s since the Unix epoch.
     pub wall_time: f64,
@@ -192,8 +192,11 @@ impl<W: TraceSink> TraceWriter<W> {
             let _ = write!(self.buf, "{v},");
         }
         // The board's clock to the µs it counts; an empty cell where there is nothing to say.
-        if r.board_t.is_finite() {
-            let _ = write!(self.buf, "{:.6}", r.board_t);
+        match r.sampled.and_then(|b| b.si.map(|v| (b.board_time_s, v))) {
+            Some((t, v)) => {
+                let _ = write!(self.buf, "{t:.6},{},{},{},{}", v.x, v.f_e, v.p_a, v.p_b);
+            }
+            None => self.buf.extend_from_slice(b",,,,"),
         }
         match r.applied {
             Some(a) => {
@@ -472,7 +475,8 @@ mod tests {
         );
         assert_eq!(
             lines[2],
-            "t,f_ref,f_e,x,x_r,p_a,p_b,u,g,board_t,applied_t,applied_u,wall_time,fault"
+            "t,f_ref,f_e,x,x_r,p_a,p_b,u,g,board_t,board_x,board_f_e,board_p_a,board_p_b,applied_t,\
+             applied_u,wall_time,fault"
         );
         assert_eq!(*lines.last().unwrap(), "# end: complete, 2 rows");
         let (rows, end) = data_lines(&t);
