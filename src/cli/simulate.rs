@@ -269,6 +269,13 @@ pub struct Compare {
 
 impl Compare {
     pub fn call(self) -> anyhow::Result<()> {
-        cmd::compare::compare(&self)
+        cmd::compare::compare(&cmd::compare::CompareArgs {
+            scene: &self.scene,
+            rig_log: &self.rig_log,
+            run: self.run.as_deref(),
+            actuator: self.actuator.as_deref(),
+            out: self.out.as_deref(),
+            format: self.format.into(),
+        })
     }
 }

@@ -13,8 +13,6 @@ use pneuflex_scene::analysis::comparison::{Comparison, compare as compare_runs};
 use pneuflex_scene::analysis::recorded::recorded_run;
 use pneuflex_scene::{PlantSpec, RunResult, Scene, Trace};
 
-use crate::cli::simulate::Compare;
-
 /// One `--rig-log`: the run it recorded, its path, its trace.
 struct Log {
     run: usize,
@@ -75,8 +73,24 @@ fn read_log(scene: &Scene, run: usize, path: PathBuf) -> anyhow::Result<Log> {
     Ok(Log { run, path, trace })
 }
 
-pub fn compare(a: &Compare) -> anyhow::Result<()> {
-    let scene = Scene::load(&a.scene)?;
+/// What `pneuflex compare` was given (cli/simulate.rs's `Compare`, parsed).
+pub struct CompareArgs<'a> {
+    /// The scene the rig ran.
+    pub scene: &'a Path,
+    /// `[RUN=]TRACE.csv` per recorded run.
+    pub rig_log: &'a [String],
+    /// The run a single log recorded, when named.
+    pub run: Option<&'a str>,
+    /// An actuator sheet to simulate with instead of the scene's.
+    pub actuator: Option<&'a Path>,
+    /// The output directory, when given.
+    pub out: Option<&'a Path>,
+    /// The figures' format.
+    pub format: pneuflex_viz::Format,
+}
+
+pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
+    let scene = Scene::load(a.scene)?;
     let single = a.rig_log.len() == 1;
     if !single && a.run.is_some() {
         bail!(
@@ -84,8 +98,8 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
         );
     }
     let mut logs = Vec::new();
-    for arg in &a.rig_log {
-        let (run, path) = run_of(&scene, arg, a.run.as_deref(), single)?;
+    for arg in a.rig_log {
+        let (run, path) = run_of(&scene, arg, a.run, single)?;
         if let Some(other) = logs.iter().find(|l: &&Log| l.run == run) {
             bail!(
                 "--rig-log {arg}: run `{}` is already given by {}",
@@ -102,7 +116,7 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
         .fold(f64::INFINITY, f64::min);
     let indices: Vec<usize> = logs.iter().map(|l| l.run).collect();
     let mut sim_scene = scene.some_runs(&indices, end_s);
-    if let Some(sheet) = &a.actuator {
+    if let Some(sheet) = a.actuator {
         let abs = std::fs::canonicalize(sheet)
             .with_context(|| format!("--actuator {}", sheet.display()))?;
         pneuflex_pneumatics::ActuatorSheet::load(&abs)
@@ -116,7 +130,7 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
         }
     }
     let first = &scene.runs[logs[0].run].name;
-    let dest = a.out.clone().unwrap_or_else(|| {
+    let dest = a.out.map(Path::to_path_buf).unwrap_or_else(|| {
         let d = Path::new("out").join("compare").join(&scene.name);
         if single { d.join(first) } else { d }
     });
@@ -185,14 +199,14 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
             name: "simulation".into(),
             ..sim
         };
-        pneuflex_viz::write_figures(&fig_dir, &one, &[rig, sim], a.format.into())?;
+        pneuflex_viz::write_figures(&fig_dir, &one, &[rig, sim], a.format)?;
     }
-    let mut inputs = vec![pneuflex_files::InputDigest::of_file(&a.scene, "scene")?];
-    for arg in &a.rig_log {
-        let (_, path) = run_of(&scene, arg, a.run.as_deref(), single)?;
+    let mut inputs = vec![pneuflex_files::InputDigest::of_file(a.scene, "scene")?];
+    for arg in a.rig_log {
+        let (_, path) = run_of(&scene, arg, a.run, single)?;
         inputs.push(pneuflex_files::InputDigest::of_file(&path, "log")?);
     }
-    if let Some(s) = &a.actuator {
+    if let Some(s) = a.actuator {
         inputs.push(pneuflex_files::InputDigest::of_file(s, "actuator")?);
     }
     let dest = stage.commit(Manifest::new("compare", env!("CARGO_PKG_VERSION"), inputs))?;
@@ -201,7 +215,7 @@ pub fn compare(a: &Compare) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn markdown(c: &Comparison, a: &Compare) -> String {
+fn markdown(c: &Comparison, a: &CompareArgs<'_>) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,

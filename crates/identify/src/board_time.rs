@@ -10,8 +10,9 @@
 //! state at the end of the sample period whose physics ran with the command in effect at s_j. So grid row
 //! j's command, which the replay holds from row j to row j + 1, is the last echo at or before s_{j+1}.
 
+use std::path::Path;
+
 use crate::IdentifyError;
-use crate::log::Log;
 
 /// A sample's board time may sit this far off the grid, in sample periods (the board counts whole µs).
 const GRID_TOLERANCE: f64 = 0.1;
@@ -56,14 +57,45 @@ pub struct GridSummary {
     pub echoes: usize,
 }
 
-/// The board's record of `host`'s file as a log on the board's sample grid, or `None` when it holds no
+/// A log's columns on the board's sample grid (crate::log::Log's, without the file's provenance).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    /// Run time, s: from the first command.
+    pub t: Vec<f64>,
+    /// The valve's command from this row to the next.
+    pub u: Vec<f64>,
+    /// Position, m.
+    pub x: Vec<f64>,
+    /// Chamber A pressure, Pa absolute.
+    pub p_a: Vec<f64>,
+    /// Chamber B pressure, Pa absolute.
+    pub p_b: Vec<f64>,
+    /// Contact force, N.
+    pub f_e: Vec<f64>,
+    /// Whether the row's sample is in the record.
+    pub measured: Vec<bool>,
+    /// How it was laid.
+    pub summary: GridSummary,
+}
+
+impl GridSummary {
+    /// What the log's note says of it.
+    pub fn note(&self) -> String {
+        format!(
+            "replayed on the board's clock: its record of {} sample periods ({} missing from it), the valve's \
+             commands from {} applied echoes",
+            self.rows,
+            self.rows - self.measured,
+            self.echoes
+        )
+    }
+}
+
+/// The board's record in the file `path` as a log on the board's sample grid, or `None` when it holds no
 /// sample or no applied echo (a board that sends none: the host's rows are replayed as they are).
-pub fn on_board_grid(
-    host: &Log,
-    board: &BoardColumns,
-) -> Result<Option<(Log, GridSummary)>, IdentifyError> {
+pub fn on_board_grid(path: &Path, board: &BoardColumns) -> Result<Option<Grid>, IdentifyError> {
     let err = |line: Option<usize>, column: &str, message: String| IdentifyError::Log {
-        file: host.path.clone(),
+        file: path.to_path_buf(),
         line,
         column: Some(column.to_string()),
         message,
@@ -152,9 +184,7 @@ pub fn on_board_grid(
         ));
     }
     let n = j1 - j0 + 1;
-    let mut grid = Log {
-        path: host.path.clone(),
-        sha256: host.sha256.clone(),
+    let mut grid = Grid {
         t: Vec::with_capacity(n),
         u: Vec::with_capacity(n),
         x: Vec::with_capacity(n),
@@ -162,7 +192,12 @@ pub fn on_board_grid(
         p_b: Vec::with_capacity(n),
         f_e: Vec::with_capacity(n),
         measured: Vec::with_capacity(n),
-        note: host.note.clone(),
+        summary: GridSummary {
+            period_s: period,
+            rows: n,
+            measured: 0,
+            echoes: echoes.len(),
+        },
     };
     // The run's clock starts with its first command (the emulated plant's does, and with it the valve's PWM
     // carrier): the Sample stamped s holds the state at the end of its period, at run time s + T - a_0.
@@ -200,23 +235,8 @@ pub fn on_board_grid(
         }
         k = b + 1;
     }
-    let summary = GridSummary {
-        period_s: period,
-        rows: n,
-        measured: grid.measured.iter().filter(|&&m| m).count(),
-        echoes: echoes.len(),
-    };
-    let missing = summary.rows - summary.measured;
-    let said = format!(
-        "replayed on the board's clock: its record of {} sample periods ({missing} missing from it), the \
-         valve's commands from {} applied echoes",
-        summary.rows, summary.echoes
-    );
-    grid.note = Some(match grid.note {
-        Some(n) => format!("{said}; {n}"),
-        None => said,
-    });
-    Ok(Some((grid, summary)))
+    grid.summary.measured = grid.measured.iter().filter(|&&m| m).count();
+    Ok(Some(grid))
 }
 
 #[cfg(test)]
@@ -260,7 +280,7 @@ mod tests {
         s + &format!("# end: complete, {n} rows\n")
     }
 
-    fn read(text: &str) -> Result<Log, IdentifyError> {
+    fn read(text: &str) -> Result<crate::log::Log, IdentifyError> {
         parse_log(Path::new("rt/trace.csv"), text, String::new())
     }
 

@@ -22,8 +22,7 @@ const BOARD_COLUMNS: [&str; 7] = [
     RIG_TRACE_COLUMNS[6],
 ];
 
-/// The columns identification reads, in this order.
-pub const COLUMNS: [&str; 6] = ["t", "u", "x", "p_a", "p_b", "f_e"];
+pub use crate::log_format::COLUMNS;
 
 /// One log: the columns identification uses, SI units, pressures absolute.
 #[derive(Clone, Debug, PartialEq)]
@@ -648,9 +647,23 @@ impl<'a> LogParser<'a> {
         }
         self.log.sha256 = sha256;
         if let Some((_, cols)) = &self.board
-            && let Some((grid, _)) = crate::board_time::on_board_grid(&self.log, cols)?
+            && let Some(g) = crate::board_time::on_board_grid(self.path, cols)?
         {
-            return Ok(grid);
+            let note = g.summary.note();
+            return Ok(Log {
+                t: g.t,
+                u: g.u,
+                x: g.x,
+                p_a: g.p_a,
+                p_b: g.p_b,
+                f_e: g.f_e,
+                measured: g.measured,
+                note: Some(match self.log.note {
+                    Some(n) => format!("{note}; {n}"),
+                    None => note,
+                }),
+                ..self.log
+            });
         }
         Ok(self.log)
     }

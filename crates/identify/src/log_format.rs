@@ -23,7 +23,9 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::IdentifyError;
-use crate::log::COLUMNS;
+
+/// The columns identification reads, in this order.
+pub const COLUMNS: [&str; 6] = ["t", "u", "x", "p_a", "p_b", "f_e"];
 
 /// A log format file, as written.
 #[derive(Clone, Debug, Deserialize, PartialEq)]

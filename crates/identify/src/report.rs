@@ -82,7 +82,7 @@ pub struct Report {
     pub fit_seconds: f64,
     /// `identify --select`: every candidate structure's fit and the choice (absent without it).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub structure_selection: Option<crate::select::Selection>,
+    pub structure_selection: Option<Selection>,
 }
 
 /// One log in the report.
@@ -305,7 +305,7 @@ pub fn markdown(r: &Report) -> String {
 }
 
 /// The `--select` table: every candidate structure with its figures, the chosen one first in words.
-fn structure_table(s: &mut String, sel: &crate::select::Selection) {
+fn structure_table(s: &mut String, sel: &Selection) {
     let _ = writeln!(
         s,
         "## Structure selection\n\nChosen: {}.\n\nCriterion: {}.\n",
@@ -458,4 +458,47 @@ pub fn validation_figure(
         file: path.to_path_buf(),
         message: e.to_string(),
     })
+}
+
+/// One structure's fit, as the report gives it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Candidate {
+    /// The structure's name.
+    pub structure: &'static str,
+    /// What it adds to the sheet, in words.
+    pub adds: &'static str,
+    /// Its free keys (the user's and the structure's).
+    pub keys: Vec<String>,
+    /// Why it was not fitted (the sheet has the effect already, or the valve has no spool to move), or
+    /// why its fit failed; the figures below are then absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub skipped: Option<String>,
+    /// Bayesian information criterion on the fit rows: n ln(mean squared residual / floor^2) + k ln n, with
+    /// n the rows times the three channels and k the free keys (lower is better; null when not fitted).
+    pub bic: f64,
+    /// Mean squared residual over the noise floor squared, on the fit rows.
+    pub fit_over_floor_sq: f64,
+    /// The same on the held-out rows.
+    pub validation_over_floor_sq: f64,
+    /// The model check's verdict on this structure's fit.
+    pub adequate: bool,
+    /// Whether the effect is there: one of its keys' 95 % interval excludes its absence (0 for a leak, wall
+    /// heat, the seal term, spool travel); always for another friction law, which has no absent value. An
+    /// effect whose size the logs cannot tell from none is not chosen, whatever its BIC.
+    pub significant: bool,
+    /// The fit's wall time, s.
+    pub fit_seconds: f64,
+}
+
+/// The report's `structure_selection`.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Selection {
+    /// How the choice is made.
+    pub criterion: &'static str,
+    /// Every structure, in the order the selection tried them.
+    pub candidates: Vec<Candidate>,
+    /// The chosen structure's name.
+    pub chosen: &'static str,
+    /// Why, in words (and whether it explains the logs).
+    pub verdict: String,
 }

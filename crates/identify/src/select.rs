@@ -122,48 +122,7 @@ pub const STRUCTURES: [Structure; 8] = [
     },
 ];
 
-/// One structure's fit, as the report gives it.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Candidate {
-    /// [`Structure::name`].
-    pub structure: &'static str,
-    /// [`Structure::adds`].
-    pub adds: &'static str,
-    /// Its free keys (the user's and the structure's).
-    pub keys: Vec<String>,
-    /// Why it was not fitted (the sheet has the effect already, or the valve has no spool to move), or
-    /// why its fit failed; the figures below are then absent.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub skipped: Option<String>,
-    /// Bayesian information criterion on the fit rows: n ln(mean squared residual / floor^2) + k ln n, with
-    /// n the rows times the three channels and k the free keys (lower is better; null when not fitted).
-    pub bic: f64,
-    /// Mean squared residual over the noise floor squared, on the fit rows.
-    pub fit_over_floor_sq: f64,
-    /// The same on the held-out rows.
-    pub validation_over_floor_sq: f64,
-    /// The model check's verdict on this structure's fit.
-    pub adequate: bool,
-    /// Whether the effect is there: one of its keys' 95 % interval excludes its absence (0 for a leak, wall
-    /// heat, the seal term, spool travel); always for another friction law, which has no absent value. An
-    /// effect whose size the logs cannot tell from none is not chosen, whatever its BIC.
-    pub significant: bool,
-    /// The fit's wall time, s.
-    pub fit_seconds: f64,
-}
-
-/// The report's `structure_selection`.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Selection {
-    /// How the choice is made.
-    pub criterion: &'static str,
-    /// Every structure, in the order of [`STRUCTURES`].
-    pub candidates: Vec<Candidate>,
-    /// The chosen structure's name.
-    pub chosen: &'static str,
-    /// Why, in words (and whether it explains the logs).
-    pub verdict: String,
-}
+pub use crate::report::{Candidate, Selection};
 
 /// The criterion, as the report states it.
 pub const CRITERION: &str = "lowest BIC = n ln(mean (residual / noise floor)^2) + k ln n on the fit rows (n = rows x 3 \

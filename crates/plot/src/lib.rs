@@ -29,8 +29,7 @@ pub use heatmap::{Heatmap, write_heatmap};
 pub use overlay::{Panel, Series, write_overlay};
 /// The colour type of lines and marks.
 pub use plotters::style::RGBColor as Color;
-pub use raster::render;
-pub use series::{Band, Line, Plot};
+pub use series::{Band, Line, Plot, render};
 
 /// DejaVu Sans (fonts-dejavu-core; free license in assets/DejaVuSans-LICENSE.txt).
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");

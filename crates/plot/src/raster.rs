@@ -2,9 +2,6 @@
 
 use std::path::Path;
 
-use crate::PlotError;
-use crate::series::Plot;
-
 thread_local! {
     /// This thread's pixel buffer for PNG figures ([`with_pixels`]).
     static PIXELS: std::cell::RefCell<Option<Pixels>> = const { std::cell::RefCell::new(None) };
@@ -49,11 +46,6 @@ impl Pixels {
     }
 }
 
-/// Draws `plot` into `path` (1200 x 700), in the format of its extension (PNG, SVG or PDF).
-pub fn render(path: &Path, plot: &Plot) -> Result<(), PlotError> {
-    crate::figure::write(path, (1200, 700), plot)
-}
-
 /// Runs `draw` on this thread's RGB buffer for an image of `size` px. The figures of a command are drawn on
 /// a few threads, each reusing its pixel buffer: a fresh 2.5 MB buffer costs its page faults again (a third
 /// of drawing's kernel time). Every figure paints every pixel (its white background first), so what the
@@ -86,7 +78,7 @@ pub(crate) fn write_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<(
 mod tests {
     use super::*;
     use crate::ensure_font;
-    use crate::series::{Line, Plot, draw_plot};
+    use crate::series::{Line, Plot, draw_plot, render};
     use plotters::prelude::*;
 
     fn pixels(path: &Path) -> (u32, u32, Vec<u8>) {

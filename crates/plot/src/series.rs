@@ -177,6 +177,11 @@ fn short(v: f64) -> String {
     }
 }
 
+/// Draws `plot` into `path` (1200 x 700), in the format of its extension (PNG, SVG or PDF).
+pub fn render(path: &std::path::Path, plot: &Plot) -> Result<(), crate::PlotError> {
+    crate::figure::write(path, (1200, 700), plot)
+}
+
 /// `raster`: the backend is a pixel buffer (thick lines as side-by-side pixel lines, [`Stroke`]), not SVG.
 impl crate::figure::Figure for Plot<'_> {
     fn draw<DB: DrawingBackend>(
