@@ -10,9 +10,8 @@
 //! state at the end of the sample period whose physics ran with the command in effect at s_j. So grid row
 //! j's command, which the replay holds from row j to row j + 1, is the last echo at or before s_{j+1}.
 
-use std::path::Path;
-
 use crate::IdentifyError;
+use crate::log_rows::Log;
 
 /// A sample's board time may sit this far off the grid, in sample periods (the board counts whole µs).
 const GRID_TOLERANCE: f64 = 0.1;
@@ -57,27 +56,6 @@ pub struct GridSummary {
     pub echoes: usize,
 }
 
-/// A log's columns on the board's sample grid (crate::log::Log's, without the file's provenance).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Grid {
-    /// Run time, s: from the first command.
-    pub t: Vec<f64>,
-    /// The valve's command from this row to the next.
-    pub u: Vec<f64>,
-    /// Position, m.
-    pub x: Vec<f64>,
-    /// Chamber A pressure, Pa absolute.
-    pub p_a: Vec<f64>,
-    /// Chamber B pressure, Pa absolute.
-    pub p_b: Vec<f64>,
-    /// Contact force, N.
-    pub f_e: Vec<f64>,
-    /// Whether the row's sample is in the record.
-    pub measured: Vec<bool>,
-    /// How it was laid.
-    pub summary: GridSummary,
-}
-
 impl GridSummary {
     /// What the log's note says of it.
     pub fn note(&self) -> String {
@@ -91,11 +69,15 @@ impl GridSummary {
     }
 }
 
-/// The board's record in the file `path` as a log on the board's sample grid, or `None` when it holds no
-/// sample or no applied echo (a board that sends none: the host's rows are replayed as they are).
-pub fn on_board_grid(path: &Path, board: &BoardColumns) -> Result<Option<Grid>, IdentifyError> {
+/// The board's record of `host`'s file as a log on the board's sample grid, with how it was laid, or `None`
+/// when it holds no sample or no applied echo (a board that sends none: the host's rows are replayed as they
+/// are). The log's note says so.
+pub fn on_board_grid(
+    host: &Log,
+    board: &BoardColumns,
+) -> Result<Option<(Log, GridSummary)>, IdentifyError> {
     let err = |line: Option<usize>, column: &str, message: String| IdentifyError::Log {
-        file: path.to_path_buf(),
+        file: host.path.clone(),
         line,
         column: Some(column.to_string()),
         message,
@@ -184,7 +166,9 @@ pub fn on_board_grid(path: &Path, board: &BoardColumns) -> Result<Option<Grid>, 
         ));
     }
     let n = j1 - j0 + 1;
-    let mut grid = Grid {
+    let mut grid = Log {
+        path: host.path.clone(),
+        sha256: host.sha256.clone(),
         t: Vec::with_capacity(n),
         u: Vec::with_capacity(n),
         x: Vec::with_capacity(n),
@@ -192,12 +176,7 @@ pub fn on_board_grid(path: &Path, board: &BoardColumns) -> Result<Option<Grid>, 
         p_b: Vec::with_capacity(n),
         f_e: Vec::with_capacity(n),
         measured: Vec::with_capacity(n),
-        summary: GridSummary {
-            period_s: period,
-            rows: n,
-            measured: 0,
-            echoes: echoes.len(),
-        },
+        note: None,
     };
     // The run's clock starts with its first command (the emulated plant's does, and with it the valve's PWM
     // carrier): the Sample stamped s holds the state at the end of its period, at run time s + T - a_0.
@@ -235,8 +214,17 @@ pub fn on_board_grid(path: &Path, board: &BoardColumns) -> Result<Option<Grid>, 
         }
         k = b + 1;
     }
-    grid.summary.measured = grid.measured.iter().filter(|&&m| m).count();
-    Ok(Some(grid))
+    let summary = GridSummary {
+        period_s: period,
+        rows: n,
+        measured: grid.measured.iter().filter(|&&m| m).count(),
+        echoes: echoes.len(),
+    };
+    grid.note = Some(match &host.note {
+        Some(n) => format!("{}; {n}", summary.note()),
+        None => summary.note(),
+    });
+    Ok(Some((grid, summary)))
 }
 
 #[cfg(test)]
@@ -280,7 +268,7 @@ mod tests {
         s + &format!("# end: complete, {n} rows\n")
     }
 
-    fn read(text: &str) -> Result<crate::log::Log, IdentifyError> {
+    fn read(text: &str) -> Result<Log, IdentifyError> {
         parse_log(Path::new("rt/trace.csv"), text, String::new())
     }
 

@@ -13,6 +13,7 @@ pub mod fit;
 pub mod leak;
 pub mod log;
 pub mod log_format;
+pub mod log_rows;
 pub mod params;
 pub mod perturb;
 pub mod replay;
