@@ -111,7 +111,8 @@ pub fn on_board_grid(
     steps.sort_by(f64::total_cmp);
     // The period is the step between consecutive samples: a low percentile of the steps, robust to samples
     // missing from the record (a step of two periods or more).
-    let period = steps[steps.len() / 20];
+    // The board counts whole µs (the record's times are written to the µs).
+    let period = (steps[steps.len() / 20] * 1e6).round() * 1e-6;
     // Each sample's place on the grid; off it by more than a tenth of a period is no board's clock.
     let mut index = Vec::with_capacity(samples.len());
     for s in samples {
@@ -180,7 +181,18 @@ pub fn on_board_grid(
     };
     // The run's clock starts with its first command (the emulated plant's does, and with it the valve's PWM
     // carrier): the Sample stamped s holds the state at the end of its period, at run time s + T - a_0.
-    let run_start = echoes[0].0;
+    // In sample periods from b0 (a whole number on a board that applies commands at its ticks): row j's
+    // run time is then (j + 1 - start) periods to the bit, as a lockstep log's k dt, so that the valve's
+    // PWM edges fall on the replay's steps where they fall on the rig's (off by an ulp they cost the
+    // replay extra integration segments: 1.5x the fit's time with stick-slip and wall heat).
+    let start = {
+        let k = (echoes[0].0 - b0) / period;
+        if (k - k.round()).abs() < 1e-6 {
+            k.round()
+        } else {
+            k
+        }
+    };
     let mut next = first;
     let mut held = &samples[first];
     for j in j0..=j1 {
@@ -189,7 +201,7 @@ pub fn on_board_grid(
             held = &samples[next];
             next += 1;
         }
-        grid.t.push(grid_t(j) - run_start + period);
+        grid.t.push((j as f64 + 1.0 - start) * period);
         // The last row's command is never used (it acts after the log ends).
         grid.u.push(in_effect(grid_t(j + 1)).unwrap_or(0.0));
         grid.x.push(held.x);

@@ -155,8 +155,20 @@ struct PieceSpool<'a> {
 }
 
 impl<'a> PieceSpool<'a> {
-    fn new(actuator: &'a Actuator, law: SpoolLaw) -> Self {
-        let held = law.is_held().then(|| actuator.step_consts(law.at(0.0)));
+    /// The piece of `law`; a held spool's constants come from `last` when it holds the same position (they
+    /// depend on the spool alone), and are kept there.
+    fn new(actuator: &'a Actuator, law: SpoolLaw, last: &mut Option<(f64, ChamberStep)>) -> Self {
+        let held = law.is_held().then(|| {
+            let spool = law.at(0.0);
+            match last {
+                Some((at, cs)) if at.to_bits() == spool.to_bits() => *cs,
+                _ => {
+                    let cs = actuator.step_consts(spool);
+                    *last = Some((spool, cs));
+                    cs
+                }
+            }
+        });
         Self {
             actuator,
             law,
@@ -285,10 +297,21 @@ fn rates(m: &OneDofModel, f: &Fixed, cs: &ChamberStep, s: &Full) -> Full {
 /// One classic RK4 step of length `dt` from `s0` at time `t`.
 fn rk4(m: &OneDofModel, f: &Fixed, sp: &PieceSpool, t: f64, s0: Full, dt: f64) -> Full {
     let h = 0.5 * dt;
-    let k1 = rates(m, f, &sp.at(t), &s0);
-    let k2 = rates(m, f, &sp.at(t + h), &s0.axpy(h, &k1));
-    let k3 = rates(m, f, &sp.at(t + h), &s0.axpy(h, &k2));
-    let k4 = rates(m, f, &sp.at(t + dt), &s0.axpy(dt, &k3));
+    // The chamber constants by reference: a held spool's once for the four stages, a moving one's once per
+    // stage time (k2 and k3 share t + h). They are ~40 numbers; copies of them were a tenth of a fit's time.
+    let (k1, k2, k3, k4);
+    if let Some(cs) = &sp.held {
+        k1 = rates(m, f, cs, &s0);
+        k2 = rates(m, f, cs, &s0.axpy(h, &k1));
+        k3 = rates(m, f, cs, &s0.axpy(h, &k2));
+        k4 = rates(m, f, cs, &s0.axpy(dt, &k3));
+    } else {
+        k1 = rates(m, f, &sp.at(t), &s0);
+        let mid = sp.at(t + h);
+        k2 = rates(m, f, &mid, &s0.axpy(h, &k1));
+        k3 = rates(m, f, &mid, &s0.axpy(h, &k2));
+        k4 = rates(m, f, &sp.at(t + dt), &s0.axpy(dt, &k3));
+    }
     let w = dt / 6.0;
     let comb = |a: f64, b: f64, c: f64, d: f64, y: f64| y + w * (a + 2.0 * b + 2.0 * c + d);
     let chambers = |y: &ChamberState,
@@ -323,8 +346,53 @@ pub(crate) fn step(
     gravity_n: f64,
     dt: f64,
 ) {
-    let timing = Timing::of(&model.actuator.valve, &model.effects);
-    let fixed = Fixed::new(model, gravity_n + f_ext);
+    Stepper::new(model).step(state, u, gravity_n + f_ext, dt);
+}
+
+/// What [`step`] needs of the model, made once for the substeps of a control period
+/// ([`OneDofModel::advance`]): the spool's timing, the effects' constants, and the last held spool's chamber
+/// constants. Its steps are bit for bit [`step`]'s.
+pub(crate) struct Stepper<'a> {
+    model: &'a OneDofModel,
+    timing: Timing,
+    fixed: Fixed,
+    last: Option<(f64, ChamberStep)>,
+}
+
+impl<'a> Stepper<'a> {
+    pub(crate) fn new(model: &'a OneDofModel) -> Self {
+        Self {
+            model,
+            timing: Timing::of(&model.actuator.valve, &model.effects),
+            fixed: Fixed::new(model, 0.0),
+            last: None,
+        }
+    }
+
+    /// One step of `dt` under the load `f_load` = G_alpha + f_ext (N).
+    pub(crate) fn step(&mut self, state: &mut OneDofState, u: f64, f_load: f64, dt: f64) {
+        self.fixed.f_load = f_load;
+        step_with(
+            self.model,
+            &self.timing,
+            &self.fixed,
+            &mut self.last,
+            state,
+            u,
+            dt,
+        );
+    }
+}
+
+fn step_with(
+    model: &OneDofModel,
+    timing: &Timing,
+    fixed: &Fixed,
+    last: &mut Option<(f64, ChamberStep)>,
+    state: &mut OneDofState,
+    u: f64,
+    dt: f64,
+) {
     let mut s = Full {
         x: state.x,
         v: state.x_dot,
@@ -335,10 +403,10 @@ pub(crate) fn step(
     let t_end = state.t + dt;
     let (mut tau, mut rest) = (state.t, dt);
     loop {
-        let (law, edge) = spool::piece(&timing, &mut state.valve, u, tau, rest);
+        let (law, edge) = spool::piece(timing, &mut state.valve, u, tau, rest);
         let h = edge.map_or(rest, |e| e - tau);
-        let sp = PieceSpool::new(&model.actuator, law);
-        s = rk4(model, &fixed, &sp, tau, s, h);
+        let sp = PieceSpool::new(&model.actuator, law, last);
+        s = rk4(model, fixed, &sp, tau, s, h);
         state.valve.spool = law.at(tau + h);
         match edge {
             Some(e) if e < t_end => {

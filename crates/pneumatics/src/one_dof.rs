@@ -107,9 +107,10 @@ impl OneDofModel {
     ) {
         let h = dt / f64::from(substeps.max(1));
         if !self.is_paper_model() {
+            let mut stepper = crate::extended::Stepper::new(self);
             for _ in 0..substeps.max(1) {
                 let f = f_ext(state.x);
-                crate::extended::step(self, state, u, f, gravity_n, h);
+                stepper.step(state, u, gravity_n + f, h);
             }
             return;
         }
