@@ -149,8 +149,9 @@ impl<L: Link> SerialRig<L> {
             tx_seq: 0,
             rx_seq: None,
             latest: None,
-            applied: VecDeque::with_capacity(64),
-            sampled: VecDeque::with_capacity(64),
+            // Room for the whole record up front: the real-time loop then never allocates for it.
+            applied: VecDeque::with_capacity(RECORD_CAP),
+            sampled: VecDeque::with_capacity(RECORD_CAP),
             record_started: false,
             board_last_us: None,
             board_time_s: 0.0,
