@@ -97,6 +97,19 @@ pub enum MultibodyError {
         /// What was expected.
         reason: String,
     },
+    /// A mechanism's actuator, contact or sensor is configured wrongly (a name the URDF lacks, a mount
+    /// the geometry cannot have, a value out of range).
+    #[error("{file}: {item}: `{key}`: {reason}")]
+    BadMechanism {
+        /// The URDF file the mechanism is built from.
+        file: PathBuf,
+        /// What is at fault, e.g. `actuator 'left'` or `contact 'pad'`.
+        item: String,
+        /// Its configuration key, e.g. `link_a`.
+        key: &'static str,
+        /// What was expected and what was found.
+        reason: String,
+    },
     /// A scene event refers to an unknown material.
     #[error("unknown material '{name}' (known: {known})")]
     UnknownMaterial {

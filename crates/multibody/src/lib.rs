@@ -6,6 +6,7 @@
 
 pub mod actuator;
 pub mod error;
+pub mod mechanism;
 pub mod mesh;
 pub mod urdf_build;
 pub mod urdf_scan;
@@ -13,6 +14,10 @@ pub mod world;
 
 pub use actuator::{AxialActuator, ConstantForce, PneumaticForceElement, SpringActuator};
 pub use error::MultibodyError;
+pub use mechanism::{
+    ActuatorConfig, ContactConfig, ContactParams, ContactReading, Mechanism, MechanismConfig,
+    Mount, MountState,
+};
 pub use mesh::ConvexHull;
 /// The Rapier crate this world is built on.
 pub use rapier3d_f64;
