@@ -83,6 +83,7 @@ pub mod compare;
 pub mod excite;
 pub mod identify;
 pub mod live;
+pub mod mechanism;
 pub mod new_rig;
 pub mod perturb;
 pub mod pil;

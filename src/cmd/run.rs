@@ -46,6 +46,16 @@ pub fn limits(max_steps: Option<u64>, max_trace_mb: Option<u64>) -> Limits {
 /// Runs a scene file and writes its outputs; Err on bad input, on a write failure, when a run diverged
 /// (the outputs are still written, with the run marked diverged in summary.json) or on a signal.
 pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Result<()> {
+    // A scene with `[[actuators]]` (any URDF, several cylinders) has its own runner.
+    let text = pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)?;
+    if pneuflex_scene::mechanism::MechanismScene::is_mechanism(&text) {
+        if args.rerun.is_some() {
+            bail!(
+                "--rerun: not yet drawn for a scene with [[actuators]]; its traces and figures are in the output"
+            );
+        }
+        return super::mechanism::run(scene_path, out, args.quiet);
+    }
     let scene = Scene::load(scene_path)?;
     let limits = limits(args.max_steps, args.max_trace_mb);
     scene.check_budget(&limits)?;

@@ -11,6 +11,7 @@
 
 pub mod analysis;
 pub mod error;
+pub mod mechanism;
 pub mod plants;
 pub mod run;
 pub mod schema;

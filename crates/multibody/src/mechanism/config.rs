@@ -70,6 +70,8 @@ pub struct MechanismConfig {
     pub dt_s: f64,
     /// Rapier solver iterations per step.
     pub solver_iterations: usize,
+    /// Prismatic joints that start away from the URDF's zero configuration: (joint, position in m).
+    pub initial_positions: Vec<(String, f64)>,
 }
 
 impl MechanismConfig {
@@ -81,6 +83,7 @@ impl MechanismConfig {
             gravity_m_s2: [0.0, 0.0, -crate::STANDARD_GRAVITY],
             dt_s: 1.0e-3,
             solver_iterations: 4,
+            initial_positions: Vec::new(),
         }
     }
 }

@@ -132,6 +132,9 @@ impl Mechanism {
             ip.warmstart_joints = true;
         }
         rig.world.gravity = Vector::from_array(config.gravity_m_s2);
+        for (name, q) in &config.initial_positions {
+            set_prismatic(&mut rig, name, *q)?;
+        }
         let states = actuators
             .iter()
             .map(|a| a.mount.state(&rig.world.bodies))
@@ -322,6 +325,9 @@ impl Mechanism {
     /// which Rapier keeps): Err names the actuator and its length.
     pub fn check_strokes(&self) -> Result<(), String> {
         for (a, s) in self.actuators.iter().zip(&self.states) {
+            if matches!(a.mount, BuiltMount::Joint { .. }) {
+                continue;
+            }
             let slack = 1e-3 * a.stroke_m;
             if !(-slack..=a.stroke_m + slack).contains(&s.x_m) {
                 return Err(format!(
@@ -355,6 +361,61 @@ impl Mechanism {
     pub fn physics(&self) -> &PhysicsWorld {
         &self.rig.world
     }
+}
+
+/// Moves the child of prismatic joint `name` (and every link below it) to joint position `q` (m) from
+/// the URDF's zero configuration: the start of a run with a finger already near its object.
+fn set_prismatic(rig: &mut BuiltRig, name: &str, q: f64) -> Result<(), MultibodyError> {
+    let err = |reason: String| MultibodyError::BadMechanism {
+        file: rig.file.clone(),
+        item: format!("initial position of joint '{name}'"),
+        key: "initial_x_m",
+        reason,
+    };
+    let Some(ji) = rig.joints.iter().position(|j| j.name == name) else {
+        return Err(err("the URDF has no such joint".into()));
+    };
+    let j = rig.joints[ji].clone();
+    if j.kind != urdf_rs::JointType::Prismatic || j.handle.is_none() {
+        return Err(err(
+            "only a prismatic joint to a moving link can start away from zero".into(),
+        ));
+    }
+    if let Some([lo, hi]) = j.limits
+        && !(lo..=hi).contains(&q)
+    {
+        return Err(err(format!(
+            "{q} m is outside the joint's limits [{lo}, {hi}] m"
+        )));
+    }
+    if !q.is_finite() {
+        return Err(err(format!("must be finite, got {q}")));
+    }
+    let axis = rig.link_pose(j.parent).rotation * (j.origin.rotation * j.axis);
+    let shift = Pose::from_translation(q * axis);
+    let mut moved = Vec::new();
+    for li in 0..rig.links.len() {
+        let below = {
+            let mut l = li;
+            loop {
+                if l == j.child {
+                    break true;
+                }
+                match rig.joints.iter().find(|jj| jj.child == l) {
+                    Some(jj) => l = jj.parent,
+                    None => break false,
+                }
+            }
+        };
+        let body = rig.links[li].body;
+        if below && !moved.contains(&body) {
+            let b = &mut rig.world.bodies[body];
+            let p = shift * *b.position();
+            b.set_position(p, true);
+            moved.push(body);
+        }
+    }
+    Ok(())
 }
 
 fn check_settings(config: &MechanismConfig) -> Result<(), MultibodyError> {

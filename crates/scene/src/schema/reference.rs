@@ -135,35 +135,43 @@ pub(crate) fn validate(scene: &Scene, v: &Check<'_>) -> Result<(), SceneError> {
     Ok(())
 }
 
+impl ForcePiece {
+    /// The piece as the control crate's reference (from its start time on).
+    pub fn reference(&self) -> pneuflex_control::Reference {
+        use pneuflex_control::Reference;
+        match *self {
+            ForcePiece::Step { value_n, .. } => Reference::Constant { value: value_n },
+            ForcePiece::Sine {
+                bias_n,
+                amplitude_n,
+                frequency_hz,
+                phase_rad,
+                ..
+            } => Reference::Sine {
+                bias: bias_n,
+                amplitude: amplitude_n,
+                frequency_hz,
+                phase_rad,
+            },
+            ForcePiece::Ramp {
+                value0_n,
+                slope_n_per_s,
+                ..
+            } => Reference::Ramp {
+                start: value0_n,
+                slope_per_s: slope_n_per_s,
+            },
+        }
+    }
+}
+
 impl Scene {
     /// The force/position setpoint schedule of the reference, in the control crate's fixed-capacity form.
     pub fn setpoints(&self) -> Result<pneuflex_control::SetpointSchedule, SceneError> {
         use pneuflex_control::Reference;
         let mut sp = pneuflex_control::SetpointSchedule::default();
         for (i, piece) in self.reference.force.iter().enumerate() {
-            let r = match *piece {
-                ForcePiece::Step { value_n, .. } => Reference::Constant { value: value_n },
-                ForcePiece::Sine {
-                    bias_n,
-                    amplitude_n,
-                    frequency_hz,
-                    phase_rad,
-                    ..
-                } => Reference::Sine {
-                    bias: bias_n,
-                    amplitude: amplitude_n,
-                    frequency_hz,
-                    phase_rad,
-                },
-                ForcePiece::Ramp {
-                    value0_n,
-                    slope_n_per_s,
-                    ..
-                } => Reference::Ramp {
-                    start: value0_n,
-                    slope_per_s: slope_n_per_s,
-                },
-            };
+            let r = piece.reference();
             sp.force_n
                 .push(piece.start_s(), r)
                 .map_err(|e| self.invalid(&format!("reference.force[{i}]"), e.to_string()))?;

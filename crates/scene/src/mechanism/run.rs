@@ -1,0 +1,358 @@
+//! Runs a mechanism scene: per run, one controller per actuator closes its loop on its own contact force
+//! and stroke, every tick `sense → update → set valve → one physics step` (zero-order hold), events on
+//! their tick.
+
+use pneuflex_control::{Controller, Sensors, SetpointSchedule};
+use pneuflex_multibody::{
+    ActuatorConfig, AxialActuator, ContactConfig, ContactParams, Mechanism, MechanismConfig, Mount,
+};
+use pneuflex_pneumatics::ChamberState;
+
+use super::schema::MechanismScene;
+use crate::error::SceneError;
+use crate::plants::FlangeDrive;
+
+/// The loop's columns of each actuator, after its name and a dot (`left.f_e`).
+pub const ACTUATOR_COLUMNS: [&str; 8] = ["f_r", "f_e", "x", "x_dot", "u", "p_a", "p_b", "force"];
+
+/// One run's trace: `t`, then each actuator's [`ACTUATOR_COLUMNS`] and its controller's own signals.
+#[derive(Clone, Debug)]
+pub struct MechanismRun {
+    /// Run name.
+    pub name: String,
+    /// Column names.
+    pub columns: Vec<String>,
+    /// Rows, one per tick from t = 0 to the duration, each `columns.len()` values.
+    pub rows: Vec<Vec<f64>>,
+    /// Why the run stopped early (a NaN, a cylinder pulled past its end stop), if it did.
+    pub diverged: Option<String>,
+}
+
+impl MechanismRun {
+    /// The column named `name`, or None.
+    pub fn column(&self, name: &str) -> Option<Vec<f64>> {
+        let i = self.columns.iter().position(|c| c == name)?;
+        Some(self.rows.iter().map(|r| r[i]).collect())
+    }
+}
+
+/// The mechanism, its actuators' drives and schedules, built from the scene: what every run starts from.
+pub struct Built {
+    mechanism: Mechanism,
+    drives: Vec<FlangeDrive>,
+    schedules: Vec<SetpointSchedule>,
+    /// Each actuator's force sensor: a contact's index, or None for the rod's load cell.
+    sensors: Vec<Option<usize>>,
+    /// Contact index of each event.
+    events: Vec<(usize, usize, ContactParams)>,
+}
+
+/// Builds the mechanism a scene describes (errors name the key that causes them).
+pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
+    let urdf = scene.resolve(&scene.urdf);
+    let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf)
+        .map_err(|e| scene.invalid("urdf", e.to_string()))?;
+    let mut sheets = Vec::with_capacity(scene.actuators.len());
+    for (i, a) in scene.actuators.iter().enumerate() {
+        let path = scene.resolve(&a.sheet);
+        let key = format!("actuators[{i}].sheet");
+        let sheet = pneuflex_pneumatics::ActuatorSheet::load_overlaid(&path, &Default::default())
+            .map_err(|e| scene.invalid(&key, e.to_string()))?;
+        let beyond = sheet.effects_beyond_paper();
+        if !beyond.is_empty() {
+            return Err(scene.invalid(
+                &key,
+                format!(
+                    "{} gives {}: a mechanism's cylinders model the paper's chambers, valve and friction only",
+                    path.display(),
+                    beyond.join(", ")
+                ),
+            ));
+        }
+        sheets.push(sheet);
+    }
+    let actuators = scene
+        .actuators
+        .iter()
+        .zip(&sheets)
+        .map(|(a, sheet)| ActuatorConfig {
+            name: a.name.clone(),
+            mount: match (&a.joint, &a.anchors) {
+                (Some(j), _) => Mount::Joint { joint: j.clone() },
+                (None, Some(an)) => Mount::Anchors {
+                    link_a: an.link_a.clone(),
+                    point_a_m: an.point_a_m,
+                    link_b: an.link_b.clone(),
+                    point_b_m: an.point_b_m,
+                    retracted_length_m: an.retracted_length_m,
+                    stroke_m: sheet.actuator().cylinder.stroke_m,
+                },
+                (None, None) => unreachable!("checked at load: one mount per actuator"),
+            },
+        })
+        .collect();
+    let contacts = scene
+        .contacts
+        .iter()
+        .map(|c| ContactConfig {
+            name: c.name.clone(),
+            link_a: c.link_a.clone(),
+            link_b: c.link_b.clone(),
+            stiffness_n_per_m: c.stiffness_n_per_m,
+            damping_n_s_per_m: c.damping_n_s_per_m,
+        })
+        .collect();
+    let config = MechanismConfig {
+        actuators,
+        contacts,
+        gravity_m_s2: scene.gravity_m_s2,
+        dt_s: scene.dt_s,
+        solver_iterations: scene.solver_iterations,
+        initial_positions: scene
+            .actuators
+            .iter()
+            .filter_map(|a| Some((a.joint.clone()?, a.initial_position_m?)))
+            .collect(),
+    };
+    let mechanism = Mechanism::from_robot(&urdf, &robot, &config)
+        .map_err(|e| scene.invalid(&mechanism_key(scene, &e), e.to_string()))?;
+    let mut drives = Vec::with_capacity(sheets.len());
+    let mut schedules = Vec::with_capacity(sheets.len());
+    let mut sensors = Vec::with_capacity(sheets.len());
+    for (i, (a, sheet)) in scene.actuators.iter().zip(&sheets).enumerate() {
+        let actuator = sheet.actuator();
+        let stroke = mechanism.actuator_stroke(i);
+        if (stroke - actuator.cylinder.stroke_m).abs() > 1e-9 {
+            return Err(scene.invalid(
+                &format!("actuators[{i}].sheet"),
+                format!(
+                    "the cylinder's stroke is {} m, the joint '{}' allows {stroke} m: they must agree",
+                    actuator.cylinder.stroke_m,
+                    a.joint.as_deref().unwrap_or("")
+                ),
+            ));
+        }
+        // At rest with no net force: B halfway between supply and atmosphere, A balancing it (eq. (1)).
+        let (s, c) = (&actuator.supply, &actuator.cylinder);
+        let p_b = 0.5 * (s.supply_pressure_pa + s.atmosphere_pressure_pa);
+        let p_a = (p_b * c.area_b() + s.atmosphere_pressure_pa * c.area_rod()) / c.area_a();
+        let element = pneuflex_multibody::PneumaticForceElement::new(
+            actuator,
+            ChamberState::new(p_a, p_b),
+            scene.chamber_substeps,
+        );
+        drives.push(FlangeDrive {
+            element,
+            friction: sheet.mechanics.friction,
+            // Gravity is Rapier's; along an anchored cylinder it has no one value to drive stick-slip.
+            gravity_force_n: 0.0,
+        });
+        let mut sp = SetpointSchedule::default();
+        for (j, piece) in a.force.iter().enumerate() {
+            sp.force_n
+                .push(piece.start_s(), piece.reference())
+                .map_err(|e| scene.invalid(&format!("actuators[{i}].force[{j}]"), e.to_string()))?;
+        }
+        sp.position_m
+            .push(
+                0.0,
+                pneuflex_control::Reference::Constant { value: a.x_d_m },
+            )
+            .map_err(|e| scene.invalid(&format!("actuators[{i}].x_d_m"), e.to_string()))?;
+        schedules.push(sp);
+        sensors.push(if a.force_sensor == super::schema::LOAD_CELL {
+            None
+        } else {
+            Some(mechanism.contact_index(&a.force_sensor).map_err(|e| {
+                scene.invalid(&format!("actuators[{i}].force_sensor"), e.to_string())
+            })?)
+        });
+    }
+    let mut events = Vec::with_capacity(scene.events.len());
+    for e in &scene.events {
+        let ci = mechanism
+            .contact_index(&e.contact)
+            .map_err(|err| scene.invalid("events", err.to_string()))?;
+        let old = mechanism.contact_params(ci);
+        let tick = (e.t_s / scene.dt_s).round() as usize;
+        events.push((
+            tick,
+            ci,
+            ContactParams {
+                stiffness_n_per_m: e.stiffness_n_per_m,
+                damping_n_s_per_m: e.damping_n_s_per_m.unwrap_or(old.damping_n_s_per_m),
+            },
+        ));
+    }
+    Ok(Built {
+        mechanism,
+        drives,
+        schedules,
+        sensors,
+        events,
+    })
+}
+
+/// The scene key a mechanism error is about: the actuator or contact key it names, or the URDF.
+fn mechanism_key(scene: &MechanismScene, e: &pneuflex_multibody::MultibodyError) -> String {
+    let pneuflex_multibody::MultibodyError::BadMechanism { item, key, .. } = e else {
+        return "urdf".into();
+    };
+    if let Some(i) = scene.actuators.iter().position(|a| {
+        a.joint
+            .as_ref()
+            .is_some_and(|j| *item == format!("initial position of joint '{j}'"))
+    }) {
+        return format!("actuators[{i}].initial_position_m");
+    }
+    if let Some(i) = scene
+        .actuators
+        .iter()
+        .position(|a| *item == format!("actuator '{}'", a.name))
+    {
+        let k = match *key {
+            "initial_x_m" => "initial_position_m".into(),
+            "link_a" | "link_b" => format!("anchors.{key}"),
+            "point_a" | "point_b" | "retracted_length" => format!("anchors.{key}_m"),
+            "stroke" => "sheet".into(),
+            other => other.into(),
+        };
+        return format!("actuators[{i}].{k}");
+    }
+    if let Some(i) = scene
+        .contacts
+        .iter()
+        .position(|c| *item == format!("contact '{}'", c.name))
+    {
+        let k = match *key {
+            "stiffness" => "stiffness_n_per_m",
+            "damping" => "damping_n_s_per_m",
+            other => other,
+        };
+        return format!("contacts[{i}].{k}");
+    }
+    "urdf".into()
+}
+
+/// Runs every run of the scene; `progress` gets the fraction done, `stop` is polled every tick (a signal).
+pub fn run_all(
+    scene: &MechanismScene,
+    progress: &mut dyn FnMut(f64),
+    stop: &dyn Fn() -> bool,
+) -> Result<Vec<MechanismRun>, SceneError> {
+    let mut out = Vec::with_capacity(scene.runs.len());
+    for (r, spec) in scene.runs.iter().enumerate() {
+        let built = build(scene)?;
+        let controllers = (0..scene.actuators.len())
+            .map(|_| spec.build())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| scene.invalid(&format!("runs[{r}].{}", e.key), e.message))?;
+        let n = scene.runs.len() as f64;
+        let run = run_one(
+            scene,
+            &spec.name,
+            built,
+            controllers,
+            &mut |f| progress((r as f64 + f) / n),
+            stop,
+        );
+        let stopped = run.rows.len() < scene.n_steps() + 1 && run.diverged.is_none();
+        out.push(run);
+        if stopped {
+            break;
+        }
+    }
+    Ok(out)
+}
+
+fn run_one(
+    scene: &MechanismScene,
+    name: &str,
+    mut b: Built,
+    mut controllers: Vec<Box<dyn Controller + Send + Sync>>,
+    progress: &mut dyn FnMut(f64),
+    stop: &dyn Fn() -> bool,
+) -> MechanismRun {
+    let mut columns = vec!["t".to_string()];
+    for (a, c) in scene.actuators.iter().zip(&controllers) {
+        columns.extend(ACTUATOR_COLUMNS.iter().map(|k| format!("{}.{k}", a.name)));
+        columns.extend(c.signals().iter().map(|s| format!("{}.{}", a.name, s.name)));
+    }
+    let n = scene.n_steps();
+    let dt = scene.dt_s;
+    let mut rows = Vec::with_capacity(n + 1);
+    let mut diverged = None;
+    let mut own = Vec::new();
+    for k in 0..=n {
+        let t = k as f64 * dt;
+        for &(tick, ci, params) in &b.events {
+            if tick == k {
+                b.mechanism
+                    .set_contact(ci, params)
+                    .expect("checked at load");
+            }
+        }
+        let mut row = Vec::with_capacity(columns.len());
+        row.push(t);
+        for (i, c) in controllers.iter_mut().enumerate() {
+            let s = b.mechanism.actuator_state(i);
+            let (p_a, p_b) = b.drives[i].element.pressures();
+            let sensors = Sensors {
+                t,
+                x: s.x_m,
+                x_dot: s.x_dot_m_s,
+                f_e: match b.sensors[i] {
+                    Some(ci) => b.mechanism.contact(ci).force_n,
+                    None => b.mechanism.actuator_force(i),
+                },
+                p_a,
+                p_b,
+            };
+            let setpoint = b.schedules[i].at(t);
+            let cmd = c.update(&sensors, &setpoint, dt);
+            b.drives[i].element.set_command(cmd.u);
+            row.extend([
+                setpoint.f_ref,
+                sensors.f_e,
+                sensors.x,
+                sensors.x_dot,
+                cmd.u,
+                p_a,
+                p_b,
+                b.mechanism.actuator_force(i),
+            ]);
+            own.resize(c.signals().len(), 0.0);
+            c.record(&mut own);
+            row.extend_from_slice(&own);
+        }
+        let bad = row.iter().position(|v| !v.is_finite());
+        rows.push(row);
+        if let Some(j) = bad {
+            diverged = Some(format!("{} is not finite at t = {t} s", columns[j]));
+            break;
+        }
+        if let Err(why) = b.mechanism.check_strokes() {
+            diverged = Some(format!("{why} at t = {t} s"));
+            break;
+        }
+        if k == n || stop() {
+            break;
+        }
+        let mut elements: Vec<&mut dyn AxialActuator> = b
+            .drives
+            .iter_mut()
+            .map(|d| d as &mut dyn AxialActuator)
+            .collect();
+        b.mechanism.step(&mut elements);
+        if k % 1000 == 0 {
+            progress(k as f64 / n as f64);
+        }
+    }
+    progress(1.0);
+    MechanismRun {
+        name: name.to_string(),
+        columns,
+        rows,
+        diverged,
+    }
+}

@@ -1,0 +1,502 @@
+//! The mechanism scene file: a URDF, its named actuators (sheet, mount, sensor, force reference), its
+//! compliant contacts, contact events, the controller runs compared, metric windows and claims.
+//! docs/multibody.md "Your own URDF" describes every key.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::error::SceneError;
+use crate::schema::{ForcePiece, RunSpec};
+
+/// A scene of any URDF with several pneumatic actuators.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanismScene {
+    /// Scene name (the default output directory `out/<name>/`).
+    pub name: String,
+    /// One line for people.
+    #[serde(default)]
+    pub description: String,
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Control period, s; one physics step per period.
+    pub dt_s: f64,
+    /// The URDF, relative to the scene file.
+    pub urdf: PathBuf,
+    /// Rapier solver iterations per step.
+    #[serde(default = "default_iterations")]
+    pub solver_iterations: usize,
+    /// Chamber and valve substeps per physics step.
+    #[serde(default = "default_substeps")]
+    pub chamber_substeps: u32,
+    /// Gravity in the URDF's root frame, m/s².
+    #[serde(default = "default_gravity")]
+    pub gravity_m_s2: [f64; 3],
+    /// The actuators, each with its own valve, sensor and reference.
+    pub actuators: Vec<ActuatorSpec>,
+    /// Compliant contacts between links.
+    #[serde(default)]
+    pub contacts: Vec<ContactSpec>,
+    /// Contact stiffness changes during the run.
+    #[serde(default)]
+    pub events: Vec<ContactEvent>,
+    /// The controller runs compared; each run puts its controller on every actuator.
+    pub runs: Vec<RunSpec>,
+    /// Metric windows.
+    #[serde(default)]
+    pub metrics: Vec<WindowSpec>,
+    /// Claims: a metric of one run against another's, per actuator.
+    #[serde(default)]
+    pub claims: Vec<ClaimSpec>,
+    /// The scene file.
+    #[serde(skip)]
+    pub source: PathBuf,
+    /// Its text (for the lines of keys in errors).
+    #[serde(skip)]
+    pub text: String,
+}
+
+fn default_iterations() -> usize {
+    4
+}
+fn default_substeps() -> u32 {
+    10
+}
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -pneuflex_multibody::STANDARD_GRAVITY]
+}
+
+/// One actuator: a cylinder and valve from a sheet, mounted along a joint or between anchors.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorSpec {
+    /// Its name: the prefix of its trace columns (`left.f_e`).
+    pub name: String,
+    /// The pneumatic actuator sheet (cylinder, valve, supply, friction), relative to the scene file.
+    pub sheet: PathBuf,
+    /// Mounted along this prismatic URDF joint (its limits are the stroke) ...
+    #[serde(default)]
+    pub joint: Option<String>,
+    /// ... or between these two anchor points (the sheet's stroke).
+    #[serde(default)]
+    pub anchors: Option<AnchorsSpec>,
+    /// Where its joint starts, m (a prismatic `joint` mount only; the URDF's zero when absent).
+    #[serde(default)]
+    pub initial_position_m: Option<f64>,
+    /// What the actuator's controller closes its force loop on: a contact's name (the force across it),
+    /// or `"load_cell"` (a load cell on the rod: the force the cylinder applies).
+    pub force_sensor: String,
+    /// Desired free-space stroke x_d of the impedance law, m.
+    #[serde(default)]
+    pub x_d_m: f64,
+    /// The force reference f_r: pieces, each from its start until the next.
+    pub force: Vec<ForcePiece>,
+}
+
+/// A cylinder between a clevis on one link and a rod eye on another.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnchorsSpec {
+    /// Link of the clevis.
+    pub link_a: String,
+    /// Clevis point in `link_a`'s frame, m.
+    pub point_a_m: [f64; 3],
+    /// Link of the rod eye.
+    pub link_b: String,
+    /// Rod-eye point in `link_b`'s frame, m.
+    pub point_b_m: [f64; 3],
+    /// Pin-to-pin length at the retracted stop, m.
+    pub retracted_length_m: f64,
+}
+
+/// A compliant contact (Kelvin–Voigt pad) between two links' colliders.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Its name (an actuator's `force_sensor`, events).
+    pub name: String,
+    /// One link.
+    pub link_a: String,
+    /// The other link.
+    pub link_b: String,
+    /// Normal stiffness, N/m.
+    pub stiffness_n_per_m: f64,
+    /// Normal damping, N s/m.
+    #[serde(default)]
+    pub damping_n_s_per_m: f64,
+}
+
+/// At `t_s` the named contact takes a new stiffness (and damping): foam, then rubber.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactEvent {
+    /// When, s (on a control tick).
+    pub t_s: f64,
+    /// Which contact.
+    pub contact: String,
+    /// New stiffness, N/m.
+    pub stiffness_n_per_m: f64,
+    /// New damping, N s/m (unchanged when absent).
+    #[serde(default)]
+    pub damping_n_s_per_m: Option<f64>,
+}
+
+/// A named time window for metrics.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindowSpec {
+    /// Its name.
+    pub name: String,
+    /// Start, s.
+    pub t0_s: f64,
+    /// End, s.
+    pub t1_s: f64,
+}
+
+/// "`better` has a lower `metric` than `than` in `window`", for every actuator (or the one named).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClaimSpec {
+    /// What is claimed, for people.
+    pub statement: String,
+    /// The window.
+    pub window: String,
+    /// The metric (lower is better): `rms_force_error_n`, `max_abs_force_error_n`, `force_imbalance_n`.
+    pub metric: String,
+    /// The run claimed better.
+    pub better: String,
+    /// The run it is compared with.
+    pub than: String,
+    /// Only this actuator (all when absent; ignored by `force_imbalance_n`, which spans them).
+    #[serde(default)]
+    pub actuator: Option<String>,
+}
+
+/// The `force_sensor` of a load cell on the cylinder's rod.
+pub const LOAD_CELL: &str = "load_cell";
+
+/// The metrics a window reports, lower is better.
+pub const METRICS: [&str; 3] = [
+    "rms_force_error_n",
+    "max_abs_force_error_n",
+    "force_imbalance_n",
+];
+
+impl MechanismScene {
+    /// Whether the TOML text is a mechanism scene (it lists `[[actuators]]`) rather than a one-actuator
+    /// scene with a `[plant]`.
+    pub fn is_mechanism(text: &str) -> bool {
+        text.parse::<toml::Table>()
+            .is_ok_and(|t| t.contains_key("actuators") && !t.contains_key("plant"))
+    }
+
+    /// Reads, parses and checks a mechanism scene.
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Scene)?;
+        let de = toml::Deserializer::parse(&text).map_err(|e| SceneError::Parse {
+            file: path.to_path_buf(),
+            at: e.span().map(|s| pneuflex_files::line_col(&text, s.start)),
+            key: String::new(),
+            message: e.message().trim().to_string(),
+        })?;
+        let mut scene: Self = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let key = if key == "." { String::new() } else { key };
+            let inner = e.into_inner();
+            SceneError::Parse {
+                file: path.to_path_buf(),
+                at: pneuflex_files::toml_key_position(&text, &key).or_else(|| {
+                    inner
+                        .span()
+                        .map(|s| pneuflex_files::line_col(&text, s.start))
+                }),
+                key,
+                message: inner.message().trim().to_string(),
+            }
+        })?;
+        scene.source = path.to_path_buf();
+        scene.text = text;
+        scene.check()?;
+        Ok(scene)
+    }
+
+    /// A file the scene names, resolved against the scene's folder.
+    pub fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.source
+                .parent()
+                .map_or_else(|| p.to_path_buf(), |d| d.join(p))
+        }
+    }
+
+    /// The files the scene reads, with their roles: the scene, the URDF and each actuator's sheet.
+    pub fn input_files(&self) -> Vec<(&'static str, PathBuf)> {
+        let mut v = vec![
+            ("scene", self.source.clone()),
+            ("urdf", self.resolve(&self.urdf)),
+        ];
+        for a in &self.actuators {
+            let p = self.resolve(&a.sheet);
+            if !v.iter().any(|(_, q)| *q == p) {
+                v.push(("actuator", p));
+            }
+        }
+        v
+    }
+
+    /// An error about the value at the dotted `key`, with its line.
+    pub fn invalid(&self, key: &str, message: String) -> SceneError {
+        SceneError::Invalid {
+            file: self.source.clone(),
+            at: pneuflex_files::toml_key_position(&self.text, key),
+            key: key.to_string(),
+            message,
+        }
+    }
+
+    /// Number of control ticks.
+    pub fn n_steps(&self) -> usize {
+        (self.duration_s / self.dt_s).round() as usize
+    }
+
+    fn number(
+        &self,
+        key: &str,
+        x: f64,
+        check: fn(f64) -> Result<f64, String>,
+    ) -> Result<(), SceneError> {
+        check(x).map(drop).map_err(|m| self.invalid(key, m))
+    }
+
+    /// The checks no single type can make: ranges, names that refer to each other, the time grid.
+    fn check(&self) -> Result<(), SceneError> {
+        use pneuflex_files::check::{finite, non_negative, positive};
+        self.number("duration_s", self.duration_s, positive)?;
+        self.number("dt_s", self.dt_s, positive)?;
+        if self.dt_s > 0.01 {
+            return Err(self.invalid(
+                "dt_s",
+                format!(
+                    "must be <= 0.01 s (one physics step per tick), got {}",
+                    self.dt_s
+                ),
+            ));
+        }
+        if self.n_steps() > 10_000_000 {
+            return Err(self.invalid(
+                "duration_s",
+                format!(
+                    "{} ticks exceed the 10 million a run may take",
+                    self.n_steps()
+                ),
+            ));
+        }
+        if self.solver_iterations == 0 {
+            return Err(self.invalid("solver_iterations", "must be >= 1".into()));
+        }
+        if self.chamber_substeps == 0 {
+            return Err(self.invalid("chamber_substeps", "must be >= 1".into()));
+        }
+        for (i, g) in self.gravity_m_s2.iter().enumerate() {
+            self.number(&format!("gravity_m_s2[{i}]"), *g, finite)?;
+        }
+        if self.actuators.is_empty() {
+            return Err(self.invalid("actuators", "needs at least one actuator".into()));
+        }
+        for (i, a) in self.actuators.iter().enumerate() {
+            let at = |k: &str| format!("actuators[{i}].{k}");
+            if a.name.is_empty() || a.name.contains(['.', ',', '"', '/']) {
+                return Err(self.invalid(
+                    &at("name"),
+                    format!(
+                        "must be a non-empty name without . , \" or /, got {:?}",
+                        a.name
+                    ),
+                ));
+            }
+            if self.actuators[..i].iter().any(|o| o.name == a.name) {
+                return Err(self.invalid(&at("name"), format!("{:?} is listed twice", a.name)));
+            }
+            match (&a.joint, &a.anchors) {
+                (Some(_), None) | (None, Some(_)) => {}
+                _ => {
+                    return Err(self.invalid(
+                        &at("joint"),
+                        "give exactly one mount: `joint` (a prismatic joint) or `anchors`".into(),
+                    ));
+                }
+            }
+            if a.force_sensor != LOAD_CELL
+                && !self.contacts.iter().any(|c| c.name == a.force_sensor)
+            {
+                return Err(self.invalid(
+                    &at("force_sensor"),
+                    format!(
+                        "no contact named {:?} (contacts: {}; or \"{LOAD_CELL}\")",
+                        a.force_sensor,
+                        self.contact_names()
+                    ),
+                ));
+            }
+            self.number(&at("x_d_m"), a.x_d_m, finite)?;
+            if a.force.is_empty() {
+                return Err(self.invalid(&at("force"), "needs at least one piece".into()));
+            }
+            let mut last = f64::NEG_INFINITY;
+            for (j, p) in a.force.iter().enumerate() {
+                let key = format!("actuators[{i}].force[{j}]");
+                let start = p.start_s();
+                if !(start.is_finite() && start >= 0.0 && start > last) {
+                    return Err(self.invalid(
+                        &format!("{key}.start_s"),
+                        format!(
+                            "must be finite, >= 0 and after the previous piece's start, got {start}"
+                        ),
+                    ));
+                }
+                last = start;
+                if let ForcePiece::Sine { frequency_hz, .. } = p {
+                    self.number(&format!("{key}.frequency_hz"), *frequency_hz, positive)?;
+                }
+            }
+            if let Some(q) = a.initial_position_m {
+                self.number(&at("initial_position_m"), q, finite)?;
+                if a.joint.is_none() {
+                    return Err(self.invalid(&at("initial_position_m"), "only a `joint` mount starts away from the URDF's zero: move the anchors' link instead".into()));
+                }
+            }
+            if let Some(an) = &a.anchors {
+                self.number(
+                    &at("anchors.retracted_length_m"),
+                    an.retracted_length_m,
+                    positive,
+                )?;
+            }
+        }
+        for (i, c) in self.contacts.iter().enumerate() {
+            let at = |k: &str| format!("contacts[{i}].{k}");
+            if c.name == LOAD_CELL {
+                return Err(self.invalid(
+                    &at("name"),
+                    format!(
+                        "\"{LOAD_CELL}\" names the rod's load cell: call the contact otherwise"
+                    ),
+                ));
+            }
+            if self.contacts[..i].iter().any(|o| o.name == c.name) {
+                return Err(self.invalid(&at("name"), format!("{:?} is listed twice", c.name)));
+            }
+            self.number(&at("stiffness_n_per_m"), c.stiffness_n_per_m, positive)?;
+            self.number(&at("damping_n_s_per_m"), c.damping_n_s_per_m, non_negative)?;
+        }
+        for (i, e) in self.events.iter().enumerate() {
+            let at = |k: &str| format!("events[{i}].{k}");
+            if !(e.t_s.is_finite() && (0.0..=self.duration_s).contains(&e.t_s)) {
+                return Err(self.invalid(
+                    &at("t_s"),
+                    format!(
+                        "must be within the run [0, {}] s, got {}",
+                        self.duration_s, e.t_s
+                    ),
+                ));
+            }
+            if !self.contacts.iter().any(|c| c.name == e.contact) {
+                return Err(self.invalid(
+                    &at("contact"),
+                    format!(
+                        "no contact named {:?} (contacts: {})",
+                        e.contact,
+                        self.contact_names()
+                    ),
+                ));
+            }
+            self.number(&at("stiffness_n_per_m"), e.stiffness_n_per_m, positive)?;
+            if let Some(c) = e.damping_n_s_per_m {
+                self.number(&at("damping_n_s_per_m"), c, non_negative)?;
+            }
+        }
+        if self.runs.is_empty() {
+            return Err(self.invalid("runs", "needs at least one run".into()));
+        }
+        for (i, r) in self.runs.iter().enumerate() {
+            if r.name.is_empty() || r.name.contains(['/', '\\']) || r.name == "." || r.name == ".."
+            {
+                return Err(self.invalid(
+                    &format!("runs[{i}].name"),
+                    format!("must be a non-empty directory name, got {:?}", r.name),
+                ));
+            }
+            if self.runs[..i].iter().any(|o| o.name == r.name) {
+                return Err(self.invalid(
+                    &format!("runs[{i}].name"),
+                    format!("duplicate run name {:?}", r.name),
+                ));
+            }
+            if r.frozen.is_some() {
+                return Err(self.invalid(
+                    &format!("runs[{i}].frozen"),
+                    "frozen runs are for one-actuator scenes".into(),
+                ));
+            }
+            r.build()
+                .map_err(|e| self.invalid(&format!("runs[{i}].{}", e.key), e.message))?;
+        }
+        for (i, w) in self.metrics.iter().enumerate() {
+            let at = |k: &str| format!("metrics[{i}].{k}");
+            if !(w.t0_s.is_finite()
+                && w.t1_s.is_finite()
+                && 0.0 <= w.t0_s
+                && w.t0_s < w.t1_s
+                && w.t1_s <= self.duration_s)
+            {
+                return Err(self.invalid(
+                    &at("t1_s"),
+                    format!(
+                        "needs 0 <= t0_s < t1_s <= duration_s = {}, got [{}, {}]",
+                        self.duration_s, w.t0_s, w.t1_s
+                    ),
+                ));
+            }
+            if self.metrics[..i].iter().any(|o| o.name == w.name) {
+                return Err(self.invalid(&at("name"), format!("{:?} is listed twice", w.name)));
+            }
+        }
+        for (i, c) in self.claims.iter().enumerate() {
+            let at = |k: &str| format!("claims[{i}].{k}");
+            if !self.metrics.iter().any(|w| w.name == c.window) {
+                return Err(self.invalid(
+                    &at("window"),
+                    format!("no metric window named {:?}", c.window),
+                ));
+            }
+            if !METRICS.contains(&c.metric.as_str()) {
+                return Err(self.invalid(
+                    &at("metric"),
+                    format!("unknown metric {:?}, expected one of {METRICS:?}", c.metric),
+                ));
+            }
+            for (key, run) in [("better", &c.better), ("than", &c.than)] {
+                if !self.runs.iter().any(|r| &r.name == run) {
+                    return Err(self.invalid(&at(key), format!("no run named {run:?}")));
+                }
+            }
+            if let Some(a) = &c.actuator
+                && !self.actuators.iter().any(|x| &x.name == a)
+            {
+                return Err(self.invalid(&at("actuator"), format!("no actuator named {a:?}")));
+            }
+        }
+        Ok(())
+    }
+
+    fn contact_names(&self) -> String {
+        self.contacts
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}

@@ -1,0 +1,221 @@
+//! A mechanism scene's metrics per run, window and actuator, its claims, and the files they are written to.
+
+use std::io::Write as _;
+use std::path::Path;
+
+use serde::Serialize;
+
+use super::run::MechanismRun;
+use super::schema::{MechanismScene, WindowSpec};
+use crate::error::SceneError;
+
+/// One actuator's force tracking in a window.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ActuatorMetrics {
+    /// RMS of f_r − f_e, N (null when the window holds no sample).
+    pub rms_force_error_n: f64,
+    /// Largest |f_r − f_e|, N.
+    pub max_abs_force_error_n: f64,
+    /// Mean contact force, N.
+    pub mean_force_n: f64,
+}
+
+/// A window of one run.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct WindowMetrics {
+    /// The window's name.
+    pub window: String,
+    /// Per actuator, in scene order.
+    pub actuators: Vec<(String, ActuatorMetrics)>,
+    /// RMS over the window of the spread of the actuators' contact forces (largest − smallest), N: how
+    /// unevenly the fingers of a gripper squeeze.
+    pub force_imbalance_n: f64,
+}
+
+/// A run's summary.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct RunSummary {
+    /// Run name.
+    pub name: String,
+    /// Why it stopped early, if it did.
+    pub diverged: Option<String>,
+    /// Its windows.
+    pub windows: Vec<WindowMetrics>,
+}
+
+/// A claim's verdict for one actuator (or the whole mechanism).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ClaimResult {
+    /// The claim as written.
+    pub statement: String,
+    /// The actuator it was checked on (None for `force_imbalance_n`).
+    pub actuator: Option<String>,
+    /// The metric compared.
+    pub metric: String,
+    /// The better run's value.
+    pub better_value: f64,
+    /// The other run's value.
+    pub than_value: f64,
+    /// Whether the better run's value is lower.
+    pub holds: bool,
+}
+
+/// What `summary.json` holds.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct MechanismSummary {
+    /// Scene name.
+    pub scene: String,
+    /// Scene description.
+    pub description: String,
+    /// The actuators' names.
+    pub actuators: Vec<String>,
+    /// Each run.
+    pub runs: Vec<RunSummary>,
+    /// Each claim, per actuator.
+    pub claims: Vec<ClaimResult>,
+}
+
+fn window_metrics(scene: &MechanismScene, run: &MechanismRun, w: &WindowSpec) -> WindowMetrics {
+    let t = run.column("t").unwrap_or_default();
+    let inside: Vec<usize> = (0..t.len())
+        .filter(|&i| t[i] >= w.t0_s - 1e-12 && t[i] <= w.t1_s + 1e-12)
+        .collect();
+    let forces: Vec<Vec<f64>> = scene
+        .actuators
+        .iter()
+        .map(|a| run.column(&format!("{}.f_e", a.name)).unwrap_or_default())
+        .collect();
+    let mut actuators = Vec::new();
+    for (a, f_e) in scene.actuators.iter().zip(&forces) {
+        let f_r = run.column(&format!("{}.f_r", a.name)).unwrap_or_default();
+        // No sample in the window (a run stopped before it): NaN, written as null.
+        let n = inside.len() as f64;
+        let err = |i: usize| f_r[i] - f_e[i];
+        actuators.push((
+            a.name.clone(),
+            ActuatorMetrics {
+                rms_force_error_n: (inside.iter().map(|&i| err(i).powi(2)).sum::<f64>() / n).sqrt(),
+                max_abs_force_error_n: inside
+                    .iter()
+                    .map(|&i| err(i).abs())
+                    .fold(f64::NAN, f64::max),
+                mean_force_n: inside.iter().map(|&i| f_e[i]).sum::<f64>() / n,
+            },
+        ));
+    }
+    let spread = |i: usize| {
+        let (lo, hi) = forces
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
+                (lo.min(f[i]), hi.max(f[i]))
+            });
+        hi - lo
+    };
+    let force_imbalance_n =
+        (inside.iter().map(|&i| spread(i).powi(2)).sum::<f64>() / inside.len() as f64).sqrt();
+    WindowMetrics {
+        window: w.name.clone(),
+        actuators,
+        force_imbalance_n,
+    }
+}
+
+/// The summary of `runs` (those that ran).
+pub fn summarise(scene: &MechanismScene, runs: &[MechanismRun]) -> MechanismSummary {
+    let summaries: Vec<RunSummary> = runs
+        .iter()
+        .map(|r| RunSummary {
+            name: r.name.clone(),
+            diverged: r.diverged.clone(),
+            windows: scene
+                .metrics
+                .iter()
+                .map(|w| window_metrics(scene, r, w))
+                .collect(),
+        })
+        .collect();
+    let mut claims = Vec::new();
+    let window = |run: &str, w: &str| {
+        summaries
+            .iter()
+            .find(|s| s.name == run && s.diverged.is_none())
+            .and_then(|s| s.windows.iter().find(|m| m.window == w))
+    };
+    for c in &scene.claims {
+        let (Some(better), Some(than)) = (window(&c.better, &c.window), window(&c.than, &c.window))
+        else {
+            continue;
+        };
+        let mut push = |actuator: Option<String>, b: f64, t: f64| {
+            claims.push(ClaimResult {
+                statement: c.statement.clone(),
+                actuator,
+                metric: c.metric.clone(),
+                better_value: b,
+                than_value: t,
+                holds: b < t,
+            })
+        };
+        if c.metric == "force_imbalance_n" {
+            push(None, better.force_imbalance_n, than.force_imbalance_n);
+            continue;
+        }
+        for ((name, mb), (_, mt)) in better.actuators.iter().zip(&than.actuators) {
+            if c.actuator.as_ref().is_some_and(|a| a != name) {
+                continue;
+            }
+            let pick = |m: &ActuatorMetrics| match c.metric.as_str() {
+                "rms_force_error_n" => m.rms_force_error_n,
+                _ => m.max_abs_force_error_n,
+            };
+            push(Some(name.clone()), pick(mb), pick(mt));
+        }
+    }
+    MechanismSummary {
+        scene: scene.name.clone(),
+        description: scene.description.clone(),
+        actuators: scene.actuators.iter().map(|a| a.name.clone()).collect(),
+        runs: summaries,
+        claims,
+    }
+}
+
+fn write_err(path: &Path) -> impl Fn(std::io::Error) -> SceneError + '_ {
+    move |os_error| SceneError::Write {
+        path: path.to_path_buf(),
+        os_error,
+    }
+}
+
+/// Writes `<dir>/<run>/trace.csv` for every run and `<dir>/summary.json`.
+pub fn write(
+    dir: &Path,
+    summary: &MechanismSummary,
+    runs: &[MechanismRun],
+) -> Result<(), SceneError> {
+    for r in runs {
+        let run_dir = dir.join(&r.name);
+        std::fs::create_dir_all(&run_dir).map_err(write_err(&run_dir))?;
+        let path = run_dir.join("trace.csv");
+        let file = std::fs::File::create(&path).map_err(write_err(&path))?;
+        let mut w = std::io::BufWriter::new(file);
+        writeln!(w, "{}", r.columns.join(",")).map_err(write_err(&path))?;
+        let (mut line, mut digits) = (Vec::new(), zmij::Buffer::new());
+        for row in &r.rows {
+            line.clear();
+            for (i, v) in row.iter().enumerate() {
+                if i > 0 {
+                    line.push(b',');
+                }
+                // The one number format of every pneuflex trace.
+                crate::run::trace::push_f64(&mut line, &mut digits, *v);
+            }
+            line.push(b'\n');
+            w.write_all(&line).map_err(write_err(&path))?;
+        }
+        w.flush().map_err(write_err(&path))?;
+    }
+    let path = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(summary).expect("plain data");
+    std::fs::write(&path, text + "\n").map_err(write_err(&path))
+}

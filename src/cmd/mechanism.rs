@@ -1,0 +1,220 @@
+//! `pneuflex run <scene.toml>` for a scene with `[[actuators]]` (any URDF, several cylinders): every run
+//! puts its controller on every actuator; traces, summary.json, a force figure per run and the claims go
+//! into DIR (default `out/<scene name>/`), staged beside it and renamed into place as `run` does. A signal
+//! stops at the next tick and keeps what ran in `DIR.partial`.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+
+use anyhow::bail;
+use pneuflex_files::output::{Manifest, Partial, Writer};
+use pneuflex_files::{InputDigest, OutputDir};
+use pneuflex_scene::mechanism::{self, MechanismRun, MechanismScene, MechanismSummary};
+
+use super::Exit;
+
+/// Runs a mechanism scene file and writes its outputs.
+pub fn run(scene_path: &Path, out: Option<&Path>, quiet: bool) -> anyhow::Result<()> {
+    let scene = MechanismScene::load(scene_path)?;
+    let dest = out
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new("out").join(&scene.name));
+    let inputs = scene.input_files();
+    let protect: Vec<&Path> = std::iter::once(scene_path)
+        .chain(inputs.iter().map(|(_, p)| p.as_path()))
+        .collect();
+    // Staged before anything runs: a bad --out fails at once.
+    let stage = OutputDir::create(&dest, &protect, Writer::simulation("run"))?;
+    let stop = super::stop_flag()?;
+    let stopped = || stop.load(Ordering::Relaxed) != 0;
+    let bar = Progress::new(quiet, format!("simulating {}", scene.name));
+    let started = std::time::Instant::now();
+    let runs = mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped)?;
+    bar.finish();
+    let elapsed = started.elapsed().as_secs_f64();
+    let summary = mechanism::summarise(&scene, &runs);
+    mechanism::write(stage.path(), &summary, &runs)?;
+    let digests: Vec<InputDigest> = inputs
+        .iter()
+        .filter_map(|(role, p)| InputDigest::of_file(p, role).ok())
+        .collect();
+    let manifest = Manifest::new("run", env!("CARGO_PKG_VERSION"), digests);
+    let signal = stop.load(Ordering::Relaxed);
+    if signal != 0 {
+        let time_reached_s = runs
+            .last()
+            .and_then(|r| r.rows.last())
+            .map_or(0.0, |row| row[0]);
+        let reason = pneuflex_scene::signal_name(signal);
+        let to = stage.commit_partial(
+            manifest,
+            Partial {
+                reason: reason.clone(),
+                time_reached_s,
+                done: Some(format!("{} of {} runs", runs.len(), scene.runs.len())),
+            },
+        )?;
+        return Err(Exit {
+            code: 128 + signal.clamp(1, 64) as u8,
+            message: format!(
+                "{reason}: stopped at t = {time_reached_s:.3} s; the partial results are in {} (marked \
+                 incomplete in its manifest); {} is untouched",
+                to.display(),
+                dest.display()
+            ),
+        }
+        .into());
+    }
+    write_figures(stage.path(), &scene, &runs)?;
+    let dest = stage.commit(manifest)?;
+    if !quiet {
+        print_tables(&summary)?;
+        outln!(
+            "{}: {} run(s) of {} s, {} actuator(s), simulated in {elapsed:.3} s ({:.1}x real time); outputs in {}",
+            scene.name,
+            runs.len(),
+            scene.duration_s,
+            scene.actuators.len(),
+            runs.len() as f64 * scene.duration_s / elapsed.max(1e-9),
+            dest.display()
+        );
+    }
+    let diverged: Vec<String> = runs
+        .iter()
+        .filter_map(|r| {
+            r.diverged
+                .as_ref()
+                .map(|w| format!("run `{}` diverged: {w}", r.name))
+        })
+        .collect();
+    if !diverged.is_empty() {
+        bail!(
+            "{} (marked in {})",
+            diverged.join("; "),
+            dest.join("summary.json").display()
+        );
+    }
+    Ok(())
+}
+
+/// One figure per run: each actuator's contact force against its reference, a panel each.
+fn write_figures(dir: &Path, scene: &MechanismScene, runs: &[MechanismRun]) -> anyhow::Result<()> {
+    for r in runs.iter().filter(|r| r.diverged.is_none()) {
+        let t = r.column("t").unwrap_or_default();
+        let cols: Vec<(String, Vec<f64>, Vec<f64>)> = scene
+            .actuators
+            .iter()
+            .map(|a| {
+                (
+                    a.name.clone(),
+                    r.column(&format!("{}.f_r", a.name)).unwrap_or_default(),
+                    r.column(&format!("{}.f_e", a.name)).unwrap_or_default(),
+                )
+            })
+            .collect();
+        let panels: Vec<pneuflex_plot::overlay::Panel<'_>> = cols
+            .iter()
+            .map(|(name, f_r, f_e)| pneuflex_plot::overlay::Panel {
+                title: format!("{} — {name}: contact force, run {}", scene.name, r.name),
+                y_desc: "force [N]".into(),
+                series: vec![
+                    pneuflex_plot::overlay::Series {
+                        label: "f_r".into(),
+                        t: &t,
+                        y: f_r,
+                    },
+                    pneuflex_plot::overlay::Series {
+                        label: "f_e".into(),
+                        t: &t,
+                        y: f_e,
+                    },
+                ],
+                include_zero: true,
+            })
+            .collect();
+        pneuflex_plot::overlay::write_overlay(&dir.join(&r.name).join("force.png"), &panels)?;
+    }
+    Ok(())
+}
+
+fn print_tables(summary: &MechanismSummary) -> anyhow::Result<()> {
+    for r in &summary.runs {
+        for w in &r.windows {
+            let per: Vec<String> = w
+                .actuators
+                .iter()
+                .map(|(a, m)| {
+                    format!(
+                        "{a} rms {:.3} N (mean {:.2} N)",
+                        m.rms_force_error_n, m.mean_force_n
+                    )
+                })
+                .collect();
+            outln!(
+                "{:<12} {:<14} {}; imbalance {:.3} N",
+                r.name,
+                w.window,
+                per.join(", "),
+                w.force_imbalance_n
+            );
+        }
+    }
+    for c in &summary.claims {
+        outln!(
+            "[{}] {}{}: {:.4} vs {:.4} ({})",
+            if c.holds { "holds" } else { "FAILS" },
+            c.statement,
+            c.actuator
+                .as_ref()
+                .map(|a| format!(" ({a})"))
+                .unwrap_or_default(),
+            c.better_value,
+            c.than_value,
+            c.metric
+        );
+    }
+    Ok(())
+}
+
+/// A progress bar that shows itself only when the simulation lasts longer than a moment.
+struct Progress {
+    bar: indicatif::ProgressBar,
+    quiet: bool,
+    start: std::time::Instant,
+    shown: std::cell::Cell<bool>,
+}
+
+impl Progress {
+    fn new(quiet: bool, message: String) -> Self {
+        use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+        let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} {msg} [{bar:40}] {percent:>3}% ({elapsed}, eta {eta})",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        bar.set_message(message);
+        Self {
+            bar,
+            quiet,
+            start: std::time::Instant::now(),
+            shown: std::cell::Cell::new(false),
+        }
+    }
+
+    fn set(&self, fraction: f64) {
+        if !self.quiet && !self.shown.get() && self.start.elapsed().as_millis() > 300 {
+            self.bar
+                .set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            self.shown.set(true);
+        }
+        self.bar
+            .set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+    }
+
+    fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
