@@ -17,12 +17,19 @@ fn a_gripper_run_writes_prefixed_traces_a_summary_with_claims_and_a_figure_per_r
     let out = dir.path().join("grip");
     let o = pneuflex(&["run", "scenes/gripper.toml", "--out", out.to_str().unwrap()]);
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(stdout.contains("[holds] on the foam object"), "{stdout}");
     for run in ["impedance", "adaptive"] {
         let trace = std::fs::read_to_string(out.join(run).join("trace.csv")).unwrap();
         let header = trace.lines().next().unwrap();
-        assert!(header.starts_with("t,left.f_r,left.f_e,left.x,"), "{header}");
+        assert!(
+            header.starts_with("t,left.f_r,left.f_e,left.x,"),
+            "{header}"
+        );
         assert!(header.contains(",right.f_e,"), "{header}");
         // 8 s at 1 ms: 8001 rows and the header.
         assert_eq!(trace.lines().count(), 8002);
@@ -48,13 +55,22 @@ fn a_mechanism_scene_with_a_bad_key_fails_naming_it_and_writes_nothing() {
     let scene = dir.path().join("lever.toml");
     std::fs::write(&scene, text).unwrap();
     let out = dir.path().join("out");
-    let o = pneuflex(&["run", scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let o = pneuflex(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(
-        stderr.contains("lever.toml:15:") && stderr.contains("actuators[0].anchors.retracted_length_m"),
+        stderr.contains("lever.toml:15:")
+            && stderr.contains("actuators[0].anchors.retracted_length_m"),
         "{stderr}"
     );
-    assert!(stderr.contains("apart in the URDF's zero configuration"), "{stderr}");
+    assert!(
+        stderr.contains("apart in the URDF's zero configuration"),
+        "{stderr}"
+    );
     assert!(!out.exists(), "an output was left behind");
 }
