@@ -645,51 +645,54 @@ impl MemLink {
     }
 }
 
-impl Link for MemLink {
-    fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError> {
+impl MemLink {
+    /// Under the pipe's lock: the queue this end reads, the one it writes, and whether the other end hung up.
+    fn queues<T>(
+        &self,
+        f: impl FnOnce(&mut VecDeque<u8>, &mut VecDeque<u8>, bool) -> Result<T, RigError>,
+    ) -> Result<T, RigError> {
         let mut guard = self
             .pipe
             .lock()
             .map_err(|_| RigError::new(ErrorKind::LinkLost, "link poisoned"))?;
         let p = &mut *guard;
-        let (q, peer_closed) = if self.board_end {
-            (&mut p.to_board, p.host_closed)
+        if self.board_end {
+            f(&mut p.to_board, &mut p.to_host, p.host_closed)
         } else {
-            (&mut p.to_host, p.board_closed)
-        };
-        if q.is_empty() {
-            return if peer_closed {
-                Err(RigError::new(ErrorKind::LinkLost, "the other end hung up"))
-            } else {
-                Ok(0)
-            };
+            f(&mut p.to_host, &mut p.to_board, p.board_closed)
         }
-        let n = buf.len().min(q.len());
-        for (dst, src) in buf.iter_mut().zip(q.drain(..n)) {
-            *dst = src;
-        }
-        Ok(n)
+    }
+}
+
+impl Link for MemLink {
+    fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError> {
+        self.queues(|q, _, peer_closed| {
+            if q.is_empty() {
+                return if peer_closed {
+                    Err(RigError::new(ErrorKind::LinkLost, "the other end hung up"))
+                } else {
+                    Ok(0)
+                };
+            }
+            let n = buf.len().min(q.len());
+            for (dst, src) in buf.iter_mut().zip(q.drain(..n)) {
+                *dst = src;
+            }
+            Ok(n)
+        })
     }
 
     fn write_all_bytes(&mut self, bytes: &[u8]) -> Result<(), RigError> {
-        let mut guard = self
-            .pipe
-            .lock()
-            .map_err(|_| RigError::new(ErrorKind::LinkLost, "link poisoned"))?;
-        let p = &mut *guard;
-        let (q, peer_closed) = if self.board_end {
-            (&mut p.to_host, p.host_closed)
-        } else {
-            (&mut p.to_board, p.board_closed)
-        };
-        if peer_closed {
-            return Err(RigError::new(ErrorKind::LinkLost, "the other end hung up"));
-        }
-        if q.len() + bytes.len() > MEM_LINK_CAPACITY {
-            return Err(RigError::new(ErrorKind::Timeout, "link buffer full"));
-        }
-        q.extend(bytes.iter().copied());
-        Ok(())
+        self.queues(|_, q, peer_closed| {
+            if peer_closed {
+                return Err(RigError::new(ErrorKind::LinkLost, "the other end hung up"));
+            }
+            if q.len() + bytes.len() > MEM_LINK_CAPACITY {
+                return Err(RigError::new(ErrorKind::Timeout, "link buffer full"));
+            }
+            q.extend(bytes.iter().copied());
+            Ok(())
+        })
     }
 }
 

@@ -139,6 +139,39 @@ impl<R: Rig + ?Sized> Rig for &mut R {
     }
 }
 
+/// The methods of [`Rig`] a layer passes to the rig it wraps (its `inner`) untouched, named one by one so that
+/// what a layer does change stands written out in its impl.
+macro_rules! pass_through {
+    ($($method:ident),+) => {
+        $(pass_through!(@$method);)+
+    };
+    (@link_stats) => {
+        fn link_stats(&self) -> Option<LinkStats> {
+            self.inner.link_stats()
+        }
+    };
+    (@take_applied) => {
+        fn take_applied(&mut self) -> Option<Applied> {
+            self.inner.take_applied()
+        }
+    };
+    (@take_sampled) => {
+        fn take_sampled(&mut self) -> Option<BoardSample> {
+            self.inner.take_sampled()
+        }
+    };
+    (@write) => {
+        fn write(&mut self, tick: u32, cmd: ValveCommand) -> Result<(), RigError> {
+            self.inner.write(tick, cmd)
+        }
+    };
+    (@safe) => {
+        fn safe(&mut self, tick: u32, state: SafeState) -> Result<(), RigError> {
+            self.inner.safe(tick, state)
+        }
+    };
+}
+
 /// Watchdog layer: a fault when no sample arrives for `timeout_ms`, or when every raw channel stays
 /// bit-identical for `stale_ms` (a stuck sensor or a frozen ADC: real channels always carry some noise).
 #[derive(Debug)]
@@ -183,15 +216,7 @@ impl<R: Rig<Sample = RawSample>> Watchdog<R> {
 impl<R: Rig<Sample = RawSample>> Rig for Watchdog<R> {
     type Sample = RawSample;
 
-    fn link_stats(&self) -> Option<LinkStats> {
-        self.inner.link_stats()
-    }
-    fn take_applied(&mut self) -> Option<Applied> {
-        self.inner.take_applied()
-    }
-    fn take_sampled(&mut self) -> Option<BoardSample> {
-        self.inner.take_sampled()
-    }
+    pass_through!(link_stats, take_applied, take_sampled, write, safe);
 
     fn read(&mut self, now_s: f64) -> Result<Option<RawSample>, RigError> {
         let got = self.inner.read(now_s)?;
@@ -233,12 +258,6 @@ impl<R: Rig<Sample = RawSample>> Rig for Watchdog<R> {
         }
     }
 
-    fn write(&mut self, tick: u32, cmd: ValveCommand) -> Result<(), RigError> {
-        self.inner.write(tick, cmd)
-    }
-    fn safe(&mut self, tick: u32, state: SafeState) -> Result<(), RigError> {
-        self.inner.safe(tick, state)
-    }
     fn reset(&mut self) -> Result<(), RigError> {
         self.last_fresh_s = None;
         self.last_raw = None;
@@ -324,12 +343,7 @@ impl<R: Rig<Sample = RawSample>> Calibrated<R> {
 impl<R: Rig<Sample = RawSample>> Rig for Calibrated<R> {
     type Sample = SiSample;
 
-    fn link_stats(&self) -> Option<LinkStats> {
-        self.inner.link_stats()
-    }
-    fn take_applied(&mut self) -> Option<Applied> {
-        self.inner.take_applied()
-    }
+    pass_through!(link_stats, take_applied, write, safe);
     fn take_sampled(&mut self) -> Option<BoardSample> {
         self.inner.take_sampled().map(|mut b| {
             b.si = Some(self.sensors_of(&b.raw));
@@ -339,12 +353,6 @@ impl<R: Rig<Sample = RawSample>> Rig for Calibrated<R> {
 
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {
         Ok(self.inner.read(now_s)?.map(|s| self.convert(&s)))
-    }
-    fn write(&mut self, tick: u32, cmd: ValveCommand) -> Result<(), RigError> {
-        self.inner.write(tick, cmd)
-    }
-    fn safe(&mut self, tick: u32, state: SafeState) -> Result<(), RigError> {
-        self.inner.safe(tick, state)
     }
     fn reset(&mut self) -> Result<(), RigError> {
         self.prev = None;
@@ -428,15 +436,7 @@ impl<R: Rig<Sample = SiSample>> Limited<R> {
 impl<R: Rig<Sample = SiSample>> Rig for Limited<R> {
     type Sample = SiSample;
 
-    fn link_stats(&self) -> Option<LinkStats> {
-        self.inner.link_stats()
-    }
-    fn take_applied(&mut self) -> Option<Applied> {
-        self.inner.take_applied()
-    }
-    fn take_sampled(&mut self) -> Option<BoardSample> {
-        self.inner.take_sampled()
-    }
+    pass_through!(link_stats, take_applied, take_sampled, safe);
 
     fn read(&mut self, now_s: f64) -> Result<Option<SiSample>, RigError> {
         match self.inner.read(now_s)? {
@@ -458,9 +458,6 @@ impl<R: Rig<Sample = SiSample>> Rig for Limited<R> {
             ));
         }
         self.inner.write(tick, cmd)
-    }
-    fn safe(&mut self, tick: u32, state: SafeState) -> Result<(), RigError> {
-        self.inner.safe(tick, state)
     }
     fn reset(&mut self) -> Result<(), RigError> {
         self.rejected = None;

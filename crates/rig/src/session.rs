@@ -1,17 +1,20 @@
 //! Putting the layers together: the supervised rig stack from a rig file, and the emulator from a rig file.
 
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
 
+use pneuflex_control::{Controller, Setpoint};
 use pneuflex_pneumatics::ActuatorSheet;
 
 use crate::emulator::{Emulator, EmulatorHandle, PtyLink};
 use crate::error::{ErrorKind, RigError};
 use crate::plant::PneumaticPlant;
 use crate::rig::{Calibrated, Limited, Watchdog};
-use crate::rigfile::{RigFile, RigFileError};
-use crate::rtloop::RunOptions;
+use crate::rigfile::{EmulatorConfig, RigFile, RigFileError};
+use crate::rtloop::{LoopReport, RunOptions, run_with_clock};
 use crate::serial::{Link, SerialRig};
 use crate::supervisor::Supervisor;
+use crate::trace::{TraceSink, TraceWriter};
 
 /// The full host-side stack: serial driver, watchdog, calibration, limits.
 pub type RigStack<L> = Limited<Calibrated<Watchdog<SerialRig<L>>>>;
@@ -40,40 +43,43 @@ pub fn run_options(rig: &RigFile, duration_s: f64) -> RunOptions {
     }
 }
 
+/// An `[emulator]` key of the rig file `file` that will not do (no position: the table is read, not its text).
+fn invalid(file: &Path, key: &str, message: String) -> RigFileError {
+    RigFileError::Invalid {
+        file: file.to_path_buf(),
+        at: None,
+        key: key.into(),
+        message,
+    }
+}
+
 /// The emulator's plant from the rig file's `[emulator]` table (actuator sheet path relative to the rig file).
 pub fn emulated_plant(rig: &RigFile, file: &Path) -> Result<PneumaticPlant, RigFileError> {
     let Some(e) = &rig.emulator else {
-        return Err(RigFileError::Invalid {
-            file: file.to_path_buf(),
-            at: None,
-            key: "emulator".into(),
-            message: "missing: `pneuflex rig emulate` needs an [emulator] table".into(),
-        });
+        return Err(invalid(
+            file,
+            "emulator",
+            "missing: `pneuflex rig emulate` needs an [emulator] table".into(),
+        ));
     };
     let Some(sheet) = &e.actuator else {
-        return Err(RigFileError::Invalid {
-            file: file.to_path_buf(),
-            at: None,
-            key: "emulator.actuator".into(),
-            message: "missing: expected the path of an actuator sheet (e.g. ../pneumatics/paper-actuator.toml)".into(),
-        });
+        return Err(invalid(
+            file,
+            "emulator.actuator",
+            "missing: expected the path of an actuator sheet (e.g. ../pneumatics/paper-actuator.toml)".into(),
+        ));
     };
     let path = rig.resolve_path(sheet);
-    let sheet = ActuatorSheet::load(&path).map_err(|err| RigFileError::Invalid {
-        file: file.to_path_buf(),
-        at: None,
-        key: "emulator.actuator".into(),
-        message: err.to_string(),
-    })?;
+    let sheet = ActuatorSheet::load(&path)
+        .map_err(|err| invalid(file, "emulator.actuator", err.to_string()))?;
     let model = sheet.model();
     let stroke = model.actuator.cylinder.stroke_m;
     if !(0.0..=stroke).contains(&e.x0_m) {
-        return Err(RigFileError::Invalid {
-            file: file.to_path_buf(),
-            at: None,
-            key: "emulator.x0_m".into(),
-            message: format!("{} m is outside the stroke [0, {stroke}] m", e.x0_m),
-        });
+        return Err(invalid(
+            file,
+            "emulator.x0_m",
+            format!("{} m is outside the stroke [0, {stroke}] m", e.x0_m),
+        ));
     }
     Ok(PneumaticPlant::new(model, e.x0_m, e.supply_pa))
 }
@@ -89,19 +95,14 @@ pub fn hide_truth(
     seed: Option<u64>,
     transport_delay_s: Option<f64>,
 ) -> Result<(), RigFileError> {
-    let truth = ActuatorSheet::load(sheet).map_err(|err| RigFileError::Invalid {
-        file: file.to_path_buf(),
-        at: None,
-        key: "emulator.actuator (--truth)".into(),
-        message: err.to_string(),
-    })?;
+    let truth = ActuatorSheet::load(sheet)
+        .map_err(|err| invalid(file, "emulator.actuator (--truth)", err.to_string()))?;
     let Some(e) = rig.emulator.as_mut() else {
-        return Err(RigFileError::Invalid {
-            file: file.to_path_buf(),
-            at: None,
-            key: "emulator".into(),
-            message: "missing: `pneuflex rig emulate --truth` needs an [emulator] table".into(),
-        });
+        return Err(invalid(
+            file,
+            "emulator",
+            "missing: `pneuflex rig emulate --truth` needs an [emulator] table".into(),
+        ));
     };
     // An absolute path: `RigFile::resolve_path` joins it to the rig file's folder unchanged.
     let abs = std::path::absolute(sheet).unwrap_or_else(|_| sheet.to_path_buf());
@@ -112,26 +113,34 @@ pub fn hide_truth(
     }
     if let Some(d) = transport_delay_s {
         if !(d.is_finite() && (0.0..=1.0).contains(&d)) {
-            return Err(RigFileError::Invalid {
-                file: file.to_path_buf(),
-                at: None,
-                key: "emulator.transport_delay_s (--delay)".into(),
-                message: format!("expected 0..=1 s, got {d}"),
-            });
+            return Err(invalid(
+                file,
+                "emulator.transport_delay_s (--delay)",
+                format!("expected 0..=1 s, got {d}"),
+            ));
         }
         e.transport_delay_s = d;
     }
     Ok(())
 }
 
-/// Starts the emulator of `rig` behind a new pseudo-terminal; the handle carries the path to open.
-pub fn spawn_pty_emulator(rig: &RigFile, file: &Path) -> Result<EmulatorHandle, RigError> {
+/// The emulator's plant and its `[emulator]` table, for starting it.
+fn plant_and_config(
+    rig: &RigFile,
+    file: &Path,
+) -> Result<(PneumaticPlant, EmulatorConfig), RigError> {
     let plant =
         emulated_plant(rig, file).map_err(|e| RigError::new(ErrorKind::Io, e.to_string()))?;
     let cfg = rig
         .emulator
         .clone()
         .ok_or_else(|| RigError::new(ErrorKind::Io, "no [emulator] table"))?;
+    Ok((plant, cfg))
+}
+
+/// Starts the emulator of `rig` behind a new pseudo-terminal; the handle carries the path to open.
+pub fn spawn_pty_emulator(rig: &RigFile, file: &Path) -> Result<EmulatorHandle, RigError> {
+    let (plant, cfg) = plant_and_config(rig, file)?;
     let link = PtyLink::open()?;
     let path = link.path.clone();
     Ok(Emulator::new(plant, link, rig.cal(), cfg).spawn(Some(path)))
@@ -177,12 +186,7 @@ pub fn spawn_port_emulator(
     file: &Path,
     port: &str,
 ) -> Result<EmulatorHandle, RigError> {
-    let plant =
-        emulated_plant(rig, file).map_err(|e| RigError::new(ErrorKind::Io, e.to_string()))?;
-    let cfg = rig
-        .emulator
-        .clone()
-        .ok_or_else(|| RigError::new(ErrorKind::Io, "no [emulator] table"))?;
+    let (plant, cfg) = plant_and_config(rig, file)?;
     let link = serialport::new(port, rig.link.baud)
         .timeout(std::time::Duration::ZERO)
         .open()
@@ -204,12 +208,7 @@ pub fn lockstep_emulator(
     ),
     RigError,
 > {
-    let plant =
-        emulated_plant(rig, file).map_err(|e| RigError::new(ErrorKind::Io, e.to_string()))?;
-    let cfg = rig
-        .emulator
-        .clone()
-        .ok_or_else(|| RigError::new(ErrorKind::Io, "no [emulator] table"))?;
+    let (plant, cfg) = plant_and_config(rig, file)?;
     Ok(crate::emulator::lockstep(plant, rig.cal(), cfg, clock))
 }
 
@@ -222,6 +221,28 @@ pub struct LockstepRig {
     pub clock: crate::clock::SimClock,
     /// What the emulated board saw and did.
     pub log: std::sync::Arc<std::sync::Mutex<crate::emulator::EmulatorLog>>,
+}
+
+impl LockstepRig {
+    /// Runs the loop on this rig and the clock its emulator steps with ([`crate::rtloop::run_with_clock`]).
+    pub fn run(
+        &mut self,
+        controller: &mut (impl Controller + ?Sized),
+        reference: &mut dyn FnMut(f64) -> Setpoint,
+        trace: &mut TraceWriter<impl TraceSink>,
+        opts: &RunOptions,
+        stop: &AtomicBool,
+    ) -> std::io::Result<LoopReport> {
+        run_with_clock(
+            &mut self.rig,
+            controller,
+            reference,
+            trace,
+            opts,
+            stop,
+            &mut self.clock,
+        )
+    }
 }
 
 /// [`LockstepRig`] for `rig` (read from `file`): the emulator, the handshake, the supervisor.

@@ -362,35 +362,6 @@ mod tests {
         }
     }
 
-    /// A disk that fills up after `room` bytes: the write that crosses it is short, the next one fails.
-    #[derive(Default)]
-    struct FullDisk {
-        data: Vec<u8>,
-        room: usize,
-    }
-    impl Write for FullDisk {
-        fn write(&mut self, b: &[u8]) -> io::Result<usize> {
-            let n = b.len().min(self.room - self.data.len());
-            if n == 0 && !b.is_empty() {
-                return Err(io::Error::new(
-                    io::ErrorKind::StorageFull,
-                    "No space left on device",
-                ));
-            }
-            self.data.extend_from_slice(&b[..n]);
-            Ok(n)
-        }
-        fn flush(&mut self) -> io::Result<()> {
-            Ok(())
-        }
-    }
-    impl TraceSink for FullDisk {
-        fn truncate_to(&mut self, len: u64) -> io::Result<()> {
-            self.data.truncate(len as usize);
-            Ok(())
-        }
-    }
-
     fn row8() -> TraceRow<'static> {
         TraceRow {
             values: &[0.0; 8],
@@ -481,47 +452,5 @@ mod tests {
         assert_eq!(*lines.last().unwrap(), "# end: complete, 2 rows");
         let (rows, end) = data_lines(&t);
         assert_eq!((rows.len(), end), (2, Some("complete, 2 rows")));
-    }
-
-    #[test]
-    fn a_full_disk_leaves_no_half_line_and_names_the_file() {
-        // Fill at every byte offset of the third flush: the file must always end with a whole row.
-        let values: Vec<[f64; 8]> = (0..100)
-            .map(|k| [k as f64 * 1e-3, 10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-            .collect();
-        let row = |k: u64| TraceRow {
-            values: &values[k as usize],
-            ..TraceRow::default()
-        };
-        for room in 150..400 {
-            let mut disk = FullDisk {
-                room,
-                ..FullDisk::default()
-            };
-            let mut w = TraceWriter::create(&mut disk, 2, "/data/run/trace.csv", &[]).unwrap();
-            w.columns(&[]).unwrap();
-            let mut err = None;
-            for k in 0..40 {
-                if let Err(e) = w.row(&row(k)) {
-                    err = Some(e);
-                    break;
-                }
-            }
-            let e = err.expect("the disk fills up");
-            assert!(e.to_string().contains("/data/run/trace.csv"), "{e}");
-            assert_eq!(e.kind(), io::ErrorKind::StorageFull);
-            assert!(
-                w.row(&row(99)).is_err(),
-                "nothing is written after a failure"
-            );
-            assert!(w.finish("complete").is_err());
-            drop(w);
-            let t = String::from_utf8(disk.data.clone()).unwrap();
-            assert!(t.ends_with('\n'), "room {room}: half line in {t:?}");
-            for l in data_lines(&t).0 {
-                assert_eq!(l.split(',').count(), header_for(&[]).split(',').count());
-            }
-            assert_eq!(data_lines(&t).1, None, "a cut trace has no end marker");
-        }
     }
 }

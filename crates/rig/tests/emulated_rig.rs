@@ -24,6 +24,8 @@ use pneuflex_rig::rtloop::{self, LoopReport};
 use pneuflex_rig::trace::{self, TraceSink, TraceWriter};
 use pneuflex_rig::{ErrorKind, RigFile, serial, session};
 
+use common::FullDisk;
+
 /// The emulated rig with its shipped watchdog times (20 ms timeout, 50 ms stale, 50 ms board watchdog):
 /// in lockstep nothing is ever late, so the tests need no allowance for a loaded machine.
 fn rig_with(faults: Vec<InjectedFault>, change_at_s: Option<f64>) -> RigFile {
@@ -97,11 +99,7 @@ fn run_lockstep_into<C: Controller, W: TraceSink>(
     sink: W,
 ) -> (io::Result<LoopReport>, EmulatorLog) {
     let file = common::rig_path();
-    let session::LockstepRig {
-        rig: mut sup,
-        mut clock,
-        log,
-    } = session::lockstep_rig(rig, &file).expect("the emulator connects");
+    let mut lockstep = session::lockstep_rig(rig, &file).expect("the emulator connects");
     let stop = AtomicBool::new(false);
     let mut reference = |t: f64| {
         if stop_at_s.is_some_and(|s| t >= s - 1e-9) {
@@ -113,19 +111,11 @@ fn run_lockstep_into<C: Controller, W: TraceSink>(
         let mut trace = TraceWriter::create(sink, rig.rt.trace_flush_every, "mem/trace.csv", &[])
             .expect("header");
         let opts = session::run_options(rig, duration_s);
-        rtloop::run_with_clock(
-            &mut sup,
-            ctrl,
-            &mut reference,
-            &mut trace,
-            &opts,
-            &stop,
-            &mut clock,
-        )
+        lockstep.run(ctrl, &mut reference, &mut trace, &opts, &stop)
     };
     // The supervisor parks the valve; the lockstep link lets the board take in the last frames.
-    drop(sup);
-    let log = log.lock().unwrap().clone();
+    drop(lockstep.rig);
+    let log = lockstep.log.lock().unwrap().clone();
     (res, log)
 }
 
@@ -437,36 +427,6 @@ fn a_stop_signal_and_a_crossed_limit_go_safe() {
     );
 }
 
-/// A disk that fills up after `room` bytes: the write that crosses it is short, the next one fails.
-struct FullDisk {
-    data: Vec<u8>,
-    room: usize,
-}
-
-impl io::Write for FullDisk {
-    fn write(&mut self, b: &[u8]) -> io::Result<usize> {
-        let n = b.len().min(self.room - self.data.len());
-        if n == 0 && !b.is_empty() {
-            return Err(io::Error::new(
-                io::ErrorKind::StorageFull,
-                "No space left on device",
-            ));
-        }
-        self.data.extend_from_slice(&b[..n]);
-        Ok(n)
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-}
-
-impl TraceSink for FullDisk {
-    fn truncate_to(&mut self, len: u64) -> io::Result<()> {
-        self.data.truncate(len as usize);
-        Ok(())
-    }
-}
-
 #[test]
 fn a_full_disk_goes_safe_first_then_names_the_trace_and_leaves_no_half_line() {
     let rig = rig_with(vec![], None);
@@ -504,6 +464,56 @@ fn a_full_disk_goes_safe_first_then_names_the_trace_and_leaves_no_half_line() {
     );
     assert_eq!(log.commands[first_safe - 1].tick, k);
     assert!(log.commands[first_safe..].iter().all(|c| c.mode.is_safe()));
+}
+
+/// The trace writer alone on a full disk (the loop's side is the test above).
+#[test]
+fn a_full_disk_leaves_no_half_line_and_names_the_file() {
+    // Fill at every byte offset of the third flush: the file must always end with a whole row.
+    let values: Vec<[f64; 8]> = (0..100)
+        .map(|k| [k as f64 * 1e-3, 10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        .collect();
+    let row = |k: u64| trace::TraceRow {
+        values: &values[k as usize],
+        ..trace::TraceRow::default()
+    };
+    for room in 150..400 {
+        let mut disk = FullDisk {
+            room,
+            ..FullDisk::default()
+        };
+        let mut w = TraceWriter::create(&mut disk, 2, "/data/run/trace.csv", &[]).unwrap();
+        w.columns(&[]).unwrap();
+        let mut err = None;
+        for k in 0..40 {
+            if let Err(e) = w.row(&row(k)) {
+                err = Some(e);
+                break;
+            }
+        }
+        let e = err.expect("the disk fills up");
+        assert!(e.to_string().contains("/data/run/trace.csv"), "{e}");
+        assert_eq!(e.kind(), io::ErrorKind::StorageFull);
+        assert!(
+            w.row(&row(99)).is_err(),
+            "nothing is written after a failure"
+        );
+        assert!(w.finish("complete").is_err());
+        drop(w);
+        let t = String::from_utf8(disk.data.clone()).unwrap();
+        assert!(t.ends_with('\n'), "room {room}: half line in {t:?}");
+        for l in trace::data_lines(&t).0 {
+            assert_eq!(
+                l.split(',').count(),
+                trace::header_for(&[]).split(',').count()
+            );
+        }
+        assert_eq!(
+            trace::data_lines(&t).1,
+            None,
+            "a cut trace has no end marker"
+        );
+    }
 }
 
 #[test]

@@ -4,7 +4,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use pneuflex_control::Setpoint;
@@ -13,10 +13,6 @@ use pneuflex_rig::clock::SimClock;
 use pneuflex_rig::record::{self, RecordError, Recording};
 use pneuflex_rig::trace;
 use pneuflex_rig::{RigError, RigFile, serial, session};
-
-fn rig_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rigs/emulated.toml")
-}
 
 /// A fresh scratch directory, removed when the returned guard drops.
 fn scratch(name: &str) -> tempfile::TempDir {
@@ -34,8 +30,8 @@ fn record_into(
     stop_at_s: Option<f64>,
     fail_connect: bool,
 ) -> (Result<Recording, RecordError>, bool) {
-    let rig = RigFile::load(&rig_path()).unwrap();
-    let file = rig_path();
+    let rig = RigFile::load(&common::rig_path()).unwrap();
+    let file = common::rig_path();
     let mut clock = SimClock::new();
     let mut c2 = clock.clone();
     let mut connected = false;
@@ -91,7 +87,7 @@ fn a_run_writes_trace_with_provenance_end_marker_and_manifest() {
         format!("# pneuflex {}, trace schema 2", env!("CARGO_PKG_VERSION"))
     );
     let input = lines.next().unwrap();
-    let sha = pneuflex_files::InputDigest::of_file(&rig_path(), "rig")
+    let sha = pneuflex_files::InputDigest::of_file(&common::rig_path(), "rig")
         .unwrap()
         .sha256;
     assert!(

@@ -10,7 +10,6 @@ use std::time::{Duration, Instant};
 
 use pneuflex_control::Setpoint;
 use pneuflex_rig::protocol::ValveMode;
-use pneuflex_rig::rtloop;
 use pneuflex_rig::trace::{self, TraceWriter};
 use pneuflex_rig::{ErrorKind, RigFile, session};
 
@@ -21,11 +20,7 @@ fn sigterm_sighup_and_sigint_stop_the_run_safely() {
     let stop = session::install_ctrl_c().expect("handler");
     for sig in ["TERM", "HUP", "INT"] {
         stop.store(false, Ordering::SeqCst);
-        let session::LockstepRig {
-            rig: mut sup,
-            mut clock,
-            log,
-        } = session::lockstep_rig(&rig, &file).unwrap();
+        let mut lockstep = session::lockstep_rig(&rig, &file).unwrap();
         let mut ctrl = common::paper_controller();
         let flag = stop.clone();
         let mut sent = false;
@@ -54,23 +49,16 @@ fn sigterm_sighup_and_sigint_stop_the_run_safely() {
         let report = {
             let mut trace = TraceWriter::new(&mut out, rig.rt.trace_flush_every).unwrap();
             let opts = session::run_options(&rig, 1.0);
-            rtloop::run_with_clock(
-                &mut sup,
-                &mut ctrl,
-                &mut reference,
-                &mut trace,
-                &opts,
-                &stop,
-                &mut clock,
-            )
-            .unwrap()
+            lockstep
+                .run(&mut ctrl, &mut reference, &mut trace, &opts, &stop)
+                .unwrap()
         };
-        drop(sup);
+        drop(lockstep.rig);
         let f = report.fault.expect("stopped");
         assert_eq!(f.kind, ErrorKind::Interrupted, "SIG{sig}");
         assert_eq!(f.tick, 251, "SIG{sig}: seen at the start of the next tick");
         // The host sent the safe state in the tick that saw the signal, and only safe states after.
-        let log = log.lock().unwrap();
+        let log = lockstep.log.lock().unwrap();
         let first_safe = log.commands.iter().position(|c| c.mode.is_safe()).unwrap();
         assert_eq!(log.commands[first_safe].tick, 251, "SIG{sig}");
         assert_eq!(log.commands[first_safe].mode, ValveMode::SafeVent);

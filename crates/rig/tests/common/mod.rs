@@ -2,9 +2,11 @@
 
 #![allow(dead_code)]
 
+use std::io;
 use std::path::{Path, PathBuf};
 
 use pneuflex_control::{ImpedanceController, ImpedanceParams, PidParams};
+use pneuflex_rig::trace::TraceSink;
 
 /// rigs/emulated.toml.
 pub fn rig_path() -> PathBuf {
@@ -23,4 +25,35 @@ pub fn paper_controller() -> ImpedanceController {
         },
     )
     .unwrap()
+}
+
+/// A disk that fills up after `room` bytes: the write that crosses it is short, the next one fails.
+#[derive(Default)]
+pub struct FullDisk {
+    pub data: Vec<u8>,
+    pub room: usize,
+}
+
+impl io::Write for FullDisk {
+    fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+        let n = b.len().min(self.room - self.data.len());
+        if n == 0 && !b.is_empty() {
+            return Err(io::Error::new(
+                io::ErrorKind::StorageFull,
+                "No space left on device",
+            ));
+        }
+        self.data.extend_from_slice(&b[..n]);
+        Ok(n)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+impl TraceSink for FullDisk {
+    fn truncate_to(&mut self, len: u64) -> io::Result<()> {
+        self.data.truncate(len as usize);
+        Ok(())
+    }
 }
