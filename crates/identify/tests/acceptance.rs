@@ -4,31 +4,10 @@
 //! 2 % of the supply (pressures) and 0.5 mm (position), and flags a parameter the data cannot identify.
 mod common;
 
-use pneuflex_identify::excite::{Excitation, Signal};
-use pneuflex_identify::fit::FitOptions;
+use common::{USUAL_KEYS as KEYS, held_steps, names, request, shipped, steps};
 use pneuflex_identify::params::Key;
 use pneuflex_identify::perturb::perturb;
 use pneuflex_identify::request::{Request, identify};
-
-const KEYS: [Key; 6] = [
-    Key::SonicConductance,
-    Key::CriticalRatio,
-    Key::DeadVolumeA,
-    Key::DeadVolumeB,
-    Key::Coulomb,
-    Key::MovingMass,
-];
-
-fn excitation(seed: u64) -> Excitation {
-    Excitation {
-        signal: Signal::Steps { hold_s: 0.15, seed },
-        amplitude: 0.05,
-        bias: 0.0,
-        centre_m: 0.025,
-        centring_per_m: 15.0,
-        ramp_s: 1.0,
-    }
-}
 
 /// Whether the warnings call `key` not (well) identified (a correlation warning alone does not: it says the
 /// logs pin a combination, and the interval says how well each is known).
@@ -52,10 +31,6 @@ fn seeds() -> Vec<u64> {
 /// mass: an interval may not buy its coverage by being useless (measured: below 0.5 % on seeds 1-6).
 const MAX_REL_HALF_WIDTH: f64 = 0.05;
 
-fn shipped() -> std::path::PathBuf {
-    common::root().join("pneumatics/paper-actuator.toml")
-}
-
 #[test]
 fn recovers_a_hidden_truth() {
     for seed in seeds() {
@@ -68,48 +43,25 @@ fn check_seed(seed: u64) {
     let dir = dir.path().to_path_buf();
     let (truth, changes) = perturb(&shipped(), &KEYS, seed, &dir.join("truth")).unwrap();
     let log = dir.join("free.csv");
-    common::record(&truth, seed, excitation(seed), 6.0, None, &log);
-    let req = Request {
-        logs: vec![log],
-        actuator: shipped(),
-        free: KEYS.iter().map(|k| k.name().to_string()).collect(),
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
-        validation_fraction: 0.25,
-        options: FitOptions::default(),
-    };
+    common::record(&truth, seed, steps(seed), 6.0, None, &log);
+    let req = request(vec![log], shipped(), names(&KEYS));
     let id = identify(&req).unwrap();
     let r = &id.report;
     let f = &r.fit;
     eprintln!("seed {seed}:\n{}", pneuflex_identify::report::markdown(r));
+    let what = format!("seed {seed}: ");
     for (c, e) in changes.iter().zip(&f.estimates) {
         assert_eq!(c.key.name(), e.key);
         let err = e.value / c.truth - 1.0;
+        common::show_estimate(&what, c, e);
         eprintln!(
-            "seed {seed} {}: shipped {:e} truth {:e} fitted {:e} ({:+.3} %) 95 % [{:e}, {:e}] (+-{:.3} %: \
-             std error {:.3} %, replay bias {:+.3} %, bias bound {:.3} %)",
-            e.key,
-            c.shipped,
-            c.truth,
-            e.value,
-            100.0 * err,
-            e.ci95[0],
-            e.ci95[1],
+            "  +-{:.3} %: std error {:.3} %, replay bias {:+.3} %, bias bound {:.3} %",
             100.0 * e.rel_half_width,
             100.0 * e.std_error / e.value.abs(),
             100.0 * e.bias / e.value.abs(),
             100.0 * e.bias_bound / e.value.abs()
         );
-        assert!(
-            e.ci95[0] <= c.truth && c.truth <= e.ci95[1],
-            "seed {seed}: {}: truth {:e} outside the 95 % interval [{:e}, {:e}]",
-            e.key,
-            c.truth,
-            e.ci95[0],
-            e.ci95[1]
-        );
+        common::assert_inside(&what, c, e);
         let flagged = not_identified(&r.warnings, &e.key);
         if flagged {
             // A flagged parameter is reported as not (well) identified: its interval says how far off it may be.
@@ -164,37 +116,20 @@ fn flags_mass_from_a_log_without_motion() {
     let dir = common::scratch("unidentifiable");
     let dir = dir.path().to_path_buf();
     let log = dir.join("held.csv");
-    let ex = Excitation {
-        signal: Signal::Steps {
-            hold_s: 0.1,
-            seed: 4,
-        },
-        amplitude: 0.1,
-        bias: -0.9,
-        centre_m: 0.0,
-        centring_per_m: 0.0,
-        ramp_s: 0.0,
-    };
-    let text = common::record(&shipped(), 9, ex, 2.0, None, &log);
+    let text = common::record(&shipped(), 9, held_steps(), 2.0, None, &log);
     let l = pneuflex_identify::log::parse_log(&log, &text, String::new()).unwrap();
     let x_max = l.x.iter().cloned().fold(0.0, f64::max);
     assert!(
         x_max < 2e-4,
         "the piston must stay on its stop, reached {x_max} m"
     );
+    let free = vec![
+        "valve.sonic_conductance_m3_per_s_pa,cylinder.dead_volume_a_m3".into(),
+        "mechanics.moving_mass_kg".into(),
+    ];
     let req = Request {
-        logs: vec![log],
-        actuator: shipped(),
-        free: vec![
-            "valve.sonic_conductance_m3_per_s_pa,cylinder.dead_volume_a_m3".into(),
-            "mechanics.moving_mass_kg".into(),
-        ],
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
         validation_fraction: 0.2,
-        options: FitOptions::default(),
+        ..request(vec![log], shipped(), free)
     };
     let id = identify(&req).unwrap();
     let w = &id.report.warnings;
@@ -246,7 +181,7 @@ fn recovers_delay_viscous_friction_and_an_offset() {
     let dir = common::scratch("delay-offset");
     let dir = dir.path().to_path_buf();
     let (truth, changes) = perturb(&shipped(), &keys, 3, &dir.join("truth")).unwrap();
-    let text = common::record(&truth, 3, excitation(3), 6.0, None, &dir.join("raw.csv"));
+    let text = common::record(&truth, 3, steps(3), 6.0, None, &dir.join("raw.csv"));
     // The p_b sensor's readings: the loop's column and the board's record of them.
     let header = text.lines().find(|l| l.starts_with("t,")).unwrap();
     let cols: Vec<usize> = header
@@ -273,37 +208,14 @@ fn recovers_delay_viscous_friction_and_an_offset() {
     }
     let log = dir.join("offset.csv");
     std::fs::write(&log, out).unwrap();
-    let mut free: Vec<String> = keys.iter().map(|k| k.name().to_string()).collect();
+    let mut free = names(&keys);
     free.push("offset.p_b_pa".into());
-    let req = Request {
-        logs: vec![log],
-        actuator: shipped(),
-        free,
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
-        validation_fraction: 0.25,
-        options: FitOptions::default(),
-    };
-    let id = identify(&req).unwrap();
+    let id = identify(&request(vec![log], shipped(), free)).unwrap();
     let est = &id.report.fit.estimates;
     for (c, e) in changes.iter().zip(est) {
         let err = e.value / c.truth - 1.0;
-        eprintln!(
-            "{}: truth {:e} fitted {:e} ({:+.3} %) 95 % [{:e}, {:e}]",
-            e.key,
-            c.truth,
-            e.value,
-            100.0 * err,
-            e.ci95[0],
-            e.ci95[1]
-        );
-        assert!(
-            e.ci95[0] <= c.truth && c.truth <= e.ci95[1],
-            "{}: truth outside",
-            e.key
-        );
+        common::show_estimate("", c, e);
+        common::assert_inside("", c, e);
         let tol = if c.key == Key::SonicConductance {
             0.10
         } else {
@@ -327,30 +239,13 @@ fn two_logs_identify_what_one_could_not() {
     let dir = common::scratch("two-logs");
     let dir = dir.path().to_path_buf();
     let held = dir.join("held.csv");
-    let ex = Excitation {
-        signal: Signal::Steps {
-            hold_s: 0.1,
-            seed: 4,
-        },
-        amplitude: 0.1,
-        bias: -0.9,
-        centre_m: 0.0,
-        centring_per_m: 0.0,
-        ramp_s: 0.0,
-    };
-    common::record(&shipped(), 9, ex, 2.0, None, &held);
+    common::record(&shipped(), 9, held_steps(), 2.0, None, &held);
     let free_log = dir.join("free.csv");
-    common::record(&shipped(), 9, excitation(9), 4.0, None, &free_log);
+    common::record(&shipped(), 9, steps(9), 4.0, None, &free_log);
+    let free = vec!["valve.sonic_conductance_m3_per_s_pa,mechanics.moving_mass_kg".into()];
     let req = Request {
-        logs: vec![held, free_log],
-        actuator: shipped(),
-        free: vec!["valve.sonic_conductance_m3_per_s_pa,mechanics.moving_mass_kg".into()],
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
         validation_fraction: 0.2,
-        options: FitOptions::default(),
+        ..request(vec![held, free_log], shipped(), free)
     };
     let id = identify(&req).unwrap();
     let r = &id.report;

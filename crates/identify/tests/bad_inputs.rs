@@ -45,10 +45,28 @@ fn error(req: &Request) -> String {
     identify(req).expect_err("refused").to_string()
 }
 
+/// Fitting C from a log of `rows` under `header`, written in the scratch directory `name`: the log's path
+/// and the error.
+fn refused_log(name: &str, header: &str, rows: &[String]) -> (String, String) {
+    let dir = common::scratch(name);
+    let log = write(dir.path(), "trace.csv", header, rows);
+    let e = error(&request(
+        log.clone(),
+        &["valve.sonic_conductance_m3_per_s_pa"],
+        &[],
+    ));
+    (log.display().to_string(), e)
+}
+
+/// A well-formed log of 50 rows in the scratch directory `name` (alive as long as the guard).
+fn log_at_rest(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = common::scratch(name);
+    let log = write(dir.path(), "trace.csv", HEADER, &rows(50));
+    (dir, log)
+}
+
 #[test]
 fn missing_column_names_file_and_column() {
-    let dir = common::scratch("bad-column");
-    let dir = dir.path().to_path_buf();
     let header = HEADER.replace("p_b,", "");
     let r: Vec<String> = rows(50)
         .iter()
@@ -58,63 +76,33 @@ fn missing_column_names_file_and_column() {
             f.join(",")
         })
         .collect();
-    let log = write(&dir, "trace.csv", &header, &r);
-    let e = error(&request(
-        log.clone(),
-        &["valve.sonic_conductance_m3_per_s_pa"],
-        &[],
-    ));
-    assert!(
-        e.starts_with(&format!("{}:2: column `p_b`", log.display())),
-        "{e}"
-    );
+    let (log, e) = refused_log("bad-column", &header, &r);
+    assert!(e.starts_with(&format!("{log}:2: column `p_b`")), "{e}");
     assert!(e.contains("missing column"), "{e}");
 }
 
 #[test]
 fn nan_row_names_file_line_and_column() {
-    let dir = common::scratch("bad-nan");
-    let dir = dir.path().to_path_buf();
     let mut r = rows(50);
     r[20] = r[20].replace(",0.01,0.01,", ",NaN,0.01,");
-    let log = write(&dir, "trace.csv", HEADER, &r);
-    let e = error(&request(
-        log.clone(),
-        &["valve.sonic_conductance_m3_per_s_pa"],
-        &[],
-    ));
+    let (log, e) = refused_log("bad-nan", HEADER, &r);
     // Line 1 is the comment, 2 the header, row 20 is line 23.
-    assert!(
-        e.starts_with(&format!("{}:23: column `x`", log.display())),
-        "{e}"
-    );
+    assert!(e.starts_with(&format!("{log}:23: column `x`")), "{e}");
     assert!(e.contains("NaN"), "{e}");
 }
 
 #[test]
 fn time_going_backwards_names_file_line_and_t() {
-    let dir = common::scratch("bad-time");
-    let dir = dir.path().to_path_buf();
     let mut r = rows(50);
     r[30] = r[30].replacen("0.03,", "0.01,", 1);
-    let log = write(&dir, "trace.csv", HEADER, &r);
-    let e = error(&request(
-        log.clone(),
-        &["valve.sonic_conductance_m3_per_s_pa"],
-        &[],
-    ));
-    assert!(
-        e.starts_with(&format!("{}:33: column `t`", log.display())),
-        "{e}"
-    );
+    let (log, e) = refused_log("bad-time", HEADER, &r);
+    assert!(e.starts_with(&format!("{log}:33: column `t`")), "{e}");
     assert!(e.contains("time must increase"), "{e}");
 }
 
 #[test]
 fn unknown_or_inapplicable_free_key_is_named() {
-    let dir = common::scratch("bad-key");
-    let dir = dir.path().to_path_buf();
-    let log = write(&dir, "trace.csv", HEADER, &rows(50));
+    let (_dir, log) = log_at_rest("bad-key");
     let e = error(&request(
         log.clone(),
         &["valve.sonic_conductance,mechanics.mass"],
@@ -132,9 +120,7 @@ fn unknown_or_inapplicable_free_key_is_named() {
 
 #[test]
 fn bounds_excluding_the_start_value_are_named() {
-    let dir = common::scratch("bad-bounds");
-    let dir = dir.path().to_path_buf();
-    let log = write(&dir, "trace.csv", HEADER, &rows(50));
+    let (_dir, log) = log_at_rest("bad-bounds");
     let free = ["mechanics.moving_mass_kg"];
     let e = error(&request(
         log.clone(),

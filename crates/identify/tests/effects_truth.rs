@@ -4,15 +4,14 @@
 //! effect's key freed in `identify` recovers its truth inside the 95 % interval.
 mod common;
 
-use common::sheets;
+use std::path::PathBuf;
 
-use pneuflex_identify::excite::{Excitation, Signal};
-use pneuflex_identify::fit::FitOptions;
+use common::{ACT, CYL, SMOOTH, VALVE, names, request, sheets, steps};
 use pneuflex_identify::log::read_log;
 use pneuflex_identify::params::{Key, Offsets};
 use pneuflex_identify::perturb::perturb;
 use pneuflex_identify::replay::{Prepared, ReplayOptions};
-use pneuflex_identify::request::{Request, identify, parse_free};
+use pneuflex_identify::request::{identify, parse_free};
 use pneuflex_pneumatics::{ActuatorSheet, OneDofModel};
 
 /// One effect: the text appended to (or replaced in) the shipped sheets, and the keys to perturb.
@@ -22,10 +21,6 @@ struct Case {
     edits: &'static [(&'static str, &'static str, &'static str)],
     keys: &'static [Key],
 }
-
-const CYL: &str = "smc-mqm16-cylinder.toml";
-const VALVE: &str = "a05ps25x-5-2-valve.toml";
-const ACT: &str = "paper-actuator.toml";
 
 const CASES: [Case; 5] = [
     Case {
@@ -65,9 +60,7 @@ const CASES: [Case; 5] = [
         name: "seal",
         edits: &[(
             ACT,
-            "friction = \"smooth\"              # \"smooth\" (tanh) or \"stick_slip\" (Karnopp + Stribeck)\n\
-             coulomb_n = 0.6                  # low-friction MQM seals plus guide\n\
-             smooth_velocity_m_per_s = 0.002",
+            SMOOTH,
             "friction = \"lugre\"\ncoulomb_n = 0.6\nstatic_n = 0.8\nstribeck_velocity_m_per_s = 0.005\n\
              bristle_stiffness_n_per_m = 2e4\nbristle_damping_n_s_per_m = 100.0\n\
              coulomb_pressure_n_per_pa = 3e-6",
@@ -76,32 +69,15 @@ const CASES: [Case; 5] = [
     },
 ];
 
-fn steps(seed: u64) -> Excitation {
-    Excitation {
-        signal: Signal::Steps { hold_s: 0.15, seed },
-        amplitude: 0.05,
-        bias: 0.0,
-        centre_m: 0.025,
-        centring_per_m: 15.0,
-        ramp_s: 1.0,
-    }
-}
-
-/// Pressure and position RMS of `model`'s replay of `p` against the log, Pa and m.
-fn rms_of(p: &Prepared, model: &OneDofModel) -> [f64; 2] {
-    let pred = p.replay(
-        model,
-        &Offsets::default(),
-        &ReplayOptions::default(),
-        p.log.len(),
-    );
-    let (mut sp, mut sx) = (0.0, 0.0);
-    for &k in &p.compared {
-        sp += (pred.p_a[k] - p.log.p_a[k]).powi(2) + (pred.p_b[k] - p.log.p_b[k]).powi(2);
-        sx += (pred.x[k] - p.log.x[k]).powi(2);
-    }
-    let n = p.compared.len() as f64;
-    [(sp / (2.0 * n)).sqrt(), (sx / n).sqrt()]
+/// For a walk through the cases: the scratch directory `name` (alive as long as the guard), the model of the
+/// shipped sheet, which lacks every case's effect, and each case's sheets (`base-<i>` in the scratch).
+fn walk(name: &str) -> (tempfile::TempDir, OneDofModel, Vec<PathBuf>) {
+    let scratch = common::scratch(name);
+    let bases = (CASES.iter().enumerate())
+        .map(|(i, case)| sheets(&scratch.path().join(format!("base-{i}")), case.edits))
+        .collect();
+    let shipped = ActuatorSheet::load(common::shipped()).unwrap().model();
+    (scratch, shipped, bases)
 }
 
 /// Every effect can be hidden: perturbed within 20-40 % (the other keys untouched), written as a sheet that
@@ -109,15 +85,11 @@ fn rms_of(p: &Prepared, model: &OneDofModel) -> [f64; 2] {
 /// channels' resolution (270 / 540 Pa per count) and worse through the shipped sheet without the effect.
 #[test]
 fn every_effect_can_be_hidden_in_the_emulator() {
-    let scratch = common::scratch("effects");
-    let dir = scratch.path().to_path_buf();
-    let shipped = ActuatorSheet::load(common::root().join("pneumatics").join(ACT))
-        .unwrap()
-        .model();
-    for (i, case) in CASES.iter().enumerate() {
-        let base = sheets(&dir.join(format!("base-{i}")), case.edits);
+    let (scratch, shipped, bases) = walk("effects");
+    let dir = scratch.path();
+    for (i, (case, base)) in CASES.iter().zip(&bases).enumerate() {
         let (truth, changes) = perturb(
-            &base,
+            base,
             case.keys,
             30 + i as u64,
             &dir.join(format!("truth-{i}")),
@@ -140,8 +112,8 @@ fn every_effect_can_be_hidden_in_the_emulator() {
         let log = read_log(&trace).unwrap();
         let n = log.len();
         let p = Prepared::new(log, &ReplayOptions::default(), n - 1);
-        let with_truth = rms_of(&p, &model);
-        let without = rms_of(&p, &shipped);
+        let with_truth = common::rms_of(&p, &model);
+        let without = common::rms_of(&p, &shipped);
         eprintln!(
             "{}: RMS p / x through the truth {:.0} Pa / {:.2e} m, without the effect {:.0} Pa / {:.2e} m",
             case.name, with_truth[0], with_truth[1], without[0], without[1]
@@ -162,16 +134,13 @@ fn every_effect_can_be_hidden_in_the_emulator() {
 /// Every new key is a `--free` key where its effect is given, and refused (naming the key) where not.
 #[test]
 fn every_effect_key_is_a_free_key() {
-    let scratch = common::scratch("effects-free");
-    let dir = scratch.path().to_path_buf();
-    let shipped = ActuatorSheet::load(common::root().join("pneumatics").join(ACT))
-        .unwrap()
-        .model();
-    for (i, case) in CASES.iter().enumerate() {
-        let base = sheets(&dir.join(format!("{i}")), case.edits);
-        let model = ActuatorSheet::load(&base).unwrap().model();
-        let names: Vec<String> = case.keys.iter().map(|k| k.name().to_string()).collect();
-        assert_eq!(parse_free(&names, &model).unwrap(), case.keys.to_vec());
+    let (_scratch, shipped, bases) = walk("effects-free");
+    for (case, base) in CASES.iter().zip(&bases) {
+        let model = ActuatorSheet::load(base).unwrap().model();
+        assert_eq!(
+            parse_free(&names(case.keys), &model).unwrap(),
+            case.keys.to_vec()
+        );
         for k in case.keys {
             let r = parse_free(&[k.name().to_string()], &shipped);
             if *k == Key::ReleaseDelay {
@@ -196,35 +165,9 @@ fn identify_recovers_a_hidden_wall_heat_coefficient() {
     let (truth, changes) = perturb(&base, &keys, 41, &dir.join("truth")).unwrap();
     let log = dir.join("log.csv");
     common::record(&truth, 41, steps(41), 6.0, None, &log);
-    let req = Request {
-        logs: vec![log],
-        actuator: base,
-        free: keys.iter().map(|k| k.name().to_string()).collect(),
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
-        validation_fraction: 0.25,
-        options: FitOptions::default(),
-    };
-    let id = identify(&req).unwrap();
+    let id = identify(&request(vec![log], base, names(&keys))).unwrap();
     for (c, e) in changes.iter().zip(&id.report.fit.estimates) {
-        eprintln!(
-            "{}: truth {:e}, fitted {:e} ({:+.2} %), 95 % [{:e}, {:e}]",
-            e.key,
-            c.truth,
-            e.value,
-            100.0 * (e.value / c.truth - 1.0),
-            e.ci95[0],
-            e.ci95[1]
-        );
-        assert!(
-            e.ci95[0] <= c.truth && c.truth <= e.ci95[1],
-            "{}: truth {:e} outside [{:e}, {:e}]",
-            e.key,
-            c.truth,
-            e.ci95[0],
-            e.ci95[1]
-        );
+        common::show_estimate("", c, e);
+        common::assert_inside("", c, e);
     }
 }

@@ -2,6 +2,7 @@
 //! noise from the seed and an optional transport delay.
 mod common;
 
+use common::{rms_of, shipped};
 use pneuflex_identify::excite::{Excitation, Signal};
 use pneuflex_identify::log::read_log;
 use pneuflex_identify::params::{Key, Offsets};
@@ -16,10 +17,6 @@ const KEYS: [Key; 5] = [
     Key::DeadVolumeB,
     Key::Coulomb,
 ];
-
-fn shipped() -> std::path::PathBuf {
-    common::root().join("pneumatics/paper-actuator.toml")
-}
 
 fn steps() -> Excitation {
     Excitation {
@@ -73,18 +70,6 @@ fn the_polytropic_exponent_is_perturbed_towards_isothermal() {
         let m = ActuatorSheet::load(&sheet).unwrap().model();
         assert_eq!(m.actuator.gas.polytropic_exponent, n);
     }
-}
-
-fn rms_of(p: &Prepared, model: &pneuflex_pneumatics::OneDofModel) -> [f64; 2] {
-    let o = ReplayOptions::default();
-    let pred = p.replay(model, &Offsets::default(), &o, p.log.len());
-    let (mut sp, mut sx) = (0.0, 0.0);
-    for &k in &p.compared {
-        sp += (pred.p_a[k] - p.log.p_a[k]).powi(2) + (pred.p_b[k] - p.log.p_b[k]).powi(2);
-        sx += (pred.x[k] - p.log.x[k]).powi(2);
-    }
-    let n = p.compared.len() as f64;
-    [(sp / (2.0 * n)).sqrt(), (sx / n).sqrt()]
 }
 
 /// The log of an emulator hiding a truth is the truth's, not the shipped sheet's: replayed through the

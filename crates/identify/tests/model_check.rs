@@ -3,27 +3,10 @@
 //! marked not valid; the same truths with the effect freed are adequate with the truths inside.
 mod common;
 
-use pneuflex_identify::excite::{Excitation, Signal};
-use pneuflex_identify::fit::FitOptions;
+use common::{ACT, CYL, SMOOTH, USUAL_KEYS as KEYS, VALVE, names, request, shipped, steps};
 use pneuflex_identify::params::Key;
 use pneuflex_identify::perturb::perturb;
-use pneuflex_identify::request::{Identified, Request, identify};
-
-const KEYS: [Key; 6] = [
-    Key::SonicConductance,
-    Key::CriticalRatio,
-    Key::DeadVolumeA,
-    Key::DeadVolumeB,
-    Key::Coulomb,
-    Key::MovingMass,
-];
-
-const CYL: &str = "smc-mqm16-cylinder.toml";
-const VALVE: &str = "a05ps25x-5-2-valve.toml";
-const ACT: &str = "paper-actuator.toml";
-const SMOOTH: &str = "friction = \"smooth\"              # \"smooth\" (tanh) or \"stick_slip\" (Karnopp + Stribeck)\n\
-                      coulomb_n = 0.6                  # low-friction MQM seals plus guide\n\
-                      smooth_velocity_m_per_s = 0.002";
+use pneuflex_identify::request::{Identified, identify};
 
 /// One planted effect: sheet edits, the effect's keys, and the name `likely_missing` should give.
 struct Effect {
@@ -103,32 +86,10 @@ const EFFECTS: [Effect; 7] = [
     },
 ];
 
-fn steps(seed: u64) -> Excitation {
-    Excitation {
-        signal: Signal::Steps { hold_s: 0.15, seed },
-        amplitude: 0.05,
-        bias: 0.0,
-        centre_m: 0.025,
-        centring_per_m: 15.0,
-        ramp_s: 1.0,
-    }
-}
-
 const SECONDS: f64 = 4.0;
 
 fn fit(actuator: std::path::PathBuf, log: std::path::PathBuf, keys: &[Key]) -> Identified {
-    let req = Request {
-        logs: vec![log],
-        actuator,
-        free: keys.iter().map(|k| k.name().to_string()).collect(),
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
-        validation_fraction: 0.25,
-        options: FitOptions::default(),
-    };
-    identify(&req).unwrap_or_else(|e| panic!("{e}"))
+    identify(&request(vec![log], actuator, names(keys))).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn show(name: &str, id: &Identified) {
@@ -175,7 +136,7 @@ fn coverage(
             continue;
         };
         total += 1;
-        let ok = e.ci95[0] <= c.truth && c.truth <= e.ci95[1];
+        let ok = common::inside(c, e);
         eprintln!(
             "  {name} {}: truth {:e} fitted {:e} ({:+.2} %) [{:e}, {:e}] valid {}",
             e.key,
@@ -224,6 +185,23 @@ fn planted(
     (scratch, base, changes, log)
 }
 
+/// A truth of the fitted model (the shipped sheet, the usual keys perturbed) and a 4 s lockstep log of it,
+/// in the scratch directory `name`: (its guard, the truth's values, the log).
+fn matched(
+    name: &str,
+) -> (
+    tempfile::TempDir,
+    Vec<pneuflex_identify::perturb::Perturbed>,
+    std::path::PathBuf,
+) {
+    let scratch = common::scratch(name);
+    let dir = scratch.path().to_path_buf();
+    let (truth, changes) = perturb(&shipped(), &KEYS, SEED, &dir.join("truth")).unwrap();
+    let log = dir.join("log.csv");
+    common::record(&truth, SEED, steps(SEED), SECONDS, None, &log);
+    (scratch, changes, log)
+}
+
 fn effect(name: &str) -> &'static Effect {
     EFFECTS.iter().find(|e| e.name == name).unwrap()
 }
@@ -235,13 +213,8 @@ const SEED: u64 = 51;
 /// valid and holding its truth, every channel's residual within 1.3 floors.
 #[test]
 fn a_truth_of_the_fitted_model_is_adequate() {
-    let scratch = common::scratch("model-check-matched");
-    let dir = scratch.path().to_path_buf();
-    let shipped = common::root().join("pneumatics").join(ACT);
-    let (truth, changes) = perturb(&shipped, &KEYS, SEED, &dir.join("truth")).unwrap();
-    let log = dir.join("log.csv");
-    common::record(&truth, SEED, steps(SEED), SECONDS, None, &log);
-    let id = fit(shipped, log, &KEYS);
+    let (_scratch, changes, log) = matched("model-check-matched");
+    let id = fit(shipped(), log, &KEYS);
     show("matched", &id);
     let mc = &id.report.model_check;
     assert!(mc.adequate, "{:?}", mc.failed);
@@ -258,7 +231,7 @@ fn a_truth_of_the_fitted_model_is_adequate() {
 fn hidden(name: &str) {
     let e = effect(name);
     let (_scratch, _base, changes, log) = planted(e, SEED);
-    let id = fit(common::root().join("pneumatics").join(ACT), log, &KEYS);
+    let id = fit(shipped(), log, &KEYS);
     show(&format!("{name} hidden"), &id);
     let mc = &id.report.model_check;
     assert!(!mc.adequate, "{name}: found adequate");
@@ -371,20 +344,11 @@ fn some_structures(names: &[&str]) -> Vec<pneuflex_identify::select::Structure> 
         .collect()
 }
 
-fn select_on(log: std::path::PathBuf, work: &std::path::Path, names: &[&str]) -> Identified {
-    let req = Request {
-        logs: vec![log],
-        actuator: common::root().join("pneumatics").join(ACT),
-        free: KEYS.iter().map(|k| k.name().to_string()).collect(),
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
-        validation_fraction: 0.25,
-        options: FitOptions::default(),
-    };
-    let id = pneuflex_identify::select::select(&req, &some_structures(names), work, None, &|_| {})
-        .unwrap_or_else(|e| panic!("{e}"));
+fn select_on(log: std::path::PathBuf, work: &std::path::Path, structures: &[&str]) -> Identified {
+    let req = request(vec![log], shipped(), names(&KEYS));
+    let id =
+        pneuflex_identify::select::select(&req, &some_structures(structures), work, None, &|_| {})
+            .unwrap_or_else(|e| panic!("{e}"));
     let sel = id.report.structure_selection.as_ref().unwrap();
     for c in &sel.candidates {
         eprintln!(
@@ -460,16 +424,11 @@ fn structure_selection_finds_a_polytropic_chamber() {
 /// too in docs/identification.md).
 #[test]
 fn structure_selection_keeps_a_matched_model() {
-    let scratch = common::scratch("model-check-select-matched");
-    let dir = scratch.path().to_path_buf();
-    let shipped = common::root().join("pneumatics").join(ACT);
-    let (truth, _changes) = perturb(&shipped, &KEYS, SEED, &dir.join("truth")).unwrap();
-    let log = dir.join("log.csv");
-    common::record(&truth, SEED, steps(SEED), SECONDS, None, &log);
+    let (scratch, _changes, log) = matched("model-check-select-matched");
     // Leakage is left out for the test's time (its fit here takes 50-80 s: the leaks fall to their bound).
     let id = select_on(
         log,
-        &dir.join("structures"),
+        &scratch.path().join("structures"),
         &["as_given", "heat_transfer", "lugre"],
     );
     let sel = id.report.structure_selection.as_ref().unwrap();
@@ -516,17 +475,7 @@ fn structure_selection_on_every_planted_effect() {
 #[test]
 fn the_polytropic_structure_stands_aside_for_wall_heat() {
     let (scratch, base, _changes, log) = planted(effect("wall heat"), SEED);
-    let req = Request {
-        logs: vec![log],
-        actuator: base,
-        free: KEYS.iter().map(|k| k.name().to_string()).collect(),
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
-        validation_fraction: 0.25,
-        options: FitOptions::default(),
-    };
+    let req = request(vec![log], base, names(&KEYS));
     let structures = some_structures(&["as_given", "polytropic"]);
     let id = pneuflex_identify::select::select(
         &req,

@@ -4,11 +4,10 @@
 //! `[valve.paths.<path>]` and loads.
 mod common;
 
-use pneuflex_identify::excite::{Excitation, Signal};
-use pneuflex_identify::fit::FitOptions;
+use common::{names, request, shipped, steps};
 use pneuflex_identify::params::Key;
 use pneuflex_identify::perturb::perturb;
-use pneuflex_identify::request::{Request, identify};
+use pneuflex_identify::request::identify;
 
 #[test]
 fn recovers_c_and_b_per_path() {
@@ -16,7 +15,7 @@ fn recovers_c_and_b_per_path() {
         .map(Key::PathConductance)
         .chain((0..4).map(Key::PathCritical))
         .collect();
-    let shipped = common::root().join("pneumatics/paper-actuator.toml");
+    let shipped = shipped();
     let dir = common::scratch("valve-paths");
     let dir = dir.path().to_path_buf();
     let (truth, changes) = perturb(&shipped, &keys, 11, &dir.join("truth")).unwrap();
@@ -32,53 +31,16 @@ fn recovers_c_and_b_per_path() {
         "{c:?}"
     );
     let log = dir.join("free.csv");
-    let ex = Excitation {
-        signal: Signal::Steps {
-            hold_s: 0.15,
-            seed: 11,
-        },
-        amplitude: 0.05,
-        bias: 0.0,
-        centre_m: 0.025,
-        centring_per_m: 15.0,
-        ramp_s: 1.0,
-    };
-    common::record(&truth, 11, ex, 6.0, None, &log);
-    let req = Request {
-        logs: vec![log],
-        actuator: shipped.clone(),
-        free: keys.iter().map(|k| k.name().to_string()).collect(),
-        bounds: vec![],
-        limits: Default::default(),
-        log_format: Default::default(),
-        figure_format: Default::default(),
-        validation_fraction: 0.25,
-        options: FitOptions::default(),
-    };
+    common::record(&truth, 11, steps(11), 6.0, None, &log);
+    let req = request(vec![log], shipped, names(&keys));
     let id = identify(&req).unwrap();
     let r = &id.report;
     eprintln!("{}", pneuflex_identify::report::markdown(r));
     for (c, e) in changes.iter().zip(&r.fit.estimates) {
         assert_eq!(c.key.name(), e.key);
         let err = e.value / c.truth - 1.0;
-        eprintln!(
-            "{}: shipped {:e} truth {:e} fitted {:e} ({:+.3} %) 95 % [{:e}, {:e}]",
-            e.key,
-            c.shipped,
-            c.truth,
-            e.value,
-            100.0 * err,
-            e.ci95[0],
-            e.ci95[1]
-        );
-        assert!(
-            e.ci95[0] <= c.truth && c.truth <= e.ci95[1],
-            "{}: truth {:e} outside [{:e}, {:e}]",
-            e.key,
-            c.truth,
-            e.ci95[0],
-            e.ci95[1]
-        );
+        common::show_estimate("", c, e);
+        common::assert_inside("", c, e);
         assert!(err.abs() <= 0.10, "{} off by {:.2} %", e.key, 100.0 * err);
         assert!(
             e.rel_half_width < 0.05,
