@@ -137,41 +137,49 @@ impl PyActuator {
         }
         d.set_item("moving_mass_kg", m.moving_mass_kg)?;
         d.set_item("viscous_n_s_per_m", m.viscous_n_s_per_m)?;
-        match m.friction {
+        // The law's name, then its parameters under the sheet's keys (F_c, F_s, v_s, sigma0, sigma1).
+        let (law, params) = match m.friction {
             Friction::Smooth {
-                coulomb_n,
-                smooth_velocity_m_per_s,
-            } => {
-                d.set_item("friction", "smooth")?;
-                d.set_item("coulomb_n", coulomb_n)?;
-                d.set_item("smooth_velocity_m_per_s", smooth_velocity_m_per_s)?;
-            }
+                coulomb_n: f_c,
+                smooth_velocity_m_per_s: v_s,
+            } => (
+                "smooth",
+                vec![("coulomb_n", f_c), ("smooth_velocity_m_per_s", v_s)],
+            ),
             Friction::StickSlip {
-                coulomb_n,
-                static_n,
-                stribeck_velocity_m_per_s,
-                stick_velocity_m_per_s,
-            } => {
-                d.set_item("friction", "stick_slip")?;
-                d.set_item("coulomb_n", coulomb_n)?;
-                d.set_item("static_n", static_n)?;
-                d.set_item("stribeck_velocity_m_per_s", stribeck_velocity_m_per_s)?;
-                d.set_item("stick_velocity_m_per_s", stick_velocity_m_per_s)?;
-            }
+                coulomb_n: f_c,
+                static_n: f_s,
+                stribeck_velocity_m_per_s: v_s,
+                stick_velocity_m_per_s: v_stick,
+            } => (
+                "stick_slip",
+                vec![
+                    ("coulomb_n", f_c),
+                    ("static_n", f_s),
+                    ("stribeck_velocity_m_per_s", v_s),
+                    ("stick_velocity_m_per_s", v_stick),
+                ],
+            ),
             Friction::LuGre {
-                coulomb_n,
-                static_n,
-                stribeck_velocity_m_per_s,
-                bristle_stiffness_n_per_m,
-                bristle_damping_n_s_per_m,
-            } => {
-                d.set_item("friction", "lugre")?;
-                d.set_item("coulomb_n", coulomb_n)?;
-                d.set_item("static_n", static_n)?;
-                d.set_item("stribeck_velocity_m_per_s", stribeck_velocity_m_per_s)?;
-                d.set_item("bristle_stiffness_n_per_m", bristle_stiffness_n_per_m)?;
-                d.set_item("bristle_damping_n_s_per_m", bristle_damping_n_s_per_m)?;
-            }
+                coulomb_n: f_c,
+                static_n: f_s,
+                stribeck_velocity_m_per_s: v_s,
+                bristle_stiffness_n_per_m: sigma0,
+                bristle_damping_n_s_per_m: sigma1,
+            } => (
+                "lugre",
+                vec![
+                    ("coulomb_n", f_c),
+                    ("static_n", f_s),
+                    ("stribeck_velocity_m_per_s", v_s),
+                    ("bristle_stiffness_n_per_m", sigma0),
+                    ("bristle_damping_n_s_per_m", sigma1),
+                ],
+            ),
+        };
+        d.set_item("friction", law)?;
+        for (key, value) in params {
+            d.set_item(key, value)?;
         }
         d.set_item("alpha_rad", m.alpha_rad)?;
         d.set_item("alpha_deg", m.alpha_rad.to_degrees())?;

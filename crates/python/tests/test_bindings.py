@@ -6,24 +6,17 @@ from __future__ import annotations
 import math
 import sys
 import tempfile
-import traceback
 from pathlib import Path
 
 import numpy as np
 
 import pneuflex
+from plain_tests import main, test
 
 ROOT = Path(__file__).resolve().parents[3]
 sys.path.insert(0, str(ROOT))
 SCENE = str(ROOT / "scenes" / "paper-fig3.toml")
 SHEET = str(ROOT / "pneumatics" / "paper-actuator.toml")
-
-TESTS = []
-
-
-def test(f):
-    TESTS.append(f)
-    return f
 
 
 @test
@@ -849,20 +842,6 @@ def identify_recovers_a_mass_from_a_simulated_log():
             raise AssertionError("accepted a unit time does not take")
         except OSError as err:
             assert "logger.toml:3:" in str(err) and "columns.t.unit" in str(err), err
-
-
-def main() -> int:
-    failed = 0
-    for t in TESTS:
-        try:
-            t()
-            print(f"ok   {t.__name__}")
-        except Exception:
-            failed += 1
-            print(f"FAIL {t.__name__}")
-            traceback.print_exc()
-    print(f"{len(TESTS) - failed} passed, {failed} failed")
-    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -12,26 +12,19 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import traceback
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 import pneuflex
+from plain_tests import main, test
 
 ROOT = Path(__file__).resolve().parents[3]
 SHEET = str(ROOT / "pneumatics" / "paper-actuator.toml")
 SHEET_PROPORTIONAL = str(ROOT / "pneumatics" / "paper-actuator-proportional.toml")
 H = 1e-4  # MuJoCo step, s
 SUBSTEPS = 4  # chamber substeps per step
-
-TESTS = []
-
-
-def test(f):
-    TESTS.append(f)
-    return f
 
 
 def load_plugin() -> str:
@@ -283,20 +276,6 @@ def a_c_host_loads_the_plugin():
         assert float(vals["force"]) == py[1] and float(vals["p_a"]) == py[2] and float(vals["p_b"]) == py[3], (vals, py)
         r = subprocess.run([str(host), path, str(bad), "1", "0"], capture_output=True, text=True, timeout=60)
         assert r.returncode == 2 and "config key 'valve.critical_pressure_ratio'" in r.stdout, (r.returncode, r.stdout, r.stderr)
-
-
-def main() -> int:
-    failed = 0
-    for t in TESTS:
-        try:
-            t()
-            print(f"ok   {t.__name__}")
-        except Exception:
-            failed += 1
-            print(f"FAIL {t.__name__}")
-            traceback.print_exc()
-    print(f"{len(TESTS) - failed} passed, {failed} failed")
-    return 1 if failed else 0
 
 
 if __name__ == "__main__":
