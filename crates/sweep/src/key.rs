@@ -112,11 +112,18 @@ pub struct KeyError {
     pub message: String,
 }
 
+impl KeyError {
+    /// Why the key `key` cannot be applied.
+    fn of(key: &str, message: String) -> Self {
+        KeyError {
+            key: key.to_string(),
+            message,
+        }
+    }
+}
+
 fn segments(key: &str, part: &str) -> Result<Vec<Seg>, KeyError> {
-    let err = |m: String| KeyError {
-        key: key.to_string(),
-        message: m,
-    };
+    let err = |m: String| KeyError::of(key, m);
     if part.is_empty() {
         return Err(err("empty key".into()));
     }
@@ -271,6 +278,33 @@ impl EditableFile {
         item.as_str().map(str::to_string)
     }
 
+    /// The file the string at `segs` names (relative to `dir`, the folder of this file `path`); `key` is the
+    /// whole key the errors name.
+    fn named_file(
+        &self,
+        segs: &[Seg],
+        path: &Path,
+        dir: &Path,
+        key: &KeyPath,
+    ) -> Result<PathBuf, KeyError> {
+        let Some(name) = self.string_at(segs) else {
+            return Err(KeyError {
+                key: key.text.clone(),
+                message: format!(
+                    "`{}` in {} does not name a file",
+                    join(segs),
+                    path.display()
+                ),
+            });
+        };
+        let p = Path::new(&name);
+        Ok(if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            dir.join(p)
+        })
+    }
+
     /// Writes `value` at the key path `segs`; `key` names the whole key in errors. A missing last key of an
     /// existing table is added (the scene's parser then says whether such a key exists).
     fn set(&mut self, key: &str, segs: &[Seg], value: &Value) -> Result<(), KeyError> {
@@ -300,10 +334,7 @@ fn set_in_tablelike(
     value: &Value,
     walked: &[Seg],
 ) -> Result<(), KeyError> {
-    let err = |m: String| KeyError {
-        key: key.to_string(),
-        message: m,
-    };
+    let err = |m: String| KeyError::of(key, m);
     let Some((seg, rest)) = segs.split_first() else {
         return Err(err(format!("{} is a table, not a value", here(walked))));
     };
@@ -372,10 +403,7 @@ fn set_in_item(
     value: &Value,
     walked: &[Seg],
 ) -> Result<(), KeyError> {
-    let err = |m: String| KeyError {
-        key: key.to_string(),
-        message: m,
-    };
+    let err = |m: String| KeyError::of(key, m);
     let Some(seg) = segs.first() else {
         return Err(err(format!("{} is a table, not a value", here(walked))));
     };
@@ -632,24 +660,7 @@ impl Base {
                 text: String::new(),
                 doc: doc.clone(),
             };
-            let Some(name) = holder.string_at(part) else {
-                return Err(KeyError {
-                    key: key.text.clone(),
-                    message: format!(
-                        "`{}` in {} does not name a file",
-                        join(part),
-                        file.display()
-                    ),
-                });
-            };
-            let p = {
-                let p = Path::new(&name);
-                if p.is_absolute() {
-                    p.to_path_buf()
-                } else {
-                    dir.join(p)
-                }
-            };
+            let p = holder.named_file(part, &file, &dir, key)?;
             let text =
                 pneuflex_files::read_text(&p, pneuflex_files::InputKind::Sheet).map_err(|e| {
                     KeyError {
@@ -719,24 +730,7 @@ impl Base {
                         .find(|f| Some(&f.path) == target.as_ref())
                         .expect("opened")
                 };
-                let Some(name) = holder.string_at(part) else {
-                    return Err(KeyError {
-                        key: key.text.clone(),
-                        message: format!(
-                            "`{}` in {} does not name a file",
-                            join(part),
-                            holder_path.display()
-                        ),
-                    });
-                };
-                let p = {
-                    let p = Path::new(&name);
-                    if p.is_absolute() {
-                        p.to_path_buf()
-                    } else {
-                        dir.join(p)
-                    }
-                };
+                let p = holder.named_file(part, &holder_path, &dir, key)?;
                 if !files.iter().any(|f| f.path == p) {
                     let text = pneuflex_files::read_text(&p, pneuflex_files::InputKind::Sheet)
                         .map_err(|e| KeyError {
