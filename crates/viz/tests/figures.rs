@@ -55,6 +55,24 @@ fn scene(file: &str) -> Scene {
     Scene::load(&root.join("scenes").join(file)).unwrap()
 }
 
+/// The impedance run of `sc` on a synthetic trace of `ticks` ticks, with its windows' metrics.
+fn impedance_run(sc: &Scene, ticks: usize) -> RunResult {
+    let trace = synthetic_trace(ticks);
+    let pwm = pneuflex_scene::build_plant(sc).unwrap().pwm_period_s();
+    let windows = compute_windows(sc, &trace, pwm);
+    RunResult {
+        name: "impedance".into(),
+        controller: ControllerKind::Impedance,
+        trace,
+        windows,
+        lyapunov: None,
+        diverged: None,
+        interrupted: None,
+        warnings: Vec::new(),
+        pwm_period_s: pwm,
+    }
+}
+
 /// A fresh scratch directory, removed when the returned guard drops.
 fn out_dir(name: &str) -> tempfile::TempDir {
     tempfile::Builder::new()
@@ -71,20 +89,7 @@ fn figures_of_a_long_trace_are_written() {
         ("paper-fig3-ideal.toml", Format::Svg),
     ] {
         let sc = scene(file);
-        let trace = synthetic_trace(100_001);
-        let pwm = pneuflex_scene::build_plant(&sc).unwrap().pwm_period_s();
-        let windows = compute_windows(&sc, &trace, pwm);
-        let results = vec![RunResult {
-            name: "impedance".into(),
-            controller: ControllerKind::Impedance,
-            trace,
-            windows,
-            lyapunov: None,
-            diverged: None,
-            interrupted: None,
-            warnings: Vec::new(),
-            pwm_period_s: pwm,
-        }];
+        let results = vec![impedance_run(&sc, 100_001)];
         let dir = out_dir(file);
         let dir = dir.path().to_path_buf();
         let written = write_figures(&dir, &sc, &results, format).unwrap();
@@ -113,20 +118,7 @@ fn figures_of_a_long_trace_are_written() {
 #[test]
 fn a_swap_has_one_figure_with_the_settling_times() {
     let sc = scene("paper-fig7-wood-to-iron.toml");
-    let trace = synthetic_trace(8_001);
-    let pwm = pneuflex_scene::build_plant(&sc).unwrap().pwm_period_s();
-    let windows = compute_windows(&sc, &trace, pwm);
-    let results = vec![RunResult {
-        name: "impedance".into(),
-        controller: ControllerKind::Impedance,
-        trace,
-        windows,
-        lyapunov: None,
-        diverged: None,
-        interrupted: None,
-        warnings: Vec::new(),
-        pwm_period_s: pwm,
-    }];
+    let results = vec![impedance_run(&sc, 8_001)];
     let dir = out_dir("fig7-swap");
     let dir = dir.path().to_path_buf();
     let written = write_figures(&dir, &sc, &results, Format::Svg).unwrap();
