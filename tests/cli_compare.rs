@@ -18,6 +18,23 @@ fn ok(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
+/// `compare` of `scene` with the rig's `logs` (each a `--rig-log`), then `rest` of the arguments.
+fn compare(cwd: &Path, scene: &str, logs: &[&str], rest: &[&str]) -> std::process::Output {
+    let mut args = vec!["compare", scene];
+    for log in logs {
+        args.extend(["--rig-log", log]);
+    }
+    args.extend(rest);
+    pneuflex(&args, cwd)
+}
+
+/// The error of a run that must fail.
+fn refused(o: &std::process::Output) -> String {
+    let e = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "accepted: {e}");
+    e
+}
+
 /// `perturb` of the shipped actuator sheet's `keys` (seed 5) into `dir/truth/`: the hidden truth.
 fn perturb(dir: &Path, keys: &str) {
     let sheet = Path::new(env!("CARGO_MANIFEST_DIR")).join("pneumatics/paper-actuator.toml");
@@ -59,33 +76,18 @@ fn the_true_sheet_closes_the_gap_the_shipped_one_leaves() {
     let log = t.join("rig/impedance/trace.csv");
     let scene = scene.to_str().unwrap();
     let log = log.to_str().unwrap();
-    ok(&pneuflex(
-        &[
-            "compare",
-            scene,
-            "--rig-log",
-            log,
-            "--run",
-            "impedance",
-            "--out",
-            "shipped",
-        ],
+    ok(&compare(
         t,
+        scene,
+        &[log],
+        &["--run", "impedance", "--out", "shipped"],
     ));
-    ok(&pneuflex(
-        &[
-            "compare",
-            scene,
-            "--rig-log",
-            log,
-            "--run",
-            "impedance",
-            "--actuator",
-            truth.to_str().unwrap(),
-            "--out",
-            "true",
-        ],
+    let truth = truth.to_str().unwrap();
+    ok(&compare(
         t,
+        scene,
+        &[log],
+        &["--run", "impedance", "--actuator", truth, "--out", "true"],
     ));
     let read = |d: &str| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(t.join(d).join("compare.json")).unwrap())
@@ -124,18 +126,7 @@ fn the_true_sheet_closes_the_gap_the_shipped_one_leaves() {
         }
     }
     // The log is an input: compare never writes inside the rig's directory.
-    let o = pneuflex(
-        &[
-            "compare",
-            scene,
-            "--rig-log",
-            log,
-            "--out",
-            "rig/impedance/cmp",
-        ],
-        t,
-    );
-    assert!(!o.status.success());
+    refused(&compare(t, scene, &[log], &["--out", "rig/impedance/cmp"]));
 }
 
 #[test]
@@ -149,10 +140,9 @@ fn a_bad_log_is_refused_with_its_line() {
         "t,f_ref,f_e,x,x_r,p_a,p_b,u\n0,1,1,0,0,1e5,1e5,0\n0.001,1,x,0,0,1e5,1e5,0\n",
     )
     .unwrap();
-    let o = pneuflex(&["compare", scene, "--rig-log", "bad.csv"], tmp.path());
-    let e = String::from_utf8_lossy(&o.stderr);
+    let e = refused(&compare(tmp.path(), scene, &["bad.csv"], &[]));
     assert!(
-        !o.status.success() && e.contains("bad.csv: line 3: column `f_e`: `x` is not a number"),
+        e.contains("bad.csv: line 3: column `f_e`: `x` is not a number"),
         "{e}"
     );
     std::fs::write(
@@ -160,12 +150,8 @@ fn a_bad_log_is_refused_with_its_line() {
         "t,f_ref,f_e,x,x_r,p_a,p_b,u\n0,1,1,0,0,1e5,1e5,0\n0.01,1,1,0,0,1e5,1e5,0\n",
     )
     .unwrap();
-    let o = pneuflex(&["compare", scene, "--rig-log", "coarse.csv"], tmp.path());
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success() && e.contains("a log of another scene?"),
-        "{e}"
-    );
+    let e = refused(&compare(tmp.path(), scene, &["coarse.csv"], &[]));
+    assert!(e.contains("a log of another scene?"), "{e}");
     assert!(!tmp.path().join("out").exists(), "nothing written");
 }
 
@@ -203,19 +189,7 @@ fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation()
     let scene = scene.to_str().unwrap();
     let imp = format!("impedance={}", t.join("rig/impedance/trace.csv").display());
     let ada = format!("adaptive={}", t.join("rig/adaptive/trace.csv").display());
-    ok(&pneuflex(
-        &[
-            "compare",
-            scene,
-            "--rig-log",
-            &imp,
-            "--rig-log",
-            &ada,
-            "--out",
-            "cmp",
-        ],
-        t,
-    ));
+    ok(&compare(t, scene, &[&imp, &ada], &["--out", "cmp"]));
     let read = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
@@ -254,37 +228,11 @@ fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation()
     // Two logs must say which run each recorded, and two of one run are refused.
     let bare = t.join("rig/impedance/trace.csv");
     let bare = bare.to_str().unwrap();
-    let o = pneuflex(
-        &[
-            "compare",
-            scene,
-            "--rig-log",
-            bare,
-            "--rig-log",
-            &ada,
-            "--out",
-            "x",
-        ],
-        t,
-    );
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && e.contains("give RUN="), "{e}");
+    let e = refused(&compare(t, scene, &[bare, &ada], &["--out", "x"]));
+    assert!(e.contains("give RUN="), "{e}");
     let twice = format!("adaptive={bare}");
-    let o = pneuflex(
-        &[
-            "compare",
-            scene,
-            "--rig-log",
-            &ada,
-            "--rig-log",
-            &twice,
-            "--out",
-            "x",
-        ],
-        t,
-    );
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && e.contains("already given"), "{e}");
+    let e = refused(&compare(t, scene, &[&ada, &twice], &["--out", "x"]));
+    assert!(e.contains("already given"), "{e}");
     assert!(!t.join("x").exists(), "nothing written");
 }
 
@@ -353,11 +301,11 @@ fn on_the_lockstep_emulator_the_true_sheet_explains_the_rig_better_than_the_ship
         ("shipped", None),
         ("true", Some("truth/paper-actuator.toml")),
     ] {
-        let mut args = vec!["compare", scene, "--rig-log", "rec/trace.csv", "--out", out];
+        let mut rest = vec!["--out", out];
         if let Some(a) = extra {
-            args.extend(["--actuator", a]);
+            rest.extend(["--actuator", a]);
         }
-        ok(&pneuflex(&args, t));
+        ok(&compare(t, scene, &["rec/trace.csv"], &rest));
     }
     let read = |d: &str| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(t.join(d).join("compare.json")).unwrap())
