@@ -330,6 +330,20 @@ fn rig(d: &Design) -> String {
     let gauge = d.supply_abs_pa - d.atmosphere_pa;
     // A 24-bit bridge ADC spanning twice the force range each way.
     let n_per_count = -crate::design::round2(2.0 * d.force_range_n() / 8_388_608.0);
+    // The gauge transmitters of chamber B and the supply: 4-20 mA over the pressure range, across 150 Ω.
+    let q = d.pressure_range_pa.max(gauge);
+    let transmitter = format!(
+        "sensor = \"gauge transmitter 0-{qr:.1} MPa\"\n\
+         adc_bits = 12\n\
+         adc_ref_v = 3.3\n\
+         signal = \"current\"\n\
+         shunt_ohm = 150.0\n\
+         signal_min = 4.0\n\
+         signal_max = 20.0\n\
+         quantity_min = 0.0\n\
+         quantity_max = {q}\n\n",
+        qr = q * 1e-6,
+    );
     format!(
         "# {name}: the rig file for `pneuflex rig run` and `pneuflex rig emulate` (docs/rig.md), written by\n\
          # `pneuflex new rig`. Calibration: the position sensor's 0-10 V through a 10 V -> 3.2 V divider into a 12-bit\n\
@@ -361,25 +375,9 @@ fn rig(d: &Design) -> String {
          adc_ref_v = 3.3\n\
          shunt_ohm = 150.0\n\n\
          [calibration.pressure_b]\n\
-         sensor = \"gauge transmitter 0-{qr:.1} MPa\"\n\
-         adc_bits = 12\n\
-         adc_ref_v = 3.3\n\
-         signal = \"current\"\n\
-         shunt_ohm = 150.0\n\
-         signal_min = 4.0\n\
-         signal_max = 20.0\n\
-         quantity_min = 0.0\n\
-         quantity_max = {q}\n\n\
+         {transmitter}\
          [calibration.supply]\n\
-         sensor = \"gauge transmitter 0-{qr:.1} MPa\"\n\
-         adc_bits = 12\n\
-         adc_ref_v = 3.3\n\
-         signal = \"current\"\n\
-         shunt_ohm = 150.0\n\
-         signal_min = 4.0\n\
-         signal_max = 20.0\n\
-         quantity_min = 0.0\n\
-         quantity_max = {q}\n\n\
+         {transmitter}\
          [calibration.load_cell]\n\
          sensor = \"load cell\"\n\
          n_per_count = {npc:e}\n\
@@ -416,8 +414,6 @@ fn rig(d: &Design) -> String {
         name = d.name,
         atm = d.atmosphere_pa,
         pr = fmt_mm(d.position_range_m),
-        qr = d.pressure_range_pa.max(gauge) * 1e-6,
-        q = d.pressure_range_pa.max(gauge),
         npc = n_per_count,
         xmax = d.stroke_m - 0.001,
         fmin = -crate::design::round2(0.5 * d.force_n),
