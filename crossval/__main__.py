@@ -23,7 +23,7 @@ import numpy as np
 
 import pneuflex
 
-from . import couple, mjcf
+from . import couple, mechanism, mjcf
 
 ROOT = Path(__file__).resolve().parent.parent
 # Tolerances on RMS(f_e difference) / force level, raw and averaged over one PWM period (docs/crossval.md):
@@ -43,7 +43,15 @@ SCENE_TOLERANCES = {"paper-fig7-wood-to-iron": {"raw": 0.10, "pwm_avg": 0.06}}
 # (measured on paper-fig3 impedance: the seal friction left out, 2.5e-3 of f_e and 200 Pa; chamber A starting
 # 1 kPa higher, 2.3e-4 and 25 Pa).
 PLUGIN_TOLERANCES = {"rms_f_e_rel": 1e-4, "rms_p_pa": 10.0, "rms_x_m": 1e-6}
-DEFAULT_SCENES = ["scenes/paper-fig3.toml", "scenes/paper-fig3-multibody.toml", "scenes/paper-fig7-wood-to-iron.toml"]
+DEFAULT_SCENES = [
+    "scenes/paper-fig3.toml",
+    "scenes/paper-fig3-multibody.toml",
+    "scenes/paper-fig7-wood-to-iron.toml",
+    # Scenes with [[actuators]] on their own URDFs (crossval/mechanism.py).
+    "scenes/gripper.toml",
+    "scenes/lever.toml",
+    "scenes/cross-slide.toml",
+]
 
 
 def matched_scene(scene_path: Path, out_dir: Path, substeps: int) -> Path:
@@ -398,6 +406,7 @@ def main(argv=None) -> int:
     ap.add_argument("--face-mass", type=float, default=0.001, help="mass of the environment face for 1-DOF scenes, kg")
     ap.add_argument("--tolerance", type=float, default=None, help="override the largest raw RMS(f_e diff) / force level")
     ap.add_argument("--mb-refine", type=int, default=10, help="MuJoCo steps per Rapier physics step (multibody scenes)")
+    ap.add_argument("--mechanism-substeps", type=int, default=10, help="MuJoCo steps per control tick for scenes with [[actuators]]")
     ap.add_argument("--no-plugin", action="store_true", help="skip the native plugin's runs (pneuflex.mujoco_plugin_path())")
     ap.add_argument("--bench-steps", type=int, default=20000, help="steps of the step-rate probes")
     args = ap.parse_args(argv)
@@ -405,6 +414,23 @@ def main(argv=None) -> int:
     failed = []
     for s in scenes:
         t0 = time.perf_counter()
+        if mechanism.is_mechanism(s):
+            try:
+                r = mechanism.crossval(s, Path(args.out), args.mechanism_substeps, args.tolerance or 0.03)
+            except (OSError, ValueError, NotImplementedError, RuntimeError) as e:
+                print(f"crossval: {s}: {e}", file=sys.stderr)
+                failed.append(str(s))
+                continue
+            for run, e in r["runs"].items():
+                for a, v in e["actuators"].items():
+                    print(f"[{r['scene']}] {run} / {a}: RMS Δf_e = {v['rms_f_e_diff_n']:.3f} N = {100 * v['rms_f_e_diff_rel']:.2f}% "
+                          f"of {v['force_level_n']:.2f} N from {r['compared_from_s']} s (tolerance {100 * r['tolerance_rms_f_e_rel']:.0f}%; whole run {v['rms_f_e_diff_whole_run_n']:.3f} N), mean f_e Rapier "
+                          f"{v['mean_f_e_rapier_n']:.3f} N, MuJoCo {v['mean_f_e_mujoco_n']:.3f} N, RMS Δx = {1e3 * v['rms_x_diff_m']:.3f} mm  "
+                          f"{'ok' if v['pass'] else 'FAIL'}")
+            print(f"[{r['scene']}] report {Path(args.out) / r['scene'] / 'report.json'} ({time.perf_counter() - t0:.1f} s)")
+            if not r["pass"]:
+                failed.append(str(s))
+            continue
         try:
             r = crossval_scene(s, args)
         except (OSError, ValueError, NotImplementedError, couple.DivergedError) as e:  # FileNotFoundError: no plugin

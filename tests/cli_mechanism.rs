@@ -64,7 +64,7 @@ fn a_mechanism_scene_with_a_bad_key_fails_naming_it_and_writes_nothing() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(
-        stderr.contains("lever.toml:15:")
+        stderr.contains("lever.toml:17:")
             && stderr.contains("actuators[0].anchors.retracted_length_m"),
         "{stderr}"
     );

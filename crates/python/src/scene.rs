@@ -348,3 +348,31 @@ pub fn bench_scene_ticks<'py>(
 pub(crate) fn scene_pwm_period(scene: &pneuflex_scene::Scene) -> Option<f64> {
     pneuflex_scene::build_plant(scene).ok()?.pwm_period_s()
 }
+
+/// Runs a scene with `[[actuators]]` (any URDF, several cylinders; docs/multibody.md) and returns
+/// `(traces, summary, wall_s)`: per run a dict of its columns (`t`, `<actuator>.f_e`, ...) as numpy arrays,
+/// the summary.json content, and the runner's wall time (s).
+#[pyfunction]
+pub fn run_mechanism<'py>(
+    py: Python<'py>,
+    scene_path: PathBuf,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>, f64)> {
+    use pneuflex_scene::mechanism::{self, MechanismScene};
+    let scene = MechanismScene::load(&scene_path).map_err(errors::scene)?;
+    let start = Instant::now();
+    let runs = py
+        .detach(|| mechanism::run_all(&scene, &mut |_| {}, &|| false))
+        .map_err(errors::scene)?;
+    let wall = start.elapsed().as_secs_f64();
+    let s = to_py(py, &mechanism::summarise(&scene, &runs))?;
+    let out = PyDict::new(py);
+    for r in runs {
+        let d = PyDict::new(py);
+        for (i, c) in r.columns.iter().enumerate() {
+            let v: Vec<f64> = r.rows.iter().map(|row| row[i]).collect();
+            d.set_item(c, v.into_pyarray(py))?;
+        }
+        out.set_item(r.name.clone(), d)?;
+    }
+    Ok((out, s, wall))
+}

@@ -175,12 +175,24 @@ fn error_of(edit: impl Fn(String) -> String) -> String {
 
 #[test]
 fn bad_input_in_every_new_key_is_named_with_file_line_and_key() {
+    // The line of a text in the shipped scene, from 1.
+    let shipped = std::fs::read_to_string(scene_path("gripper.toml")).unwrap();
+    let line_of = |needle: &str| shipped.lines().position(|l| l.contains(needle)).unwrap() + 1;
+    let sensor_at = format!(
+        "g.toml:{}:16: actuators[0].force_sensor: no contact named \"thumb\"",
+        line_of("force_sensor = \"left_pad\"")
+    );
+    // The unknown key is written on the line after x_d_m.
+    let speed_at = format!(
+        "g.toml:{}:9: actuators[0].speed: unknown field `speed`",
+        line_of("x_d_m = 0.03") + 1
+    );
     // (text in the shipped scene, what replaces it, what the error must say)
     let cases: Vec<(&str, &str, &str)> = vec![
         (
             "force_sensor = \"left_pad\"",
             "force_sensor = \"thumb\"",
-            "g.toml:17:16: actuators[0].force_sensor: no contact named \"thumb\"",
+            &sensor_at,
         ),
         (
             "joint = \"left_slide\"",
@@ -217,11 +229,7 @@ fn bad_input_in_every_new_key_is_named_with_file_line_and_key() {
             "initial_position_m = 0.5",
             "actuators[0].initial_position_m: ",
         ),
-        (
-            "x_d_m = 0.03",
-            "x_d_m = 0.03\nspeed = 2",
-            "g.toml:19:9: actuators[0].speed: unknown field `speed`",
-        ),
+        ("x_d_m = 0.03", "x_d_m = 0.03\nspeed = 2", &speed_at),
         (
             "name = \"right\"",
             "name = \"left\"",

@@ -1,6 +1,6 @@
 //! Runs a mechanism scene: per run, one controller per actuator closes its loop on its own contact force
-//! and stroke, every tick `sense → update → set valve → one physics step` (zero-order hold), events on
-//! their tick.
+//! and stroke, every tick `sense → update → set valve → physics_steps_per_tick physics steps` (zero-order
+//! hold), events on their tick.
 
 use pneuflex_control::{Controller, Sensors, SetpointSchedule};
 use pneuflex_multibody::{
@@ -106,7 +106,7 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
         actuators,
         contacts,
         gravity_m_s2: scene.gravity_m_s2,
-        dt_s: scene.dt_s,
+        dt_s: scene.dt_s / f64::from(scene.physics_steps_per_tick),
         solver_iterations: scene.solver_iterations,
         initial_positions: scene
             .actuators
@@ -343,7 +343,16 @@ fn run_one(
             .iter_mut()
             .map(|d| d as &mut dyn AxialActuator)
             .collect();
-        b.mechanism.step(&mut elements);
+        for _ in 0..scene.physics_steps_per_tick {
+            b.mechanism.step(&mut elements);
+            if let Err(why) = b.mechanism.check_strokes() {
+                diverged = Some(format!("{why} at t = {t} s"));
+                break;
+            }
+        }
+        if diverged.is_some() {
+            break;
+        }
         if k % 1000 == 0 {
             progress(k as f64 / n as f64);
         }

@@ -20,10 +20,13 @@ pub struct MechanismScene {
     pub description: String,
     /// Simulated time, s.
     pub duration_s: f64,
-    /// Control period, s; one physics step per period.
+    /// Control period, s.
     pub dt_s: f64,
     /// The URDF, relative to the scene file.
     pub urdf: PathBuf,
+    /// Physics steps per control period (the pads are explicit: a stiff pad needs a short step).
+    #[serde(default = "default_physics_steps")]
+    pub physics_steps_per_tick: u32,
     /// Rapier solver iterations per step.
     #[serde(default = "default_iterations")]
     pub solver_iterations: usize,
@@ -57,6 +60,9 @@ pub struct MechanismScene {
     pub text: String,
 }
 
+fn default_physics_steps() -> u32 {
+    1
+}
 fn default_iterations() -> usize {
     4
 }
@@ -296,6 +302,15 @@ impl MechanismScene {
         }
         if self.solver_iterations == 0 {
             return Err(self.invalid("solver_iterations", "must be >= 1".into()));
+        }
+        if !(1..=1000).contains(&self.physics_steps_per_tick) {
+            return Err(self.invalid(
+                "physics_steps_per_tick",
+                format!(
+                    "must be within 1..=1000, got {}",
+                    self.physics_steps_per_tick
+                ),
+            ));
         }
         if self.chamber_substeps == 0 {
             return Err(self.invalid("chamber_substeps", "must be >= 1".into()));

@@ -1,0 +1,361 @@
+"""Cross-validation of scenes with [[actuators]] (any URDF, several cylinders; docs/multibody.md) in MuJoCo.
+
+The MJCF is derived from the scene's URDF here (`urdf_to_mjcf`): links become bodies (a fixed joint is a
+jointless child body), prismatic joints slides, revolute hinges, planar two slides in the plane; the URDF's
+inertials, limits and joint damping carry over. A cylinder along a joint is a MuJoCo `motor` on it; a
+cylinder between anchors is a spatial tendon between two sites with a `motor` on the tendon, so MuJoCo
+computes its length, rate and line of force itself. The compliant pads are not MuJoCo's contacts (its soft
+contact is not a Kelvin-Voigt pad): MuJoCo's `mj_geomDistance` gives the penetration and the two surface
+points, and the pad force F = max(0, k δ + c δ̇) is applied here at their midpoint with `mj_applyFT`. What
+the Rapier side shares with this one is the pneumatic force element and the controllers (pneuflex's Python
+bindings); the rigid-body dynamics, joints and limits, the anchor geometry and the distance queries are
+MuJoCo's.
+
+Each control tick (the scene's dt): sense (stroke, rate, pad force, pressures), each actuator's controller
+updates, then `substeps` MuJoCo steps of dt/substeps, each preceded by one force-element step over it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import tomllib
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+import pneuflex
+
+
+def is_mechanism(scene: Path) -> bool:
+    """Whether a scene file lists [[actuators]] (and has no one-actuator [plant])."""
+    try:
+        doc = tomllib.loads(Path(scene).read_text())
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
+    return "actuators" in doc and "plant" not in doc
+
+
+def _floats(text: str | None, n: int = 3, default: float = 0.0) -> list[float]:
+    if text is None:
+        return [default] * n
+    v = [float(x) for x in text.split()]
+    if len(v) != n:
+        raise ValueError(f"expected {n} numbers, got {text!r}")
+    return v
+
+
+def _rpy_quat(rpy: list[float]) -> list[float]:
+    """URDF fixed-axis roll, pitch, yaw as a MuJoCo quaternion (w, x, y, z): R = Rz(y) Ry(p) Rx(r)."""
+    r, p, y = (0.5 * a for a in rpy)
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return [
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    ]
+
+
+def _origin(el) -> tuple[list[float], list[float]]:
+    o = el.find("origin") if el is not None else None
+    if o is None:
+        return [0.0] * 3, [1.0, 0.0, 0.0, 0.0]
+    return _floats(o.get("xyz")), _rpy_quat(_floats(o.get("rpy")))
+
+
+def _fmt(v) -> str:
+    return " ".join(repr(float(x)) for x in v)
+
+
+def urdf_to_mjcf(urdf: Path, scene: dict, timestep_s: float) -> str:
+    """The MJCF of a mechanism scene: its URDF's tree, sites and tendons for the anchored cylinders, a motor
+    per cylinder. Colliders keep their names (`<link>/<i>`) and touch nothing (contype 0)."""
+    robot = ET.parse(urdf).getroot()
+    links = {l.get("name"): l for l in robot.findall("link")}
+    joints = robot.findall("joint")
+    children: dict[str, list] = {}
+    has_parent = set()
+    for j in joints:
+        children.setdefault(j.find("parent").get("link"), []).append(j)
+        has_parent.add(j.find("child").get("link"))
+    (root,) = [n for n in links if n not in has_parent]
+    sites: dict[str, list[tuple[str, list[float]]]] = {}
+    for a in scene["actuators"]:
+        if "anchors" in a:
+            an = a["anchors"]
+            sites.setdefault(an["link_a"], []).append((f"{a['name']}_a", an["point_a_m"]))
+            sites.setdefault(an["link_b"], []).append((f"{a['name']}_b", an["point_b_m"]))
+
+    def link_xml(name: str, depth: int) -> list[str]:
+        pad = "  " * depth
+        l = links[name]
+        out = []
+        inertial = l.find("inertial")
+        if inertial is not None and float(inertial.find("mass").get("value")) > 0.0:
+            xyz, quat = _origin(inertial)
+            if quat != [1.0, 0.0, 0.0, 0.0]:
+                raise NotImplementedError(f"{urdf}: link {name!r}: a rotated <inertial> frame")
+            i = inertial.find("inertia")
+            full = [float(i.get(k)) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
+            out.append(f'{pad}<inertial pos="{_fmt(xyz)}" mass="{float(inertial.find("mass").get("value"))!r}" fullinertia="{_fmt(full)}"/>')
+        for k, c in enumerate(l.findall("collision")):
+            xyz, quat = _origin(c)
+            g = c.find("geometry")[0]
+            if g.tag == "box":
+                size = [0.5 * s for s in _floats(g.get("size"))]
+                shape = f'type="box" size="{_fmt(size)}"'
+            elif g.tag == "sphere":
+                shape = f'type="sphere" size="{float(g.get("radius"))!r}"'
+            elif g.tag == "cylinder":
+                shape = f'type="cylinder" size="{float(g.get("radius"))!r} {0.5 * float(g.get("length"))!r}"'
+            else:
+                raise NotImplementedError(f"{urdf}: link {name!r}: <{g.tag}> collisions have no MuJoCo equivalent here")
+            out.append(f'{pad}<geom name="{name}/{k}" {shape} pos="{_fmt(xyz)}" quat="{_fmt(quat)}" contype="0" conaffinity="0" mass="0"/>')
+        for sname, p in sites.get(name, []):
+            out.append(f'{pad}<site name="{sname}" pos="{_fmt(p)}" size="0.005"/>')
+        for j in children.get(name, []):
+            child = j.find("child").get("link")
+            xyz, quat = _origin(j)
+            out.append(f'{pad}<body name="{child}" pos="{_fmt(xyz)}" quat="{_fmt(quat)}">')
+            kind = j.get("type")
+            axis = _floats(j.find("axis").get("xyz") if j.find("axis") is not None else "1 0 0")
+            dyn = j.find("dynamics")
+            damping = float(dyn.get("damping", 0.0)) if dyn is not None else 0.0
+            lim = j.find("limit")
+            rng = f' range="{float(lim.get("lower"))!r} {float(lim.get("upper"))!r}" limited="true"' if lim is not None and kind in ("prismatic", "revolute") else ""
+            jn = j.get("name")
+            if kind in ("prismatic", "revolute", "continuous"):
+                t = "slide" if kind == "prismatic" else "hinge"
+                out.append(f'{pad}  <joint name="{jn}" type="{t}" axis="{_fmt(axis)}" damping="{damping!r}"{rng}/>')
+            elif kind == "planar":
+                n = np.array(axis) / np.linalg.norm(axis)
+                u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+                u /= np.linalg.norm(u)
+                v = np.cross(n, u)
+                out.append(f'{pad}  <joint name="{jn}_u" type="slide" axis="{_fmt(u)}" damping="{damping!r}"/>')
+                out.append(f'{pad}  <joint name="{jn}_v" type="slide" axis="{_fmt(v)}" damping="{damping!r}"/>')
+            elif kind != "fixed":
+                raise NotImplementedError(f"{urdf}: joint {jn!r}: {kind} joints have no MuJoCo equivalent here")
+            out += link_xml(child, depth + 1)
+            out.append(f"{pad}</body>")
+        return out
+
+    h = timestep_s
+    g = scene.get("gravity_m_s2", [0.0, 0.0, -9.80665])
+    lines = [
+        f'<mujoco model="{scene["name"]}">',
+        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
+        f'  <option timestep="{h!r}" gravity="{_fmt(g)}" integrator="implicitfast"/>',
+        "  <worldbody>",
+    ]
+    lines += link_xml(root, 2)
+    lines.append("  </worldbody>")
+    tendons = [a for a in scene["actuators"] if "anchors" in a]
+    if tendons:
+        lines.append("  <tendon>")
+        for a in tendons:
+            lines.append(f'    <spatial name="{a["name"]}"><site site="{a["name"]}_a"/><site site="{a["name"]}_b"/></spatial>')
+        lines.append("  </tendon>")
+    lines.append("  <actuator>")
+    for a in scene["actuators"]:
+        target = f'tendon="{a["name"]}"' if "anchors" in a else f'joint="{a["joint"]}"'
+        lines.append(f'    <motor name="{a["name"]}" {target} gear="1"/>')
+    lines.append("  </actuator>")
+    lines.append("</mujoco>")
+    return "\n".join(lines) + "\n"
+
+
+def _reference(pieces: list[dict], t: float) -> float:
+    """The force reference at t: the last piece started at or before t (scene schema, docs/scenes.md)."""
+    cur = None
+    for p in pieces:
+        if p["start_s"] <= t + 1e-12:
+            cur = p
+    if cur is None:
+        return 0.0
+    dt = t - cur["start_s"]
+    if cur["kind"] == "step":
+        return cur["value_n"]
+    if cur["kind"] == "sine":
+        return cur["bias_n"] + cur["amplitude_n"] * math.sin(2 * math.pi * cur["frequency_hz"] * dt + cur.get("phase_rad", 0.0))
+    return cur["value0_n"] + cur["slope_n_per_s"] * dt
+
+
+class MujocoMechanism:
+    """A mechanism scene's model in MuJoCo, its pads, and the per-actuator sensing."""
+
+    def __init__(self, scene_path: Path, scene: dict, substeps: int):
+        self.scene, self.dir = scene, scene_path.parent
+        self.dt = float(scene["dt_s"])
+        self.h = self.dt / substeps
+        self.substeps = substeps
+        self.xml = urdf_to_mjcf(self.dir / scene["urdf"], scene, self.h)
+        self.m = mujoco.MjModel.from_xml_string(self.xml)
+        self.d = mujoco.MjData(self.m)
+        self.acts = []
+        for a in scene["actuators"]:
+            if "anchors" in a:
+                self.acts.append(("tendon", mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_TENDON, a["name"]), a["anchors"]["retracted_length_m"]))
+            else:
+                jid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, a["joint"])
+                lower = float(self.m.jnt_range[jid][0])
+                self.acts.append(("joint", jid, lower))
+                if "initial_position_m" in a:
+                    self.d.qpos[self.m.jnt_qposadr[jid]] = a["initial_position_m"]
+        mujoco.mj_forward(self.m, self.d)
+        self.pads = {}
+        for c in scene.get("contacts", []):
+            ga = [g for g in range(self.m.ngeom) if self.m.body(self.m.geom_bodyid[g]).name == c["link_a"]]
+            gb = [g for g in range(self.m.ngeom) if self.m.body(self.m.geom_bodyid[g]).name == c["link_b"]]
+            self.pads[c["name"]] = {"pairs": [(x, y) for x in ga for y in gb], "k": c["stiffness_n_per_m"], "c": c.get("damping_n_s_per_m", 0.0), "force": 0.0}
+        self._fromto = np.zeros(6)
+        self._vel = np.zeros(6)
+
+    def stroke(self, i: int) -> tuple[float, float]:
+        kind, idx, ref = self.acts[i]
+        if kind == "tendon":
+            return float(self.d.ten_length[idx]) - ref, float(self.d.ten_velocity[idx])
+        return float(self.d.qpos[self.m.jnt_qposadr[idx]]) - ref, float(self.d.qvel[self.m.jnt_dofadr[idx]])
+
+    def _point_velocity(self, body: int, p: np.ndarray) -> np.ndarray:
+        mujoco.mj_objectVelocity(self.m, self.d, mujoco.mjtObj.mjOBJ_BODY, body, self._vel, 0)
+        return self._vel[3:] + np.cross(self._vel[:3], p - self.d.xipos[body])
+
+    def apply_pads(self) -> None:
+        """The pads' forces at the current state, into qfrc_applied (reset first)."""
+        self.d.qfrc_applied[:] = 0.0
+        for pad in self.pads.values():
+            total = 0.0
+            for ga, gb in pad["pairs"]:
+                dist = mujoco.mj_geomDistance(self.m, self.d, ga, gb, 0.01, self._fromto)
+                if dist >= 0.0:
+                    continue
+                p1, p2 = self._fromto[:3].copy(), self._fromto[3:].copy()
+                seg = p2 - p1
+                # Penetrating, the segment runs from geom a's surface point back into it: the normal from a
+                # towards b is its opposite.
+                n = -seg / np.linalg.norm(seg)
+                point = 0.5 * (p1 + p2)
+                ba, bb = int(self.m.geom_bodyid[ga]), int(self.m.geom_bodyid[gb])
+                rate = -float(np.dot(self._point_velocity(bb, point) - self._point_velocity(ba, point), n))
+                f = max(0.0, pad["k"] * (-dist) + pad["c"] * rate)
+                total += f
+                mujoco.mj_applyFT(self.m, self.d, f * n, np.zeros(3), point, bb, self.d.qfrc_applied)
+                if ba != 0:
+                    mujoco.mj_applyFT(self.m, self.d, -f * n, np.zeros(3), point, ba, self.d.qfrc_applied)
+            pad["force"] = total
+
+
+def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
+    """One run of the scene in MuJoCo: the trace's columns (a subset of the Rust runner's, same names)."""
+    mm = MujocoMechanism(scene_path, scene, substeps)
+    acts = scene["actuators"]
+    elements, controllers = [], []
+    for a in acts:
+        act = pneuflex.Actuator(str(scene_path.parent / a["sheet"]))
+        p = act.params()
+        # As the Rust runner starts them: B halfway between supply and atmosphere, A balancing it.
+        p_b = 0.5 * (p["supply_pressure_pa"] + p["atmosphere_pressure_pa"])
+        area_a = math.pi / 4 * p["bore_m"] ** 2
+        area_rod = math.pi / 4 * p["rod_m"] ** 2
+        p_a = (p_b * (area_a - area_rod) + p["atmosphere_pressure_pa"] * area_rod) / area_a
+        elements.append(pneuflex.ForceElement(act, p_a=p_a, p_b=p_b, substeps=max(1, int(scene.get("chamber_substeps", 10)) // substeps)))
+        controllers.append(pneuflex.Controller(run["controller"], run["impedance"], run["inner"], run.get("adaptive")))
+    n = int(round(scene["duration_s"] / mm.dt))
+    events = sorted(((int(round(e["t_s"] / mm.dt)), e) for e in scene.get("events", [])), key=lambda x: x[0])
+    cols = {"t": np.zeros(n + 1)}
+    for a in acts:
+        for c in ("f_r", "f_e", "x", "u", "force"):
+            cols[f"{a['name']}.{c}"] = np.zeros(n + 1)
+    sensors = {a["name"]: a["force_sensor"] for a in acts}
+    us = [0.0] * len(acts)
+    forces = [0.0] * len(acts)
+    mm.apply_pads()
+    for k in range(n + 1):
+        t = k * mm.dt
+        for tick, e in events:
+            if tick == k:
+                pad = mm.pads[e["contact"]]
+                pad["k"] = e["stiffness_n_per_m"]
+                if e.get("damping_n_s_per_m") is not None:
+                    pad["c"] = e["damping_n_s_per_m"]
+        cols["t"][k] = t
+        for i, a in enumerate(acts):
+            x, xd = mm.stroke(i)
+            f_e = forces[i] if sensors[a["name"]] == "load_cell" else mm.pads[sensors[a["name"]]]["force"]
+            f_r = _reference(a["force"], t)
+            pa, pb = elements[i].p_a, elements[i].p_b
+            us[i] = controllers[i].update(t, x, xd, f_e, pa, pb, f_r, a.get("x_d_m", 0.0), mm.dt)
+            name = a["name"]
+            cols[f"{name}.f_r"][k], cols[f"{name}.f_e"][k], cols[f"{name}.x"][k] = f_r, f_e, x
+            cols[f"{name}.u"][k], cols[f"{name}.force"][k] = us[i], forces[i]
+        if k == n:
+            break
+        for _ in range(mm.substeps):
+            mm.apply_pads()
+            for i in range(len(acts)):
+                x, xd = mm.stroke(i)
+                fp = elements[i].step(x, xd, us[i], mm.h)
+                forces[i] = fp - elements[i].friction_force(xd, fp)
+                mm.d.ctrl[i] = forces[i]
+            mujoco.mj_step(mm.m, mm.d)
+            if not np.all(np.isfinite(mm.d.qpos)):
+                raise RuntimeError(f"MuJoCo diverged at t = {t:.4f} s")
+        mm.apply_pads()
+    return {"columns": cols, "xml": mm.xml}
+
+
+def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) -> dict:
+    """Both engines on every run. Each actuator's RMS contact-force difference, relative to its RMS force
+    reference, is reported over the whole run and over the controlled part (from the first metric window's
+    start); the verdict is on the controlled part. Before it lie the approach and the first touch: a finger or
+    an arm meeting its pad at speed, a peak of up to 15x the set point whose timing shifts by a step between
+    the engines, so its RMS difference says more about the impact's sampling than about either model (the
+    lever: 5.8 N RMS over its first second, 0.01 N over its last three)."""
+    scene = tomllib.loads(scene_path.read_text())
+    out = out_root / scene["name"]
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    ref, summary, ref_wall = pneuflex.run_mechanism(str(scene_path))
+    windows = scene.get("metrics", [])
+    from_s = min((w["t0_s"] for w in windows), default=0.0)
+    report = {"scene": scene["name"], "source": str(scene_path), "mujoco_steps_per_tick": substeps,
+              "tolerance_rms_f_e_rel": tolerance, "compared_from_s": from_s, "mujoco": mujoco.__version__,
+              "reference_wall_s": ref_wall, "runs": {}, "pass": True}
+    for run in scene["runs"]:
+        w = time.perf_counter()
+        mj = simulate(scene_path, scene, run, substeps)
+        (out / "model.xml").write_text(mj["xml"])
+        mjc = mj["columns"]
+        entry = {"mujoco_wall_s": time.perf_counter() - w, "actuators": {}}
+        rt = ref[run["name"]]
+        late = rt["t"] >= from_s - 1e-12
+        for a in scene["actuators"]:
+            name = a["name"]
+            d = rt[f"{name}.f_e"] - mjc[f"{name}.f_e"]
+
+            def rms(v):
+                return float(np.sqrt(np.mean(v**2)))
+
+            level = rms(rt[f"{name}.f_r"][late])
+            e = {
+                "force_level_n": level,
+                "rms_f_e_diff_whole_run_n": rms(d),
+                "rms_f_e_diff_n": rms(d[late]),
+                "rms_f_e_diff_rel": rms(d[late]) / level,
+                "rms_x_diff_m": rms((rt[f"{name}.x"] - mjc[f"{name}.x"])[late]),
+                "mean_f_e_rapier_n": float(np.mean(rt[f"{name}.f_e"][late])),
+                "mean_f_e_mujoco_n": float(np.mean(mjc[f"{name}.f_e"][late])),
+            }
+            e["pass"] = e["rms_f_e_diff_rel"] <= tolerance
+            entry["actuators"][name] = e
+            report["pass"] &= e["pass"]
+        report["runs"][run["name"]] = entry
+    report["wall_s"] = time.perf_counter() - t0
+    import json
+
+    (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+    return report
