@@ -14,8 +14,30 @@ use pneuflex_scene::mechanism::{self, MechanismRun, MechanismScene, MechanismSum
 use super::Exit;
 
 /// Runs a mechanism scene file and writes its outputs.
-pub fn run(scene_path: &Path, out: Option<&Path>, quiet: bool) -> anyhow::Result<()> {
+pub fn run(
+    scene_path: &Path,
+    out: Option<&Path>,
+    quiet: bool,
+    rerun: Option<&[String]>,
+) -> anyhow::Result<()> {
     let scene = MechanismScene::load(scene_path)?;
+    // The viewer (`--rerun spawn | save FILE | connect ADDR`, docs/rerun.md): links and per-actuator signals.
+    #[cfg(feature = "rerun")]
+    let mut viewer = match rerun {
+        Some(words) => Some(pneuflex_rerun::MechanismRecorder::new(
+            pneuflex_rerun::parse_sink(words)?,
+            &scene,
+        )?),
+        None => None,
+    };
+    #[cfg(not(feature = "rerun"))]
+    if let Some(words) = rerun {
+        bail!(
+            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
+             `cargo run --release --features rerun -- run ...` (docs/rerun.md)",
+            words.join(" ")
+        );
+    }
     let dest = out
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new("out").join(&scene.name));
@@ -29,8 +51,22 @@ pub fn run(scene_path: &Path, out: Option<&Path>, quiet: bool) -> anyhow::Result
     let stopped = || stop.load(Ordering::Relaxed) != 0;
     let bar = Progress::new(quiet, format!("simulating {}", scene.name));
     let started = std::time::Instant::now();
-    let runs = mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped)?;
+    #[cfg(feature = "rerun")]
+    let runs = match viewer.as_mut() {
+        Some(v) => mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped, v)?,
+        None => mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped, &mut ())?,
+    };
+    #[cfg(not(feature = "rerun"))]
+    let runs = mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped, &mut ())?;
     bar.finish();
+    #[cfg(feature = "rerun")]
+    if let Some(v) = viewer {
+        let cost = v.cost().as_secs_f64();
+        v.finish()?;
+        if !quiet {
+            outln!("rerun: {cost:.2} s of logging");
+        }
+    }
     let elapsed = started.elapsed().as_secs_f64();
     let summary = mechanism::summarise(&scene, &runs);
     mechanism::write(stage.path(), &summary, &runs)?;

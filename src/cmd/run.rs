@@ -49,12 +49,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
     // A scene with `[[actuators]]` (any URDF, several cylinders) has its own runner.
     let text = pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)?;
     if pneuflex_scene::mechanism::MechanismScene::is_mechanism(&text) {
-        if args.rerun.is_some() {
-            bail!(
-                "--rerun: not yet drawn for a scene with [[actuators]]; its traces and figures are in the output"
-            );
-        }
-        return super::mechanism::run(scene_path, out, args.quiet);
+        return super::mechanism::run(scene_path, out, args.quiet, args.rerun.as_deref());
     }
     let scene = Scene::load(scene_path)?;
     let limits = limits(args.max_steps, args.max_trace_mb);

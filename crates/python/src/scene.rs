@@ -361,7 +361,7 @@ pub fn run_mechanism<'py>(
     let scene = MechanismScene::load(&scene_path).map_err(errors::scene)?;
     let start = Instant::now();
     let runs = py
-        .detach(|| mechanism::run_all(&scene, &mut |_| {}, &|| false))
+        .detach(|| mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()))
         .map_err(errors::scene)?;
     let wall = start.elapsed().as_secs_f64();
     let s = to_py(py, &mechanism::summarise(&scene, &runs))?;

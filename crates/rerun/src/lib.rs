@@ -9,6 +9,7 @@
 
 mod error;
 mod layout;
+mod mechanism_observer;
 pub mod paths;
 mod recorder;
 mod row_observer;
@@ -18,6 +19,7 @@ pub mod units;
 
 pub use error::RerunError;
 pub use layout::{Eye, Layout, Plot, blueprint, default_blueprint};
+pub use mechanism_observer::MechanismRecorder;
 pub use recorder::{
     ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RunRecorder, Shape,
     wall_clock_s,

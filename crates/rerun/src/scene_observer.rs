@@ -92,7 +92,29 @@ const ARROW_LENGTH_FOR_MAX_FORCE_M: f64 = 0.06;
 
 /// Colour of a plant's shape by its role: the environment translucent, so that the contact point behind
 /// its face shows; the cylinder translucent, so that the chambers inside show.
-fn role_colour(role: VisualRole) -> [u8; 4] {
+/// How a plant's visual shape is drawn (the one conversion: scenes and mechanisms).
+pub(crate) fn shape_of(v: &VisualShape) -> Shape {
+    match v.clone() {
+        VisualShape::Box { half_extents_m } => Shape::Box { half_extents_m },
+        VisualShape::Cylinder {
+            radius_m,
+            half_length_m,
+        } => Shape::Cylinder {
+            radius_m,
+            half_length_m,
+        },
+        VisualShape::Sphere { radius_m } => Shape::Sphere { radius_m },
+        VisualShape::Mesh {
+            vertices_m,
+            triangles,
+        } => Shape::Mesh {
+            vertices_m,
+            triangles,
+        },
+    }
+}
+
+pub(crate) fn role_colour(role: VisualRole) -> [u8; 4] {
     match role {
         VisualRole::Flange => [90, 90, 100, 255],
         VisualRole::Environment => [170, 120, 60, 140],
@@ -340,24 +362,7 @@ impl Drawing {
         let (mut flange, mut cylinder) = (None, None);
         for (i, v) in visuals.iter().enumerate() {
             let entity = paths::link(&v.name);
-            let shape = match v.shape.clone() {
-                VisualShape::Box { half_extents_m } => Shape::Box { half_extents_m },
-                VisualShape::Cylinder {
-                    radius_m,
-                    half_length_m,
-                } => Shape::Cylinder {
-                    radius_m,
-                    half_length_m,
-                },
-                VisualShape::Sphere { radius_m } => Shape::Sphere { radius_m },
-                VisualShape::Mesh {
-                    vertices_m,
-                    triangles,
-                } => Shape::Mesh {
-                    vertices_m,
-                    triangles,
-                },
-            };
+            let shape = shape_of(&v.shape);
             shapes.push(LinkShape {
                 entity: entity.clone(),
                 shape,

@@ -14,7 +14,7 @@ fn scene_path(name: &str) -> PathBuf {
 
 fn run(name: &str) -> (MechanismScene, Vec<MechanismRun>) {
     let scene = MechanismScene::load(&scene_path(name)).unwrap();
-    let runs = mechanism::run_all(&scene, &mut |_| {}, &|| false).unwrap();
+    let runs = mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()).unwrap();
     (scene, runs)
 }
 

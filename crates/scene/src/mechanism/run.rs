@@ -12,8 +12,42 @@ use super::schema::MechanismScene;
 use crate::error::SceneError;
 use crate::plants::FlangeDrive;
 
-/// The loop's columns of each actuator, after its name and a dot (`left.f_e`).
-pub const ACTUATOR_COLUMNS: [&str; 8] = ["f_r", "f_e", "x", "x_dot", "u", "p_a", "p_b", "force"];
+/// The loop's columns of each actuator, after its name and a dot (`left.f_e`): name, SI unit, plot group.
+pub const ACTUATOR_COLUMNS: [(&str, &str, &str); 8] = [
+    ("f_r", "N", "force"),
+    ("f_e", "N", "force"),
+    ("x", "m", "position"),
+    ("x_dot", "m/s", "velocity"),
+    ("u", "1", "valve"),
+    ("p_a", "Pa", "pressure"),
+    ("p_b", "Pa", "pressure"),
+    ("force", "N", "cylinder"),
+];
+
+/// One column of a run's trace after `t`: its actuator, its name there, SI unit and plot group.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColumnSignal {
+    /// The actuator it belongs to.
+    pub actuator: String,
+    /// Its name within the actuator (`f_e`, or a controller's own `g`).
+    pub name: &'static str,
+    /// SI unit.
+    pub unit: &'static str,
+    /// Plot group (`force`, `position`, `adaptive`, ...).
+    pub group: &'static str,
+}
+
+/// What watches a run as it goes (a viewer): the mechanism before the first tick, every row, the end.
+pub trait MechanismObserver {
+    /// A run starts: its name, the mechanism at t = 0, and the columns after `t`.
+    fn begin(&mut self, _run: &str, _mechanism: &Mechanism, _columns: &[ColumnSignal]) {}
+    /// A tick's row (`t` first, then the columns given to `begin`), with the mechanism at that time.
+    fn tick(&mut self, _mechanism: &Mechanism, _row: &[f64]) {}
+    /// The run ended.
+    fn end(&mut self) {}
+}
+
+impl MechanismObserver for () {}
 
 /// One run's trace: `t`, then each actuator's [`ACTUATOR_COLUMNS`] and its controller's own signals.
 #[derive(Clone, Debug)]
@@ -239,6 +273,7 @@ pub fn run_all(
     scene: &MechanismScene,
     progress: &mut dyn FnMut(f64),
     stop: &dyn Fn() -> bool,
+    observer: &mut dyn MechanismObserver,
 ) -> Result<Vec<MechanismRun>, SceneError> {
     let mut out = Vec::with_capacity(scene.runs.len());
     for (r, spec) in scene.runs.iter().enumerate() {
@@ -255,6 +290,7 @@ pub fn run_all(
             controllers,
             &mut |f| progress((r as f64 + f) / n),
             stop,
+            observer,
         );
         let stopped = run.rows.len() < scene.n_steps() + 1 && run.diverged.is_none();
         out.push(run);
@@ -272,12 +308,24 @@ fn run_one(
     mut controllers: Vec<Box<dyn Controller + Send + Sync>>,
     progress: &mut dyn FnMut(f64),
     stop: &dyn Fn() -> bool,
+    observer: &mut dyn MechanismObserver,
 ) -> MechanismRun {
-    let mut columns = vec!["t".to_string()];
+    let mut signals = Vec::new();
     for (a, c) in scene.actuators.iter().zip(&controllers) {
-        columns.extend(ACTUATOR_COLUMNS.iter().map(|k| format!("{}.{k}", a.name)));
-        columns.extend(c.signals().iter().map(|s| format!("{}.{}", a.name, s.name)));
+        let own = c.signals().iter().map(|s| (s.name, s.unit, s.group));
+        for (name, unit, group) in ACTUATOR_COLUMNS.iter().copied().chain(own) {
+            signals.push(ColumnSignal {
+                actuator: a.name.clone(),
+                name,
+                unit,
+                group,
+            });
+        }
     }
+    let columns: Vec<String> = std::iter::once("t".to_string())
+        .chain(signals.iter().map(|s| format!("{}.{}", s.actuator, s.name)))
+        .collect();
+    observer.begin(name, &b.mechanism, &signals);
     let n = scene.n_steps();
     let dt = scene.dt_s;
     let mut rows = Vec::with_capacity(n + 1);
@@ -326,6 +374,7 @@ fn run_one(
             row.extend_from_slice(&own);
         }
         let bad = row.iter().position(|v| !v.is_finite());
+        observer.tick(&b.mechanism, &row);
         rows.push(row);
         if let Some(j) = bad {
             diverged = Some(format!("{} is not finite at t = {t} s", columns[j]));
@@ -358,6 +407,7 @@ fn run_one(
         }
     }
     progress(1.0);
+    observer.end();
     MechanismRun {
         name: name.to_string(),
         columns,

@@ -243,6 +243,32 @@ pub enum VisualShape {
     },
 }
 
+impl VisualShape {
+    /// How a URDF collision shape is drawn (the one conversion: every plant and scene with a URDF uses it).
+    pub fn of(shape: &pneuflex_multibody::LinkShape) -> Self {
+        use pneuflex_multibody::LinkShape;
+        match shape.clone() {
+            LinkShape::Box { size_m } => VisualShape::Box {
+                half_extents_m: size_m.map(|v| 0.5 * v),
+            },
+            LinkShape::Cylinder { radius_m, length_m } => VisualShape::Cylinder {
+                radius_m,
+                half_length_m: 0.5 * length_m,
+            },
+            // Drawn as its cylinder part plus the caps' length.
+            LinkShape::Capsule { radius_m, length_m } => VisualShape::Cylinder {
+                radius_m,
+                half_length_m: 0.5 * length_m + radius_m,
+            },
+            LinkShape::Sphere { radius_m } => VisualShape::Sphere { radius_m },
+            LinkShape::ConvexHull(hull) => VisualShape::Mesh {
+                vertices_m: hull.vertices,
+                triangles: hull.triangles,
+            },
+        }
+    }
+}
+
 /// Pose of a shape in the world: translation (m) and unit quaternion [x, y, z, w].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VisualPose {

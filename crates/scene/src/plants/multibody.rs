@@ -22,8 +22,8 @@ use std::path::PathBuf;
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 use pneuflex_multibody::{
-    AxialActuator, LinkShape, MaterialConfig, MaterialParams, Measurements, MultibodyConfig,
-    MultibodyError, PneumaticForceElement, RigWorld,
+    AxialActuator, MaterialConfig, MaterialParams, Measurements, MultibodyConfig, MultibodyError,
+    PneumaticForceElement, RigWorld,
 };
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
 
@@ -468,25 +468,7 @@ impl Plant for MultibodyPlant {
         let mut out = Vec::new();
         for (link_name, _, geoms) in self.world.link_poses() {
             for (j, g) in geoms.iter().enumerate() {
-                let shape = match g.shape.clone() {
-                    LinkShape::Box { size_m } => VisualShape::Box {
-                        half_extents_m: size_m.map(|v| 0.5 * v),
-                    },
-                    LinkShape::Cylinder { radius_m, length_m } => VisualShape::Cylinder {
-                        radius_m,
-                        half_length_m: 0.5 * length_m,
-                    },
-                    // Drawn as its cylinder part plus the caps' length.
-                    LinkShape::Capsule { radius_m, length_m } => VisualShape::Cylinder {
-                        radius_m,
-                        half_length_m: 0.5 * length_m + radius_m,
-                    },
-                    LinkShape::Sphere { radius_m } => VisualShape::Sphere { radius_m },
-                    LinkShape::ConvexHull(hull) => VisualShape::Mesh {
-                        vertices_m: hull.vertices,
-                        triangles: hull.triangles,
-                    },
-                };
+                let shape = VisualShape::of(&g.shape);
                 let name = if geoms.len() == 1 {
                     link_name.to_string()
                 } else {
