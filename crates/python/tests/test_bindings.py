@@ -844,5 +844,30 @@ def identify_recovers_a_mass_from_a_simulated_log():
             assert "logger.toml:3:" in str(err) and "columns.t.unit" in str(err), err
 
 
+
+@test
+def run_mechanism_gives_each_actuator_its_prefixed_columns_and_the_summary():
+    """A scene with [[actuators]] from Python: per run, `t` and each actuator's columns under its name, the
+    squeeze the scene asks for on both fingers, and the summary's claims (docs/multibody.md)."""
+    traces, summary, wall_s = pneuflex.run_mechanism(str(ROOT / "scenes" / "gripper.toml"))
+    assert set(traces) == {"impedance", "adaptive"}, list(traces)
+    tr = traces["adaptive"]
+    for side in ("left", "right"):
+        for c in ("f_r", "f_e", "x", "u", "p_a", "p_b", "force", "p"):
+            assert f"{side}.{c}" in tr, (side, c, list(tr))
+    t = tr["t"]
+    assert len(t) == 8001 and abs(t[-1] - 8.0) < 1e-9
+    squeeze = (t >= 2.5) & (t <= 3.0)
+    for side in ("left", "right"):
+        assert abs(float(np.mean(tr[f"{side}.f_e"][squeeze])) - 10.0) < 0.1
+    assert summary["actuators"] == ["left", "right"] and len(summary["claims"]) == 4
+    assert wall_s > 0.0
+    try:
+        pneuflex.run_mechanism(str(ROOT / "scenes" / "no-such.toml"))
+    except FileNotFoundError as e:
+        assert "no-such.toml" in str(e)
+    else:
+        raise AssertionError("a missing scene was accepted")
+
 if __name__ == "__main__":
     sys.exit(main())
