@@ -81,6 +81,16 @@ pub enum MultibodyError {
         /// What was expected.
         reason: String,
     },
+    /// A link's `<visual>` mesh cannot be read.
+    #[error("{file}: link '{link}' <visual>: {reason}")]
+    BadVisual {
+        /// The URDF file.
+        file: PathBuf,
+        /// The link at fault.
+        link: String,
+        /// What was expected.
+        reason: String,
+    },
     /// The link/joint tree is not a tree with one root.
     #[error("{file}: kinematic tree: {reason}")]
     BadTree {

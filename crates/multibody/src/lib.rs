@@ -18,12 +18,12 @@ pub use mechanism::{
     ActuatorConfig, ContactConfig, ContactParams, ContactReading, Mechanism, MechanismConfig,
     Mount, MountState,
 };
-pub use mesh::ConvexHull;
+pub use mesh::{ConvexHull, TriangleMesh};
 /// The Rapier crate this world is built on.
 pub use rapier3d_f64;
 /// Rapier's f64 math types (glam), used for poses in the public API.
 pub use rapier3d_f64::math::{Pose, Rotation, Vector};
-pub use urdf_build::{LinkGeometry, LinkShape};
+pub use urdf_build::{LinkGeometry, LinkShape, LinkView};
 pub use world::{
     MaterialConfig, MaterialParams, Measurements, MultibodyConfig, RigWorld, STANDARD_GRAVITY,
 };

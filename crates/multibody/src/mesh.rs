@@ -1,7 +1,8 @@
 //! Collision meshes of a URDF (`<mesh filename="..." scale="..."/>`): an STL (binary or ASCII) or OBJ file,
 //! read bounded, scaled, and reduced to its convex hull, which is what the contact solver takes (a convex
 //! shape: one contact manifold per pair, no tunnelling through a thin triangle soup). A concave part is
-//! given as several `<collision>` elements, each convex.
+//! given as several `<collision>` elements, each convex. A `<visual>` mesh is kept as its triangles, for
+//! viewers.
 
 use std::path::{Path, PathBuf};
 
@@ -13,6 +14,16 @@ pub struct ConvexHull {
     /// Hull vertices, m, in the collision element's frame (scaled).
     pub vertices: Vec<[f64; 3]>,
     /// Triangles of the hull surface, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// A mesh as its file gives it, scaled: vertices (m) and triangles (indices into them). What a URDF's
+/// `<visual>` mesh draws.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriangleMesh {
+    /// Vertices, m, in the visual element's frame (scaled).
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles as the file orders them.
     pub triangles: Vec<[u32; 3]>,
 }
 
@@ -35,21 +46,41 @@ pub fn resolve(urdf: &Path, filename: &str) -> Result<PathBuf, String> {
 
 /// The vertices of the STL or OBJ file at `path` (by its extension), each multiplied by `scale`.
 pub fn read_vertices(path: &Path, scale: [f64; 3]) -> Result<Vec<[f64; 3]>, String> {
+    read_mesh(path, scale).map(|m| m.vertices)
+}
+
+/// The STL or OBJ file at `path` (by its extension), its vertices multiplied by `scale`.
+pub fn read_mesh(path: &Path, scale: [f64; 3]) -> Result<TriangleMesh, String> {
     let bytes = pneuflex_files::read_bytes(path, pneuflex_files::InputKind::Mesh)
         .map_err(|e| e.to_string())?;
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let raw: Vec<[f64; 3]> = match ext.as_str() {
+    let index =
+        |i: usize| u32::try_from(i).map_err(|_| format!("{}: too many vertices", path.display()));
+    let (raw, triangles): (Vec<[f64; 3]>, Vec<[u32; 3]>) = match ext.as_str() {
         // STL stores single precision; the hull is formed in f64 from those values.
         "stl" => {
             let mesh = stl_io::read_stl(&mut std::io::Cursor::new(&bytes))
                 .map_err(|e| format!("{}: not a readable STL file: {e}", path.display()))?;
-            mesh.vertices
+            let triangles = mesh
+                .faces
+                .iter()
+                .map(|f| {
+                    Ok([
+                        index(f.vertices[0])?,
+                        index(f.vertices[1])?,
+                        index(f.vertices[2])?,
+                    ])
+                })
+                .collect::<Result<_, String>>()?;
+            let vertices = mesh
+                .vertices
                 .iter()
                 .map(|v| [f64::from(v[0]), f64::from(v[1]), f64::from(v[2])])
-                .collect()
+                .collect();
+            (vertices, triangles)
         }
         "obj" => {
             let options = tobj::LoadOptions {
@@ -61,15 +92,23 @@ pub fn read_vertices(path: &Path, scale: [f64; 3]) -> Result<Vec<[f64; 3]>, Stri
             let (models, _) =
                 tobj::load_obj_buf(&mut bytes.as_slice(), &options, |_| Ok(Default::default()))
                     .map_err(|e| format!("{}: not a readable OBJ file: {e}", path.display()))?;
-            models
-                .iter()
-                .flat_map(|m| m.mesh.positions.chunks_exact(3))
-                .map(|p| [p[0], p[1], p[2]])
-                .collect()
+            let mut vertices = Vec::new();
+            let mut triangles = Vec::new();
+            for m in &models {
+                let base = index(vertices.len())?;
+                vertices.extend(m.mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+                triangles.extend(
+                    m.mesh
+                        .indices
+                        .chunks_exact(3)
+                        .map(|t| [base + t[0], base + t[1], base + t[2]]),
+                );
+            }
+            (vertices, triangles)
         }
         _ => {
             return Err(format!(
-                "{}: a collision mesh must be .stl or .obj, not '.{ext}'",
+                "{}: a mesh must be .stl or .obj, not '.{ext}'",
                 path.display()
             ));
         }
@@ -77,10 +116,23 @@ pub fn read_vertices(path: &Path, scale: [f64; 3]) -> Result<Vec<[f64; 3]>, Stri
     if let Some(v) = raw.iter().find(|v| v.iter().any(|c| !c.is_finite())) {
         return Err(format!("{}: a vertex is not finite: {v:?}", path.display()));
     }
-    Ok(raw
+    if let Some(t) = triangles
         .iter()
-        .map(|v| [v[0] * scale[0], v[1] * scale[1], v[2] * scale[2]])
-        .collect())
+        .find(|t| t.iter().any(|&i| i as usize >= raw.len()))
+    {
+        return Err(format!(
+            "{}: triangle {t:?} names a vertex past the {} there are",
+            path.display(),
+            raw.len()
+        ));
+    }
+    Ok(TriangleMesh {
+        vertices: raw
+            .iter()
+            .map(|v| [v[0] * scale[0], v[1] * scale[1], v[2] * scale[2]])
+            .collect(),
+        triangles,
+    })
 }
 
 /// The convex hull of `points`; an error when they span no volume (fewer than 4 points, or all on a plane or

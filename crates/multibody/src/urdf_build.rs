@@ -80,6 +80,22 @@ pub struct LinkInfo {
     pub colliders: Vec<ColliderHandle>,
     /// Total mass of the carrying body (all links merged into it), kg.
     pub body_mass_kg: f64,
+    /// The link's `<visual>` meshes (pose in the link frame, triangles), drawn by viewers beside the
+    /// collision shapes; primitive visuals repeat the collisions and are not kept.
+    pub visual_meshes: Vec<(Pose, crate::mesh::TriangleMesh)>,
+}
+
+/// A link as viewers draw it: its name, its pose now, its collision shapes and its visual meshes.
+#[derive(Debug, Clone, Copy)]
+pub struct LinkView<'a> {
+    /// URDF link name.
+    pub name: &'a str,
+    /// Pose of the link frame now.
+    pub pose: Pose,
+    /// Collision shapes in the link frame.
+    pub collisions: &'a [LinkGeometry],
+    /// Visual meshes in the link frame.
+    pub visual_meshes: &'a [(Pose, crate::mesh::TriangleMesh)],
 }
 
 /// A URDF joint as built.
@@ -140,6 +156,16 @@ impl BuiltRig {
                 field,
                 joint: name.to_owned(),
             })
+    }
+
+    /// Every link as viewers draw it, in URDF order.
+    pub fn link_views(&self) -> impl Iterator<Item = LinkView<'_>> + '_ {
+        self.links.iter().enumerate().map(|(i, l)| LinkView {
+            name: l.name.as_str(),
+            pose: self.link_pose(i),
+            collisions: l.geometry.as_slice(),
+            visual_meshes: l.visual_meshes.as_slice(),
+        })
     }
 
     /// World pose of a link frame now.
@@ -315,6 +341,36 @@ fn geometry_of(file: &Path, link: &urdf_rs::Link) -> Result<Vec<LinkGeometry>, M
     Ok(out)
 }
 
+/// The `<visual>` meshes of a link, read and scaled (a mesh that cannot be read is an error naming the
+/// link, as a collision mesh's is: a viewer that silently drew nothing would hide the mistake).
+fn visual_meshes_of(
+    file: &Path,
+    link: &urdf_rs::Link,
+) -> Result<Vec<(Pose, crate::mesh::TriangleMesh)>, MultibodyError> {
+    let bad = |reason: String| MultibodyError::BadVisual {
+        file: file.to_path_buf(),
+        link: link.name.clone(),
+        reason,
+    };
+    let mut out = Vec::new();
+    for v in &link.visual {
+        let urdf_rs::Geometry::Mesh { filename, scale } = &v.geometry else {
+            continue;
+        };
+        let scale = scale.map_or([1.0; 3], |s| s.0);
+        if !scale.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return Err(bad(format!(
+                "mesh '{filename}': scale {scale:?} must be three finite factors > 0"
+            )));
+        }
+        let path = crate::mesh::resolve(file, filename).map_err(&bad)?;
+        let mesh = crate::mesh::read_mesh(&path, scale)
+            .map_err(|e| bad(format!("mesh '{filename}': {e}")))?;
+        out.push((urdf_pose(&v.origin), mesh));
+    }
+    Ok(out)
+}
+
 /// The collider for one geometry element, positioned in the body frame.
 fn collider_for(g: &LinkGeometry, body_from_link: &Pose, friction: f64) -> Collider {
     // parry's cylinder and capsule run along y, URDF's along z: turn y onto z.
@@ -475,9 +531,11 @@ pub fn build(
     // Per-link checks before anything is built.
     let mut mass_props = Vec::with_capacity(robot.links.len());
     let mut geometry = Vec::with_capacity(robot.links.len());
+    let mut visual_meshes = Vec::with_capacity(robot.links.len());
     for l in &robot.links {
         mass_props.push(inertial_check(file, l)?);
         geometry.push(geometry_of(file, l)?);
+        visual_meshes.push(visual_meshes_of(file, l)?);
     }
 
     // Children lists, then a depth-first walk from the root (detects cycles: unreached links).
@@ -584,6 +642,7 @@ pub fn build(
             } else {
                 0.0
             },
+            visual_meshes: std::mem::take(&mut visual_meshes[li]),
         });
     }
     for j in &mut joints {

@@ -8,7 +8,7 @@ use rapier3d_f64::prelude::*;
 
 use crate::actuator::AxialActuator;
 use crate::error::MultibodyError;
-use crate::urdf_build::{self, BuildOptions, BuiltRig, LinkGeometry};
+use crate::urdf_build::{self, BuildOptions, BuiltRig, LinkView};
 
 /// Standard gravity, m/s^2.
 pub const STANDARD_GRAVITY: f64 = 9.80665;
@@ -821,16 +821,9 @@ impl RigWorld {
         Pose::from_rotation(Rotation::from_axis_angle(self.transverse, self.alpha_rad))
     }
 
-    /// Link names, poses in the rig frame, and collision geometry (in the link frame), for viewers.
-    pub fn link_poses(&self) -> impl Iterator<Item = (&str, Pose, &[LinkGeometry])> + '_ {
-        (0..self.rig.links.len()).map(move |i| {
-            let l = &self.rig.links[i];
-            (
-                l.name.as_str(),
-                self.rig.link_pose(i),
-                l.geometry.as_slice(),
-            )
-        })
+    /// Every link as viewers draw it: name, pose now, collision shapes and visual meshes.
+    pub fn link_views(&self) -> impl Iterator<Item = LinkView<'_>> + '_ {
+        self.rig.link_views()
     }
 
     /// The underlying Rapier world (read-only), for diagnostics.

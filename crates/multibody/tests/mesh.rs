@@ -86,10 +86,11 @@ fn write_obj(path: &Path, v: &[[f64; 3]], faces: &[[usize; 3]]) {
 fn check_flange(urdf: &Path, vertices: &[[f64; 3]], scale: [f64; 3]) {
     let rig =
         RigWorld::from_urdf(urdf, &MultibodyConfig::paper_rig()).unwrap_or_else(|e| panic!("{e}"));
-    let (_, link_pose, geometry) = rig
-        .link_poses()
-        .find(|(name, _, _)| *name == "flange")
+    let flange = rig
+        .link_views()
+        .find(|l| l.name == "flange")
         .expect("the flange");
+    let (link_pose, geometry) = (flange.pose, flange.collisions);
     let LinkShape::ConvexHull(hull) = &geometry[0].shape else {
         panic!(
             "the flange's collision is not a hull: {:?}",
@@ -219,5 +220,69 @@ fn bad_meshes_are_refused_naming_the_link_and_the_file() {
             msg.contains("rig.urdf") && msg.contains("'flange'") && msg.contains(expect),
             "{mesh}: {msg}"
         );
+    }
+}
+
+/// The shipped rig with a `<visual>` mesh added to the flange, `mesh` the geometry element.
+fn rig_with_flange_visual(dir: &Path, mesh: &str) -> PathBuf {
+    let text = rig_text();
+    // Beside the flange's own <visual> (the URDF reader wants a link's visuals together).
+    let link = text.find("<link name=\"flange\">").unwrap();
+    let at = link + text[link..].find("</visual>").unwrap() + "</visual>".len();
+    let new = format!(
+        "{}\n    <visual>\n      <origin xyz=\"0.005 0 0\" rpy=\"0 0 0.5\"/>\n      <geometry>{mesh}</geometry>\n    </visual>{}",
+        &text[..at],
+        &text[at..]
+    );
+    let p = dir.join("rig.urdf");
+    std::fs::write(&p, new).unwrap();
+    p
+}
+
+#[test]
+fn a_visual_mesh_is_kept_whole_for_viewers_and_a_bad_one_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // A box in mm, scaled to m: every triangle of the file, every vertex scaled, at the visual's origin.
+    let (v, faces) = box_mesh([5.0, 20.0, 20.0]);
+    write_obj(&dir.path().join("flange.obj"), &v, &faces);
+    let urdf = rig_with_flange_visual(
+        dir.path(),
+        "<mesh filename=\"flange.obj\" scale=\"0.001 0.001 0.001\"/>",
+    );
+    let rig =
+        RigWorld::from_urdf(&urdf, &MultibodyConfig::paper_rig()).unwrap_or_else(|e| panic!("{e}"));
+    let flange = rig.link_views().find(|l| l.name == "flange").unwrap();
+    assert_eq!(flange.visual_meshes.len(), 1);
+    let (origin, mesh) = &flange.visual_meshes[0];
+    // The same triangles as the file's (the reader may number the vertices anew): corners in mm.
+    let corners = |tri: [[f64; 3]; 3]| tri.map(|p| p.map(|c| (c * 1e3).round() as i64));
+    let mut got: Vec<_> = mesh
+        .triangles
+        .iter()
+        .map(|t| corners(t.map(|i| mesh.vertices[i as usize])))
+        .collect();
+    let mut want: Vec<_> = faces
+        .iter()
+        .map(|f| corners(f.map(|i| v[i].map(|c| 1e-3 * c))))
+        .collect();
+    got.sort();
+    want.sort();
+    assert_eq!(got, want);
+    assert!((origin.translation.x - 0.005).abs() < 1e-15);
+    // The collision stays the URDF's box; links without visual meshes have none.
+    assert!(matches!(flange.collisions[0].shape, LinkShape::Box { .. }));
+    assert!(
+        rig.link_views()
+            .filter(|l| l.name != "flange")
+            .all(|l| l.visual_meshes.is_empty())
+    );
+    // A visual mesh that cannot be read is refused, naming the URDF, the link, <visual> and the file.
+    let urdf = rig_with_flange_visual(dir.path(), "<mesh filename=\"nowhere.stl\"/>");
+    let e = RigWorld::from_urdf(&urdf, &MultibodyConfig::paper_rig())
+        .err()
+        .expect("refused")
+        .to_string();
+    for w in ["rig.urdf", "link 'flange' <visual>", "nowhere.stl"] {
+        assert!(e.contains(w), "{e:?} lacks {w:?}");
     }
 }

@@ -21,7 +21,7 @@ pub use mount::MountState;
 
 use crate::actuator::AxialActuator;
 use crate::error::MultibodyError;
-use crate::urdf_build::{self, BuildOptions, BuiltRig, LinkGeometry};
+use crate::urdf_build::{self, BuildOptions, BuiltRig, LinkView};
 
 /// An actuator as built.
 #[derive(Debug, Clone)]
@@ -340,16 +340,9 @@ impl Mechanism {
         Ok(())
     }
 
-    /// Link names, poses in the root frame and collision geometry (link frame), for viewers.
-    pub fn link_poses(&self) -> impl Iterator<Item = (&str, Pose, &[LinkGeometry])> + '_ {
-        (0..self.rig.links.len()).map(move |i| {
-            let l = &self.rig.links[i];
-            (
-                l.name.as_str(),
-                self.rig.link_pose(i),
-                l.geometry.as_slice(),
-            )
-        })
+    /// Every link as viewers draw it: name, pose now, collision shapes and visual meshes.
+    pub fn link_views(&self) -> impl Iterator<Item = LinkView<'_>> + '_ {
+        self.rig.link_views()
     }
 
     /// World pose of the named link now.

@@ -269,6 +269,64 @@ impl VisualShape {
     }
 }
 
+/// The drawn shapes of a URDF's links: each collision shape (`<link>`, or `<link>/<i>` for a link's i-th of
+/// several), then each visual mesh (`<link>/visual/<i>`); `role` says what a link is to the experiment.
+pub fn drawn_links<'a>(
+    links: impl Iterator<Item = pneuflex_multibody::LinkView<'a>>,
+    role: impl Fn(&str) -> VisualRole,
+) -> Vec<Visual> {
+    let mut out = Vec::new();
+    for l in links {
+        for (j, g) in l.collisions.iter().enumerate() {
+            out.push(Visual {
+                name: if l.collisions.len() == 1 {
+                    l.name.to_string()
+                } else {
+                    format!("{}/{j}", l.name)
+                },
+                shape: VisualShape::of(&g.shape),
+                role: role(l.name),
+            });
+        }
+        for (j, (_, mesh)) in l.visual_meshes.iter().enumerate() {
+            out.push(Visual {
+                name: format!("{}/visual/{j}", l.name),
+                shape: VisualShape::Mesh {
+                    vertices_m: mesh.vertices.clone(),
+                    triangles: mesh.triangles.clone(),
+                },
+                role: role(l.name),
+            });
+        }
+    }
+    out
+}
+
+/// The pose of each of [`drawn_links`]' shapes now, in that order, in the frame `world` takes the URDF's
+/// root frame to.
+pub fn drawn_poses<'a>(
+    links: impl Iterator<Item = pneuflex_multibody::LinkView<'a>>,
+    world: pneuflex_multibody::Pose,
+    pose: &mut dyn FnMut(usize, VisualPose),
+) {
+    let mut i = 0;
+    for l in links {
+        let origins = l.collisions.iter().map(|g| g.origin);
+        for origin in origins.chain(l.visual_meshes.iter().map(|(o, _)| *o)) {
+            let p = world * l.pose * origin;
+            let (t, q) = (p.translation, p.rotation);
+            pose(
+                i,
+                VisualPose {
+                    translation_m: [t.x, t.y, t.z],
+                    rotation_xyzw: [q.x, q.y, q.z, q.w],
+                },
+            );
+            i += 1;
+        }
+    }
+}
+
 /// Pose of a shape in the world: translation (m) and unit quaternion [x, y, z, w].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VisualPose {

@@ -28,9 +28,7 @@ use pneuflex_multibody::{
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
 
 use crate::error::SceneError;
-use crate::plants::{
-    ActuatorGeometry, LinearSpring, Plant, Visual, VisualPose, VisualRole, VisualShape,
-};
+use crate::plants::{ActuatorGeometry, LinearSpring, Plant, Visual, VisualPose, VisualRole};
 use crate::schema::{EventSpec, MultibodySpec, PlantSpec, Scene};
 
 /// The pneumatic force element plus the sheet's Coulomb friction, acting between cylinder and flange.
@@ -465,42 +463,11 @@ impl Plant for MultibodyPlant {
     }
 
     fn visuals(&self) -> Vec<Visual> {
-        let mut out = Vec::new();
-        for (link_name, _, geoms) in self.world.link_poses() {
-            for (j, g) in geoms.iter().enumerate() {
-                let shape = VisualShape::of(&g.shape);
-                let name = if geoms.len() == 1 {
-                    link_name.to_string()
-                } else {
-                    format!("{link_name}/{j}")
-                };
-                out.push(Visual {
-                    name,
-                    shape,
-                    role: self.link_role(link_name),
-                });
-            }
-        }
-        out
+        super::drawn_links(self.world.link_views(), |link| self.link_role(link))
     }
 
     fn visual_poses(&self, pose: &mut dyn FnMut(usize, VisualPose)) {
-        let world_from_rig = self.world.world_from_rig();
-        let mut i = 0;
-        for (_, link, geoms) in self.world.link_poses() {
-            for g in geoms {
-                let p = world_from_rig * link * g.origin;
-                let (t, q) = (p.translation, p.rotation);
-                pose(
-                    i,
-                    VisualPose {
-                        translation_m: [t.x, t.y, t.z],
-                        rotation_xyzw: [q.x, q.y, q.z, q.w],
-                    },
-                );
-                i += 1;
-            }
-        }
+        super::drawn_poses(self.world.link_views(), self.world.world_from_rig(), pose)
     }
 
     fn actuator_geometry(&self) -> Option<ActuatorGeometry> {
