@@ -74,3 +74,62 @@ fn a_mechanism_scene_with_a_bad_key_fails_naming_it_and_writes_nothing() {
     );
     assert!(!out.exists(), "an output was left behind");
 }
+
+#[test]
+fn sigint_keeps_what_ran_as_a_partial_output_and_exits_130() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // A long gripper run, so that the signal lands mid-run.
+    let text = std::fs::read_to_string(root.join("scenes/gripper.toml"))
+        .unwrap()
+        .replace("\"../", &format!("\"{}/", root.display()))
+        .replace("duration_s = 8.0", "duration_s = 400.0");
+    let scene = dir.path().join("long.toml");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.path().join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+        .args([
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Until the staging directory exists (the run has started), then the signal.
+    let started = std::time::Instant::now();
+    while !std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .any(|e| e.file_name().to_string_lossy().contains("out."))
+    {
+        assert!(
+            started.elapsed().as_secs() < 60,
+            "the run never staged its output"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let o = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(130), "{stderr}");
+    assert!(
+        stderr.contains("SIGINT") && stderr.contains("out.partial"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "the destination was written");
+    let manifest =
+        std::fs::read_to_string(dir.path().join("out.partial/.pneuflex-output.json")).unwrap();
+    assert!(manifest.contains("\"complete\": false") && manifest.contains("SIGINT"));
+    assert!(dir.path().join("out.partial/impedance/trace.csv").exists());
+}
