@@ -8,6 +8,7 @@ pub mod actuator;
 pub mod error;
 pub mod mechanism;
 pub mod mesh;
+pub mod spring;
 pub mod urdf_build;
 pub mod urdf_scan;
 pub mod world;
@@ -16,7 +17,7 @@ pub use actuator::{AxialActuator, ConstantForce, PneumaticForceElement, SpringAc
 pub use error::MultibodyError;
 pub use mechanism::{
     ActuatorConfig, ContactConfig, ContactParams, ContactReading, Mechanism, MechanismConfig,
-    Mount, MountState,
+    Mount, MountState, SpringConfig,
 };
 pub use mesh::{ConvexHull, TriangleMesh};
 /// The Rapier crate this world is built on.

@@ -853,33 +853,16 @@ impl RigWorld {
         }
     }
 
-    /// The mount is a force-based spring-damper F = k (q0 - q) - c q'. Its set point q0 absorbs the
-    /// face's own weight along the mount, so the unloaded face rests at q = 0 at every incline and
-    /// f_e = k (x - x_e) holds with a fixed x_e (eq. (21)).
-    ///
-    /// Rapier integrates a force-based motor implicitly over each solver substep h (the physics step over
-    /// the solver iterations): F = k (q0 - q - h q'⁺) - c q'⁺, a damping of c + k h. On iron (1400 N/m,
-    /// 2 N s/m) at h = 1 ms that is 70 % more damping than the material's, and the PWM ripple of the contact
-    /// force grew with h (iron 0.90 / 0.95 / 1.06 / 1.27 N at h = 0.125 / 0.25 / 0.5 / 1 ms against MuJoCo's
-    /// 0.86 N; docs/performance.md). The motor is given c - k h, so the spring acts on the substep's start
-    /// position (semi-implicit Euler, stable for the face's ω h < 2) and the damping is the material's: the
-    /// ripple is then 0.87 / 0.86 N at h = 1 / 0.125 ms. Where c < 1.1 k h only part of k h can be taken
-    /// back (c - k h would leave the motor too little damping to be well posed): c / 10 is the floor.
+    /// The mount is a force-based spring-damper F = k (q0 - q) - c q' ([`crate::spring::set_joint_spring`]).
+    /// Its set point q0 absorbs the face's own weight along the mount, so the unloaded face rests at q = 0
+    /// at every incline and f_e = k (x - x_e) holds with a fixed x_e (eq. (21)).
     fn update_mount(&mut self, i: usize) {
         let g_axial = self.gravity().dot(self.materials[i].mount_axis);
         let m = &self.materials[i];
         let k = m.params.stiffness_n_per_m;
         let q0 = -m.face_mass_kg * g_axial / k;
-        let ip = &self.rig.world.integration_parameters;
-        let h = ip.dt / ip.num_solver_iterations as f64;
-        let c_material = m.params.damping_n_s_per_m;
-        let c = (c_material - k * h).max(0.1 * c_material);
-        let (joint, face) = (m.joint, m.face_body);
-        if let Some(j) = self.rig.world.impulse_joints.get_mut(joint, true) {
-            j.data
-                .set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
-            j.data.set_motor(JointAxis::LinX, q0, 0.0, k, c);
-        }
+        let (joint, face, c) = (m.joint, m.face_body, m.params.damping_n_s_per_m);
+        crate::spring::set_joint_spring(&mut self.rig.world, joint, JointAxis::LinX, q0, k, c);
         self.rig.world.bodies[face].wake_up(true);
     }
 

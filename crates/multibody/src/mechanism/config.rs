@@ -57,6 +57,21 @@ pub struct ContactConfig {
     pub damping_n_s_per_m: f64,
 }
 
+/// A spring-damper on a prismatic or revolute joint (a compliant mount: the lumped stiffness of an
+/// environment behind its contact face, a return spring). Its rest position is the URDF's zero, where a
+/// prismatic joint's child rests under its own weight at any gravity.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpringConfig {
+    /// Its name in the scene (events).
+    pub name: String,
+    /// The joint.
+    pub joint: String,
+    /// Stiffness, N/m or N m/rad.
+    pub stiffness: f64,
+    /// Damping, N s/m or N m s/rad.
+    pub damping: f64,
+}
+
 /// Everything a mechanism needs besides its URDF.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MechanismConfig {
@@ -72,6 +87,10 @@ pub struct MechanismConfig {
     pub solver_iterations: usize,
     /// Prismatic joints that start away from the URDF's zero configuration: (joint, position in m).
     pub initial_positions: Vec<(String, f64)>,
+    /// Spring-dampers on joints.
+    pub springs: Vec<SpringConfig>,
+    /// Links held where the URDF puts them (a carriage, a fixture), with everything fixed to them.
+    pub held_links: Vec<String>,
 }
 
 impl MechanismConfig {
@@ -84,6 +103,8 @@ impl MechanismConfig {
             dt_s: 1.0e-3,
             solver_iterations: 4,
             initial_positions: Vec::new(),
+            springs: Vec::new(),
+            held_links: Vec::new(),
         }
     }
 }

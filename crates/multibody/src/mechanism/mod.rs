@@ -13,7 +13,7 @@ use std::path::Path;
 
 use rapier3d_f64::prelude::*;
 
-pub use config::{ActuatorConfig, ContactConfig, MechanismConfig, Mount};
+pub use config::{ActuatorConfig, ContactConfig, MechanismConfig, Mount, SpringConfig};
 use contact::BuiltContact;
 pub use contact::{ContactParams, ContactReading};
 use mount::BuiltMount;
@@ -38,11 +38,24 @@ struct Contact {
     built: BuiltContact,
 }
 
+/// A spring as built.
+#[derive(Debug, Clone)]
+struct Spring {
+    name: String,
+    joint: ImpulseJointHandle,
+    axis: JointAxis,
+    /// Set point that holds the child at q = 0 under its weight, times k (N or N m): q0 = this / k.
+    weight_along_n: f64,
+    child: RigidBodyHandle,
+    params: ContactParams,
+}
+
 /// A URDF in Rapier with pneumatic actuators and compliant contacts.
 pub struct Mechanism {
     rig: BuiltRig,
     actuators: Vec<Actuator>,
     contacts: Vec<Contact>,
+    springs: Vec<Spring>,
     /// Dynamic bodies that get forces: theirs are reset before every step (Rapier keeps them otherwise).
     loaded: Vec<RigidBodyHandle>,
     time_s: f64,
@@ -72,11 +85,22 @@ impl Mechanism {
         config: &MechanismConfig,
     ) -> Result<Self, MultibodyError> {
         check_settings(config)?;
+        for (i, l) in config.held_links.iter().enumerate() {
+            if !robot.links.iter().any(|x| &x.name == l) {
+                return Err(MultibodyError::BadMechanism {
+                    file: path.to_path_buf(),
+                    item: format!("held link {i}"),
+                    key: "held_links",
+                    reason: format!("the URDF has no link named '{l}'"),
+                });
+            }
+        }
+        let held: Vec<&str> = config.held_links.iter().map(String::as_str).collect();
         let mut rig = urdf_build::build(
             path,
             robot,
             &BuildOptions {
-                kinematic_links: &[],
+                kinematic_links: &held,
                 friction: 0.0,
             },
         )?;
@@ -109,6 +133,23 @@ impl Mechanism {
                 built: build_contact(&rig, c)?,
             });
         }
+        let mut springs = Vec::with_capacity(config.springs.len());
+        for (i, sp) in config.springs.iter().enumerate() {
+            if config.springs[..i].iter().any(|o| o.name == sp.name) {
+                return Err(bad(
+                    &rig,
+                    "spring",
+                    &sp.name,
+                    "name",
+                    "is listed twice".into(),
+                ));
+            }
+            springs.push(build_spring(
+                &rig,
+                sp,
+                Vector::from_array(config.gravity_m_s2),
+            )?);
+        }
         // Rapier's rigid contact is off for every collider: the mechanism's pads are the only contacts.
         let handles: Vec<ColliderHandle> = rig.world.colliders.iter().map(|(h, _)| h).collect();
         for h in handles {
@@ -132,6 +173,9 @@ impl Mechanism {
             ip.warmstart_joints = true;
         }
         rig.world.gravity = Vector::from_array(config.gravity_m_s2);
+        for sp in &springs {
+            apply_spring(&mut rig.world, sp);
+        }
         for (name, q) in &config.initial_positions {
             set_prismatic(&mut rig, name, *q)?;
         }
@@ -145,6 +189,7 @@ impl Mechanism {
             rig,
             actuators,
             contacts,
+            springs,
             loaded,
             time_s: 0.0,
             states,
@@ -218,9 +263,37 @@ impl Mechanism {
 
     /// Event: change contact `i`'s stiffness and damping now (an object that stiffens: foam, then rubber).
     pub fn set_contact(&mut self, i: usize, params: ContactParams) -> Result<(), MultibodyError> {
-        check_pad(&self.rig, &self.contacts[i].name, &params)?;
+        check_pad(&self.rig, "contact", &self.contacts[i].name, &params)?;
         self.contacts[i].built.params = params;
         Ok(())
+    }
+
+    /// Index of the named spring.
+    pub fn spring_index(&self, name: &str) -> Result<usize, MultibodyError> {
+        self.springs
+            .iter()
+            .position(|s| s.name == name)
+            .ok_or_else(|| {
+                unknown(
+                    &self.rig,
+                    "spring",
+                    name,
+                    self.springs.iter().map(|s| s.name.as_str()),
+                )
+            })
+    }
+
+    /// Event: change spring `i`'s stiffness and damping now (the environment behind a face stiffens).
+    pub fn set_spring(&mut self, i: usize, params: ContactParams) -> Result<(), MultibodyError> {
+        check_pad(&self.rig, "spring", &self.springs[i].name, &params)?;
+        self.springs[i].params = params;
+        apply_spring(&mut self.rig.world, &self.springs[i]);
+        Ok(())
+    }
+
+    /// Spring `i`'s stiffness and damping.
+    pub fn spring_params(&self, i: usize) -> ContactParams {
+        self.springs[i].params
     }
 
     /// Contact `i`'s stiffness and damping.
@@ -618,11 +691,16 @@ fn build_actuator(rig: &BuiltRig, a: &ActuatorConfig) -> Result<Actuator, Multib
     }
 }
 
-fn check_pad(rig: &BuiltRig, name: &str, p: &ContactParams) -> Result<(), MultibodyError> {
+fn check_pad(
+    rig: &BuiltRig,
+    kind: &str,
+    name: &str,
+    p: &ContactParams,
+) -> Result<(), MultibodyError> {
     if !(p.stiffness_n_per_m.is_finite() && p.stiffness_n_per_m > 0.0) {
         return Err(bad(
             rig,
-            "contact",
+            kind,
             name,
             "stiffness",
             format!("must be finite and > 0 N/m, got {}", p.stiffness_n_per_m),
@@ -631,7 +709,7 @@ fn check_pad(rig: &BuiltRig, name: &str, p: &ContactParams) -> Result<(), Multib
     if !(p.damping_n_s_per_m.is_finite() && p.damping_n_s_per_m >= 0.0) {
         return Err(bad(
             rig,
-            "contact",
+            kind,
             name,
             "damping",
             format!("must be finite and >= 0 N s/m, got {}", p.damping_n_s_per_m),
@@ -673,7 +751,7 @@ fn build_contact(rig: &BuiltRig, c: &ContactConfig) -> Result<BuiltContact, Mult
         stiffness_n_per_m: c.stiffness_n_per_m,
         damping_n_s_per_m: c.damping_n_s_per_m,
     };
-    check_pad(rig, &c.name, &params)?;
+    check_pad(rig, "contact", &c.name, &params)?;
     let pairs = rig.links[la]
         .colliders
         .iter()
@@ -685,4 +763,71 @@ fn build_contact(rig: &BuiltRig, c: &ContactConfig) -> Result<BuiltContact, Mult
         pairs,
         params,
     })
+}
+
+fn build_spring(
+    rig: &BuiltRig,
+    sp: &SpringConfig,
+    gravity: Vector,
+) -> Result<Spring, MultibodyError> {
+    let err = |key: &'static str, reason: String| bad(rig, "spring", &sp.name, key, reason);
+    let Some(j) = rig.joints.iter().find(|j| j.name == sp.joint) else {
+        return Err(err(
+            "joint",
+            format!("the URDF has no joint named '{}'", sp.joint),
+        ));
+    };
+    let axis = match j.kind {
+        urdf_rs::JointType::Prismatic => JointAxis::LinX,
+        urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointAxis::AngX,
+        _ => {
+            return Err(err(
+                "joint",
+                format!("'{}' must be a prismatic or revolute joint", sp.joint),
+            ));
+        }
+    };
+    let Some(handle) = j.handle else {
+        return Err(err(
+            "joint",
+            format!(
+                "'{}' moves no simulated link (held, or merged by fixed joints)",
+                sp.joint
+            ),
+        ));
+    };
+    let params = ContactParams {
+        stiffness_n_per_m: sp.stiffness,
+        damping_n_s_per_m: sp.damping,
+    };
+    check_pad(rig, "spring", &sp.name, &params)?;
+    // A prismatic child's weight along the joint, which the set point carries so that it rests at q = 0.
+    let child = rig.links[j.child].body;
+    let weight_along_n = if axis == JointAxis::LinX {
+        let joint_axis = (rig.link_pose(j.parent) * j.origin).rotation * j.axis;
+        rig.links[j.child].body_mass_kg * gravity.dot(joint_axis)
+    } else {
+        0.0
+    };
+    Ok(Spring {
+        name: sp.name.clone(),
+        joint: handle,
+        axis,
+        weight_along_n,
+        child,
+        params,
+    })
+}
+
+fn apply_spring(world: &mut PhysicsWorld, sp: &Spring) {
+    let k = sp.params.stiffness_n_per_m;
+    crate::spring::set_joint_spring(
+        world,
+        sp.joint,
+        sp.axis,
+        -sp.weight_along_n / k,
+        k,
+        sp.params.damping_n_s_per_m,
+    );
+    world.bodies[sp.child].wake_up(true);
 }

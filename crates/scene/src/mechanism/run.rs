@@ -77,8 +77,15 @@ pub struct Built {
     schedules: Vec<SetpointSchedule>,
     /// Each actuator's force sensor: a contact's index, or None for the rod's load cell.
     sensors: Vec<Option<usize>>,
-    /// Contact index of each event.
-    events: Vec<(usize, usize, ContactParams)>,
+    /// Each event: its tick, what it changes, the new values.
+    events: Vec<(usize, EventTarget, ContactParams)>,
+}
+
+/// What an event changes.
+#[derive(Clone, Copy, Debug)]
+enum EventTarget {
+    Contact(usize),
+    Spring(usize),
 }
 
 /// Builds the mechanism a scene describes (errors name the key that causes them).
@@ -147,6 +154,17 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
             .iter()
             .filter_map(|a| Some((a.joint.clone()?, a.initial_position_m?)))
             .collect(),
+        springs: scene
+            .springs
+            .iter()
+            .map(|s| pneuflex_multibody::SpringConfig {
+                name: s.name.clone(),
+                joint: s.joint.clone(),
+                stiffness: s.stiffness_n_per_m,
+                damping: s.damping_n_s_per_m,
+            })
+            .collect(),
+        held_links: scene.held_links.clone(),
     };
     let mechanism = Mechanism::from_robot(&urdf, &robot, &config)
         .map_err(|e| scene.invalid(&mechanism_key(scene, &e), e.to_string()))?;
@@ -203,15 +221,27 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
         });
     }
     let mut events = Vec::with_capacity(scene.events.len());
-    for e in &scene.events {
-        let ci = mechanism
-            .contact_index(&e.contact)
-            .map_err(|err| scene.invalid("events", err.to_string()))?;
-        let old = mechanism.contact_params(ci);
+    for (i, e) in scene.events.iter().enumerate() {
+        let at = |k: &str| format!("events[{i}].{k}");
+        let (target, old) = match (&e.contact, &e.spring) {
+            (Some(c), _) => {
+                let ci = mechanism
+                    .contact_index(c)
+                    .map_err(|err| scene.invalid(&at("contact"), err.to_string()))?;
+                (EventTarget::Contact(ci), mechanism.contact_params(ci))
+            }
+            (None, Some(sp)) => {
+                let si = mechanism
+                    .spring_index(sp)
+                    .map_err(|err| scene.invalid(&at("spring"), err.to_string()))?;
+                (EventTarget::Spring(si), mechanism.spring_params(si))
+            }
+            (None, None) => unreachable!("checked at load: one target per event"),
+        };
         let tick = (e.t_s / scene.dt_s).round() as usize;
         events.push((
             tick,
-            ci,
+            target,
             ContactParams {
                 stiffness_n_per_m: e.stiffness_n_per_m,
                 damping_n_s_per_m: e.damping_n_s_per_m.unwrap_or(old.damping_n_s_per_m),
@@ -252,6 +282,21 @@ fn mechanism_key(scene: &MechanismScene, e: &pneuflex_multibody::MultibodyError)
             other => other.into(),
         };
         return format!("actuators[{i}].{k}");
+    }
+    if let Some(i) = scene
+        .springs
+        .iter()
+        .position(|s| *item == format!("spring '{}'", s.name))
+    {
+        let k = match *key {
+            "stiffness" => "stiffness_n_per_m",
+            "damping" => "damping_n_s_per_m",
+            other => other,
+        };
+        return format!("springs[{i}].{k}");
+    }
+    if *key == "held_links" {
+        return "held_links".into();
     }
     if let Some(i) = scene
         .contacts
@@ -333,11 +378,13 @@ fn run_one(
     let mut own = Vec::new();
     for k in 0..=n {
         let t = k as f64 * dt;
-        for &(tick, ci, params) in &b.events {
+        for &(tick, target, params) in &b.events {
             if tick == k {
-                b.mechanism
-                    .set_contact(ci, params)
-                    .expect("checked at load");
+                match target {
+                    EventTarget::Contact(i) => b.mechanism.set_contact(i, params),
+                    EventTarget::Spring(i) => b.mechanism.set_spring(i, params),
+                }
+                .expect("checked at load");
             }
         }
         let mut row = Vec::with_capacity(columns.len());

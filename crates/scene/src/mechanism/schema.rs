@@ -41,7 +41,13 @@ pub struct MechanismScene {
     /// Compliant contacts between links.
     #[serde(default)]
     pub contacts: Vec<ContactSpec>,
-    /// Contact stiffness changes during the run.
+    /// Spring-dampers on joints.
+    #[serde(default)]
+    pub springs: Vec<SpringSpec>,
+    /// Links held where the URDF puts them (a carriage, a fixture), with everything fixed to them.
+    #[serde(default)]
+    pub held_links: Vec<String>,
+    /// Contact and spring stiffness changes during the run.
     #[serde(default)]
     pub events: Vec<ContactEvent>,
     /// The controller runs compared; each run puts its controller on every actuator.
@@ -133,19 +139,39 @@ pub struct ContactSpec {
     pub damping_n_s_per_m: f64,
 }
 
-/// At `t_s` the named contact takes a new stiffness (and damping): foam, then rubber.
+/// At `t_s` the named contact or spring takes a new stiffness (and damping): foam, then rubber.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactEvent {
     /// When, s (on a control tick).
     pub t_s: f64,
-    /// Which contact.
-    pub contact: String,
+    /// Which contact (or give `spring`).
+    #[serde(default)]
+    pub contact: Option<String>,
+    /// Which spring (or give `contact`).
+    #[serde(default)]
+    pub spring: Option<String>,
     /// New stiffness, N/m.
     pub stiffness_n_per_m: f64,
     /// New damping, N s/m (unchanged when absent).
     #[serde(default)]
     pub damping_n_s_per_m: Option<f64>,
+}
+
+/// A spring-damper on a prismatic or revolute joint: a compliant mount behind a contact face, a return
+/// spring. It rests at the URDF's zero (a prismatic joint's child under its own weight).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    /// Its name (events).
+    pub name: String,
+    /// The joint.
+    pub joint: String,
+    /// Stiffness, N/m (N m/rad on a revolute joint).
+    pub stiffness_n_per_m: f64,
+    /// Damping, N s/m (N m s/rad).
+    #[serde(default)]
+    pub damping_n_s_per_m: f64,
 }
 
 /// A named time window for metrics.
@@ -391,6 +417,11 @@ impl MechanismScene {
                 )?;
             }
         }
+        for (i, sp) in self.springs.iter().enumerate() {
+            let at = |k: &str| format!("springs[{i}].{k}");
+            self.number(&at("stiffness_n_per_m"), sp.stiffness_n_per_m, positive)?;
+            self.number(&at("damping_n_s_per_m"), sp.damping_n_s_per_m, non_negative)?;
+        }
         for (i, c) in self.contacts.iter().enumerate() {
             let at = |k: &str| format!("contacts[{i}].{k}");
             if c.name == LOAD_CELL {
@@ -418,15 +449,30 @@ impl MechanismScene {
                     ),
                 ));
             }
-            if !self.contacts.iter().any(|c| c.name == e.contact) {
-                return Err(self.invalid(
-                    &at("contact"),
-                    format!(
-                        "no contact named {:?} (contacts: {})",
-                        e.contact,
-                        self.contact_names()
-                    ),
-                ));
+            match (&e.contact, &e.spring) {
+                (Some(c), None) if !self.contacts.iter().any(|x| &x.name == c) => {
+                    return Err(self.invalid(
+                        &at("contact"),
+                        format!(
+                            "no contact named {c:?} (contacts: {})",
+                            self.contact_names()
+                        ),
+                    ));
+                }
+                (None, Some(sp)) if !self.springs.iter().any(|x| &x.name == sp) => {
+                    let names: Vec<&str> = self.springs.iter().map(|x| x.name.as_str()).collect();
+                    return Err(self.invalid(
+                        &at("spring"),
+                        format!("no spring named {sp:?} (springs: {})", names.join(", ")),
+                    ));
+                }
+                (Some(_), None) | (None, Some(_)) => {}
+                _ => {
+                    return Err(self.invalid(
+                        &at("t_s"),
+                        "name exactly one of `contact` or `spring`".into(),
+                    ));
+                }
             }
             self.number(&at("stiffness_n_per_m"), e.stiffness_n_per_m, positive)?;
             if let Some(c) = e.damping_n_s_per_m {
