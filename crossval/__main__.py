@@ -425,7 +425,8 @@ def main(argv=None) -> int:
                 for a, v in e["actuators"].items():
                     print(f"[{r['scene']}] {run} / {a}: RMS Δf_e = {v['rms_f_e_diff_n']:.3f} N = {100 * v['rms_f_e_diff_rel']:.2f}% "
                           f"of {v['force_level_n']:.2f} N from {r['compared_from_s']} s (tolerance {100 * r['tolerance_rms_f_e_rel']:.0f}%; whole run {v['rms_f_e_diff_whole_run_n']:.3f} N), mean f_e Rapier "
-                          f"{v['mean_f_e_rapier_n']:.3f} N, MuJoCo {v['mean_f_e_mujoco_n']:.3f} N, RMS Δx = {1e3 * v['rms_x_diff_m']:.3f} mm  "
+                          f"{v['mean_f_e_rapier_n']:.3f} N, MuJoCo {v['mean_f_e_mujoco_n']:.3f} N, RMS Δx = {1e3 * v['rms_x_diff_m']:.3f} mm; "
+                          f"before the first event {100 * v['rms_f_e_diff_before_events_rel']:.2f}%  "
                           f"{'ok' if v['pass'] else 'FAIL'}")
             print(f"[{r['scene']}] report {Path(args.out) / r['scene'] / 'report.json'} ({time.perf_counter() - t0:.1f} s)")
             if not r["pass"]:

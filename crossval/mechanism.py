@@ -308,6 +308,16 @@ def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
     return {"columns": cols, "xml": mm.xml}
 
 
+# Per-scene tolerance on RMS(Δf_e) / force level from the first metric window on, set from the measurement
+# with its reason (as crossval's SCENE_TOLERANCES): the gripper's adaptive run limit-cycles on rubber from
+# 5 s (2.6 N RMS force error); the cycle's amplitude depends on the step (Rapier 3.40 / 2.87 / 2.68 / 2.60 /
+# 2.55 N at 1 / 0.5 / 0.25 / 0.125 / 0.0625 ms; MuJoCo at 0.1 ms 2.34 N) and its phase drifts between the
+# engines: 3.08 % raw from 2 s (impedance 1.23 %). The tighter check that holds where a scene has a looser
+# tolerance: before its first stiffness event the difference is within 1 % (the gripper on foam: 0.09 %).
+SCENE_TOLERANCES = {"gripper": 0.05}
+BEFORE_EVENTS_TOLERANCE = 0.01
+
+
 def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) -> dict:
     """Both engines on every run. Each actuator's RMS contact-force difference, relative to its RMS force
     reference, is reported over the whole run and over the controlled part (from the first metric window's
@@ -322,8 +332,11 @@ def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) 
     ref, summary, ref_wall = pneuflex.run_mechanism(str(scene_path))
     windows = scene.get("metrics", [])
     from_s = min((w["t0_s"] for w in windows), default=0.0)
+    until_s = min((e["t_s"] for e in scene.get("events", [])), default=float(scene["duration_s"]))
+    tolerance = SCENE_TOLERANCES.get(scene["name"], tolerance)
     report = {"scene": scene["name"], "source": str(scene_path), "mujoco_steps_per_tick": substeps,
-              "tolerance_rms_f_e_rel": tolerance, "compared_from_s": from_s, "mujoco": mujoco.__version__,
+              "tolerance_rms_f_e_rel": tolerance, "compared_from_s": from_s, "first_event_s": until_s,
+              "tolerance_before_events_rel": BEFORE_EVENTS_TOLERANCE, "mujoco": mujoco.__version__,
               "reference_wall_s": ref_wall, "runs": {}, "pass": True}
     for run in scene["runs"]:
         w = time.perf_counter()
@@ -333,6 +346,7 @@ def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) 
         entry = {"mujoco_wall_s": time.perf_counter() - w, "actuators": {}}
         rt = ref[run["name"]]
         late = rt["t"] >= from_s - 1e-12
+        calm = late & (rt["t"] < until_s - 1e-12)
         for a in scene["actuators"]:
             name = a["name"]
             d = rt[f"{name}.f_e"] - mjc[f"{name}.f_e"]
@@ -346,11 +360,14 @@ def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) 
                 "rms_f_e_diff_whole_run_n": rms(d),
                 "rms_f_e_diff_n": rms(d[late]),
                 "rms_f_e_diff_rel": rms(d[late]) / level,
+                "rms_f_e_diff_before_events_rel": rms(d[calm]) / level if calm.any() else 0.0,
                 "rms_x_diff_m": rms((rt[f"{name}.x"] - mjc[f"{name}.x"])[late]),
                 "mean_f_e_rapier_n": float(np.mean(rt[f"{name}.f_e"][late])),
                 "mean_f_e_mujoco_n": float(np.mean(mjc[f"{name}.f_e"][late])),
             }
-            e["pass"] = e["rms_f_e_diff_rel"] <= tolerance
+            e["pass"] = e["rms_f_e_diff_rel"] <= tolerance and (
+                scene["name"] not in SCENE_TOLERANCES or e["rms_f_e_diff_before_events_rel"] <= BEFORE_EVENTS_TOLERANCE
+            )
             entry["actuators"][name] = e
             report["pass"] &= e["pass"]
         report["runs"][run["name"]] = entry
