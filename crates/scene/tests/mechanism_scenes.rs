@@ -248,8 +248,8 @@ fn bad_input_in_every_new_key_is_named_with_file_line_and_key() {
     ];
     let more: Vec<(&str, &str, &str)> = vec![
         (
-            "solver_iterations = 4",
-            "solver_iterations = 4\nheld_links = [\"plinth\"]",
+            "chamber_substeps = 10",
+            "chamber_substeps = 10\nheld_links = [\"plinth\"]",
             "held_links: ",
         ),
         (
