@@ -49,7 +49,7 @@ pub fn run(
     let stage = OutputDir::create(&dest, &protect, Writer::simulation("run"))?;
     let stop = super::stop_flag()?;
     let stopped = || stop.load(Ordering::Relaxed) != 0;
-    let bar = Progress::new(quiet, format!("simulating {}", scene.name));
+    let bar = super::progress::Progress::new(quiet, format!("simulating {}", scene.name));
     let started = std::time::Instant::now();
     #[cfg(feature = "rerun")]
     let runs = match viewer.as_mut() {
@@ -210,47 +210,4 @@ fn print_tables(summary: &MechanismSummary) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// A progress bar that shows itself only when the simulation lasts longer than a moment.
-struct Progress {
-    bar: indicatif::ProgressBar,
-    quiet: bool,
-    start: std::time::Instant,
-    shown: std::cell::Cell<bool>,
-}
-
-impl Progress {
-    fn new(quiet: bool, message: String) -> Self {
-        use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-        let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} {msg} [{bar:40}] {percent:>3}% ({elapsed}, eta {eta})",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-        );
-        bar.set_message(message);
-        Self {
-            bar,
-            quiet,
-            start: std::time::Instant::now(),
-            shown: std::cell::Cell::new(false),
-        }
-    }
-
-    fn set(&self, fraction: f64) {
-        if !self.quiet && !self.shown.get() && self.start.elapsed().as_millis() > 300 {
-            self.bar
-                .set_draw_target(indicatif::ProgressDrawTarget::stderr());
-            self.shown.set(true);
-        }
-        self.bar
-            .set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
-    }
-
-    fn finish(&self) {
-        self.bar.finish_and_clear();
-    }
 }

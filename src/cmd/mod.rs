@@ -86,6 +86,7 @@ pub mod live;
 pub mod mechanism;
 pub mod new_rig;
 pub mod perturb;
+pub mod progress;
 pub mod pil;
 mod recording;
 pub mod rig;

@@ -7,10 +7,8 @@
 //! the signal. A second signal ends the process at once.
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
 
 use anyhow::bail;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pneuflex_outputs::{Outcome, Outputs, Simulate, Simulated, Stopped, simulate_into};
 use pneuflex_scene::{Limits, Scene};
 
@@ -108,24 +106,8 @@ fn run_scene_file(
     }
 
     // The bar stays hidden unless the simulation lasts longer than a moment.
-    let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} {msg} [{bar:40}] {percent:>3}% ({elapsed}, eta {eta})",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
-    bar.set_message(format!("simulating {}", scene.name));
-    let start = Instant::now();
-    let mut shown = false;
-    let mut progress = |f: f64| {
-        if !quiet && !shown && start.elapsed() > Duration::from_millis(300) {
-            bar.set_draw_target(ProgressDrawTarget::stderr());
-            shown = true;
-        }
-        bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
-    };
+    let bar = super::progress::Progress::new(quiet, format!("simulating {}", scene.name));
+    let mut progress = |f: f64| bar.set(f);
     let stop = super::stop_flag()?;
     let how = Simulate {
         limits,
@@ -139,7 +121,7 @@ fn run_scene_file(
     };
     #[cfg(not(feature = "rerun"))]
     let simulated = simulate_into(scene, outputs, how, &mut progress, &mut ())?;
-    bar.finish_and_clear();
+    bar.finish();
     let Simulated {
         results,
         simulation_time,

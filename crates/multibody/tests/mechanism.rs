@@ -8,9 +8,7 @@ use pneuflex_multibody::{
     ActuatorConfig, AxialActuator, ContactConfig, ContactParams, Mechanism, MechanismConfig, Mount,
     MultibodyError, PneumaticForceElement, STANDARD_GRAVITY,
 };
-use pneuflex_pneumatics::{
-    Actuator, ChamberState, Cylinder, Gas, Orifice, P_ATM, Supply, T_DEFAULT, ValveKind, ValveModel,
-};
+use pneuflex_pneumatics::{Actuator, ChamberState, P_ATM};
 
 fn urdf(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -33,35 +31,11 @@ fn root(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-/// A cylinder with its valve: zero-lap proportional valve, so u = 0 closes both chambers.
+mod common;
+
+/// A cylinder with a zero-lap proportional valve (u = 0 closes both chambers), rod 0.3 of the bore.
 fn cylinder(bore_m: f64, stroke_m: f64, supply_pa: f64) -> Actuator {
-    Actuator {
-        cylinder: Cylinder {
-            bore_m,
-            rod_m: 0.3 * bore_m,
-            stroke_m,
-            dead_volume_a_m3: 3.0e-6,
-            dead_volume_b_m3: 3.0e-6,
-        },
-        gas: Gas::default(),
-        valve: ValveModel {
-            orifice: Orifice {
-                sonic_conductance_m3_per_s_pa: 1.0e-8,
-                critical_pressure_ratio: 0.3,
-            },
-            paths: [None; 4],
-            underlap: 0.0,
-            kind: ValveKind::Proportional {
-                response_time_s: 0.0,
-            },
-        },
-        supply: Supply {
-            supply_pressure_pa: supply_pa,
-            supply_temperature_k: T_DEFAULT,
-            atmosphere_pressure_pa: P_ATM,
-            atmosphere_temperature_k: T_DEFAULT,
-        },
-    }
+    common::cylinder(bore_m, 0.3 * bore_m, stroke_m, 3.0e-6, supply_pa)
 }
 
 // ---- the lever -------------------------------------------------------------------------------------

@@ -3,38 +3,13 @@
 //! environment spring, F_gas(x) = k (x - x_e) (eqs. (1) and (21) in steady state, alpha = 0).
 
 use pneuflex_multibody::{MultibodyConfig, PneumaticForceElement, RigWorld};
-use pneuflex_pneumatics::{
-    Actuator, ChamberState, Cylinder, Gas, Orifice, P_ATM, Supply, T_DEFAULT, ValveKind, ValveModel,
-};
+use pneuflex_pneumatics::{Actuator, ChamberState, P_ATM};
 
+mod common;
+
+/// The paper's 16 mm x 50 mm cylinder at 0.6 MPa absolute.
 fn actuator() -> Actuator {
-    Actuator {
-        cylinder: Cylinder {
-            bore_m: 0.016,
-            rod_m: 0.005,
-            stroke_m: 0.05,
-            dead_volume_a_m3: 3.5e-6,
-            dead_volume_b_m3: 3.5e-6,
-        },
-        gas: Gas::default(),
-        valve: ValveModel {
-            orifice: Orifice {
-                sonic_conductance_m3_per_s_pa: 1.0e-8,
-                critical_pressure_ratio: 0.3,
-            },
-            paths: [None; 4],
-            underlap: 0.0,
-            kind: ValveKind::Proportional {
-                response_time_s: 0.0,
-            },
-        },
-        supply: Supply {
-            supply_pressure_pa: 6.0e5,
-            supply_temperature_k: T_DEFAULT,
-            atmosphere_pressure_pa: P_ATM,
-            atmosphere_temperature_k: T_DEFAULT,
-        },
-    }
+    common::cylinder(0.016, 0.005, 0.05, 3.5e-6, 6.0e5)
 }
 
 #[test]
