@@ -339,3 +339,38 @@ fn the_paper_rig_as_a_mechanism_scene_follows_the_paper_rig_scene() {
         assert!(dx < 2e-4, "{name}: RMS Δx {dx} m");
     }
 }
+
+#[test]
+fn a_loop_closed_on_a_joint_angle_reads_that_angle() {
+    // The lever's controller on the elbow's angle (rad) instead of the stroke: at rest on the stop the angle
+    // is 30° (0.5236 rad, where the payload meets it) plus the pad's give; an unknown joint is refused.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let text = std::fs::read_to_string(scene_path("lever.toml"))
+        .unwrap()
+        .replace("\"../", &format!("\"{}/", root.display()))
+        .replace(
+            "force_sensor = \"press\"",
+            "force_sensor = \"press\"\nposition_sensor = \"elbow\"",
+        )
+        .replacen("x_d_m = 0.130", "x_d_m = 0.5", 1)
+        .replace("kp_per_m = 10.0", "kp_per_m = 1.0");
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("lever.toml");
+    std::fs::write(&file, &text).unwrap();
+    let scene = MechanismScene::load(&file).unwrap();
+    let runs = mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()).unwrap();
+    let angle = mean(&runs[0], "elbow_cylinder.x", 2.5, 3.0);
+    assert!((0.5236..0.54).contains(&angle), "elbow at {angle} rad");
+    let f = mean(&runs[0], "elbow_cylinder.f_e", 2.5, 3.0);
+    assert!((f - 10.0).abs() < 1.0, "press {f} N");
+    std::fs::write(&file, text.replace("\"elbow\"", "\"knee\"")).unwrap();
+    let scene = MechanismScene::load(&file).unwrap();
+    let e = mechanism::run::build(&scene)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("actuators[0].position_sensor") && e.contains("knee"),
+        "{e}"
+    );
+}

@@ -77,6 +77,8 @@ pub struct Built {
     schedules: Vec<SetpointSchedule>,
     /// Each actuator's force sensor: a contact's index, or None for the rod's load cell.
     sensors: Vec<Option<usize>>,
+    /// Each actuator's position sensor: a joint, or None for the cylinder's stroke.
+    positions: Vec<Option<String>>,
     /// Each event: its tick, what it changes, the new values.
     events: Vec<(usize, EventTarget, ContactParams)>,
 }
@@ -220,6 +222,15 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
             })?)
         });
     }
+    let mut positions = Vec::with_capacity(scene.actuators.len());
+    for (i, a) in scene.actuators.iter().enumerate() {
+        if let Some(j) = &a.position_sensor {
+            mechanism.joint_position(j).map_err(|e| {
+                scene.invalid(&format!("actuators[{i}].position_sensor"), e.to_string())
+            })?;
+        }
+        positions.push(a.position_sensor.clone());
+    }
     let mut events = Vec::with_capacity(scene.events.len());
     for (i, e) in scene.events.iter().enumerate() {
         let at = |k: &str| format!("events[{i}].{k}");
@@ -253,6 +264,7 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
         drives,
         schedules,
         sensors,
+        positions,
         events,
     })
 }
@@ -390,12 +402,18 @@ fn run_one(
         let mut row = Vec::with_capacity(columns.len());
         row.push(t);
         for (i, c) in controllers.iter_mut().enumerate() {
-            let s = b.mechanism.actuator_state(i);
+            let (x, x_dot) = match &b.positions[i] {
+                Some(joint) => b.mechanism.joint_position(joint).expect("checked at build"),
+                None => {
+                    let s = b.mechanism.actuator_state(i);
+                    (s.x_m, s.x_dot_m_s)
+                }
+            };
             let (p_a, p_b) = b.drives[i].element.pressures();
             let sensors = Sensors {
                 t,
-                x: s.x_m,
-                x_dot: s.x_dot_m_s,
+                x,
+                x_dot,
                 f_e: match b.sensors[i] {
                     Some(ci) => b.mechanism.contact(ci).force_n,
                     None => b.mechanism.actuator_force(i),

@@ -99,6 +99,11 @@ pub struct ActuatorSpec {
     /// What the actuator's controller closes its force loop on: a contact's name (the force across it),
     /// or `"load_cell"` (a load cell on the rod: the force the cylinder applies).
     pub force_sensor: String,
+    /// A prismatic or revolute joint whose position (m or rad) and rate the controller's position loop
+    /// closes on; the cylinder's stroke when absent. The trace's `x`, `x_dot` and `x_d_m` are then in the
+    /// joint's units.
+    #[serde(default)]
+    pub position_sensor: Option<String>,
     /// Desired free-space stroke x_d of the impedance law, m.
     #[serde(default)]
     pub x_d_m: f64,
