@@ -375,3 +375,46 @@ fn a_loop_closed_on_a_joint_angle_reads_that_angle() {
         "{e}"
     );
 }
+
+#[test]
+fn an_actuator_with_its_own_gains_runs_them_and_bad_ones_are_named() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let base = std::fs::read_to_string(scene_path("cross-slide.toml"))
+        .unwrap()
+        .replace("\"../", &format!("\"{}/", root.display()))
+        .replace("duration_s = 6.0", "duration_s = 1.0")
+        .replace("t1_s = 6.0", "t1_s = 1.0")
+        .replace("t0_s = 4.0", "t0_s = 0.5")
+        .replace("t0_s = 2.0\nt1_s = 3.0", "t0_s = 0.2\nt1_s = 0.5");
+    let dir = tempfile::tempdir().unwrap();
+    let run_with = |gains: &str| -> Result<Vec<MechanismRun>, String> {
+        let text = base.replacen(
+            "force_sensor = \"wall\"",
+            &format!("force_sensor = \"wall\"\n{gains}"),
+            1,
+        );
+        let file = dir.path().join("x.toml");
+        std::fs::write(&file, text).unwrap();
+        let scene = MechanismScene::load(&file).map_err(|e| e.to_string())?;
+        mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()).map_err(|e| e.to_string())
+    };
+    let plain = run_with("").unwrap();
+    // The run's own gains written as the actuator's: the same run, bit for bit.
+    let same =
+        run_with("gains = { inner = { kp_per_m = 10.0, ki_per_m_s = 20.0, kd_s_per_m = 0.0 } }")
+            .unwrap();
+    assert_eq!(plain[0].rows, same[0].rows);
+    // Softer gains on the push cylinder only: its loop changes, the press's command differs through the
+    // block they share, and the columns are those of the same actuators.
+    let soft =
+        run_with("gains = { inner = { kp_per_m = 3.0, ki_per_m_s = 6.0, kd_s_per_m = 0.0 } }")
+            .unwrap();
+    assert_eq!(plain[0].columns, soft[0].columns);
+    assert_ne!(
+        run_column(&plain[0], "push.u"),
+        run_column(&soft[0], "push.u")
+    );
+    let e = run_with("gains = { inner = { kp_per_m = -3.0, ki_per_m_s = 6.0, kd_s_per_m = 0.0 } }")
+        .unwrap_err();
+    assert!(e.contains("actuators[1].gains.inner.kp_per_m"), "{e}");
+}

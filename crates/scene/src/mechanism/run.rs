@@ -336,7 +336,7 @@ pub fn run_all(
     for (r, spec) in scene.runs.iter().enumerate() {
         let built = build(scene)?;
         let controllers = (0..scene.actuators.len())
-            .map(|_| spec.build())
+            .map(|a| scene.actuator_run(r, a).build())
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| scene.invalid(&format!("runs[{r}].{}", e.key), e.message))?;
         let n = scene.runs.len() as f64;

@@ -109,6 +109,45 @@ pub struct ActuatorSpec {
     pub x_d_m: f64,
     /// The force reference f_r: pieces, each from its start until the next.
     pub force: Vec<ForcePiece>,
+    /// This actuator's own gains, in place of the run's for every run (the run still picks the kind):
+    /// a small finger and a large arm on one rig need different ones.
+    #[serde(default)]
+    pub gains: Option<GainsSpec>,
+}
+
+/// An actuator's own gains: each given table replaces the run's.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GainsSpec {
+    /// Target impedance m_d, b_d, k_d.
+    #[serde(default)]
+    pub impedance: Option<crate::schema::ImpedanceParams>,
+    /// Inner position loop.
+    #[serde(default)]
+    pub inner: Option<crate::schema::PidParams>,
+    /// Adaptive law (used by adaptive runs).
+    #[serde(default)]
+    pub adaptive: Option<crate::schema::AdaptiveParams>,
+}
+
+impl MechanismScene {
+    /// The controller spec of run `run` for actuator `actuator`: the run's, with the actuator's own gains
+    /// in place of those it gives.
+    pub fn actuator_run(&self, run: usize, actuator: usize) -> RunSpec {
+        let mut spec = self.runs[run].clone();
+        if let Some(g) = &self.actuators[actuator].gains {
+            if let Some(i) = g.impedance {
+                spec.impedance = i;
+            }
+            if let Some(p) = g.inner {
+                spec.inner = p;
+            }
+            if g.adaptive.is_some() && spec.adaptive.is_some() {
+                spec.adaptive = g.adaptive;
+            }
+        }
+        spec
+    }
 }
 
 /// A cylinder between a clevis on one link and a rod eye on another.
@@ -509,6 +548,14 @@ impl MechanismScene {
             }
             r.build()
                 .map_err(|e| self.invalid(&format!("runs[{i}].{}", e.key), e.message))?;
+            // An actuator's own gains build with every run's kind.
+            for (j, a) in self.actuators.iter().enumerate() {
+                if a.gains.is_some() {
+                    self.actuator_run(i, j).build().map_err(|e| {
+                        self.invalid(&format!("actuators[{j}].gains.{}", e.key), e.message)
+                    })?;
+                }
+            }
         }
         for (i, w) in self.metrics.iter().enumerate() {
             let at = |k: &str| format!("metrics[{i}].{k}");
