@@ -220,6 +220,13 @@ class MujocoMechanism:
             return float(self.d.ten_length[idx]) - ref, float(self.d.ten_velocity[idx])
         return float(self.d.qpos[self.m.jnt_qposadr[idx]]) - ref, float(self.d.qvel[self.m.jnt_dofadr[idx]])
 
+    def position(self, i: int, joint: str | None) -> tuple[float, float]:
+        """What actuator i's position loop closes on: a joint's position and rate, or its stroke."""
+        if joint is None:
+            return self.stroke(i)
+        jid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, joint)
+        return float(self.d.qpos[self.m.jnt_qposadr[jid]]), float(self.d.qvel[self.m.jnt_dofadr[jid]])
+
     def _point_velocity(self, body: int, p: np.ndarray) -> np.ndarray:
         mujoco.mj_objectVelocity(self.m, self.d, mujoco.mjtObj.mjOBJ_BODY, body, self._vel, 0)
         return self._vel[3:] + np.cross(self._vel[:3], p - self.d.xipos[body])
@@ -251,6 +258,9 @@ class MujocoMechanism:
 
 def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
     """One run of the scene in MuJoCo: the trace's columns (a subset of the Rust runner's, same names)."""
+    for key in ("springs", "held_links"):
+        if scene.get(key):
+            raise NotImplementedError(f"{scene_path}: `{key}` has no MuJoCo equivalent in crossval/mechanism.py yet")
     mm = MujocoMechanism(scene_path, scene, substeps)
     acts = scene["actuators"]
     elements, controllers = [], []
@@ -263,7 +273,10 @@ def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
         area_rod = math.pi / 4 * p["rod_m"] ** 2
         p_a = (p_b * (area_a - area_rod) + p["atmosphere_pressure_pa"] * area_rod) / area_a
         elements.append(pneuflex.ForceElement(act, p_a=p_a, p_b=p_b, substeps=max(1, int(scene.get("chamber_substeps", 10)) // substeps)))
-        controllers.append(pneuflex.Controller(run["controller"], run["impedance"], run["inner"], run.get("adaptive")))
+        # The actuator's own gains in place of the run's (MechanismScene::actuator_run).
+        gains = a.get("gains", {})
+        adaptive = gains.get("adaptive", run.get("adaptive")) if run.get("adaptive") is not None else None
+        controllers.append(pneuflex.Controller(run["controller"], gains.get("impedance", run["impedance"]), gains.get("inner", run["inner"]), adaptive))
     n = int(round(scene["duration_s"] / mm.dt))
     events = sorted(((int(round(e["t_s"] / mm.dt)), e) for e in scene.get("events", [])), key=lambda x: x[0])
     cols = {"t": np.zeros(n + 1)}
@@ -284,7 +297,7 @@ def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
                     pad["c"] = e["damping_n_s_per_m"]
         cols["t"][k] = t
         for i, a in enumerate(acts):
-            x, xd = mm.stroke(i)
+            x, xd = mm.position(i, a.get("position_sensor"))
             f_e = forces[i] if sensors[a["name"]] == "load_cell" else mm.pads[sensors[a["name"]]]["force"]
             f_r = _reference(a["force"], t)
             pa, pb = elements[i].p_a, elements[i].p_b
