@@ -348,7 +348,7 @@ impl Mechanism {
 
     /// One physics step with each actuator's force element giving its force from its own stroke and rate
     /// (`elements[i]` drives actuator `i`).
-    pub fn step(&mut self, elements: &mut [&mut dyn AxialActuator]) {
+    pub fn step<A: AxialActuator>(&mut self, elements: &mut [A]) {
         assert_eq!(
             elements.len(),
             self.actuators.len(),

@@ -4,7 +4,7 @@
 
 use pneuflex_control::{Controller, Sensors, SetpointSchedule};
 use pneuflex_multibody::{
-    ActuatorConfig, AxialActuator, ContactConfig, ContactParams, Mechanism, MechanismConfig, Mount,
+    ActuatorConfig, ContactConfig, ContactParams, Mechanism, MechanismConfig, Mount,
 };
 use pneuflex_pneumatics::ChamberState;
 
@@ -452,13 +452,9 @@ fn run_one(
         if k == n || stop() {
             break;
         }
-        let mut elements: Vec<&mut dyn AxialActuator> = b
-            .drives
-            .iter_mut()
-            .map(|d| d as &mut dyn AxialActuator)
-            .collect();
+        // The drives step in place: no allocation in the loop.
         for _ in 0..scene.physics_steps_per_tick {
-            b.mechanism.step(&mut elements);
+            b.mechanism.step(&mut b.drives);
             if let Err(why) = b.mechanism.check_strokes() {
                 diverged = Some(format!("{why} at t = {t} s"));
                 break;
