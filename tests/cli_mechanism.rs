@@ -87,7 +87,7 @@ fn sigint_keeps_what_ran_as_a_partial_output_and_exits_130() {
     let scene = dir.path().join("long.toml");
     std::fs::write(&scene, text).unwrap();
     let out = dir.path().join("out");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+    let child = Command::new(env!("CARGO_BIN_EXE_pneuflex"))
         .args([
             "run",
             scene.to_str().unwrap(),
