@@ -133,3 +133,40 @@ fn sigint_keeps_what_ran_as_a_partial_output_and_exits_130() {
     assert!(manifest.contains("\"complete\": false") && manifest.contains("SIGINT"));
     assert!(dir.path().join("out.partial/impedance/trace.csv").exists());
 }
+
+#[test]
+fn a_mechanism_run_beyond_the_step_or_trace_limits_is_refused_before_it_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = pneuflex(&[
+        "run",
+        "scenes/gripper.toml",
+        "--out",
+        out.to_str().unwrap(),
+        "--max-steps",
+        "1000",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("gripper.toml:")
+            && stderr.contains("physics_steps_per_tick")
+            && stderr.contains("--max-steps 64008"),
+        "{stderr}"
+    );
+    let o = pneuflex(&[
+        "run",
+        "scenes/gripper.toml",
+        "--out",
+        out.to_str().unwrap(),
+        "--max-trace-mb",
+        "1",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("duration_s") && stderr.contains("--max-trace-mb"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "an output was written");
+}

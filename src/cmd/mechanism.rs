@@ -19,8 +19,10 @@ pub fn run(
     out: Option<&Path>,
     quiet: bool,
     rerun: Option<&[String]>,
+    limits: pneuflex_scene::Limits,
 ) -> anyhow::Result<()> {
     let scene = MechanismScene::load(scene_path)?;
+    scene.check_budget(&limits)?;
     // The viewer (`--rerun spawn | save FILE | connect ADDR`, docs/rerun.md): links and per-actuator signals.
     #[cfg(feature = "rerun")]
     let mut viewer = match rerun {

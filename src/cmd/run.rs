@@ -47,7 +47,13 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
     // A scene with `[[actuators]]` (any URDF, several cylinders) has its own runner.
     let text = pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)?;
     if pneuflex_scene::mechanism::MechanismScene::is_mechanism(&text) {
-        return super::mechanism::run(scene_path, out, args.quiet, args.rerun.as_deref());
+        return super::mechanism::run(
+            scene_path,
+            out,
+            args.quiet,
+            args.rerun.as_deref(),
+            limits(args.max_steps, args.max_trace_mb),
+        );
     }
     let scene = Scene::load(scene_path)?;
     let limits = limits(args.max_steps, args.max_trace_mb);
