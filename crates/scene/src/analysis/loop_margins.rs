@@ -14,8 +14,8 @@
 use serde::Serialize;
 
 use crate::error::SceneError;
-use crate::plants::{LinearSpring, Linearisable};
-use crate::schema::{EventSpec, PlantSpec, Scene};
+use crate::plants::{Linearisable, linearisable_at};
+use crate::schema::{EventSpec, Scene};
 
 /// Margins of the inner loop at one environment stiffness.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -130,13 +130,13 @@ fn solve(mut a: Vec<Vec<Cx>>, mut b: Vec<Cx>) -> Option<Vec<Cx>> {
 }
 
 /// One-tick linearisation (Φ, Γ) of a plant at its current state under command `u0`.
-fn linearise<P: Linearisable>(p: &mut P, u0: f64, dt: f64) -> (Vec<Vec<f64>>, Vec<f64>) {
+fn linearise<P: Linearisable + ?Sized>(p: &mut P, u0: f64, dt: f64) -> (Vec<Vec<f64>>, Vec<f64>) {
     linearise_secant(p, u0, 1e-4, dt)
 }
 
 /// [`linearise`] with Γ the secant over ±`hu` of the command (the valve's gain seen by an oscillation of
 /// that amplitude: over an underlapped centre the small-signal gain is the larger).
-pub(crate) fn linearise_secant<P: Linearisable>(
+pub(crate) fn linearise_secant<P: Linearisable + ?Sized>(
     p: &mut P,
     u0: f64,
     hu: f64,
@@ -320,33 +320,20 @@ pub fn analyse(scene: &Scene, index: usize, target_db: f64) -> Result<LoopAnalys
     let mut margins = Vec::new();
     let mut valve_model = "as in the scene";
     for k_e in stiffnesses(scene) {
-        let env = LinearSpring {
-            stiffness_n_per_m: k_e,
-            x_e_m: scene.environment.x_e_m,
+        let Some(mut p) = linearisable_at(scene, k_e)? else {
+            return Err(scene.invalid(
+                "plant.kind",
+                "loop analysis needs a plant the valve command drives continuously: \"pneumatic\" \
+                 with a proportional valve, or \"linear\""
+                    .into(),
+            ));
         };
-        let m = match &scene.plant {
-            PlantSpec::Pneumatic { .. } => {
-                let mut p = crate::plants::pneumatic::OneDofPneumatic::from_scene(scene, env)?;
-                if p.switching() {
-                    p.average_switching();
-                    valve_model = "the on/off valve averaged over its PWM period (duty (1+u)/2, both \
-                                   paths open at the centre, lag = switching delay + half a period)";
-                }
-                at_stiffness(&mut p, scene, run, k_e, target_db)
-            }
-            PlantSpec::Linear { .. } => {
-                let mut p = crate::plants::linear::LinearPlant::from_scene(scene, env)?;
-                at_stiffness(&mut p, scene, run, k_e, target_db)
-            }
-            PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => {
-                return Err(scene.invalid(
-                    "plant.kind",
-                    "loop analysis needs a plant the valve command drives continuously: \"pneumatic\" \
-                     with a proportional valve, or \"linear\""
-                        .into(),
-                ));
-            }
-        };
+        if p.switching() {
+            p.average_switching();
+            valve_model = "the on/off valve averaged over its PWM period (duty (1+u)/2, both \
+                           paths open at the centre, lag = switching delay + half a period)";
+        }
+        let m = at_stiffness(&mut *p, scene, run, k_e, target_db);
         margins.push(m);
     }
     Ok(LoopAnalysis {
@@ -367,7 +354,7 @@ fn frequencies(dt: f64) -> Vec<f64> {
         .collect()
 }
 
-fn at_stiffness<P: Linearisable>(
+fn at_stiffness<P: Linearisable + ?Sized>(
     p: &mut P,
     scene: &Scene,
     run: &crate::schema::RunSpec,
@@ -481,17 +468,9 @@ pub fn onset_at(
     index: usize,
     k_e: f64,
 ) -> Result<Option<(f64, f64, f64)>, SceneError> {
-    match &scene.plant {
-        PlantSpec::Pneumatic { .. } => {
-            let env = LinearSpring {
-                stiffness_n_per_m: k_e,
-                x_e_m: scene.environment.x_e_m,
-            };
-            let p = crate::plants::OneDofPneumatic::from_scene(scene, env)?;
-            Ok(limit_cycle_onset(&p, scene, &scene.runs[index], k_e))
-        }
-        PlantSpec::Linear { .. } | PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => Ok(None),
-    }
+    Ok(linearisable_at(scene, k_e)?
+        .filter(|p| p.has_valve_and_friction())
+        .and_then(|p| limit_cycle_onset(&*p, scene, &scene.runs[index], k_e)))
 }
 
 /// The onset of a limit cycle predicted by describing functions: for oscillation amplitudes A_x of the
@@ -499,7 +478,7 @@ pub fn onset_at(
 /// the secant gain over the command amplitude kp·A_x; the smallest kp at which the loop's gain margin
 /// reaches 0 dB for some amplitude is the predicted onset, with the oscillation's frequency (the phase
 /// crossover). Returns (kp, Hz, A_x in m).
-pub fn limit_cycle_onset<P: Linearisable + Clone>(
+pub fn limit_cycle_onset<P: Linearisable + ?Sized>(
     plant: &P,
     scene: &Scene,
     run: &crate::schema::RunSpec,
@@ -515,7 +494,7 @@ pub fn limit_cycle_onset<P: Linearisable + Clone>(
         let (mut kp, mut f_osc) = (run.inner.kp_per_m, 15.0);
         let mut found = None;
         for _ in 0..6 {
-            let mut p = plant.clone();
+            let mut p = plant.boxed_clone();
             p.without_coulomb_friction();
             let w = std::f64::consts::TAU * f_osc;
             if f_c > 0.0 {
@@ -525,9 +504,9 @@ pub fn limit_cycle_onset<P: Linearisable + Clone>(
                 kp_per_m: kp,
                 ..run.inner
             };
-            let u_op = settle(&mut p, scene, &pid, k_e);
+            let u_op = settle(&mut *p, scene, &pid, k_e);
             let hu = (kp * a_x).clamp(1e-4, 1.0);
-            let (phi, gamma) = linearise_secant(&mut p, u_op, hu, dt);
+            let (phi, gamma) = linearise_secant(&mut *p, u_op, hu, dt);
             let plant_resp = plant_response(&phi, &gamma, dt, &freqs);
             // kp at 0 dB for this linearisation (bisection), and the phase crossover there.
             let gm = |k: f64| {
@@ -568,7 +547,7 @@ pub fn limit_cycle_onset<P: Linearisable + Clone>(
 
 /// Settles the plant on its inner loop alone at the contact position of the scene's first force; returns
 /// the command there.
-pub(crate) fn settle<P: Linearisable>(
+pub(crate) fn settle<P: Linearisable + ?Sized>(
     p: &mut P,
     scene: &Scene,
     pid: &pneuflex_control::PidParams,

@@ -18,8 +18,8 @@ use nalgebra::DMatrix;
 
 use super::loop_margins::{linearise_secant, settle};
 use crate::SceneError;
-use crate::plants::{LinearSpring, Linearisable, OneDofPneumatic};
-use crate::schema::{PlantSpec, RunSpec, Scene};
+use crate::plants::{Linearisable, linearisable_at};
+use crate::schema::{RunSpec, Scene};
 
 /// The sampled-data onset at one stiffness.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -128,7 +128,7 @@ fn critical(m: &DMatrix<f64>) -> (f64, f64) {
 /// The sampled-data onset of run `run` at stiffness `k_e`, on a plant with a switching valve: the upper
 /// edge of the band of stable kp that holds (or is nearest below) the run's kp. None for a valve that
 /// does not switch, or when no edge lies within 1000× of the run's kp either way.
-pub fn pwm_onset<P: Linearisable>(
+pub fn pwm_onset<P: Linearisable + ?Sized>(
     plant: &mut P,
     scene: &Scene,
     run: &RunSpec,
@@ -188,17 +188,8 @@ pub fn pwm_onset<P: Linearisable>(
 /// [`pwm_onset`] of run `index` at stiffness `k_e` on the scene's plant; None for a plant whose valve
 /// does not switch (a proportional valve, the linear and ideal plants; the multibody rig is not analysed).
 pub fn pwm_onset_at(scene: &Scene, index: usize, k_e: f64) -> Result<Option<PwmOnset>, SceneError> {
-    match &scene.plant {
-        PlantSpec::Pneumatic { .. } => {
-            let env = LinearSpring {
-                stiffness_n_per_m: k_e,
-                x_e_m: scene.environment.x_e_m,
-            };
-            let mut p = OneDofPneumatic::from_scene(scene, env)?;
-            Ok(pwm_onset(&mut p, scene, &scene.runs[index], k_e))
-        }
-        PlantSpec::Linear { .. } | PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => Ok(None),
-    }
+    Ok(linearisable_at(scene, k_e)?
+        .and_then(|mut p| pwm_onset(&mut *p, scene, &scene.runs[index], k_e)))
 }
 
 #[cfg(test)]

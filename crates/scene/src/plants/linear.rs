@@ -138,6 +138,9 @@ impl LinearPlant {
 }
 
 impl crate::plants::Linearisable for LinearPlant {
+    fn boxed_clone(&self) -> Box<dyn crate::plants::Linearisable> {
+        Box::new(self.clone())
+    }
     fn state_vector(&self) -> Vec<f64> {
         self.state.to_vec()
     }

@@ -20,10 +20,7 @@ pub use pneumatic::OneDofPneumatic;
 
 /// Builds the plant a scene describes, at its initial state.
 pub fn build_plant(scene: &Scene) -> Result<Box<dyn Plant>, SceneError> {
-    let env = LinearSpring {
-        stiffness_n_per_m: scene.environment.stiffness_n_per_m,
-        x_e_m: scene.environment.x_e_m,
-    };
+    let env = spring_at(scene, scene.environment.stiffness_n_per_m);
     match &scene.plant {
         PlantSpec::Ideal {
             omega_rad_per_s,
@@ -41,8 +38,39 @@ pub fn build_plant(scene: &Scene) -> Result<Box<dyn Plant>, SceneError> {
     }
 }
 
+/// The scene's plant against a spring of stiffness `k_e` at the scene's contact position, as the loop
+/// analyses take it ([`crate::analysis::loop_margins`], [`crate::analysis::pwm_onset`]): a plant the valve
+/// command drives continuously and that linearises. None for the ideal loop and the multibody rig, which
+/// they do not analyse.
+pub fn linearisable_at(
+    scene: &Scene,
+    k_e: f64,
+) -> Result<Option<Box<dyn Linearisable>>, SceneError> {
+    let env = spring_at(scene, k_e);
+    Ok(match &scene.plant {
+        PlantSpec::Pneumatic { .. } => Some(Box::new(OneDofPneumatic::from_scene(scene, env)?)),
+        PlantSpec::Linear { .. } => Some(Box::new(LinearPlant::from_scene(scene, env)?)),
+        PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => None,
+    })
+}
+
+/// The scene's environment as a spring of stiffness `k_e`.
+fn spring_at(scene: &Scene, k_e: f64) -> LinearSpring {
+    LinearSpring {
+        stiffness_n_per_m: k_e,
+        x_e_m: scene.environment.x_e_m,
+    }
+}
+
 /// What a plant gives the analysis: its continuous state as a vector, and back.
 pub trait Linearisable: Plant {
+    /// A copy at the same state, for an analysis that tries several linearisations from one point.
+    fn boxed_clone(&self) -> Box<dyn Linearisable>;
+    /// Whether the plant has the valve saturation and friction the describing-function prediction of a
+    /// limit cycle models ([`crate::analysis::loop_margins::limit_cycle_onset`]).
+    fn has_valve_and_friction(&self) -> bool {
+        false
+    }
     /// The state (position first).
     fn state_vector(&self) -> Vec<f64>;
     /// Sets the state from a vector of the same layout.

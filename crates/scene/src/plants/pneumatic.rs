@@ -111,6 +111,12 @@ impl OneDofPneumatic {
 }
 
 impl crate::plants::Linearisable for OneDofPneumatic {
+    fn boxed_clone(&self) -> Box<dyn crate::plants::Linearisable> {
+        Box::new(self.clone())
+    }
+    fn has_valve_and_friction(&self) -> bool {
+        true
+    }
     fn state_vector(&self) -> Vec<f64> {
         let s = &self.state;
         let c = &s.chambers;
