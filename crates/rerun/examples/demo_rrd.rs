@@ -1,9 +1,8 @@
 //! Writes a small demo recording: `cargo run -p pneuflex-rerun --example demo_rrd -- out.rrd [steps]`.
 //! Used to check `scripts/check_rrd.py` and to look at the default layout in a viewer.
 
-use pneuflex_rerun::{
-    ChamberSample, Contact, EventLevel, LinkShape, RunRecorder, Shape, Sink, paths,
-};
+use pneuflex_rerun::{ChamberSample, Contact, EventLevel, LinkShape, RunRecorder, Sink, paths};
+use pneuflex_scene::plants::VisualShape;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
@@ -13,7 +12,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut rec = RunRecorder::new("pneuflex-demo", "demo", &Sink::Save(file.into()))?;
     rec.log_link_shape(&LinkShape {
         entity: paths::link("flange"),
-        shape: Shape::Cylinder {
+        shape: VisualShape::Cylinder {
             radius_m: 0.03,
             half_length_m: 0.005,
         },
@@ -21,7 +20,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     })?;
     rec.log_link_shape(&LinkShape {
         entity: paths::link("block"),
-        shape: Shape::Box {
+        shape: VisualShape::Box {
             half_extents_m: [0.04, 0.04, 0.02],
         },
         colour: [110, 80, 60, 255],

@@ -21,7 +21,7 @@ pub use error::RerunError;
 pub use layout::{Eye, Layout, Plot, blueprint, default_blueprint};
 pub use mechanism_observer::MechanismRecorder;
 pub use recorder::{
-    ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RunRecorder, Shape,
+    ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RunRecorder,
     wall_clock_s,
 };
 pub use row_observer::RowRecorder;

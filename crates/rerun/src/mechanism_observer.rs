@@ -10,7 +10,7 @@ use crate::error::RerunError;
 use crate::layout::Layout;
 use crate::paths;
 use crate::recorder::{LinkShape, RecorderOptions, RunRecorder};
-use crate::scene_observer::{role_colour, shape_of, sink_for_run};
+use crate::scene_observer::{role_colour, sink_for_run};
 use crate::sink::Sink;
 
 /// Records each run of a mechanism scene as it goes.
@@ -96,7 +96,7 @@ impl MechanismRecorder {
             let entity = paths::link(&v.name);
             rec.log_link_shape(&LinkShape {
                 entity: entity.clone(),
-                shape: shape_of(&v.shape),
+                shape: v.shape.clone(),
                 colour: role_colour(v.role),
             })?;
             entities.push(entity);

@@ -9,6 +9,8 @@ use rerun::{
     TimeCell, TimeColumn, Transform3D, ViewCoordinates,
 };
 
+use pneuflex_scene::plants::VisualShape;
+
 use crate::RerunError;
 use crate::layout::Layout;
 use crate::paths;
@@ -88,42 +90,13 @@ impl RecorderOptions {
     }
 }
 
-/// A collision shape in its link frame.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Shape {
-    /// Box with half side lengths along the link's x, y, z (m).
-    Box {
-        /// Half extents (m).
-        half_extents_m: [f64; 3],
-    },
-    /// Cylinder along the link's z axis (URDF convention), centred on the origin.
-    Cylinder {
-        /// Radius (m).
-        radius_m: f64,
-        /// Half of the length along z (m).
-        half_length_m: f64,
-    },
-    /// Sphere centred on the link origin.
-    Sphere {
-        /// Radius (m).
-        radius_m: f64,
-    },
-    /// A triangle mesh in the link frame (a URDF mesh's convex hull).
-    Mesh {
-        /// Vertices (m).
-        vertices_m: Vec<[f64; 3]>,
-        /// Triangles, indices into the vertices.
-        triangles: Vec<[u32; 3]>,
-    },
-}
-
 /// A link drawn as its collision shape; its pose is set over time with [`RunRecorder::set_link_pose`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinkShape {
     /// Entity path, e.g. `world/links/flange` (see [`paths::link`]).
     pub entity: String,
     /// Geometry in the link frame.
-    pub shape: Shape,
+    pub shape: VisualShape,
     /// Colour as RGBA.
     pub colour: [u8; 4],
 }
@@ -479,7 +452,7 @@ impl RunRecorder {
         let [r, g, b, a] = link.colour;
         let colour = Color::from_unmultiplied_rgba(r, g, b, a);
         let res = match &link.shape {
-            Shape::Box { half_extents_m: h } => {
+            VisualShape::Box { half_extents_m: h } => {
                 let h = [
                     positive("half_extents_m[0]", h[0])?,
                     positive("half_extents_m[1]", h[1])?,
@@ -492,7 +465,7 @@ impl RunRecorder {
                         .with_fill_mode(FillMode::Solid),
                 )
             }
-            Shape::Cylinder {
+            VisualShape::Cylinder {
                 radius_m,
                 half_length_m,
             } => {
@@ -505,7 +478,7 @@ impl RunRecorder {
                         .with_fill_mode(FillMode::Solid),
                 )
             }
-            Shape::Sphere { radius_m } => {
+            VisualShape::Sphere { radius_m } => {
                 let r = positive("radius_m", *radius_m)?;
                 self.rec.log_static(
                     entity.clone(),
@@ -514,7 +487,7 @@ impl RunRecorder {
                         .with_fill_mode(FillMode::Solid),
                 )
             }
-            Shape::Mesh {
+            VisualShape::Mesh {
                 vertices_m,
                 triangles,
             } => {

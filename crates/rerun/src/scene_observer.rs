@@ -20,8 +20,8 @@ use pneuflex_scene::{Plant, Scene, VisualPose, VisualShape};
 
 use crate::layout::{Eye, Layout};
 use crate::{
-    ChamberSample, Contact, EventLevel, LinkShape, RecorderOptions, RerunError, RunRecorder, Shape,
-    Sink, paths, units,
+    ChamberSample, Contact, EventLevel, LinkShape, RecorderOptions, RerunError, RunRecorder, Sink,
+    paths, units,
 };
 
 /// Parses the words after `--rerun`: `save FILE`, `spawn` or `connect URL`.
@@ -92,28 +92,6 @@ const ARROW_LENGTH_FOR_MAX_FORCE_M: f64 = 0.06;
 
 /// Colour of a plant's shape by its role: the environment translucent, so that the contact point behind
 /// its face shows; the cylinder translucent, so that the chambers inside show.
-/// How a plant's visual shape is drawn (the one conversion: scenes and mechanisms).
-pub(crate) fn shape_of(v: &VisualShape) -> Shape {
-    match v.clone() {
-        VisualShape::Box { half_extents_m } => Shape::Box { half_extents_m },
-        VisualShape::Cylinder {
-            radius_m,
-            half_length_m,
-        } => Shape::Cylinder {
-            radius_m,
-            half_length_m,
-        },
-        VisualShape::Sphere { radius_m } => Shape::Sphere { radius_m },
-        VisualShape::Mesh {
-            vertices_m,
-            triangles,
-        } => Shape::Mesh {
-            vertices_m,
-            triangles,
-        },
-    }
-}
-
 pub(crate) fn role_colour(role: VisualRole) -> [u8; 4] {
     match role {
         VisualRole::Flange => [90, 90, 100, 255],
@@ -362,7 +340,7 @@ impl Drawing {
         let (mut flange, mut cylinder) = (None, None);
         for (i, v) in visuals.iter().enumerate() {
             let entity = paths::link(&v.name);
-            let shape = shape_of(&v.shape);
+            let shape = v.shape.clone();
             shapes.push(LinkShape {
                 entity: entity.clone(),
                 shape,
@@ -925,7 +903,7 @@ impl SceneRecorder {
         ] {
             rec.log_link_shape(&LinkShape {
                 entity: paths::link(name),
-                shape: Shape::Box { half_extents_m },
+                shape: VisualShape::Box { half_extents_m },
                 colour,
             })?;
         }
@@ -933,7 +911,7 @@ impl SceneRecorder {
             let body = SchematicBody::of(g);
             rec.log_link_shape(&LinkShape {
                 entity: paths::link("cylinder"),
-                shape: Shape::Cylinder {
+                shape: VisualShape::Cylinder {
                     radius_m: body.radius_m,
                     half_length_m: 0.5 * (body.front_s - body.back_s),
                 },
@@ -1014,7 +992,7 @@ impl SceneRecorder {
                     let l = dot(d, frame.axis).max(1e-3);
                     r.rec.log_link_shape(&LinkShape {
                         entity: paths::ROD.into(),
-                        shape: Shape::Cylinder {
+                        shape: VisualShape::Cylinder {
                             radius_m: rod_radius_m(g),
                             half_length_m: 0.5 * l,
                         },

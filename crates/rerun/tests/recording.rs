@@ -5,8 +5,9 @@ use std::time::{Duration, Instant};
 
 use pneuflex_rerun::{
     ChamberSample, Clock, Contact, EventLevel, LinkShape, RecorderOptions, RerunError, RunRecorder,
-    Shape, Sink, paths,
+    Sink, paths,
 };
+use pneuflex_scene::plants::VisualShape;
 
 mod common;
 use common::{read_back, temp_dir};
@@ -15,7 +16,7 @@ use common::{read_back, temp_dir};
 fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
     rec.log_link_shape(&LinkShape {
         entity: paths::link("flange"),
-        shape: Shape::Cylinder {
+        shape: VisualShape::Cylinder {
             radius_m: 0.03,
             half_length_m: 0.005,
         },
@@ -24,7 +25,7 @@ fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
     .unwrap();
     rec.log_link_shape(&LinkShape {
         entity: paths::link("block"),
-        shape: Shape::Box {
+        shape: VisualShape::Box {
             half_extents_m: [0.05, 0.05, 0.05],
         },
         colour: [90, 90, 90, 255],
@@ -33,7 +34,7 @@ fn record(rec: &mut RunRecorder, steps: usize, dt: f64) {
     // A mesh (a URDF mesh's convex hull): a tetrahedron.
     rec.log_link_shape(&LinkShape {
         entity: paths::link("wedge"),
-        shape: Shape::Mesh {
+        shape: VisualShape::Mesh {
             vertices_m: vec![
                 [0.0; 3],
                 [0.02, 0.0, 0.0],
@@ -257,21 +258,21 @@ fn invalid_shapes_and_options_are_rejected() {
     let mut rec =
         RunRecorder::new("pneuflex-test", "shape", &Sink::Save(dir.join("s.rrd"))).unwrap();
     for shape in [
-        Shape::Sphere { radius_m: 0.0 },
-        Shape::Sphere { radius_m: f64::NAN },
-        Shape::Box {
+        VisualShape::Sphere { radius_m: 0.0 },
+        VisualShape::Sphere { radius_m: f64::NAN },
+        VisualShape::Box {
             half_extents_m: [0.1, -0.1, 0.1],
         },
-        Shape::Cylinder {
+        VisualShape::Cylinder {
             radius_m: 0.1,
             half_length_m: f64::INFINITY,
         },
         // A mesh with a vertex that is not finite, and one whose triangle indexes past its vertices.
-        Shape::Mesh {
+        VisualShape::Mesh {
             vertices_m: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, f64::NAN, 0.0]],
             triangles: vec![[0, 1, 2]],
         },
-        Shape::Mesh {
+        VisualShape::Mesh {
             vertices_m: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
             triangles: vec![[0, 1, 3]],
         },
