@@ -117,22 +117,11 @@ pub fn run(
             dest.display()
         );
     }
-    let diverged: Vec<String> = runs
-        .iter()
-        .filter_map(|r| {
-            r.diverged
-                .as_ref()
-                .map(|w| format!("run `{}` diverged: {w}", r.name))
-        })
-        .collect();
-    if !diverged.is_empty() {
-        bail!(
-            "{} (marked in {})",
-            diverged.join("; "),
-            dest.join("summary.json").display()
-        );
-    }
-    Ok(())
+    super::fail_on_divergence(
+        runs.iter()
+            .map(|r| (r.name.as_str(), r.diverged.as_deref())),
+        &dest,
+    )
 }
 
 /// One figure per run: each actuator's contact force against its reference, a panel each.

@@ -113,3 +113,23 @@ impl std::fmt::Display for Exit {
 }
 
 impl std::error::Error for Exit {}
+
+/// Ends a command whose outputs are committed with one error naming every run that diverged (its
+/// summary.json marks them), so that a script sees a non-zero exit.
+pub fn fail_on_divergence<'a>(
+    runs: impl IntoIterator<Item = (&'a str, Option<&'a str>)>,
+    dest: &std::path::Path,
+) -> anyhow::Result<()> {
+    let diverged: Vec<String> = runs
+        .into_iter()
+        .filter_map(|(name, why)| why.map(|why| format!("run `{name}` diverged: {why}")))
+        .collect();
+    if !diverged.is_empty() {
+        anyhow::bail!(
+            "{} (marked in {})",
+            diverged.join("; "),
+            dest.join("summary.json").display()
+        );
+    }
+    Ok(())
+}

@@ -189,20 +189,10 @@ fn run_scene_file(
             dest.display()
         );
     }
-    let diverged: Vec<String> = results
-        .iter()
-        .filter_map(|r| {
-            r.diverged
-                .as_ref()
-                .map(|why| format!("run `{}` diverged: {why}", r.name))
-        })
-        .collect();
-    if !diverged.is_empty() {
-        bail!(
-            "{} (marked in {})",
-            diverged.join("; "),
-            dest.join("summary.json").display()
-        );
-    }
-    Ok(())
+    super::fail_on_divergence(
+        results
+            .iter()
+            .map(|r| (r.name.as_str(), r.diverged.as_deref())),
+        &dest,
+    )
 }
