@@ -131,44 +131,54 @@ impl RunSpec {
             }
         };
         // The kind and its tables first, then each table by the control crate's own checks, in the order a
-        // reader of the run meets them.
-        match (self.controller, self.adaptive) {
-            (ControllerKind::Adaptive, None) => {
-                return Err(RunSpecError {
-                    key: "adaptive".into(),
-                    message: "missing: controller = \"adaptive\" needs the adaptive gains".into(),
-                });
-            }
-            (ControllerKind::Impedance, Some(_)) => {
-                return Err(RunSpecError {
-                    key: "adaptive".into(),
-                    message: "only allowed with controller = \"adaptive\"".into(),
-                });
-            }
-            (ControllerKind::Adaptive, Some(a)) => a.validate().map_err(bad("adaptive"))?,
-            (ControllerKind::Impedance, None) => {}
-        }
-        self.impedance.validate().map_err(bad("impedance"))?;
-        self.inner.validate().map_err(bad("inner"))?;
-        Ok(match (self.controller, self.adaptive) {
-            (ControllerKind::Adaptive, Some(a)) if let Some(v) = frozen => Box::new(
-                AdaptiveImpedanceController::frozen(
-                    self.impedance,
-                    a,
-                    self.inner,
-                    v.g_m,
-                    v.p_m_per_n,
-                    v.d_s,
+        // reader of the run meets them. One arm per kind: a new kind is a compile error here until it is
+        // built.
+        let shared = || -> Result<(), RunSpecError> {
+            self.impedance.validate().map_err(bad("impedance"))?;
+            self.inner.validate().map_err(bad("inner"))
+        };
+        Ok(match self.controller {
+            ControllerKind::Impedance => {
+                if self.adaptive.is_some() {
+                    return Err(RunSpecError {
+                        key: "adaptive".into(),
+                        message: "only allowed with controller = \"adaptive\"".into(),
+                    });
+                }
+                shared()?;
+                Box::new(
+                    ImpedanceController::new(self.impedance, self.inner)
+                        .map_err(bad("impedance"))?,
                 )
-                .map_err(bad("frozen"))?,
-            ),
-            (ControllerKind::Adaptive, Some(a)) => Box::new(
-                AdaptiveImpedanceController::new(self.impedance, a, self.inner)
-                    .map_err(bad("adaptive"))?,
-            ),
-            _ => Box::new(
-                ImpedanceController::new(self.impedance, self.inner).map_err(bad("impedance"))?,
-            ),
+            }
+            ControllerKind::Adaptive => {
+                let Some(a) = self.adaptive else {
+                    return Err(RunSpecError {
+                        key: "adaptive".into(),
+                        message: "missing: controller = \"adaptive\" needs the adaptive gains"
+                            .into(),
+                    });
+                };
+                a.validate().map_err(bad("adaptive"))?;
+                shared()?;
+                match frozen {
+                    Some(v) => Box::new(
+                        AdaptiveImpedanceController::frozen(
+                            self.impedance,
+                            a,
+                            self.inner,
+                            v.g_m,
+                            v.p_m_per_n,
+                            v.d_s,
+                        )
+                        .map_err(bad("frozen"))?,
+                    ),
+                    None => Box::new(
+                        AdaptiveImpedanceController::new(self.impedance, a, self.inner)
+                            .map_err(bad("adaptive"))?,
+                    ),
+                }
+            }
         })
     }
 }
