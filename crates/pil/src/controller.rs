@@ -87,6 +87,12 @@ pub fn setup_of(run: &pneuflex_scene::schema::RunSpec) -> Result<ControllerSetup
             "run `{}`: adaptive without its gains",
             run.name
         ))),
+        // A kind the board has not learnt (ControllerKind is non-exhaustive): refused by name.
+        (other, _) => Err(PilError::Setup(format!(
+            "run `{}`: the board runs the impedance and adaptive controllers; `{}` runs in simulation only",
+            run.name,
+            other.name()
+        ))),
     }
 }
 

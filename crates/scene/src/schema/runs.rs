@@ -186,6 +186,9 @@ impl RunSpec {
 /// The controller of a run.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
+// Non-exhaustive: beyond this crate, a kind a host cannot run (the board) is refused by name, so that a
+// controller added for simulation touches the scene and control crates only.
+#[non_exhaustive]
 pub enum ControllerKind {
     /// Position-based impedance control, eqs. (19)–(24), with the inner position PID.
     Impedance,
