@@ -15,7 +15,7 @@
 //! -1 to +1 passes through a closed centre.
 
 use crate::effects::Effects;
-use crate::valve::{Pwm, ValveKind, ValveModel, ValveState, sanitize};
+use crate::valve::{Pwm, ValveModel, ValveState, sanitize};
 
 /// Delays and time constants of a valve's spool, s.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,24 +37,13 @@ impl Timing {
     pub(crate) fn of(valve: &ValveModel, e: &Effects) -> Self {
         let line = e.lines.map_or(0.0, |l| l.delay_s());
         let d = e.spool.unwrap_or_default();
-        match valve.kind {
-            ValveKind::OnOffPwm {
-                pwm_frequency_hz,
-                switching_delay_s,
-            } => Self {
-                pwm_period: Some(1.0 / pwm_frequency_hz),
-                delay_on: switching_delay_s + line,
-                delay_off: d.release_delay_s.unwrap_or(switching_delay_s) + line,
-                tau_on: d.spool_time_constant_s,
-                tau_off: d.release_time_constant_s.unwrap_or(d.spool_time_constant_s),
-            },
-            ValveKind::Proportional { response_time_s } => Self {
-                pwm_period: None,
-                delay_on: d.dead_time_s + line,
-                delay_off: d.dead_time_s + line,
-                tau_on: response_time_s,
-                tau_off: response_time_s,
-            },
+        let [delay_on, delay_off, tau_on, tau_off] = valve.kind.spool_timing(&d);
+        Self {
+            pwm_period: valve.pwm_period_s(),
+            delay_on: delay_on + line,
+            delay_off: delay_off + line,
+            tau_on,
+            tau_off,
         }
     }
 }
@@ -186,6 +175,7 @@ mod tests {
     use super::*;
     use crate::effects::{Lines, SpoolDynamics};
     use crate::flow::Orifice;
+    use crate::valve::ValveKind;
 
     fn pwm_valve(delay: f64) -> ValveModel {
         ValveModel {

@@ -4,6 +4,7 @@
 //! (P = supply, R = exhaust): P->A and B->R open for `s > 0`, P->B and A->R open for `s < 0`.
 //! The command `u` in [-1, 1] follows the lead's convention: +1 = supply to A, B to exhaust (extend).
 
+use crate::effects::SpoolDynamics;
 use crate::flow::Orifice;
 
 /// Relative openings of the four paths of a 5-port valve, each in [0, 1].
@@ -38,6 +39,59 @@ pub enum ValveKind {
         /// Delay between the electrical edge and the spool changing position, s (< one PWM period).
         switching_delay_s: f64,
     },
+}
+
+impl ValveKind {
+    /// The kind's name in a sheet (`valve.kind`) and its own parameters under the sheet's keys.
+    pub fn sheet_keys(&self) -> (&'static str, Vec<(&'static str, f64)>) {
+        match *self {
+            ValveKind::Proportional { response_time_s } => {
+                ("proportional", vec![("response_time_s", response_time_s)])
+            }
+            ValveKind::OnOffPwm {
+                pwm_frequency_hz,
+                switching_delay_s,
+            } => (
+                "on_off_pwm",
+                vec![
+                    ("pwm_frequency_hz", pwm_frequency_hz),
+                    ("switching_delay_s", switching_delay_s),
+                ],
+            ),
+        }
+    }
+
+    /// The period of the PWM carrier, s, for a valve switched by PWM; None for one that follows the
+    /// command.
+    pub fn pwm_period_s(&self) -> Option<f64> {
+        match *self {
+            ValveKind::OnOffPwm {
+                pwm_frequency_hz, ..
+            } => Some(1.0 / pwm_frequency_hz),
+            ValveKind::Proportional { .. } => None,
+        }
+    }
+
+    /// The spool's delays and time constants with the model's spool dynamics ([`crate::SpoolDynamics`],
+    /// before the lines' delay), s: `[delay on, delay off, tau on, tau off]` ("on" a move towards +1).
+    pub(crate) fn spool_timing(&self, d: &SpoolDynamics) -> [f64; 4] {
+        match *self {
+            ValveKind::OnOffPwm {
+                switching_delay_s, ..
+            } => [
+                switching_delay_s,
+                d.release_delay_s.unwrap_or(switching_delay_s),
+                d.spool_time_constant_s,
+                d.release_time_constant_s.unwrap_or(d.spool_time_constant_s),
+            ],
+            ValveKind::Proportional { response_time_s } => [
+                d.dead_time_s,
+                d.dead_time_s,
+                response_time_s,
+                response_time_s,
+            ],
+        }
+    }
 }
 
 /// The four flow paths of a 5-port valve, in the order of [`ValveModel::paths`].
@@ -148,12 +202,7 @@ pub(crate) fn sanitize(u: f64) -> f64 {
 impl ValveModel {
     /// The period of the PWM carrier, s, for an on/off valve switched by PWM; None for a proportional valve.
     pub fn pwm_period_s(&self) -> Option<f64> {
-        match self.kind {
-            ValveKind::OnOffPwm {
-                pwm_frequency_hz, ..
-            } => Some(1.0 / pwm_frequency_hz),
-            ValveKind::Proportional { .. } => None,
-        }
+        self.kind.pwm_period_s()
     }
 
     /// The ISO 6358 characteristics of path `i` (as [`PATHS`]).

@@ -4,9 +4,7 @@
 use std::path::PathBuf;
 
 use pneuflex_multibody::{AxialActuator, PneumaticForceElement};
-use pneuflex_pneumatics::{
-    ActuatorSheet, ChamberState, Friction, OneDofModel, OneDofState, ValveKind,
-};
+use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction, OneDofModel, OneDofState};
 use pneuflex_scene::Scene;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -121,19 +119,10 @@ impl PyActuator {
             a.valve.orifice.critical_pressure_ratio,
         )?;
         d.set_item("underlap", a.valve.underlap)?;
-        match a.valve.kind {
-            ValveKind::Proportional { response_time_s } => {
-                d.set_item("valve_kind", "proportional")?;
-                d.set_item("response_time_s", response_time_s)?;
-            }
-            ValveKind::OnOffPwm {
-                pwm_frequency_hz,
-                switching_delay_s,
-            } => {
-                d.set_item("valve_kind", "on_off_pwm")?;
-                d.set_item("pwm_frequency_hz", pwm_frequency_hz)?;
-                d.set_item("switching_delay_s", switching_delay_s)?;
-            }
+        let (kind, keys) = a.valve.kind.sheet_keys();
+        d.set_item("valve_kind", kind)?;
+        for (key, value) in keys {
+            d.set_item(key, value)?;
         }
         d.set_item("moving_mass_kg", m.moving_mass_kg)?;
         d.set_item("viscous_n_s_per_m", m.viscous_n_s_per_m)?;
