@@ -30,8 +30,8 @@ fn with_substeps(scene: &Scene, n: u32) -> Scene {
     match &mut s.plant {
         PlantSpec::Pneumatic { substeps, .. } => *substeps = n,
         PlantSpec::Multibody(mb) => mb.chamber_substeps = n,
-        PlantSpec::Ideal { .. } => panic!("no substeps on the ideal loop"),
         PlantSpec::Linear { substeps, .. } => *substeps = n,
+        other => panic!("no substeps on the {} plant", other.kind()),
     }
     s
 }
