@@ -42,7 +42,7 @@ pub fn simulate_observed<'p>(
     progress: &mut dyn FnMut(f64),
     observer: &mut dyn Sink<dyn Plant + 'p>,
 ) -> Result<RunResult, SceneError> {
-    simulate_loop(
+    simulate_stoppable(
         scene, index, plant, controller, setpoints, progress, observer, None,
     )
 }
@@ -51,22 +51,6 @@ pub fn simulate_observed<'p>(
 /// back with `interrupted` set (the rows simulated so far in its trace).
 #[allow(clippy::too_many_arguments)]
 pub fn simulate_stoppable<'p>(
-    scene: &Scene,
-    index: usize,
-    plant: &mut (dyn Plant + 'p),
-    controller: &mut dyn Controller,
-    setpoints: &control::SetpointSchedule,
-    progress: &mut dyn FnMut(f64),
-    observer: &mut dyn Sink<dyn Plant + 'p>,
-    stop: Option<&std::sync::atomic::AtomicUsize>,
-) -> Result<RunResult, SceneError> {
-    simulate_loop(
-        scene, index, plant, controller, setpoints, progress, observer, stop,
-    )
-}
-
-#[allow(clippy::too_many_arguments)]
-pub(super) fn simulate_loop<'p>(
     scene: &Scene,
     index: usize,
     plant: &mut (dyn Plant + 'p),

@@ -199,7 +199,7 @@ fn run_phase(
         let mut controller = scene.run_controller(i, held)?;
         plant.reset();
         let mut sub = |f: f64| progress((k as f64 + f) / n_runs as f64);
-        let mut r = host::simulate_loop(
+        let mut r = host::simulate_stoppable(
             scene,
             i,
             plant.as_mut(),
@@ -314,7 +314,7 @@ fn run_parallel(
                                 let _ = tx.send((k, f));
                             }
                         };
-                        let mut r = host::simulate_loop(
+                        let mut r = host::simulate_stoppable(
                             scene,
                             i,
                             plant.as_mut(),
