@@ -297,43 +297,6 @@ impl MechanismScene {
         Ok(scene)
     }
 
-    /// Refuses a scene whose runs would take more physics steps or trace memory than `limits` allow (the
-    /// same limits as a one-actuator scene's, `--max-steps` and `--max-trace-mb`), before anything runs.
-    pub fn check_budget(&self, limits: &crate::Limits) -> Result<(), SceneError> {
-        let ticks = self.n_steps() as u64 + 1;
-        let steps = ticks.saturating_mul(u64::from(self.physics_steps_per_tick));
-        if steps > limits.max_steps_per_run {
-            return Err(self.invalid(
-                "physics_steps_per_tick",
-                format!(
-                    "the scene needs {steps:.3e} physics steps per run (duration_s = {} s, dt_s = {} s, and this \
-                     key), more than the limit of {:.3e}; shorten the run or raise the limit with `--max-steps {steps}`",
-                    self.duration_s, self.dt_s, limits.max_steps_per_run as f64
-                ),
-            ));
-        }
-        // A row: t, then per actuator the loop's columns and at most 8 of the controller's own, 8 bytes each.
-        let columns =
-            1 + self.actuators.len() as u64 * (super::run::ACTUATOR_COLUMNS.len() as u64 + 8);
-        let bytes = ticks
-            .saturating_mul(columns * 8)
-            .saturating_mul(self.runs.len() as u64);
-        if bytes > limits.max_trace_bytes {
-            let mib = bytes as f64 / f64::from(1u32 << 20);
-            return Err(self.invalid(
-                "duration_s",
-                format!(
-                    "the traces of {} run(s) of {ticks} ticks need up to {mib:.0} MiB, more than the limit of {:.0} \
-                     MiB; shorten the run or raise the limit with `--max-trace-mb {}`",
-                    self.runs.len(),
-                    limits.max_trace_bytes as f64 / f64::from(1u32 << 20),
-                    mib.ceil()
-                ),
-            ));
-        }
-        Ok(())
-    }
-
     /// A file the scene names, resolved against the scene's folder.
     pub fn resolve(&self, p: &Path) -> PathBuf {
         if p.is_absolute() {
