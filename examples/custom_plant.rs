@@ -8,7 +8,8 @@
 
 use std::path::Path;
 
-use pneuflex::control::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
+use pneuflex::control::{Sensors, Telemetry, ValveCommand};
+use pneuflex::scene::analysis::windows::compute_windows;
 use pneuflex::scene::{EventSpec, Plant, Scene, run_scene, simulate};
 
 /// x' = (x_r - x) / tau: a position servo that follows the controller's x_r, against a spring
@@ -78,58 +79,6 @@ impl Plant for FirstOrderServo {
     }
 }
 
-/// Wraps a controller and accumulates the squared force error over the scene's metric windows: the same
-/// samples and definition as `rms_force_error_n` in summary.json (`simulate` alone computes no metrics).
-struct RmsMeter {
-    inner: Box<dyn Controller>,
-    /// (name, t0, t1, sum of squares, samples)
-    windows: Vec<(String, f64, f64, f64, usize)>,
-    end_s: f64,
-}
-
-impl RmsMeter {
-    fn new(inner: Box<dyn Controller>, scene: &Scene) -> Self {
-        let windows = (scene.metrics.iter())
-            .map(|w| (w.name.clone(), w.t0_s, w.t1_s, 0.0, 0))
-            .collect();
-        Self {
-            inner,
-            windows,
-            end_s: scene.duration_s,
-        }
-    }
-
-    fn rms(&self, name: &str) -> f64 {
-        let w = self.windows.iter().find(|w| w.0 == name);
-        w.map_or(f64::NAN, |w| (w.3 / w.4 as f64).sqrt())
-    }
-}
-
-impl Controller for RmsMeter {
-    fn update(&mut self, s: &Sensors, sp: &Setpoint, dt: f64) -> ValveCommand {
-        let e = sp.f_ref - s.f_e;
-        for (_, t0, t1, sum, n) in &mut self.windows {
-            // [t0, t1), and t1 itself when the window ends with the run.
-            let eps = 1e-9 * (*t1 - *t0);
-            let at_end = (s.t - *t1).abs() <= eps && (*t1 - self.end_s).abs() <= eps;
-            if (s.t >= *t0 - eps && s.t < *t1 - eps) || at_end {
-                *sum += e * e;
-                *n += 1;
-            }
-        }
-        self.inner.update(s, sp, dt)
-    }
-
-    fn telemetry(&self) -> Telemetry {
-        self.inner.telemetry()
-    }
-
-    fn reset(&mut self) {
-        self.inner.reset();
-        self.windows.iter_mut().for_each(|w| (w.3, w.4) = (0.0, 0));
-    }
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let tau_s: f64 = std::env::args().nth(1).map_or(Ok(0.005), |a| a.parse())?;
     let path = Path::new(concat!(
@@ -148,12 +97,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut custom = Vec::new();
     for i in 0..scene.runs.len() {
         servo.reset();
-        let mut c = RmsMeter::new(scene.controller(i)?, &scene);
-        let r = simulate(&scene, i, &mut servo, &mut c, &setpoints, &mut |_| {})?;
+        let mut c = scene.controller(i)?;
+        let mut r = simulate(&scene, i, &mut servo, c.as_mut(), &setpoints, &mut |_| {})?;
         if let Some(why) = &r.diverged {
             println!("{} on the servo diverged: {why}", r.name);
         }
-        custom.push(c);
+        // `simulate` returns the trace; the scene's window metrics of it are the ones summary.json holds.
+        r.windows = compute_windows(&scene, &r.trace, r.pwm_period_s);
+        custom.push(r);
     }
 
     println!(
@@ -169,7 +120,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         print!("{:<24}", format!("{} {}-{} s", w.name, w.t0_s, w.t1_s));
         for (r, c) in shipped.iter().zip(&custom) {
             let ideal = r.window(&w.name).map_or(f64::NAN, |m| m.rms_force_error_n);
-            print!("{ideal:>16.3}{:>16.3}", c.rms(&w.name));
+            let servo = c.window(&w.name).map_or(f64::NAN, |m| m.rms_force_error_n);
+            print!("{ideal:>16.3}{servo:>16.3}");
         }
         println!();
     }

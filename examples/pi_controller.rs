@@ -11,6 +11,7 @@
 use std::path::Path;
 
 use pneuflex::control::{Controller, Sensors, Setpoint, Telemetry, ValveCommand};
+use pneuflex::scene::analysis::windows::compute_windows;
 use pneuflex::scene::{Scene, build_plant, run_scene, simulate};
 
 /// u = kp e + ki ∫e on the force error e = f_ref - f_e, straight to the valve (no impedance filter,
@@ -60,58 +61,6 @@ impl Controller for PiForce {
     }
 }
 
-/// Wraps a controller and accumulates the squared force error over the scene's metric windows: the same
-/// samples and definition as `rms_force_error_n` in summary.json (`simulate` alone computes no metrics).
-struct RmsMeter<C> {
-    inner: C,
-    /// (name, t0, t1, sum of squares, samples)
-    windows: Vec<(String, f64, f64, f64, usize)>,
-    end_s: f64,
-}
-
-impl<C: Controller> RmsMeter<C> {
-    fn new(inner: C, scene: &Scene) -> Self {
-        let windows = (scene.metrics.iter())
-            .map(|w| (w.name.clone(), w.t0_s, w.t1_s, 0.0, 0))
-            .collect();
-        Self {
-            inner,
-            windows,
-            end_s: scene.duration_s,
-        }
-    }
-
-    fn rms(&self, name: &str) -> Option<f64> {
-        let w = self.windows.iter().find(|w| w.0 == name)?;
-        Some((w.3 / w.4 as f64).sqrt())
-    }
-}
-
-impl<C: Controller> Controller for RmsMeter<C> {
-    fn update(&mut self, s: &Sensors, sp: &Setpoint, dt: f64) -> ValveCommand {
-        let e = sp.f_ref - s.f_e;
-        for (_, t0, t1, sum, n) in &mut self.windows {
-            // [t0, t1), and t1 itself when the window ends with the run.
-            let eps = 1e-9 * (*t1 - *t0);
-            let at_end = (s.t - *t1).abs() <= eps && (*t1 - self.end_s).abs() <= eps;
-            if (s.t >= *t0 - eps && s.t < *t1 - eps) || at_end {
-                *sum += e * e;
-                *n += 1;
-            }
-        }
-        self.inner.update(s, sp, dt)
-    }
-
-    fn telemetry(&self) -> Telemetry {
-        self.inner.telemetry()
-    }
-
-    fn reset(&mut self) {
-        self.inner.reset();
-        self.windows.iter_mut().for_each(|w| (w.3, w.4) = (0.0, 0));
-    }
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let arg = |i: usize, default: f64| -> Result<f64, Box<dyn std::error::Error>> {
         Ok(std::env::args().nth(i).map_or(Ok(default), |a| a.parse())?)
@@ -129,11 +78,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The PI controller on a fresh plant of the same scene; the result is filed under run 0's name.
     let mut plant = build_plant(&scene)?;
     let setpoints = scene.setpoints()?;
-    let mut pi = RmsMeter::new(PiForce::new(kp, ki), &scene);
-    let result = simulate(&scene, 0, plant.as_mut(), &mut pi, &setpoints, &mut |_| {})?;
+    let mut pi = PiForce::new(kp, ki);
+    let mut result = simulate(&scene, 0, plant.as_mut(), &mut pi, &setpoints, &mut |_| {})?;
     if let Some(why) = &result.diverged {
         println!("PI (kp = {kp}, ki = {ki}) diverged: {why}");
     }
+    // `simulate` returns the trace; the scene's window metrics of it are the ones summary.json holds.
+    result.windows = compute_windows(&scene, &result.trace, result.pwm_period_s);
 
     println!("{}\nRMS force error, N:", scene.description);
     print!("{:<24}", "window");
@@ -145,7 +96,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let m = r.window(&w.name).map(|m| m.rms_force_error_n);
             print!("{:>14.3}", m.unwrap_or(f64::NAN));
         }
-        println!("{:>14.3}", pi.rms(&w.name).unwrap_or(f64::NAN));
+        let m = result.window(&w.name).map(|m| m.rms_force_error_n);
+        println!("{:>14.3}", m.unwrap_or(f64::NAN));
     }
     println!("PI gains: kp = {kp} /N, ki = {ki} /(N s)");
     Ok(())
