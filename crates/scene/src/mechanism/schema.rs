@@ -349,7 +349,18 @@ impl MechanismScene {
 
     /// The checks no single type can make: ranges, names that refer to each other, the time grid.
     fn check(&self) -> Result<(), SceneError> {
-        use pneuflex_files::check::{finite, non_negative, positive};
+        self.check_time_grid()?;
+        self.check_actuators()?;
+        self.check_springs_and_contacts()?;
+        self.check_events()?;
+        self.check_runs()?;
+        self.check_windows_and_claims()?;
+        Ok(())
+    }
+
+    /// The run's length, the tick, the physics and chamber steps, gravity.
+    fn check_time_grid(&self) -> Result<(), SceneError> {
+        use pneuflex_files::check::{finite, positive};
         self.number("duration_s", self.duration_s, positive)?;
         self.number("dt_s", self.dt_s, positive)?;
         if self.dt_s > 0.01 {
@@ -388,6 +399,12 @@ impl MechanismScene {
         for (i, g) in self.gravity_m_s2.iter().enumerate() {
             self.number(&format!("gravity_m_s2[{i}]"), *g, finite)?;
         }
+        Ok(())
+    }
+
+    /// Each actuator: its name, one mount, its force sensor, its force reference's pieces, its start.
+    fn check_actuators(&self) -> Result<(), SceneError> {
+        use pneuflex_files::check::{finite, positive};
         if self.actuators.is_empty() {
             return Err(self.invalid("actuators", "needs at least one actuator".into()));
         }
@@ -461,6 +478,12 @@ impl MechanismScene {
                 )?;
             }
         }
+        Ok(())
+    }
+
+    /// The joint springs and the contact pads: their names and numbers.
+    fn check_springs_and_contacts(&self) -> Result<(), SceneError> {
+        use pneuflex_files::check::{non_negative, positive};
         for (i, sp) in self.springs.iter().enumerate() {
             let at = |k: &str| format!("springs[{i}].{k}");
             self.number(&at("stiffness_n_per_m"), sp.stiffness_n_per_m, positive)?;
@@ -482,6 +505,12 @@ impl MechanismScene {
             self.number(&at("stiffness_n_per_m"), c.stiffness_n_per_m, positive)?;
             self.number(&at("damping_n_s_per_m"), c.damping_n_s_per_m, non_negative)?;
         }
+        Ok(())
+    }
+
+    /// Each event: its time within the run and the one contact or spring it changes.
+    fn check_events(&self) -> Result<(), SceneError> {
+        use pneuflex_files::check::{non_negative, positive};
         for (i, e) in self.events.iter().enumerate() {
             let at = |k: &str| format!("events[{i}].{k}");
             if !(e.t_s.is_finite() && (0.0..=self.duration_s).contains(&e.t_s)) {
@@ -523,6 +552,11 @@ impl MechanismScene {
                 self.number(&at("damping_n_s_per_m"), c, non_negative)?;
             }
         }
+        Ok(())
+    }
+
+    /// The runs: names, no frozen run, and every controller (each actuator's own gains too) builds.
+    fn check_runs(&self) -> Result<(), SceneError> {
         if self.runs.is_empty() {
             return Err(self.invalid("runs", "needs at least one run".into()));
         }
@@ -557,6 +591,11 @@ impl MechanismScene {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// The metric windows within the run, and each claim's window, metric, runs and actuator.
+    fn check_windows_and_claims(&self) -> Result<(), SceneError> {
         for (i, w) in self.metrics.iter().enumerate() {
             let at = |k: &str| format!("metrics[{i}].{k}");
             if !(w.t0_s.is_finite()
