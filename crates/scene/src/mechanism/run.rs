@@ -6,7 +6,7 @@ use pneuflex_control::{Controller, Sensors, SetpointSchedule};
 use pneuflex_multibody::{
     ActuatorConfig, ContactConfig, ContactParams, Mechanism, MechanismConfig, Mount,
 };
-use pneuflex_pneumatics::ChamberState;
+use pneuflex_pneumatics::{ActuatorSheet, ChamberState};
 
 use super::schema::MechanismScene;
 use crate::error::SceneError;
@@ -133,6 +133,41 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
     let urdf = scene.resolve(&scene.urdf);
     let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf)
         .map_err(|e| scene.invalid("urdf", e.to_string()))?;
+    let sheets = actuator_sheets(scene)?;
+    let config = mechanism_config(scene, &sheets);
+    let mechanism = Mechanism::from_robot(&urdf, &robot, &config)
+        .map_err(|e| scene.invalid(&mechanism_key(scene, &e), e.to_string()))?;
+    let mut drives = Vec::with_capacity(sheets.len());
+    let mut schedules = Vec::with_capacity(sheets.len());
+    let mut sensors = Vec::with_capacity(sheets.len());
+    for (i, sheet) in sheets.iter().enumerate() {
+        let (drive, schedule, sensor) = actuator_drive(scene, &mechanism, i, sheet)?;
+        drives.push(drive);
+        schedules.push(schedule);
+        sensors.push(sensor);
+    }
+    let mut positions = Vec::with_capacity(scene.actuators.len());
+    for (i, a) in scene.actuators.iter().enumerate() {
+        if let Some(j) = &a.position_sensor {
+            mechanism.joint_position(j).map_err(|e| {
+                scene.invalid(&format!("actuators[{i}].position_sensor"), e.to_string())
+            })?;
+        }
+        positions.push(a.position_sensor.clone());
+    }
+    let events = scheduled_events(scene, &mechanism)?;
+    Ok(Built {
+        mechanism,
+        drives,
+        schedules,
+        sensors,
+        positions,
+        events,
+    })
+}
+
+/// Each actuator's sheet, refused when it models more than a mechanism's cylinders do.
+fn actuator_sheets(scene: &MechanismScene) -> Result<Vec<ActuatorSheet>, SceneError> {
     let mut sheets = Vec::with_capacity(scene.actuators.len());
     for (i, a) in scene.actuators.iter().enumerate() {
         let path = scene.resolve(&a.sheet);
@@ -152,10 +187,15 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
         }
         sheets.push(sheet);
     }
+    Ok(sheets)
+}
+
+/// The multibody crate's description of the scene's mechanism.
+fn mechanism_config(scene: &MechanismScene, sheets: &[ActuatorSheet]) -> MechanismConfig {
     let actuators = scene
         .actuators
         .iter()
-        .zip(&sheets)
+        .zip(sheets)
         .map(|(a, sheet)| ActuatorConfig {
             name: a.name.clone(),
             mount: match (&a.joint, &a.anchors) {
@@ -183,7 +223,7 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
             damping_n_s_per_m: c.damping_n_s_per_m,
         })
         .collect();
-    let config = MechanismConfig {
+    MechanismConfig {
         actuators,
         contacts,
         gravity_m_s2: scene.gravity_m_s2,
@@ -205,70 +245,73 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
             })
             .collect(),
         held_links: scene.held_links.clone(),
+    }
+}
+
+/// Actuator `i`'s force element at rest, its setpoints and the contact its force sensor reads (None: the
+/// rod's load cell).
+fn actuator_drive(
+    scene: &MechanismScene,
+    mechanism: &Mechanism,
+    i: usize,
+    sheet: &ActuatorSheet,
+) -> Result<(FlangeDrive, SetpointSchedule, Option<usize>), SceneError> {
+    let a = &scene.actuators[i];
+    let actuator = sheet.actuator();
+    let stroke = mechanism.actuator_stroke(i);
+    if (stroke - actuator.cylinder.stroke_m).abs() > 1e-9 {
+        return Err(scene.invalid(
+            &format!("actuators[{i}].sheet"),
+            format!(
+                "the cylinder's stroke is {} m, the joint '{}' allows {stroke} m: they must agree",
+                actuator.cylinder.stroke_m,
+                a.joint.as_deref().unwrap_or("")
+            ),
+        ));
+    }
+    // At rest with no net force: B halfway between supply and atmosphere, A balancing it (eq. (1)).
+    let (s, c) = (&actuator.supply, &actuator.cylinder);
+    let p_b = 0.5 * (s.supply_pressure_pa + s.atmosphere_pressure_pa);
+    let p_a = (p_b * c.area_b() + s.atmosphere_pressure_pa * c.area_rod()) / c.area_a();
+    let element = pneuflex_multibody::PneumaticForceElement::new(
+        actuator,
+        ChamberState::new(p_a, p_b),
+        scene.chamber_substeps,
+    );
+    let drive = FlangeDrive {
+        element,
+        friction: sheet.mechanics.friction,
+        // Gravity is Rapier's; along an anchored cylinder it has no one value to drive stick-slip.
+        gravity_force_n: 0.0,
     };
-    let mechanism = Mechanism::from_robot(&urdf, &robot, &config)
-        .map_err(|e| scene.invalid(&mechanism_key(scene, &e), e.to_string()))?;
-    let mut drives = Vec::with_capacity(sheets.len());
-    let mut schedules = Vec::with_capacity(sheets.len());
-    let mut sensors = Vec::with_capacity(sheets.len());
-    for (i, (a, sheet)) in scene.actuators.iter().zip(&sheets).enumerate() {
-        let actuator = sheet.actuator();
-        let stroke = mechanism.actuator_stroke(i);
-        if (stroke - actuator.cylinder.stroke_m).abs() > 1e-9 {
-            return Err(scene.invalid(
-                &format!("actuators[{i}].sheet"),
-                format!(
-                    "the cylinder's stroke is {} m, the joint '{}' allows {stroke} m: they must agree",
-                    actuator.cylinder.stroke_m,
-                    a.joint.as_deref().unwrap_or("")
-                ),
-            ));
-        }
-        // At rest with no net force: B halfway between supply and atmosphere, A balancing it (eq. (1)).
-        let (s, c) = (&actuator.supply, &actuator.cylinder);
-        let p_b = 0.5 * (s.supply_pressure_pa + s.atmosphere_pressure_pa);
-        let p_a = (p_b * c.area_b() + s.atmosphere_pressure_pa * c.area_rod()) / c.area_a();
-        let element = pneuflex_multibody::PneumaticForceElement::new(
-            actuator,
-            ChamberState::new(p_a, p_b),
-            scene.chamber_substeps,
-        );
-        drives.push(FlangeDrive {
-            element,
-            friction: sheet.mechanics.friction,
-            // Gravity is Rapier's; along an anchored cylinder it has no one value to drive stick-slip.
-            gravity_force_n: 0.0,
-        });
-        let mut sp = SetpointSchedule::default();
-        for (j, piece) in a.force.iter().enumerate() {
-            sp.force_n
-                .push(piece.start_s(), piece.reference())
-                .map_err(|e| scene.invalid(&format!("actuators[{i}].force[{j}]"), e.to_string()))?;
-        }
-        sp.position_m
-            .push(
-                0.0,
-                pneuflex_control::Reference::Constant { value: a.x_d_m },
-            )
-            .map_err(|e| scene.invalid(&format!("actuators[{i}].x_d_m"), e.to_string()))?;
-        schedules.push(sp);
-        sensors.push(if a.force_sensor == super::schema::LOAD_CELL {
+    let mut sp = SetpointSchedule::default();
+    for (j, piece) in a.force.iter().enumerate() {
+        sp.force_n
+            .push(piece.start_s(), piece.reference())
+            .map_err(|e| scene.invalid(&format!("actuators[{i}].force[{j}]"), e.to_string()))?;
+    }
+    sp.position_m
+        .push(
+            0.0,
+            pneuflex_control::Reference::Constant { value: a.x_d_m },
+        )
+        .map_err(|e| scene.invalid(&format!("actuators[{i}].x_d_m"), e.to_string()))?;
+    let sensor =
+        if a.force_sensor == super::schema::LOAD_CELL {
             None
         } else {
             Some(mechanism.contact_index(&a.force_sensor).map_err(|e| {
                 scene.invalid(&format!("actuators[{i}].force_sensor"), e.to_string())
             })?)
-        });
-    }
-    let mut positions = Vec::with_capacity(scene.actuators.len());
-    for (i, a) in scene.actuators.iter().enumerate() {
-        if let Some(j) = &a.position_sensor {
-            mechanism.joint_position(j).map_err(|e| {
-                scene.invalid(&format!("actuators[{i}].position_sensor"), e.to_string())
-            })?;
-        }
-        positions.push(a.position_sensor.clone());
-    }
+        };
+    Ok((drive, sp, sensor))
+}
+
+/// Each event's tick, what it changes and the values it sets.
+fn scheduled_events(
+    scene: &MechanismScene,
+    mechanism: &Mechanism,
+) -> Result<Vec<(usize, EventTarget, ContactParams)>, SceneError> {
     let mut events = Vec::with_capacity(scene.events.len());
     for (i, e) in scene.events.iter().enumerate() {
         let at = |k: &str| format!("events[{i}].{k}");
@@ -297,14 +340,7 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
             },
         ));
     }
-    Ok(Built {
-        mechanism,
-        drives,
-        schedules,
-        sensors,
-        positions,
-        events,
-    })
+    Ok(events)
 }
 
 /// The scene key a mechanism error is about: the actuator or contact key it names, or the URDF.
