@@ -305,38 +305,7 @@ impl RigWorld {
         config: &MultibodyConfig,
     ) -> Result<Self, MultibodyError> {
         config.validate()?;
-        // Names first, so that a misspelt name is reported as such rather than as a tree problem.
-        let has_link = |n: &str| robot.links.iter().any(|l| l.name == n);
-        let has_joint = |n: &str| robot.joints.iter().any(|j| j.name == n);
-        for (field, name) in [
-            ("flange_link", &config.flange_link),
-            ("cylinder_link", &config.cylinder_link),
-            ("carriage_link", &config.carriage_link),
-        ] {
-            if !has_link(name) {
-                return Err(MultibodyError::MissingLink {
-                    file: path.to_path_buf(),
-                    field,
-                    link: name.clone(),
-                });
-            }
-        }
-        if !has_joint(&config.flange_joint) {
-            return Err(MultibodyError::MissingJoint {
-                file: path.to_path_buf(),
-                field: "flange_joint",
-                joint: config.flange_joint.clone(),
-            });
-        }
-        for m in &config.materials {
-            if !has_joint(&m.mount_joint) {
-                return Err(MultibodyError::MissingJoint {
-                    file: path.to_path_buf(),
-                    field: "materials.mount_joint",
-                    joint: m.mount_joint.clone(),
-                });
-            }
-        }
+        check_names(path, robot, config)?;
         let kinematic = [config.carriage_link.as_str()];
         let mut rig = urdf_build::build(
             path,
@@ -346,223 +315,45 @@ impl RigWorld {
                 friction: config.friction,
             },
         )?;
-        let file = rig.file.clone();
-        let bad_joint = |joint: &str, reason: String| MultibodyError::BadJoint {
-            file: file.clone(),
-            joint: joint.to_owned(),
-            reason,
-        };
-
-        // The flange joint: prismatic, cylinder -> flange, finite stroke.
-        let fj = rig.joint_index(&config.flange_joint, "flange_joint")?;
-        let flange_link = rig.link_index(&config.flange_link, "flange_link")?;
-        let cylinder_link = rig.link_index(&config.cylinder_link, "cylinder_link")?;
-        let fji = rig.joints[fj].clone();
-        if fji.kind != urdf_rs::JointType::Prismatic {
-            return Err(bad_joint(
-                &fji.name,
-                "the flange joint must be prismatic".into(),
-            ));
-        }
-        if fji.child != flange_link || rig.links[fji.parent].body != rig.links[cylinder_link].body {
-            return Err(bad_joint(
-                &fji.name,
-                format!(
-                    "must connect the cylinder link '{}' (parent) to the flange link '{}' (child)",
-                    config.cylinder_link, config.flange_link
-                ),
-            ));
-        }
-        let Some([lower, upper]) = fji.limits else {
-            return Err(bad_joint(
-                &fji.name,
-                "needs finite <limit lower upper> (the stroke)".into(),
-            ));
-        };
-        let stroke_m = upper - lower;
-        if stroke_m.is_nan() || stroke_m <= 0.0 {
-            return Err(bad_joint(
-                &fji.name,
-                format!("stroke upper - lower must be > 0, got {stroke_m}"),
-            ));
-        }
-        if !(0.0..=stroke_m).contains(&config.initial_x_m) {
-            return Err(MultibodyError::BadConfig {
-                field: "initial_x_m",
-                reason: format!(
-                    "must be within the stroke [0, {stroke_m}] m, got {}",
-                    config.initial_x_m
-                ),
-            });
-        }
-        let flange_body = rig.links[flange_link].body;
-        let cylinder_body = rig.links[cylinder_link].body;
-        let joint_handle = fji
-            .handle
-            .expect("a dynamic prismatic child always gets a joint");
-        let (joint_frame1, joint_frame2) = {
-            let j = &rig
-                .world
-                .impulse_joints
-                .get(joint_handle)
-                .expect("just built")
-                .data;
-            (j.local_frame1, j.local_frame2)
-        };
-        let cyl_pose = *rig.world.bodies[cylinder_body].position();
-        let axis = (cyl_pose * joint_frame1).rotation * Vector::X;
-        let up = Vector::Z;
-        if axis.dot(up).abs() > 1e-9 {
-            return Err(bad_joint(
-                &fji.name,
-                "the actuator axis must be horizontal (normal to z) in the URDF: alpha comes from the scene"
-                    .into(),
-            ));
-        }
-        let transverse = up.cross(axis);
-        let flange_colliders = rig.links[flange_link].colliders.clone();
-        if flange_colliders.is_empty() {
-            return Err(MultibodyError::BadGeometry {
-                file: file.clone(),
-                link: config.flange_link.clone(),
-                reason:
-                    "the flange needs at least one <collision> element to touch the environment"
-                        .into(),
-            });
-        }
+        let Flange {
+            link: flange_link,
+            body: flange_body,
+            cylinder_body,
+            joint_frame1,
+            joint_frame2,
+            lower,
+            stroke_m,
+            axis,
+            transverse,
+            up,
+            colliders: flange_colliders,
+        } = flange_of(&rig, config)?;
 
         // The carriage: a kinematic body; everything dynamic below it rides along.
         let carriage_link = rig.link_index(&config.carriage_link, "carriage_link")?;
         let carriage_body = rig.links[carriage_link].body;
         let carriage_home = *rig.world.bodies[carriage_body].position();
-        let mut carriage_riders = Vec::new();
-        for (li, l) in rig.links.iter().enumerate() {
-            if l.body != carriage_body
-                && descends_from(&rig, li, carriage_link)
-                && !carriage_riders.contains(&l.body)
-            {
-                carriage_riders.push(l.body);
-            }
-        }
+        let carriage_riders = riders_of(&rig, carriage_link, carriage_body);
 
-        // Materials: prismatic mounts under the carriage along the actuator axis.
-        let mut materials = Vec::with_capacity(config.materials.len());
-        let flange_zero = *rig.world.bodies[flange_body].position();
-        for mc in &config.materials {
-            let ji = rig.joint_index(&mc.mount_joint, "materials.mount_joint")?;
-            let j = rig.joints[ji].clone();
-            if j.kind != urdf_rs::JointType::Prismatic || j.handle.is_none() {
-                return Err(bad_joint(
-                    &j.name,
-                    "a material mount must be a prismatic joint to a moving face".into(),
-                ));
-            }
-            if !descends_from(&rig, j.child, carriage_link) {
-                return Err(bad_joint(
-                    &j.name,
-                    format!(
-                        "the material face must ride on the carriage '{}'",
-                        config.carriage_link
-                    ),
-                ));
-            }
-            let face_body = rig.links[j.child].body;
-            let handle = j.handle.expect("checked");
-            let frame1 = rig
-                .world
-                .impulse_joints
-                .get(handle)
-                .expect("built")
-                .data
-                .local_frame1;
-            let parent_pose = *rig.world.bodies[rig.links[j.parent].body].position();
-            let mount_axis = (parent_pose * frame1).rotation * Vector::X;
-            if mount_axis.dot(axis) < 1.0 - 1e-9 {
-                return Err(bad_joint(
-                    &j.name,
-                    "the material mount axis must point along the actuator axis (away from the flange)".into(),
-                ));
-            }
-            let face_pose = *rig.world.bodies[face_body].position();
-            let align_offset_m = (flange_zero.translation - face_pose.translation).dot(transverse);
-            // First touch: cast the flange along the axis onto the aligned, unloaded face.
-            let aligned = Pose::from_translation(transverse * align_offset_m) * face_pose;
-            let x_e_m = first_touch(
-                &rig,
-                &rig.links[flange_link].colliders,
-                &rig.links[j.child].colliders,
-                &aligned,
-                axis,
-            )
-            .ok_or_else(|| MultibodyError::BadGeometry {
-                file: file.clone(),
-                link: rig.links[j.child].name.clone(),
-                reason: "the flange never touches this face when it faces the flange".into(),
-            })?;
-            let face_mass_kg = rig.links[j.child].body_mass_kg;
-            materials.push(Material {
-                name: mc.name.clone(),
-                params: mc.params,
-                joint: handle,
-                face_body,
-                face_mass_kg,
-                mount_axis,
-                // x measured from the retracted stop.
-                x_e_m: x_e_m - lower,
-                align_offset_m,
-                face_link: j.child,
-                in_reach: Vec::new(),
-            });
-        }
-        // Faces the flange can reach while another material faces it (only a rig with faces closer together
-        // than the flange is wide): they stay simulated while that material is active.
-        for i in 0..materials.len() {
-            let shift = Pose::from_translation(transverse * materials[i].align_offset_m);
-            for k in 0..materials.len() {
-                let touch = first_touch(
-                    &rig,
-                    &rig.links[flange_link].colliders,
-                    &rig.links[materials[k].face_link].colliders,
-                    &(shift * *rig.world.bodies[materials[k].face_body].position()),
-                    axis,
-                );
-                if k != i && touch.is_some_and(|t| t - lower <= stroke_m) {
-                    materials[i].in_reach.push(k);
-                }
-            }
-        }
-        // Only the flange and the material faces touch by design: give every other collider an empty
-        // filter so the broad and narrow phases never pair them (fewer pairs, faster steps).
-        {
-            let face_colliders: Vec<ColliderHandle> = config
-                .materials
-                .iter()
-                .filter_map(|mc| rig.joints.iter().find(|j| j.name == mc.mount_joint))
-                .flat_map(|j| rig.links[j.child].colliders.iter().copied())
-                .collect();
-            let flange_g =
-                InteractionGroups::new(Group::GROUP_1, Group::GROUP_2, InteractionTestMode::And);
-            let face_g =
-                InteractionGroups::new(Group::GROUP_2, Group::GROUP_1, InteractionTestMode::And);
-            let other_g =
-                InteractionGroups::new(Group::GROUP_3, Group::NONE, InteractionTestMode::And);
-            let handles: Vec<ColliderHandle> = rig.world.colliders.iter().map(|(h, _)| h).collect();
-            for h in handles {
-                let g = if flange_colliders.contains(&h) {
-                    flange_g
-                } else if face_colliders.contains(&h) {
-                    face_g
-                } else {
-                    other_g
-                };
-                rig.world.colliders[h].set_collision_groups(g);
-                // Never paired: out of the broad phase altogether (the shape casts of `first_touch` above
-                // and the viewers' geometry do not need it enabled; colliders carry no mass).
-                if g == other_g {
-                    rig.world.colliders[h].set_enabled(false);
-                }
-            }
-        }
+        let mut materials = materials_of(
+            &rig,
+            config,
+            carriage_link,
+            flange_link,
+            axis,
+            transverse,
+            lower,
+        )?;
+        mark_faces_in_reach(
+            &rig,
+            &mut materials,
+            flange_link,
+            axis,
+            transverse,
+            lower,
+            stroke_m,
+        );
+        isolate_flange_and_faces(&mut rig, config, &flange_colliders);
         let min_xe = materials
             .iter()
             .map(|m| m.x_e_m)
@@ -570,19 +361,7 @@ impl RigWorld {
         // Retreat far enough that the fully extended flange clears every face during the slide.
         let swap_retreat_m = (stroke_m - min_xe).max(0.0) + 0.01;
 
-        // Integration parameters: stiff (near-rigid) Rapier contacts, the compliance lives in the mounts.
-        {
-            let ip = &mut rig.world.integration_parameters;
-            ip.dt = config.dt_s;
-            ip.num_solver_iterations = config.solver_iterations;
-            ip.contact_softness = SpringCoefficients::new(1.0e6, 1.0);
-            ip.static_contact_softness = SpringCoefficients::new(1.0e6, 1.0);
-            ip.warmstart_joints = true;
-            ip.max_ccd_substeps = 0;
-            // Recycled (stale) contact points survived the carriage slide and pushed across a gap: off while
-            // the carriage moves, on while it rests (set before every step in `step_with_force`).
-            ip.contact_recycling = false;
-        }
+        set_integration(&mut rig.world.integration_parameters, config);
 
         let mut w = Self {
             rig,
@@ -943,6 +722,346 @@ impl RigWorld {
             }
         }
     }
+}
+
+/// The links and joints the configuration names exist in the URDF: checked first, so that a misspelt
+/// name is reported as such rather than as a tree problem.
+fn check_names(
+    path: &Path,
+    robot: &urdf_rs::Robot,
+    config: &MultibodyConfig,
+) -> Result<(), MultibodyError> {
+    let has_link = |n: &str| robot.links.iter().any(|l| l.name == n);
+    let has_joint = |n: &str| robot.joints.iter().any(|j| j.name == n);
+    for (field, name) in [
+        ("flange_link", &config.flange_link),
+        ("cylinder_link", &config.cylinder_link),
+        ("carriage_link", &config.carriage_link),
+    ] {
+        if !has_link(name) {
+            return Err(MultibodyError::MissingLink {
+                file: path.to_path_buf(),
+                field,
+                link: name.clone(),
+            });
+        }
+    }
+    if !has_joint(&config.flange_joint) {
+        return Err(MultibodyError::MissingJoint {
+            file: path.to_path_buf(),
+            field: "flange_joint",
+            joint: config.flange_joint.clone(),
+        });
+    }
+    for m in &config.materials {
+        if !has_joint(&m.mount_joint) {
+            return Err(MultibodyError::MissingJoint {
+                file: path.to_path_buf(),
+                field: "materials.mount_joint",
+                joint: m.mount_joint.clone(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The flange and its joint as the rig needs them.
+struct Flange {
+    link: usize,
+    body: RigidBodyHandle,
+    cylinder_body: RigidBodyHandle,
+    joint_frame1: Pose,
+    joint_frame2: Pose,
+    /// The joint's lower limit (the retracted stop) and its stroke, m.
+    lower: f64,
+    stroke_m: f64,
+    /// The actuator axis, the horizontal transverse to it and up (z), world frame.
+    axis: Vector,
+    transverse: Vector,
+    up: Vector,
+    colliders: Vec<ColliderHandle>,
+}
+
+/// The flange joint: prismatic, cylinder -> flange, a finite stroke holding the initial extension, a
+/// horizontal axis; the flange has a collider to touch with.
+fn flange_of(rig: &BuiltRig, config: &MultibodyConfig) -> Result<Flange, MultibodyError> {
+    let file = rig.file.clone();
+    let bad_joint = |joint: &str, reason: String| MultibodyError::BadJoint {
+        file: file.clone(),
+        joint: joint.to_owned(),
+        reason,
+    };
+    let fj = rig.joint_index(&config.flange_joint, "flange_joint")?;
+    let flange_link = rig.link_index(&config.flange_link, "flange_link")?;
+    let cylinder_link = rig.link_index(&config.cylinder_link, "cylinder_link")?;
+    let fji = rig.joints[fj].clone();
+    if fji.kind != urdf_rs::JointType::Prismatic {
+        return Err(bad_joint(
+            &fji.name,
+            "the flange joint must be prismatic".into(),
+        ));
+    }
+    if fji.child != flange_link || rig.links[fji.parent].body != rig.links[cylinder_link].body {
+        return Err(bad_joint(
+            &fji.name,
+            format!(
+                "must connect the cylinder link '{}' (parent) to the flange link '{}' (child)",
+                config.cylinder_link, config.flange_link
+            ),
+        ));
+    }
+    let Some([lower, upper]) = fji.limits else {
+        return Err(bad_joint(
+            &fji.name,
+            "needs finite <limit lower upper> (the stroke)".into(),
+        ));
+    };
+    let stroke_m = upper - lower;
+    if stroke_m.is_nan() || stroke_m <= 0.0 {
+        return Err(bad_joint(
+            &fji.name,
+            format!("stroke upper - lower must be > 0, got {stroke_m}"),
+        ));
+    }
+    if !(0.0..=stroke_m).contains(&config.initial_x_m) {
+        return Err(MultibodyError::BadConfig {
+            field: "initial_x_m",
+            reason: format!(
+                "must be within the stroke [0, {stroke_m}] m, got {}",
+                config.initial_x_m
+            ),
+        });
+    }
+    let flange_body = rig.links[flange_link].body;
+    let cylinder_body = rig.links[cylinder_link].body;
+    let joint_handle = fji
+        .handle
+        .expect("a dynamic prismatic child always gets a joint");
+    let (joint_frame1, joint_frame2) = {
+        let j = &rig
+            .world
+            .impulse_joints
+            .get(joint_handle)
+            .expect("just built")
+            .data;
+        (j.local_frame1, j.local_frame2)
+    };
+    let cyl_pose = *rig.world.bodies[cylinder_body].position();
+    let axis = (cyl_pose * joint_frame1).rotation * Vector::X;
+    let up = Vector::Z;
+    if axis.dot(up).abs() > 1e-9 {
+        return Err(bad_joint(
+            &fji.name,
+            "the actuator axis must be horizontal (normal to z) in the URDF: alpha comes from the scene"
+                .into(),
+        ));
+    }
+    let transverse = up.cross(axis);
+    let flange_colliders = rig.links[flange_link].colliders.clone();
+    if flange_colliders.is_empty() {
+        return Err(MultibodyError::BadGeometry {
+            file: file.clone(),
+            link: config.flange_link.clone(),
+            reason: "the flange needs at least one <collision> element to touch the environment"
+                .into(),
+        });
+    }
+    Ok(Flange {
+        link: flange_link,
+        body: flange_body,
+        cylinder_body,
+        joint_frame1,
+        joint_frame2,
+        lower,
+        stroke_m,
+        axis,
+        transverse,
+        up,
+        colliders: flange_colliders,
+    })
+}
+
+/// The materials: prismatic mounts under the carriage along the actuator axis, each with where the flange
+/// first touches its face and the carriage offset that aligns it with the flange.
+fn materials_of(
+    rig: &BuiltRig,
+    config: &MultibodyConfig,
+    carriage_link: usize,
+    flange_link: usize,
+    axis: Vector,
+    transverse: Vector,
+    lower: f64,
+) -> Result<Vec<Material>, MultibodyError> {
+    let file = rig.file.clone();
+    let bad_joint = |joint: &str, reason: String| MultibodyError::BadJoint {
+        file: file.clone(),
+        joint: joint.to_owned(),
+        reason,
+    };
+    let mut materials = Vec::with_capacity(config.materials.len());
+    let flange_zero = *rig.world.bodies[rig.links[flange_link].body].position();
+    for mc in &config.materials {
+        let ji = rig.joint_index(&mc.mount_joint, "materials.mount_joint")?;
+        let j = rig.joints[ji].clone();
+        if j.kind != urdf_rs::JointType::Prismatic || j.handle.is_none() {
+            return Err(bad_joint(
+                &j.name,
+                "a material mount must be a prismatic joint to a moving face".into(),
+            ));
+        }
+        if !descends_from(rig, j.child, carriage_link) {
+            return Err(bad_joint(
+                &j.name,
+                format!(
+                    "the material face must ride on the carriage '{}'",
+                    config.carriage_link
+                ),
+            ));
+        }
+        let face_body = rig.links[j.child].body;
+        let handle = j.handle.expect("checked");
+        let frame1 = rig
+            .world
+            .impulse_joints
+            .get(handle)
+            .expect("built")
+            .data
+            .local_frame1;
+        let parent_pose = *rig.world.bodies[rig.links[j.parent].body].position();
+        let mount_axis = (parent_pose * frame1).rotation * Vector::X;
+        if mount_axis.dot(axis) < 1.0 - 1e-9 {
+            return Err(bad_joint(
+                &j.name,
+                "the material mount axis must point along the actuator axis (away from the flange)"
+                    .into(),
+            ));
+        }
+        let face_pose = *rig.world.bodies[face_body].position();
+        let align_offset_m = (flange_zero.translation - face_pose.translation).dot(transverse);
+        // First touch: cast the flange along the axis onto the aligned, unloaded face.
+        let aligned = Pose::from_translation(transverse * align_offset_m) * face_pose;
+        let x_e_m = first_touch(
+            rig,
+            &rig.links[flange_link].colliders,
+            &rig.links[j.child].colliders,
+            &aligned,
+            axis,
+        )
+        .ok_or_else(|| MultibodyError::BadGeometry {
+            file: file.clone(),
+            link: rig.links[j.child].name.clone(),
+            reason: "the flange never touches this face when it faces the flange".into(),
+        })?;
+        let face_mass_kg = rig.links[j.child].body_mass_kg;
+        materials.push(Material {
+            name: mc.name.clone(),
+            params: mc.params,
+            joint: handle,
+            face_body,
+            face_mass_kg,
+            mount_axis,
+            // x measured from the retracted stop.
+            x_e_m: x_e_m - lower,
+            align_offset_m,
+            face_link: j.child,
+            in_reach: Vec::new(),
+        });
+    }
+    Ok(materials)
+}
+
+/// The bodies below the carriage that ride along when it moves (the carriage's own body excluded).
+fn riders_of(
+    rig: &BuiltRig,
+    carriage_link: usize,
+    carriage_body: RigidBodyHandle,
+) -> Vec<RigidBodyHandle> {
+    let mut carriage_riders = Vec::new();
+    for (li, l) in rig.links.iter().enumerate() {
+        if l.body != carriage_body
+            && descends_from(&rig, li, carriage_link)
+            && !carriage_riders.contains(&l.body)
+        {
+            carriage_riders.push(l.body);
+        }
+    }
+
+    carriage_riders
+}
+
+/// Faces the flange can reach while another material faces it (only a rig with faces closer together
+/// than the flange is wide): they stay simulated while that material is active.
+fn mark_faces_in_reach(
+    rig: &BuiltRig,
+    materials: &mut [Material],
+    flange_link: usize,
+    axis: Vector,
+    transverse: Vector,
+    lower: f64,
+    stroke_m: f64,
+) {
+    for i in 0..materials.len() {
+        let shift = Pose::from_translation(transverse * materials[i].align_offset_m);
+        for k in 0..materials.len() {
+            let touch = first_touch(
+                &rig,
+                &rig.links[flange_link].colliders,
+                &rig.links[materials[k].face_link].colliders,
+                &(shift * *rig.world.bodies[materials[k].face_body].position()),
+                axis,
+            );
+            if k != i && touch.is_some_and(|t| t - lower <= stroke_m) {
+                materials[i].in_reach.push(k);
+            }
+        }
+    }
+}
+
+/// Only the flange and the material faces touch by design: every other collider gets an empty filter so
+/// that the broad and narrow phases never pair them (fewer pairs, faster steps).
+fn isolate_flange_and_faces(
+    rig: &mut BuiltRig,
+    config: &MultibodyConfig,
+    flange_colliders: &[ColliderHandle],
+) {
+    let face_colliders: Vec<ColliderHandle> = config
+        .materials
+        .iter()
+        .filter_map(|mc| rig.joints.iter().find(|j| j.name == mc.mount_joint))
+        .flat_map(|j| rig.links[j.child].colliders.iter().copied())
+        .collect();
+    let flange_g = InteractionGroups::new(Group::GROUP_1, Group::GROUP_2, InteractionTestMode::And);
+    let face_g = InteractionGroups::new(Group::GROUP_2, Group::GROUP_1, InteractionTestMode::And);
+    let other_g = InteractionGroups::new(Group::GROUP_3, Group::NONE, InteractionTestMode::And);
+    let handles: Vec<ColliderHandle> = rig.world.colliders.iter().map(|(h, _)| h).collect();
+    for h in handles {
+        let g = if flange_colliders.contains(&h) {
+            flange_g
+        } else if face_colliders.contains(&h) {
+            face_g
+        } else {
+            other_g
+        };
+        rig.world.colliders[h].set_collision_groups(g);
+        // Never paired: out of the broad phase altogether (the shape casts of `first_touch` above
+        // and the viewers' geometry do not need it enabled; colliders carry no mass).
+        if g == other_g {
+            rig.world.colliders[h].set_enabled(false);
+        }
+    }
+}
+
+/// Integration parameters: stiff (near-rigid) Rapier contacts, the compliance lives in the mounts.
+fn set_integration(ip: &mut IntegrationParameters, config: &MultibodyConfig) {
+    ip.dt = config.dt_s;
+    ip.num_solver_iterations = config.solver_iterations;
+    ip.contact_softness = SpringCoefficients::new(1.0e6, 1.0);
+    ip.static_contact_softness = SpringCoefficients::new(1.0e6, 1.0);
+    ip.warmstart_joints = true;
+    ip.max_ccd_substeps = 0;
+    // Recycled (stale) contact points survived the carriage slide and pushed across a gap: off while
+    // the carriage moves, on while it rests (set before every step in `step_with_force`).
+    ip.contact_recycling = false;
 }
 
 /// Whether link `li` is `ancestor` or lies below it in the tree.
