@@ -979,7 +979,7 @@ fn riders_of(
     let mut carriage_riders = Vec::new();
     for (li, l) in rig.links.iter().enumerate() {
         if l.body != carriage_body
-            && descends_from(&rig, li, carriage_link)
+            && descends_from(rig, li, carriage_link)
             && !carriage_riders.contains(&l.body)
         {
             carriage_riders.push(l.body);
@@ -1004,7 +1004,7 @@ fn mark_faces_in_reach(
         let shift = Pose::from_translation(transverse * materials[i].align_offset_m);
         for k in 0..materials.len() {
             let touch = first_touch(
-                &rig,
+                rig,
                 &rig.links[flange_link].colliders,
                 &rig.links[materials[k].face_link].colliders,
                 &(shift * *rig.world.bodies[materials[k].face_body].position()),
