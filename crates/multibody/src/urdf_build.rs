@@ -400,156 +400,107 @@ fn collider_for(g: &LinkGeometry, body_from_link: &Pose, friction: f64) -> Colli
         .build()
 }
 
-/// Build the Rapier world from a parsed URDF.
-pub fn build(
+/// A joint's axis, origin, limits and damping, checked.
+fn joint_info(
+    file: &Path,
+    j: &urdf_rs::Joint,
+    parent: usize,
+    child: usize,
+) -> Result<JointInfo, MultibodyError> {
+    let needs_axis = !matches!(
+        j.joint_type,
+        urdf_rs::JointType::Fixed | urdf_rs::JointType::Floating | urdf_rs::JointType::Spherical
+    );
+    let a = Vector::from_array(j.axis.xyz.0);
+    let axis = if needs_axis {
+        let n = a.length();
+        if !n.is_finite() || n < 1e-12 {
+            return Err(MultibodyError::BadJoint {
+                file: file.to_path_buf(),
+                joint: j.name.clone(),
+                reason: format!(
+                    "<axis xyz> must be a non-zero finite vector, got [{}, {}, {}]",
+                    a.x, a.y, a.z
+                ),
+            });
+        }
+        a / n
+    } else {
+        Vector::X
+    };
+    let origin = urdf_pose(&j.origin);
+    if !origin.is_finite() {
+        return Err(MultibodyError::BadJoint {
+            file: file.to_path_buf(),
+            joint: j.name.clone(),
+            reason: "<origin> must be finite".into(),
+        });
+    }
+    let limits = match j.joint_type {
+        urdf_rs::JointType::Prismatic | urdf_rs::JointType::Revolute => {
+            let (lo, hi) = (j.limit.lower, j.limit.upper);
+            if lo.is_nan() || hi.is_nan() || lo > hi {
+                return Err(MultibodyError::BadJoint {
+                    file: file.to_path_buf(),
+                    joint: j.name.clone(),
+                    reason: format!("<limit> needs lower <= upper, got [{lo}, {hi}]"),
+                });
+            }
+            (lo.is_finite() && hi.is_finite()).then_some([lo, hi])
+        }
+        _ => None,
+    };
+    let damping = j.dynamics.as_ref().map_or(0.0, |d| d.damping);
+    if !(damping.is_finite() && damping >= 0.0) {
+        return Err(MultibodyError::BadJoint {
+            file: file.to_path_buf(),
+            joint: j.name.clone(),
+            reason: format!("<dynamics damping> must be >= 0, got {damping}"),
+        });
+    }
+    Ok(JointInfo {
+        name: j.name.clone(),
+        kind: j.joint_type.clone(),
+        parent,
+        child,
+        handle: None,
+        origin,
+        axis,
+        limits,
+        damping,
+    })
+}
+
+/// A link's body: the index of its [`Slot`] and the body's pose of the link (body_from_link).
+type LinkBody = (usize, Pose);
+
+/// A rigid body: the links merged over fixed joints into it, their mass, its pose at the zero configuration.
+struct Slot {
+    kind: RigidBodyType,
+    pose: Pose,
+    mass: MassProperties,
+    has_mass: bool,
+    first_link: usize,
+}
+
+/// Assigns each link a body (a fixed joint merges the child into its parent's, a kinematic link gets its
+/// own) by a depth-first walk from the root, which finds unreached links (a cycle); sums each body's
+/// mass. Returns the bodies and each link's (body, body_from_link).
+fn assign_bodies(
     file: &Path,
     robot: &urdf_rs::Robot,
     opts: &BuildOptions<'_>,
-) -> Result<BuiltRig, MultibodyError> {
+    joints: &[JointInfo],
+    root: usize,
+    mass_props: &[Option<MassProperties>],
+) -> Result<(Vec<Slot>, Vec<LinkBody>), MultibodyError> {
     let tree_err = |reason: String| MultibodyError::BadTree {
         file: file.to_path_buf(),
         reason,
     };
-    // Names -> indices, rejecting duplicates.
-    let mut link_idx: HashMap<&str, usize> = HashMap::new();
-    for (i, l) in robot.links.iter().enumerate() {
-        if link_idx.insert(l.name.as_str(), i).is_some() {
-            return Err(tree_err(format!("link '{}' is defined twice", l.name)));
-        }
-    }
-    for k in opts.kinematic_links {
-        if !link_idx.contains_key(k) {
-            return Err(MultibodyError::MissingLink {
-                file: file.to_path_buf(),
-                field: "kinematic link",
-                link: (*k).to_owned(),
-            });
-        }
-    }
-    let mut joints = Vec::with_capacity(robot.joints.len());
-    let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
-    for (ji, j) in robot.joints.iter().enumerate() {
-        let find = |name: &str, role: &str| {
-            link_idx
-                .get(name)
-                .copied()
-                .ok_or_else(|| MultibodyError::BadJoint {
-                    file: file.to_path_buf(),
-                    joint: j.name.clone(),
-                    reason: format!("{role} link '{name}' is not defined"),
-                })
-        };
-        let parent = find(&j.parent.link, "parent")?;
-        let child = find(&j.child.link, "child")?;
-        if parent_joint[child].replace(ji).is_some() {
-            return Err(tree_err(format!(
-                "link '{}' has two parent joints",
-                j.child.link
-            )));
-        }
-        let needs_axis = !matches!(
-            j.joint_type,
-            urdf_rs::JointType::Fixed
-                | urdf_rs::JointType::Floating
-                | urdf_rs::JointType::Spherical
-        );
-        let a = Vector::from_array(j.axis.xyz.0);
-        let axis = if needs_axis {
-            let n = a.length();
-            if !n.is_finite() || n < 1e-12 {
-                return Err(MultibodyError::BadJoint {
-                    file: file.to_path_buf(),
-                    joint: j.name.clone(),
-                    reason: format!(
-                        "<axis xyz> must be a non-zero finite vector, got [{}, {}, {}]",
-                        a.x, a.y, a.z
-                    ),
-                });
-            }
-            a / n
-        } else {
-            Vector::X
-        };
-        let origin = urdf_pose(&j.origin);
-        if !origin.is_finite() {
-            return Err(MultibodyError::BadJoint {
-                file: file.to_path_buf(),
-                joint: j.name.clone(),
-                reason: "<origin> must be finite".into(),
-            });
-        }
-        let limits = match j.joint_type {
-            urdf_rs::JointType::Prismatic | urdf_rs::JointType::Revolute => {
-                let (lo, hi) = (j.limit.lower, j.limit.upper);
-                if lo.is_nan() || hi.is_nan() || lo > hi {
-                    return Err(MultibodyError::BadJoint {
-                        file: file.to_path_buf(),
-                        joint: j.name.clone(),
-                        reason: format!("<limit> needs lower <= upper, got [{lo}, {hi}]"),
-                    });
-                }
-                (lo.is_finite() && hi.is_finite()).then_some([lo, hi])
-            }
-            _ => None,
-        };
-        let damping = j.dynamics.as_ref().map_or(0.0, |d| d.damping);
-        if !(damping.is_finite() && damping >= 0.0) {
-            return Err(MultibodyError::BadJoint {
-                file: file.to_path_buf(),
-                joint: j.name.clone(),
-                reason: format!("<dynamics damping> must be >= 0, got {damping}"),
-            });
-        }
-        joints.push(JointInfo {
-            name: j.name.clone(),
-            kind: j.joint_type.clone(),
-            parent,
-            child,
-            handle: None,
-            origin,
-            axis,
-            limits,
-            damping,
-        });
-    }
-    let roots: Vec<usize> = (0..robot.links.len())
-        .filter(|&i| parent_joint[i].is_none())
-        .collect();
-    if roots.len() != 1 {
-        let names: Vec<&str> = roots
-            .iter()
-            .map(|&i| robot.links[i].name.as_str())
-            .collect();
-        return Err(tree_err(format!(
-            "expected exactly one root link, found {} ({})",
-            roots.len(),
-            names.join(", ")
-        )));
-    }
-    let root = roots[0];
-
-    // Per-link checks before anything is built.
-    let mut mass_props = Vec::with_capacity(robot.links.len());
-    let mut geometry = Vec::with_capacity(robot.links.len());
-    let mut visual_meshes = Vec::with_capacity(robot.links.len());
-    for l in &robot.links {
-        mass_props.push(inertial_check(file, l)?);
-        geometry.push(geometry_of(file, l)?);
-        visual_meshes.push(visual_meshes_of(file, l)?);
-    }
-
-    // Children lists, then a depth-first walk from the root (detects cycles: unreached links).
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
     for (ji, j) in joints.iter().enumerate() {
         children[j.parent].push(ji);
-    }
-    // Body assignment: (body slot, body_from_link, world pose of link).
-    struct Slot {
-        kind: RigidBodyType,
-        pose: Pose,
-        mass: MassProperties,
-        has_mass: bool,
-        first_link: usize,
     }
     let mut slots: Vec<Slot> = Vec::new();
     let mut link_slot: Vec<Option<(usize, Pose)>> = vec![None; robot.links.len()];
@@ -614,6 +565,128 @@ pub fn build(
         }
     }
 
+    let link_slot = link_slot.into_iter().map(|s| s.expect("checked")).collect();
+    Ok((slots, link_slot))
+}
+
+/// The Rapier joint of a URDF joint between two bodies, with its frames, limits and damping; None for a
+/// floating or fixed joint (no constraint to add). `pbfl`: the parent body's pose of the parent link.
+fn impulse_joint(j: &JointInfo, pbfl: Pose) -> Option<GenericJoint> {
+    // Joint frames whose x axis is the URDF axis, identical in world at the zero configuration.
+    let r_axis = Pose::from_rotation(Rotation::from_rotation_arc(Vector::X, j.axis));
+    let frame1 = pbfl * j.origin * r_axis;
+    let frame2 = r_axis;
+    let (locked, free_axis) = match j.kind {
+        urdf_rs::JointType::Prismatic => {
+            (JointAxesMask::LOCKED_PRISMATIC_AXES, Some(JointAxis::LinX))
+        }
+        urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+            (JointAxesMask::LOCKED_REVOLUTE_AXES, Some(JointAxis::AngX))
+        }
+        urdf_rs::JointType::Planar => (
+            JointAxesMask::LIN_X
+                | JointAxesMask::ANG_X
+                | JointAxesMask::ANG_Y
+                | JointAxesMask::ANG_Z,
+            None,
+        ),
+        urdf_rs::JointType::Spherical => (JointAxesMask::LOCKED_SPHERICAL_AXES, None),
+        urdf_rs::JointType::Floating | urdf_rs::JointType::Fixed => return None,
+    };
+    let mut gj = GenericJointBuilder::new(locked)
+        .local_frame1(frame1)
+        .local_frame2(frame2)
+        .contacts_enabled(false)
+        .build();
+    if let Some(ax) = free_axis {
+        if let (Some(l), true) = (j.limits, j.kind != urdf_rs::JointType::Continuous) {
+            gj.set_limits(ax, l);
+        }
+        if j.damping > 0.0 {
+            // Viscous joint damping: a force-based velocity motor towards 0 is exactly -c * v.
+            gj.set_motor_model(ax, MotorModel::ForceBased);
+            gj.set_motor(ax, 0.0, 0.0, 0.0, j.damping);
+        }
+    }
+    Some(gj)
+}
+
+/// Build the Rapier world from a parsed URDF.
+pub fn build(
+    file: &Path,
+    robot: &urdf_rs::Robot,
+    opts: &BuildOptions<'_>,
+) -> Result<BuiltRig, MultibodyError> {
+    let tree_err = |reason: String| MultibodyError::BadTree {
+        file: file.to_path_buf(),
+        reason,
+    };
+    // Names -> indices, rejecting duplicates.
+    let mut link_idx: HashMap<&str, usize> = HashMap::new();
+    for (i, l) in robot.links.iter().enumerate() {
+        if link_idx.insert(l.name.as_str(), i).is_some() {
+            return Err(tree_err(format!("link '{}' is defined twice", l.name)));
+        }
+    }
+    for k in opts.kinematic_links {
+        if !link_idx.contains_key(k) {
+            return Err(MultibodyError::MissingLink {
+                file: file.to_path_buf(),
+                field: "kinematic link",
+                link: (*k).to_owned(),
+            });
+        }
+    }
+    let mut joints = Vec::with_capacity(robot.joints.len());
+    let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
+    for (ji, j) in robot.joints.iter().enumerate() {
+        let find = |name: &str, role: &str| {
+            link_idx
+                .get(name)
+                .copied()
+                .ok_or_else(|| MultibodyError::BadJoint {
+                    file: file.to_path_buf(),
+                    joint: j.name.clone(),
+                    reason: format!("{role} link '{name}' is not defined"),
+                })
+        };
+        let parent = find(&j.parent.link, "parent")?;
+        let child = find(&j.child.link, "child")?;
+        if parent_joint[child].replace(ji).is_some() {
+            return Err(tree_err(format!(
+                "link '{}' has two parent joints",
+                j.child.link
+            )));
+        }
+        joints.push(joint_info(file, j, parent, child)?);
+    }
+    let roots: Vec<usize> = (0..robot.links.len())
+        .filter(|&i| parent_joint[i].is_none())
+        .collect();
+    if roots.len() != 1 {
+        let names: Vec<&str> = roots
+            .iter()
+            .map(|&i| robot.links[i].name.as_str())
+            .collect();
+        return Err(tree_err(format!(
+            "expected exactly one root link, found {} ({})",
+            roots.len(),
+            names.join(", ")
+        )));
+    }
+    let root = roots[0];
+
+    // Per-link checks before anything is built.
+    let mut mass_props = Vec::with_capacity(robot.links.len());
+    let mut geometry = Vec::with_capacity(robot.links.len());
+    let mut visual_meshes = Vec::with_capacity(robot.links.len());
+    for l in &robot.links {
+        mass_props.push(inertial_check(file, l)?);
+        geometry.push(geometry_of(file, l)?);
+        visual_meshes.push(visual_meshes_of(file, l)?);
+    }
+    let (slots, link_slot) = assign_bodies(file, robot, opts, &joints, root, &mass_props)?;
+
     let mut world = PhysicsWorld::new();
     let mut handles = Vec::with_capacity(slots.len());
     for s in &slots {
@@ -625,7 +698,7 @@ pub fn build(
     }
     let mut links = Vec::with_capacity(robot.links.len());
     for (li, l) in robot.links.iter().enumerate() {
-        let (s, bfl) = link_slot[li].expect("checked");
+        let (s, bfl) = link_slot[li];
         let mut colliders = Vec::with_capacity(geometry[li].len());
         for g in &geometry[li] {
             let c = collider_for(g, &bfl, opts.friction);
@@ -646,48 +719,14 @@ pub fn build(
         });
     }
     for j in &mut joints {
-        let (ps, pbfl) = link_slot[j.parent].expect("checked");
-        let (cs, _) = link_slot[j.child].expect("checked");
+        let (ps, pbfl) = link_slot[j.parent];
+        let (cs, _) = link_slot[j.child];
         if ps == cs || slots[cs].kind != RigidBodyType::Dynamic {
             continue; // merged over a fixed joint, or driven kinematically
         }
-        // Joint frames whose x axis is the URDF axis, identical in world at the zero configuration.
-        let r_axis = Pose::from_rotation(Rotation::from_rotation_arc(Vector::X, j.axis));
-        let frame1 = pbfl * j.origin * r_axis;
-        let frame2 = r_axis;
-        let (locked, free_axis) = match j.kind {
-            urdf_rs::JointType::Prismatic => {
-                (JointAxesMask::LOCKED_PRISMATIC_AXES, Some(JointAxis::LinX))
-            }
-            urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
-                (JointAxesMask::LOCKED_REVOLUTE_AXES, Some(JointAxis::AngX))
-            }
-            urdf_rs::JointType::Planar => (
-                JointAxesMask::LIN_X
-                    | JointAxesMask::ANG_X
-                    | JointAxesMask::ANG_Y
-                    | JointAxesMask::ANG_Z,
-                None,
-            ),
-            urdf_rs::JointType::Spherical => (JointAxesMask::LOCKED_SPHERICAL_AXES, None),
-            urdf_rs::JointType::Floating | urdf_rs::JointType::Fixed => continue,
-        };
-        let mut gj = GenericJointBuilder::new(locked)
-            .local_frame1(frame1)
-            .local_frame2(frame2)
-            .contacts_enabled(false)
-            .build();
-        if let Some(ax) = free_axis {
-            if let (Some(l), true) = (j.limits, j.kind != urdf_rs::JointType::Continuous) {
-                gj.set_limits(ax, l);
-            }
-            if j.damping > 0.0 {
-                // Viscous joint damping: a force-based velocity motor towards 0 is exactly -c * v.
-                gj.set_motor_model(ax, MotorModel::ForceBased);
-                gj.set_motor(ax, 0.0, 0.0, 0.0, j.damping);
-            }
+        if let Some(gj) = impulse_joint(j, pbfl) {
+            j.handle = Some(world.insert_impulse_joint(handles[ps], handles[cs], gj));
         }
-        j.handle = Some(world.insert_impulse_joint(handles[ps], handles[cs], gj));
     }
     Ok(BuiltRig {
         world,
