@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 use crate::clock::SimClock;
 use crate::error::{ErrorKind, RigError};
-use crate::plant::{EmulatedPlant, Environment, ValveDrive};
+use crate::plant::{EmulatedPlant, Environment, PlantSample, ValveDrive};
 use crate::protocol::{
     AppliedPayload, DecodeEvent, Decoder, MAX_FRAME, Message, RESET_MAGIC, SamplePayload,
     ValveMode, encode, fault_code, from_q15, status,
@@ -352,7 +352,6 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         if self.finished {
             return false;
         }
-        let full = |c: &crate::rigfile::LinearChannel| c.full_scale() as u16;
         // Experiment time runs from the first Run command.
         let t = self.run_start_s.map(|s| now - s);
         let active = |f: &InjectedFault| -> bool {
@@ -383,8 +382,36 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
             return false;
         }
 
-        // Receive.
-        if !stalled && let Some(link) = self.link.as_mut() {
+        if !stalled && !self.receive() {
+            return false;
+        }
+        let mut replies: [Option<Message>; 2] = [None, None];
+        if stalled {
+            // A stalled firmware runs nothing, its watchdog included; the host's silence is not its doing.
+            self.last_host_msg_s = now;
+        }
+        for msg in std::mem::take(&mut self.pending) {
+            self.last_host_msg_s = now;
+            if let Some(reply) = self.handle(msg, now) {
+                replies[0] = Some(reply);
+            }
+        }
+        if !stalled {
+            replies[1] = self.board_watchdog(now);
+        }
+        let t_now = t.unwrap_or(0.0);
+        let (ps, f_e) = self.advance_plant(t_now);
+        let sample = self.sample_payload(now, &ps, f_e, stuck);
+        // Transmit.
+        if stalled {
+            return true;
+        }
+        self.transmit(&replies, sample, dropping, corrupt)
+    }
+
+    /// Reads what the host sent into `pending`; false once the link failed (the board has stopped).
+    fn receive(&mut self) -> bool {
+        if let Some(link) = self.link.as_mut() {
             let mut rx = [0u8; 512];
             loop {
                 match link.read_now(&mut rx) {
@@ -404,56 +431,58 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
                 }
             }
         }
-        let mut replies: [Option<Message>; 2] = [None, None];
-        if stalled {
-            // A stalled firmware runs nothing, its watchdog included; the host's silence is not its doing.
-            self.last_host_msg_s = now;
-        }
-        for msg in std::mem::take(&mut self.pending) {
-            self.last_host_msg_s = now;
-            match msg {
-                Message::Valve(v) => {
-                    if self.run_start_s.is_none() && v.mode == ValveMode::Run {
-                        self.run_start_s = Some(now);
-                    }
-                    // A latched board fault keeps the valve safe until Reset.
-                    if !self.board_fault {
-                        self.drive_mode = v.mode;
-                        self.duty_q15 = v.duty_q15;
-                    }
-                    self.last_tick = v.tick;
-                    // The echo of what the valve now does, by the samples' clock (docs/protocol.md, 0x07).
-                    self.echoes.push(Message::Applied(AppliedPayload {
-                        board_time_us: board_time_us(now),
+        true
+    }
+
+    /// Acts on one message from the host; a heartbeat is answered (the reply returned).
+    fn handle(&mut self, msg: Message, now: f64) -> Option<Message> {
+        match msg {
+            Message::Valve(v) => {
+                if self.run_start_s.is_none() && v.mode == ValveMode::Run {
+                    self.run_start_s = Some(now);
+                }
+                // A latched board fault keeps the valve safe until Reset.
+                if !self.board_fault {
+                    self.drive_mode = v.mode;
+                    self.duty_q15 = v.duty_q15;
+                }
+                self.last_tick = v.tick;
+                // The echo of what the valve now does, by the samples' clock (docs/protocol.md, 0x07).
+                self.echoes.push(Message::Applied(AppliedPayload {
+                    board_time_us: board_time_us(now),
+                    tick: v.tick,
+                    duty_q15: self.duty_q15,
+                    mode: self.drive_mode,
+                }));
+                if let Ok(mut l) = self.log.lock()
+                    && l.commands.len() < LOG_CAP
+                {
+                    l.commands.push(CommandRecord {
                         tick: v.tick,
-                        duty_q15: self.duty_q15,
                         mode: self.drive_mode,
-                    }));
-                    if let Ok(mut l) = self.log.lock()
-                        && l.commands.len() < LOG_CAP
-                    {
-                        l.commands.push(CommandRecord {
-                            tick: v.tick,
-                            mode: self.drive_mode,
-                            duty_q15: self.duty_q15,
-                            t: self.run_start_s.map_or(0.0, |s| now - s),
-                        });
-                    }
+                        duty_q15: self.duty_q15,
+                        t: self.run_start_s.map_or(0.0, |s| now - s),
+                    });
                 }
-                Message::Heartbeat(c) => replies[0] = Some(Message::Heartbeat(c)),
-                Message::Config(c) => {
-                    self.safe_mode = c.safe_mode;
-                    self.board_wd_s = (c.watchdog_ms > 0).then(|| f64::from(c.watchdog_ms) * 1e-3);
-                }
-                Message::Reset(m) if m == RESET_MAGIC => {
-                    self.board_fault = false;
-                    self.wd_tripped = false;
-                }
-                _ => {}
             }
+            Message::Heartbeat(c) => return Some(Message::Heartbeat(c)),
+            Message::Config(c) => {
+                self.safe_mode = c.safe_mode;
+                self.board_wd_s = (c.watchdog_ms > 0).then(|| f64::from(c.watchdog_ms) * 1e-3);
+            }
+            Message::Reset(m) if m == RESET_MAGIC => {
+                self.board_fault = false;
+                self.wd_tripped = false;
+            }
+            _ => {}
         }
-        // The board's own watchdog: a silent host (or a stalled board, once it wakes) -> safe state.
-        if let Some(wd) = self.board_wd_s.filter(|_| !stalled)
+        None
+    }
+
+    /// The board's own watchdog: a silent host (or a stalled board, once it wakes) -> safe state, and the
+    /// fault to report.
+    fn board_watchdog(&mut self, now: f64) -> Option<Message> {
+        if let Some(wd) = self.board_wd_s
             && self.run_start_s.is_some()
             && !self.board_fault
             && now - self.last_host_msg_s > wd
@@ -462,16 +491,20 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
             self.wd_tripped = true;
             self.drive_mode = self.safe_mode;
             self.duty_q15 = 0;
-            replies[1] = Some(Message::Fault {
-                code: fault_code::HOST_SILENT,
-                detail: (wd * 1e3).round().min(f64::from(u16::MAX)) as u16,
-            });
             if let Ok(mut l) = self.log.lock() {
                 l.board_watchdog_trips += 1;
             }
+            return Some(Message::Fault {
+                code: fault_code::HOST_SILENT,
+                detail: (wd * 1e3).round().min(f64::from(u16::MAX)) as u16,
+            });
         }
+        None
+    }
 
-        // Physics (never stalls). Before the run starts the plant rests.
+    /// Physics (never stalls) over one sample period from experiment time `t_now`; before the run starts
+    /// the plant rests. Returns the plant's state and the contact force at `t_now`.
+    fn advance_plant(&mut self, t_now: f64) -> (PlantSample, f64) {
         let drive = match self.drive_mode {
             ValveMode::Run => ValveDrive::Run(from_q15(self.duty_q15)),
             ValveMode::SafeVent => ValveDrive::Vent,
@@ -495,7 +528,6 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
                 drive
             }
         };
-        let t_now = t.unwrap_or(0.0);
         if self.run_start_s.is_some() {
             for i in 0..self.substeps {
                 let ts = t_now + i as f64 * self.h;
@@ -517,8 +549,19 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
                 f_e,
             });
         }
+        (ps, f_e)
+    }
 
-        // Sample.
+    /// The sample the board sends: the plant's state in counts with the ADC's noise (frozen by a stuck
+    /// sensor fault), and the board's status.
+    fn sample_payload(
+        &mut self,
+        now: f64,
+        ps: &PlantSample,
+        f_e: f64,
+        stuck: bool,
+    ) -> SamplePayload {
+        let full = |c: &crate::rigfile::LinearChannel| c.full_scale() as u16;
         let c = &self.cal;
         let noise = &mut self.noise;
         let (ch1, chb) = c.pressure_counts(ps.p_a, ps.p_b);
@@ -560,11 +603,18 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         } else {
             0
         } | if self.wd_tripped { status::WATCHDOG } else { 0 };
+        sample
+    }
 
-        // Transmit.
-        if stalled {
-            return true;
-        }
+    /// Sends the replies, the valve echoes and the sample (unless frames are dropped); false once the link
+    /// is gone or failed.
+    fn transmit(
+        &mut self,
+        replies: &[Option<Message>; 2],
+        sample: SamplePayload,
+        dropping: bool,
+        corrupt: bool,
+    ) -> bool {
         let Some(link) = self.link.as_mut() else {
             self.finished = true;
             return false;
