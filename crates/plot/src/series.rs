@@ -269,6 +269,48 @@ where
                 .map_err(|e| e.to_string())?;
         }
     }
+    draw_bands_and_lines(&mut chart, plot, (t0, t1), columns, raster)?;
+    for &(tm, color) in &plot.marks {
+        if tm >= t0 && tm <= t1 {
+            chart
+                .draw_series(DashedLineSeries::new(
+                    vec![(tm, lo), (tm, hi)],
+                    3,
+                    4,
+                    color.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    draw_notes(&root, &notes, (px.start, py.start))?;
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FAMILY, 16))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// Each band (a period's envelope, filled) and each line (decimated to `columns`), with their legend
+/// entries, in the plot's order.
+fn draw_bands_and_lines<DB: DrawingBackend>(
+    chart: &mut ChartContext<
+        '_,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    plot: &Plot,
+    (t0, t1): (f64, f64),
+    columns: usize,
+    raster: bool,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
     for b in &plot.bands {
         let env = period_envelope(
             &envelope(b.t, &b.y, t0, t1, columns),
@@ -319,58 +361,50 @@ where
                 });
         }
     }
-    for &(tm, color) in &plot.marks {
-        if tm >= t0 && tm <= t1 {
-            chart
-                .draw_series(DashedLineSeries::new(
-                    vec![(tm, lo), (tm, hi)],
-                    3,
-                    4,
-                    color.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?;
-        }
+    Ok(())
+}
+
+/// The notes in a framed box at the top left of the plotting area (`origin`, pixels).
+fn draw_notes<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    notes: &[(String, RGBColor)],
+    origin: (i32, i32),
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    if notes.is_empty() {
+        return Ok(());
     }
-    if !notes.is_empty() {
-        let font = (FAMILY, 16).into_font();
-        let measure: TextStyle = font.clone().into();
-        let line_h = 22;
-        let w = notes
-            .iter()
-            .map(|(s, _)| {
-                root.estimate_text_size(s, &measure)
-                    .map(|(w, _)| w as i32)
-                    .unwrap_or(0)
-            })
-            .max()
-            .unwrap_or(0);
-        let (x0, y0) = (px.start + 10, py.start + 10);
-        let h = line_h * notes.len() as i32 + 8;
-        root.draw(&Rectangle::new(
-            [(x0, y0), (x0 + w + 16, y0 + h)],
-            WHITE.mix(0.85).filled(),
+    let font = (FAMILY, 16).into_font();
+    let measure: TextStyle = font.clone().into();
+    let line_h = 22;
+    let w = notes
+        .iter()
+        .map(|(s, _)| {
+            root.estimate_text_size(s, &measure)
+                .map(|(w, _)| w as i32)
+                .unwrap_or(0)
+        })
+        .max()
+        .unwrap_or(0);
+    let (x0, y0) = (origin.0 + 10, origin.1 + 10);
+    let h = line_h * notes.len() as i32 + 8;
+    root.draw(&Rectangle::new(
+        [(x0, y0), (x0 + w + 16, y0 + h)],
+        WHITE.mix(0.85).filled(),
+    ))
+    .map_err(|e| e.to_string())?;
+    root.draw(&Rectangle::new([(x0, y0), (x0 + w + 16, y0 + h)], BLACK))
+        .map_err(|e| e.to_string())?;
+    for (k, (s, c)) in notes.iter().enumerate() {
+        root.draw(&Text::new(
+            s.clone(),
+            (x0 + 8, y0 + 6 + line_h * k as i32),
+            font.clone().color(c),
         ))
         .map_err(|e| e.to_string())?;
-        root.draw(&Rectangle::new([(x0, y0), (x0 + w + 16, y0 + h)], BLACK))
-            .map_err(|e| e.to_string())?;
-        for (k, (s, c)) in notes.iter().enumerate() {
-            root.draw(&Text::new(
-                s.clone(),
-                (x0 + 8, y0 + 6 + line_h * k as i32),
-                font.clone().color(c),
-            ))
-            .map_err(|e| e.to_string())?;
-        }
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((FAMILY, 16))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())?;
     Ok(())
 }
 
