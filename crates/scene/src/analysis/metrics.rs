@@ -316,22 +316,7 @@ pub fn event_response(
     let n_tail = ((tail_s / dt).round() as usize).clamp(2 * periods, n / 2);
     let i_tail = n - n_tail;
     let tail = &err[i_tail..];
-    let n_period = n_tail / periods;
-    let tail_mean = tail.iter().sum::<f64>() / n_tail as f64;
-    let period_mean: Vec<f64> = (0..n_period)
-        .map(|k| (0..periods).map(|p| tail[p * n_period + k]).sum::<f64>() / periods as f64)
-        .collect();
-    // The periodic steady state, continued back from the tail; the deviation from it.
-    let ss = |i: usize| -> f64 {
-        match steady {
-            Steady::Constant => tail_mean,
-            Steady::Periodic(_) => {
-                let k = (i as isize - i_tail as isize).rem_euclid(n_period as isize) as usize;
-                period_mean[k]
-            }
-        }
-    };
-    let dev: Vec<f64> = (0..n).map(|i| err[i] - ss(i)).collect();
+    let dev = deviation_from_steady(&err, i_tail, periods, steady);
     let (i_pk, jump_n) = dev
         .iter()
         .enumerate()
@@ -347,37 +332,8 @@ pub fn event_response(
     let peak_error_n = err.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
     let tracking_error_n = tail.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
 
-    // Does the tail hold a sustained oscillation? Remove the reference's own periodic part (bias and the
-    // first five harmonics of the reference frequency) and look at what is left.
-    let tt = &t[i_tail..n];
-    let residual: Vec<f64> = match steady {
-        Steady::Periodic(f) => remove_harmonics(tt, tail, f, 5),
-        Steady::Constant => {
-            let m = tail.iter().sum::<f64>() / n_tail as f64;
-            tail.iter().map(|e| e - m).collect()
-        }
-    };
-    let (lo, hi) = residual
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &r| {
-            (l.min(r), h.max(r))
-        });
-    let amplitude_n = 0.5 * (hi - lo);
-    let crossings = residual
-        .windows(2)
-        .filter(|w| (w[0] < 0.0) != (w[1] < 0.0))
-        .count();
-    let span = tt[tt.len() - 1] - tt[0];
-    // A sustained oscillation is one above 7.5 % of the reference (a 16 Hz limit cycle of 3.4 N on a 12 N
-    // reference, not the residual PWM ripple after averaging); the settling band is 2 % of the reference,
-    // or the run's own steady ripple when that is larger (a loop settles to its ripple, not below it).
-    let ripple = residual.iter().fold(0.0_f64, |m, r| m.max(r.abs()));
+    let (oscillation, ripple) = tail_oscillation(&t[i_tail..n], tail, steady, ref_peak);
     let band = (0.02 * ref_peak).max(ripple);
-    let oscillation =
-        (amplitude_n > 0.075 * ref_peak && crossings >= 4 && span > 0.0).then(|| Oscillation {
-            frequency_hz: crossings as f64 / (2.0 * span),
-            amplitude_n,
-        });
     let mean_abs_tail = tail.iter().map(|e| e.abs()).sum::<f64>() / n_tail as f64;
     let not_settled = if let Some(o) = oscillation {
         Some(format!(
@@ -438,6 +394,70 @@ pub fn event_response(
         oscillation,
         tracking_error_n,
     })
+}
+
+/// Does the tail `tail` (at times `tt`) hold a sustained oscillation? The reference's own periodic part
+/// (bias and the first five harmonics of a sine's frequency, or the mean of a constant) is removed and what
+/// is left is looked at. Returns the oscillation, if any, and the residual's largest magnitude (the run's
+/// own steady ripple).
+fn tail_oscillation(
+    tt: &[f64],
+    tail: &[f64],
+    steady: Steady,
+    ref_peak: f64,
+) -> (Option<Oscillation>, f64) {
+    let residual: Vec<f64> = match steady {
+        Steady::Periodic(f) => remove_harmonics(tt, tail, f, 5),
+        Steady::Constant => {
+            let m = tail.iter().sum::<f64>() / tail.len() as f64;
+            tail.iter().map(|e| e - m).collect()
+        }
+    };
+    let (lo, hi) = residual
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &r| {
+            (l.min(r), h.max(r))
+        });
+    let amplitude_n = 0.5 * (hi - lo);
+    let crossings = residual
+        .windows(2)
+        .filter(|w| (w[0] < 0.0) != (w[1] < 0.0))
+        .count();
+    let span = tt[tt.len() - 1] - tt[0];
+    // A sustained oscillation is one above 7.5 % of the reference (a 16 Hz limit cycle of 3.4 N on a 12 N
+    // reference, not the residual PWM ripple after averaging); the settling band is 2 % of the reference,
+    // or the run's own steady ripple when that is larger (a loop settles to its ripple, not below it).
+    let ripple = residual.iter().fold(0.0_f64, |m, r| m.max(r.abs()));
+    let oscillation =
+        (amplitude_n > 0.075 * ref_peak && crossings >= 4 && span > 0.0).then(|| Oscillation {
+            frequency_hz: crossings as f64 / (2.0 * span),
+            amplitude_n,
+        });
+    (oscillation, ripple)
+}
+
+/// The error's deviation from its periodic steady state: the tail's mean period (over `periods`
+/// periods from `i_tail`), continued back from the tail, or the tail's mean for a constant reference.
+fn deviation_from_steady(err: &[f64], i_tail: usize, periods: usize, steady: Steady) -> Vec<f64> {
+    let n = err.len();
+    let n_tail = n - i_tail;
+    let tail = &err[i_tail..];
+    let n_period = n_tail / periods;
+    let tail_mean = tail.iter().sum::<f64>() / n_tail as f64;
+    let period_mean: Vec<f64> = (0..n_period)
+        .map(|k| (0..periods).map(|p| tail[p * n_period + k]).sum::<f64>() / periods as f64)
+        .collect();
+    let ss = |i: usize| -> f64 {
+        match steady {
+            Steady::Constant => tail_mean,
+            Steady::Periodic(_) => {
+                let k = (i as isize - i_tail as isize).rem_euclid(n_period as isize) as usize;
+                period_mean[k]
+            }
+        }
+    };
+    let dev: Vec<f64> = (0..n).map(|i| err[i] - ss(i)).collect();
+    dev
 }
 
 #[cfg(test)]
