@@ -182,14 +182,7 @@ fn draw<DB: DrawingBackend>(
                     .map_err(e)?;
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerLeft)
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font((FAMILY, 14))
-            .draw()
-            .map_err(e)?;
+        crate::figure::draw_legend(&mut chart, SeriesLabelPosition::LowerLeft, 0.9, 14)?;
     }
     root.present().map_err(e)
 }

@@ -114,14 +114,7 @@ impl crate::figure::Figure for Convergence<'_> {
                     .legend(move |(x, y)| {
                         PathElement::new(vec![(x, y), (x + 24, y)], orange.stroke_width(3))
                     });
-                chart
-                    .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperRight)
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK)
-                    .label_font((FAMILY, 14))
-                    .draw()
-                    .map_err(|e| e.to_string())?;
+                crate::figure::draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 0.85, 14)?;
             }};
         }
         macro_rules! builder {

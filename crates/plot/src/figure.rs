@@ -49,3 +49,21 @@ pub(crate) fn write(path: &Path, size: (u32, u32), figure: &impl Figure) -> Resu
         message,
     })
 }
+
+/// The legend of a chart's labelled series: a framed, nearly opaque box (`opacity`) at `position`, its text
+/// `size` points.
+pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+    opacity: f64,
+    size: u32,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(opacity))
+        .border_style(BLACK)
+        .label_font((crate::FAMILY, size))
+        .draw()
+        .map_err(|e| e.to_string())
+}

@@ -283,14 +283,7 @@ where
         }
     }
     draw_notes(&root, &notes, (px.start, py.start))?;
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((FAMILY, 16))
-        .draw()
-        .map_err(|e| e.to_string())?;
+    crate::figure::draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 0.85, 16)?;
     root.present().map_err(|e| e.to_string())?;
     Ok(())
 }
