@@ -315,19 +315,7 @@ impl RigWorld {
                 friction: config.friction,
             },
         )?;
-        let Flange {
-            link: flange_link,
-            body: flange_body,
-            cylinder_body,
-            joint_frame1,
-            joint_frame2,
-            lower,
-            stroke_m,
-            axis,
-            transverse,
-            up,
-            colliders: flange_colliders,
-        } = flange_of(&rig, config)?;
+        let flange = flange_of(&rig, config)?;
 
         // The carriage: a kinematic body; everything dynamic below it rides along.
         let carriage_link = rig.link_index(&config.carriage_link, "carriage_link")?;
@@ -335,49 +323,33 @@ impl RigWorld {
         let carriage_home = *rig.world.bodies[carriage_body].position();
         let carriage_riders = riders_of(&rig, carriage_link, carriage_body);
 
-        let mut materials = materials_of(
-            &rig,
-            config,
-            carriage_link,
-            flange_link,
-            axis,
-            transverse,
-            lower,
-        )?;
-        mark_faces_in_reach(
-            &rig,
-            &mut materials,
-            flange_link,
-            axis,
-            transverse,
-            lower,
-            stroke_m,
-        );
-        isolate_flange_and_faces(&mut rig, config, &flange_colliders);
+        let mut materials = materials_of(&rig, config, carriage_link, &flange)?;
+        mark_faces_in_reach(&rig, &mut materials, &flange);
+        isolate_flange_and_faces(&mut rig, config, &flange.colliders);
         let min_xe = materials
             .iter()
             .map(|m| m.x_e_m)
             .fold(f64::INFINITY, f64::min);
         // Retreat far enough that the fully extended flange clears every face during the slide.
-        let swap_retreat_m = (stroke_m - min_xe).max(0.0) + 0.01;
+        let swap_retreat_m = (flange.stroke_m - min_xe).max(0.0) + 0.01;
 
         set_integration(&mut rig.world.integration_parameters, config);
 
         let mut w = Self {
             rig,
-            flange_body,
-            cylinder_body,
-            joint_frame1,
-            joint_frame2,
-            lower_limit_m: lower,
-            stroke_m,
-            flange_colliders,
+            flange_body: flange.body,
+            cylinder_body: flange.cylinder_body,
+            joint_frame1: flange.joint_frame1,
+            joint_frame2: flange.joint_frame2,
+            lower_limit_m: flange.lower,
+            stroke_m: flange.stroke_m,
+            flange_colliders: flange.colliders,
             carriage_body,
             carriage_home,
             carriage_riders,
-            axis,
-            transverse,
-            up,
+            axis: flange.axis,
+            transverse: flange.transverse,
+            up: flange.up,
             materials,
             active: None,
             carriage_offset_m: 0.0,
@@ -392,8 +364,8 @@ impl RigWorld {
         };
         // Place the flange at its initial extension.
         {
-            let shift = (lower + config.initial_x_m) * axis;
-            let b = &mut w.rig.world.bodies[flange_body];
+            let shift = (flange.lower + config.initial_x_m) * flange.axis;
+            let b = &mut w.rig.world.bodies[flange.body];
             let p = Pose::from_translation(shift) * *b.position();
             b.set_position(p, true);
         }
@@ -887,11 +859,15 @@ fn materials_of(
     rig: &BuiltRig,
     config: &MultibodyConfig,
     carriage_link: usize,
-    flange_link: usize,
-    axis: Vector,
-    transverse: Vector,
-    lower: f64,
+    flange: &Flange,
 ) -> Result<Vec<Material>, MultibodyError> {
+    let Flange {
+        link: flange_link,
+        axis,
+        transverse,
+        lower,
+        ..
+    } = *flange;
     let file = rig.file.clone();
     let bad_joint = |joint: &str, reason: String| MultibodyError::BadJoint {
         file: file.clone(),
@@ -991,15 +967,15 @@ fn riders_of(
 
 /// Faces the flange can reach while another material faces it (only a rig with faces closer together
 /// than the flange is wide): they stay simulated while that material is active.
-fn mark_faces_in_reach(
-    rig: &BuiltRig,
-    materials: &mut [Material],
-    flange_link: usize,
-    axis: Vector,
-    transverse: Vector,
-    lower: f64,
-    stroke_m: f64,
-) {
+fn mark_faces_in_reach(rig: &BuiltRig, materials: &mut [Material], flange: &Flange) {
+    let Flange {
+        link: flange_link,
+        axis,
+        transverse,
+        lower,
+        stroke_m,
+        ..
+    } = *flange;
     for i in 0..materials.len() {
         let shift = Pose::from_translation(transverse * materials[i].align_offset_m);
         for k in 0..materials.len() {
