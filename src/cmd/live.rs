@@ -19,6 +19,17 @@ pub enum Timeline {
     Sim,
 }
 
+/// `--rerun` given to a pneuflex built without Rerun: the error saying how to rebuild; `command` (`run`,
+/// `rig run`, ...) names the command in the hint.
+#[cfg(not(feature = "rerun"))]
+pub fn without_rerun(words: &[String], command: &str) -> anyhow::Error {
+    anyhow::anyhow!(
+        "--rerun {}: this pneuflex was built without Rerun; rebuild with \
+         `cargo run --release --features rerun -- {command} ...` (docs/rerun.md)",
+        words.join(" ")
+    )
+}
+
 impl LiveSink {
     /// Parses `--rerun` words; `command` (`rig run`, `rig pil`) names the command in the rebuild hint.
     pub fn parse(words: Option<&[String]>, command: &str) -> anyhow::Result<Self> {
@@ -31,11 +42,7 @@ impl LiveSink {
         }
         #[cfg(not(feature = "rerun"))]
         match words {
-            Some(words) => anyhow::bail!(
-                "--rerun {}: this pneuflex was built without Rerun; rebuild with \
-                 `cargo run --release --features rerun -- {command} ...` (docs/rerun.md)",
-                words.join(" ")
-            ),
+            Some(words) => Err(without_rerun(words, command)),
             None => Ok(Self {}),
         }
     }

@@ -6,7 +6,6 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 
-use anyhow::bail;
 use pneuflex_files::output::{Manifest, Partial, Writer};
 use pneuflex_files::{InputDigest, OutputDir};
 use pneuflex_scene::mechanism::{self, MechanismRun, MechanismScene, MechanismSummary};
@@ -34,11 +33,7 @@ pub fn run(
     };
     #[cfg(not(feature = "rerun"))]
     if let Some(words) = rerun {
-        bail!(
-            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
-             `cargo run --release --features rerun -- run ...` (docs/rerun.md)",
-            words.join(" ")
-        );
+        return Err(super::live::without_rerun(words, "run"));
     }
     let dest = out
         .map(PathBuf::from)

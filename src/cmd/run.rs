@@ -8,7 +8,6 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::bail;
 use pneuflex_outputs::{Outcome, Outputs, Simulate, Simulated, Stopped, simulate_into};
 use pneuflex_scene::{Limits, Scene};
 
@@ -104,11 +103,7 @@ fn run_scene_file(
     };
     #[cfg(not(feature = "rerun"))]
     if let Some(words) = rerun {
-        bail!(
-            "--rerun {}: this pneuflex was built without Rerun; rebuild with \
-             `cargo run --release --features rerun -- run ...` (docs/rerun.md)",
-            words.join(" ")
-        );
+        return Err(super::live::without_rerun(words, "run"));
     }
 
     // The bar stays hidden unless the simulation lasts longer than a moment.
