@@ -28,6 +28,32 @@ pub struct Tf {
     pub bode: Option<PathBuf>,
 }
 
+/// What one simulation of a scene may cost before it is refused, before anything runs (`run`; for `sweep`
+/// one point, for `tune` one candidate).
+#[derive(Args)]
+pub struct RunLimits {
+    /// Largest number of integration steps a run may take (default 1e9); refused beyond it.
+    #[arg(long, value_name = "N")]
+    pub max_steps: Option<u64>,
+    /// Largest memory the traces of a scene's runs may take, MiB (default 2048); refused beyond it.
+    #[arg(long, value_name = "MIB")]
+    pub max_trace_mb: Option<u64>,
+}
+
+impl RunLimits {
+    /// The limits, the defaults where a flag is absent.
+    pub fn limits(&self) -> pneuflex_scene::Limits {
+        let mut limits = pneuflex_scene::Limits::default();
+        if let Some(n) = self.max_steps {
+            limits.max_steps_per_run = n;
+        }
+        if let Some(mb) = self.max_trace_mb {
+            limits.max_trace_bytes = mb.saturating_mul(1 << 20);
+        }
+        limits
+    }
+}
+
 /// Run every controller a scene lists; write traces, summary.json and figures.
 #[derive(Args)]
 pub struct Run {
@@ -43,12 +69,8 @@ pub struct Run {
     /// `spawn` (start a viewer) or `connect <url>` (a running viewer). Needs the `rerun` feature.
     #[arg(long, num_args = 1..=2, value_names = ["MODE", "TARGET"])]
     pub rerun: Option<Vec<String>>,
-    /// Largest number of integration steps a run may take (default 1e9); the scene is refused beyond it.
-    #[arg(long, value_name = "N")]
-    pub max_steps: Option<u64>,
-    /// Largest memory all traces may take, MiB (default 2048); the scene is refused beyond it.
-    #[arg(long, value_name = "MIB")]
-    pub max_trace_mb: Option<u64>,
+    #[command(flatten)]
+    pub limits: RunLimits,
     /// The figures' format: png (default), svg or pdf (vector, for a paper).
     #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
     pub format: FigureFormat,
@@ -98,12 +120,8 @@ pub struct Sweep {
     /// Largest output `--traces` may write, MiB (default 4096); the sweep is refused beyond.
     #[arg(long, value_name = "MIB", default_value_t = cmd::sweep::DEFAULT_MAX_OUTPUT_MB)]
     pub max_output_mb: u64,
-    /// Largest number of integration steps one run of a point may take (default 1e9), as `run`'s.
-    #[arg(long, value_name = "N")]
-    pub max_steps: Option<u64>,
-    /// Largest memory the traces of one point's runs may take, MiB (default 2048), as `run`'s.
-    #[arg(long, value_name = "MIB")]
-    pub max_trace_mb: Option<u64>,
+    #[command(flatten)]
+    pub limits: RunLimits,
 }
 
 /// Find the gains that minimise the worst case, over a list of environments, of a weighted sum of a
@@ -151,12 +169,8 @@ pub struct Tune {
     /// Largest number of scene runs (budget x environments; default 1,000,000, at most 100,000,000).
     #[arg(long, value_name = "N", default_value_t = pneuflex_sweep::points::DEFAULT_MAX_POINTS)]
     pub max_runs: u64,
-    /// Largest number of integration steps one run of a candidate may take (default 1e9), as `run`'s.
-    #[arg(long, value_name = "N")]
-    pub max_steps: Option<u64>,
-    /// Largest memory of one candidate's traces, MiB (default 2048), as `run`'s.
-    #[arg(long, value_name = "MIB")]
-    pub max_trace_mb: Option<u64>,
+    #[command(flatten)]
+    pub limits: RunLimits,
     /// The convergence plot's format: png (default), svg or pdf.
     #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
     pub format: FigureFormat,
@@ -186,8 +200,7 @@ impl Run {
             &cmd::run::RunArgs {
                 quiet: self.quiet,
                 rerun: self.rerun,
-                max_steps: self.max_steps,
-                max_trace_mb: self.max_trace_mb,
+                limits: self.limits.limits(),
                 figures: self.format.into(),
             },
         )
@@ -210,7 +223,7 @@ impl Sweep {
                 quiet: self.quiet,
                 max_points: self.max_points,
                 max_output_mb: self.max_output_mb,
-                limits: cmd::run::limits(self.max_steps, self.max_trace_mb),
+                limits: self.limits.limits(),
             },
         )
     }
@@ -235,7 +248,7 @@ impl Tune {
                     max_runs: self.max_runs,
                 },
                 quiet: self.quiet,
-                limits: cmd::run::limits(self.max_steps, self.max_trace_mb),
+                limits: self.limits.limits(),
                 figures: self.format.into(),
             },
         )

@@ -20,24 +20,10 @@ pub struct RunArgs {
     pub quiet: bool,
     /// `--rerun MODE [TARGET]`.
     pub rerun: Option<Vec<String>>,
-    /// `--max-steps`: integration steps allowed per run.
-    pub max_steps: Option<u64>,
-    /// `--max-trace-mb`: trace memory allowed, MiB.
-    pub max_trace_mb: Option<u64>,
+    /// `--max-steps` and `--max-trace-mb`: what the scene's runs may cost.
+    pub limits: Limits,
     /// `--format`: the figures' format.
     pub figures: pneuflex_viz::Format,
-}
-
-/// The limits of one run from `--max-steps` and `--max-trace-mb` (the defaults where absent).
-pub fn limits(max_steps: Option<u64>, max_trace_mb: Option<u64>) -> Limits {
-    let mut limits = Limits::default();
-    if let Some(n) = max_steps {
-        limits.max_steps_per_run = n;
-    }
-    if let Some(mb) = max_trace_mb {
-        limits.max_trace_bytes = mb.saturating_mul(1 << 20);
-    }
-    limits
 }
 
 /// Runs a scene file and writes its outputs; Err on bad input, on a write failure, when a run diverged
@@ -51,11 +37,11 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
             out,
             args.quiet,
             args.rerun.as_deref(),
-            limits(args.max_steps, args.max_trace_mb),
+            args.limits,
         );
     }
     let scene = Scene::load(scene_path)?;
-    let limits = limits(args.max_steps, args.max_trace_mb);
+    let limits = args.limits;
     scene.check_budget(&limits)?;
     // The scene's warnings (the inner-loop margin analysis among them costs as much as a short simulation)
     // are worked out beside the runs and printed as soon as they are known, before the command ends.
