@@ -207,7 +207,6 @@ fn positive(key: &str, v: Option<f64>) -> Result<Option<f64>, DesignError> {
 /// Resolves a datasheet into a design: every value given is kept, every other derived and listed.
 pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
     let mut assumed = Vec::new();
-    let mut assume = |key: &'static str, text: String| assumed.push(Assumption { key, text });
     for (key, v) in [
         ("--bore", ds.bore_m),
         ("--rod", ds.rod_m),
@@ -226,7 +225,125 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
     ] {
         positive(key, v)?;
     }
-    // The bore: given, or a standard size.
+    let (bore_m, size, stroke_m, rod_m) = cylinder(ds, &mut assumed)?;
+    let supply_gauge = ds.supply_gauge_pa.unwrap_or_else(|| {
+        assume(
+            &mut assumed,
+            "--supply",
+            "6 bar gauge, common shop air".into(),
+        );
+        6e5
+    });
+    let atmosphere_pa = ATMOSPHERE_PA;
+    let supply_abs_pa = supply_gauge + atmosphere_pa;
+    let valve = ds.valve.unwrap_or_else(|| {
+        assume(
+            &mut assumed,
+            "--valve",
+            "pwm: an on/off 5/2 solenoid valve under PWM, as the paper's rig".into(),
+        );
+        ValveKind::Pwm
+    });
+
+    let (area_a, dead_a, dead_b) = dead_volumes(ds, bore_m, rod_m, &size, &mut assumed);
+
+    let (c, b, flow_source) = valve_flow(
+        ds,
+        area_a * 0.5 * stroke_m + dead_a,
+        supply_abs_pa,
+        atmosphere_pa,
+        &mut assumed,
+    )?;
+    let (pwm_frequency_hz, switching_delay_s, response_time_s) =
+        valve_timing(ds, valve, &mut assumed);
+
+    // Sensors.
+    let position_range_m = ds.position_range_m.unwrap_or_else(|| {
+        let r = (stroke_m * 1.2 / 0.025).ceil() * 0.025;
+        assume(
+            &mut assumed,
+            "--position-range",
+            format!(
+                "0–{:.0} mm: the stroke with 20 % margin, to the next 25 mm",
+                r * 1e3
+            ),
+        );
+        r
+    });
+    let pressure_range_pa = ds.pressure_range_pa.unwrap_or_else(|| {
+        let r = (supply_gauge * 1.1 / 2e5).ceil() * 2e5;
+        assume(
+            &mut assumed,
+            "--pressure-range",
+            format!(
+                "±{:.1} MPa differential transmitter: the supply with 10 % margin, to the next 0.2 MPa",
+                r * 1e-6
+            ),
+        );
+        r
+    });
+
+    let force_range = supply_gauge * area_a;
+    let (moving_mass_kg, incline_deg, coulomb_n, viscous) =
+        mechanics(ds, bore_m, rod_m, stroke_m, force_range, &mut assumed)?;
+
+    // The experiment.
+    let force_n = ds.force_n.unwrap_or_else(|| {
+        let f = round2(FORCE_OF_RANGE * force_range);
+        assume(
+            &mut assumed,
+            "--force",
+            format!("{f} N contact force: 10 % of the force range, as the paper's 10 N"),
+        );
+        f
+    });
+    let sine_amplitude_n = round2(SINE_OF_FORCE * force_n);
+    // The stiffer environment, twice the softer one.
+    let peak = force_n + sine_amplitude_n;
+    let stiffness = round2(peak / (COMPRESSION_OF_STROKE * stroke_m));
+    let surface_m = SURFACE_OF_STROKE * stroke_m;
+    let m_d_kg = round2(stiffness / PAPER_OMEGA2);
+    let b_d_ns_per_m = round2(2.0 * PAPER_ZETA * (stiffness * m_d_kg).sqrt());
+    let name = rig_name(ds, bore_m, stroke_m, valve)?;
+    Ok(Design {
+        name,
+        bore_m,
+        rod_m,
+        stroke_m,
+        dead_volume_a_m3: dead_a,
+        dead_volume_b_m3: dead_b,
+        size,
+        supply_abs_pa,
+        atmosphere_pa,
+        valve,
+        sonic_conductance_m3_per_s_pa: c,
+        critical_pressure_ratio: b,
+        pwm_frequency_hz,
+        switching_delay_s,
+        response_time_s,
+        flow_source,
+        position_range_m,
+        pressure_range_pa,
+        moving_mass_kg,
+        incline_deg,
+        coulomb_n,
+        viscous_n_s_per_m: viscous,
+        force_n,
+        sine_amplitude_n,
+        stiffness_n_per_m: stiffness,
+        stiffness_after_n_per_m: round2(2.0 * stiffness),
+        surface_m,
+        m_d_kg,
+        b_d_ns_per_m,
+        assumptions: assumed,
+    })
+}
+
+/// The cylinder: its bore (given, or a standard size), that size's data, its stroke and its rod, m.
+fn cylinder(
+    ds: &Datasheet,
+    assumed: &mut Vec<Assumption>,
+) -> Result<(f64, series::Size, f64, f64), DesignError> {
     let (bore_m, size) = match (ds.bore_m, ds.iso_bore_mm) {
         (Some(_), Some(_)) => {
             return Err(DesignError::Value {
@@ -263,6 +380,7 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         Some(r) => r,
         None if series::by_bore(bore_m * 1e3).is_some() => {
             assume(
+                assumed,
                 "--rod",
                 format!(
                     "{} mm, the {} rod of a {} mm bore",
@@ -274,6 +392,7 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         None => {
             let r = round2(size.rod_mm / size.bore_mm * bore_m * 1e3) * 1e-3;
             assume(
+                assumed,
                 "--rod",
                 format!(
                     "{:.1} mm: the rod-to-bore ratio of the nearest standard size ({} {} mm)",
@@ -295,24 +414,22 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
             ),
         });
     }
-    let supply_gauge = ds.supply_gauge_pa.unwrap_or_else(|| {
-        assume("--supply", "6 bar gauge, common shop air".into());
-        6e5
-    });
-    let atmosphere_pa = ATMOSPHERE_PA;
-    let supply_abs_pa = supply_gauge + atmosphere_pa;
-    let valve = ds.valve.unwrap_or_else(|| {
-        assume(
-            "--valve",
-            "pwm: an on/off 5/2 solenoid valve under PWM, as the paper's rig".into(),
-        );
-        ValveKind::Pwm
-    });
+    Ok((bore_m, size, stroke_m, rod_m))
+}
 
-    // Dead volumes: end-cap clearance and port (2 mm of bore) plus the tube to the valve.
+/// The chambers' dead volumes (cap side, rod side), m³, with the cap side's piston area, m²: end-cap
+/// clearance and port (2 mm of bore) plus the tube to the valve.
+fn dead_volumes(
+    ds: &Datasheet,
+    bore_m: f64,
+    rod_m: f64,
+    size: &series::Size,
+    assumed: &mut Vec<Assumption>,
+) -> (f64, f64, f64) {
     let tube_length = ds.tube_length_m.unwrap_or_else(|| {
         if ds.dead_volume_m3.is_none() {
             assume(
+                assumed,
                 "--tube-length",
                 "0.5 m of tube from the valve to each port".into(),
             );
@@ -327,6 +444,7 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         None => {
             let (a, b) = (area_a * 0.002 + tube, area_b * 0.002 + tube);
             assume(
+                assumed,
                 "--dead-volume",
                 format!(
                     "cap side {:.2} cm³, rod side {:.2} cm³: 2 mm of bore at the end cap and port, and {} m of \
@@ -341,8 +459,18 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
             (a, b)
         }
     };
+    (area_a, dead_a, dead_b)
+}
 
-    // The valve's flow.
+/// The valve's flow, ISO 6358: (C, b, where they came from); `volume`, m³: a chamber at mid stroke, which a
+/// valve sized here fills in `DEFAULT_FILL_TIME_S`.
+fn valve_flow(
+    ds: &Datasheet,
+    volume: f64,
+    supply_abs_pa: f64,
+    atmosphere_pa: f64,
+    assumed: &mut Vec<Assumption>,
+) -> Result<(f64, f64, String), DesignError> {
     let b_given = ds.critical_pressure_ratio;
     if let Some(b) = b_given
         && b >= 1.0
@@ -353,11 +481,12 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
             why: "a critical pressure ratio in (0, 1), e.g. 0.3".into(),
         });
     }
-    let (c, b, flow_source) = match ds.flow {
+    Ok(match ds.flow {
         Some(FlowRating::Qn(q)) => {
             positive("--valve-flow", Some(q))?;
             let b = b_given.unwrap_or_else(|| {
                 assume(
+                    assumed,
                     "--valve-b",
                     "0.3, typical of a solenoid valve (QN alone does not give it)".into(),
                 );
@@ -372,7 +501,11 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         Some(FlowRating::Conductance(c)) => {
             positive("--valve-c", Some(c))?;
             let b = b_given.unwrap_or_else(|| {
-                assume("--valve-b", "0.3, typical of a solenoid valve".into());
+                assume(
+                    assumed,
+                    "--valve-b",
+                    "0.3, typical of a solenoid valve".into(),
+                );
                 0.3
             });
             (c, b, format!("C = {c:e} m³/(s Pa), b = {b}, as given"))
@@ -394,11 +527,11 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         }
         None => {
             let b = b_given.unwrap_or(0.3);
-            let volume = area_a * 0.5 * stroke_m + dead_a;
             // fill_time is proportional to 1/C: C = t(C = 1) / t.
             let c =
                 round2(fill_time(1.0, volume, supply_abs_pa, atmosphere_pa) / DEFAULT_FILL_TIME_S);
             assume(
+                assumed,
                 "--valve-flow",
                 format!(
                     "QN {:.0} l/min (C = {c:.2e} m³/(s Pa), b = {b}): a valve that fills a chamber at mid stroke \
@@ -409,11 +542,23 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
             );
             (c, b, "sized by new rig (no flow given)".into())
         }
-    };
+    })
+}
+
+/// The valve's timing: PWM carrier frequency, Hz, switching delay and spool response time, s.
+fn valve_timing(
+    ds: &Datasheet,
+    valve: ValveKind,
+    assumed: &mut Vec<Assumption>,
+) -> (f64, f64, f64) {
     let pwm_frequency_hz = match (valve, ds.pwm_frequency_hz) {
         (_, Some(f)) => f,
         (ValveKind::Pwm, None) => {
-            assume("--pwm-frequency", "40 Hz, the paper's carrier".into());
+            assume(
+                assumed,
+                "--pwm-frequency",
+                "40 Hz, the paper's carrier".into(),
+            );
             40.0
         }
         (ValveKind::Proportional, None) => 40.0,
@@ -421,7 +566,11 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
     let switching_delay_s = match (valve, ds.switching_delay_s) {
         (_, Some(t)) => t,
         (ValveKind::Pwm, None) => {
-            assume("--switching-delay", "5 ms, a compact solenoid valve".into());
+            assume(
+                assumed,
+                "--switching-delay",
+                "5 ms, a compact solenoid valve".into(),
+            );
             0.005
         }
         (ValveKind::Proportional, None) => 0.005,
@@ -430,6 +579,7 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         (_, Some(t)) => t,
         (ValveKind::Proportional, None) => {
             assume(
+                assumed,
                 "--response-time",
                 "5 ms first-order spool response and 2 % underlap".into(),
             );
@@ -437,37 +587,26 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         }
         (ValveKind::Pwm, None) => 0.005,
     };
+    (pwm_frequency_hz, switching_delay_s, response_time_s)
+}
 
-    // Sensors.
-    let position_range_m = ds.position_range_m.unwrap_or_else(|| {
-        let r = (stroke_m * 1.2 / 0.025).ceil() * 0.025;
-        assume(
-            "--position-range",
-            format!(
-                "0–{:.0} mm: the stroke with 20 % margin, to the next 25 mm",
-                r * 1e3
-            ),
-        );
-        r
-    });
-    let pressure_range_pa = ds.pressure_range_pa.unwrap_or_else(|| {
-        let r = (supply_gauge * 1.1 / 2e5).ceil() * 2e5;
-        assume(
-            "--pressure-range",
-            format!(
-                "±{:.1} MPa differential transmitter: the supply with 10 % margin, to the next 0.2 MPa",
-                r * 1e-6
-            ),
-        );
-        r
-    });
-
-    // Mechanics.
+/// The moving parts: mass, kg, incline, degrees below the horizontal, Coulomb and viscous friction;
+/// `force_range`, N: the supply's gauge pressure on the cap-side area.
+fn mechanics(
+    ds: &Datasheet,
+    bore_m: f64,
+    rod_m: f64,
+    stroke_m: f64,
+    force_range: f64,
+    assumed: &mut Vec<Assumption>,
+) -> Result<(f64, f64, f64, f64), DesignError> {
+    let area_a = std::f64::consts::FRAC_PI_4 * bore_m * bore_m;
     let moving_mass_kg = ds.moving_mass_kg.unwrap_or_else(|| {
         let rod = std::f64::consts::FRAC_PI_4 * rod_m * rod_m * (stroke_m + bore_m) * 7850.0;
         let piston = area_a * 0.5 * bore_m * 2700.0;
         let m = round2(rod + piston + 0.5);
         assume(
+            assumed,
             "--mass",
             format!(
                 "{m} kg: a steel rod ({:.3} kg), an aluminium piston ({:.3} kg) and 0.5 kg of flange and carriage",
@@ -477,7 +616,7 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         m
     });
     let incline_deg = ds.incline_deg.unwrap_or_else(|| {
-        assume("--incline", "0 deg: the axis horizontal".into());
+        assume(assumed, "--incline", "0 deg: the axis horizontal".into());
         0.0
     });
     if !(incline_deg.is_finite() && (-90.0..=90.0).contains(&incline_deg)) {
@@ -487,7 +626,6 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
             why: "an angle in [-90, 90] degrees below the horizontal".into(),
         });
     }
-    let force_range = supply_gauge * area_a;
     let coulomb_n = match ds.coulomb_n {
         Some(f) if !(f.is_finite() && f >= 0.0) => {
             return Err(DesignError::Value {
@@ -500,6 +638,7 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         None => {
             let f = round2(0.01 * force_range);
             assume(
+                assumed,
                 "--friction",
                 format!("{f} N Coulomb friction: 1 % of the force range, low-friction seals"),
             );
@@ -510,28 +649,22 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
     // on 16 mm, by area (an assumption said always: datasheets do not give it).
     let viscous = round2(20.0 * area_a / (std::f64::consts::FRAC_PI_4 * 0.016 * 0.016));
     assume(
+        assumed,
         "viscous_n_s_per_m",
         format!(
             "{viscous} N s/m: the paper's 20 N s/m on a 16 mm bore, scaled by the piston area (edit the actuator sheet)"
         ),
     );
+    Ok((moving_mass_kg, incline_deg, coulomb_n, viscous))
+}
 
-    // The experiment.
-    let force_n = ds.force_n.unwrap_or_else(|| {
-        let f = round2(FORCE_OF_RANGE * force_range);
-        assume(
-            "--force",
-            format!("{f} N contact force: 10 % of the force range, as the paper's 10 N"),
-        );
-        f
-    });
-    let sine_amplitude_n = round2(SINE_OF_FORCE * force_n);
-    // The stiffer environment, twice the softer one.
-    let peak = force_n + sine_amplitude_n;
-    let stiffness = round2(peak / (COMPRESSION_OF_STROKE * stroke_m));
-    let surface_m = SURFACE_OF_STROKE * stroke_m;
-    let m_d_kg = round2(stiffness / PAPER_OMEGA2);
-    let b_d_ns_per_m = round2(2.0 * PAPER_ZETA * (stiffness * m_d_kg).sqrt());
+/// The rig's name: given, or from its bore, stroke and valve; letters, digits, '-', '_' and '.'.
+fn rig_name(
+    ds: &Datasheet,
+    bore_m: f64,
+    stroke_m: f64,
+    valve: ValveKind,
+) -> Result<String, DesignError> {
     let name = ds.name.clone().unwrap_or_else(|| {
         format!(
             "rig-{}x{}-{}",
@@ -556,38 +689,12 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
                 .into(),
         });
     }
-    Ok(Design {
-        name,
-        bore_m,
-        rod_m,
-        stroke_m,
-        dead_volume_a_m3: dead_a,
-        dead_volume_b_m3: dead_b,
-        size,
-        supply_abs_pa,
-        atmosphere_pa,
-        valve,
-        sonic_conductance_m3_per_s_pa: c,
-        critical_pressure_ratio: b,
-        pwm_frequency_hz,
-        switching_delay_s,
-        response_time_s,
-        flow_source,
-        position_range_m,
-        pressure_range_pa,
-        moving_mass_kg,
-        incline_deg,
-        coulomb_n,
-        viscous_n_s_per_m: viscous,
-        force_n,
-        sine_amplitude_n,
-        stiffness_n_per_m: stiffness,
-        stiffness_after_n_per_m: round2(2.0 * stiffness),
-        surface_m,
-        m_d_kg,
-        b_d_ns_per_m,
-        assumptions: assumed,
-    })
+    Ok(name)
+}
+
+/// Notes what was taken for a value the datasheet does not give, and why.
+fn assume(assumed: &mut Vec<Assumption>, key: &'static str, text: String) {
+    assumed.push(Assumption { key, text });
 }
 
 /// A length in mm without trailing zeros (25, 12.5).
