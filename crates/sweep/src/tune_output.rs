@@ -3,7 +3,7 @@
 //! `history.csv` (every candidate) and `tune.json`.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::engine::{SweepError, fmt_f64};
 use crate::tune::{EnvEval, Evaluation, HistoryRow, TuneOptions, Tuner, round4};
@@ -124,19 +124,196 @@ pub fn write(
         .file_stem()
         .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
     let tuned_name = format!("{stem}-tuned.toml");
+    let outcome = Outcome {
+        command,
+        objective: &objective,
+        population,
+        generations,
+        before: &before,
+        after: &after,
+        j_before,
+        j_after,
+    };
+    let comment = tuned_comment(tuner, opts, history.len(), &outcome);
+    let text = tuner.tuned_text(&after, &comment, dir)?;
+    let kept_start = why_start_kept(
+        &text,
+        &dir.join(&tuned_name),
+        dir,
+        history.len(),
+        &outcome,
+        interrupted,
+    );
+    if kept_start.is_none() {
+        let tuned_path = dir.join(&tuned_name);
+        std::fs::write(&tuned_path, text).map_err(|e| io(&tuned_path, e))?;
+    }
+
+    let (csv, candidates, best_line) = history_csv(tuner, history);
+    let hist_path = dir.join("history.csv");
+    std::fs::write(&hist_path, csv).map_err(|e| io(&hist_path, e))?;
+    let conv_name = format!("convergence.{}", figures.ext());
+    let conv = dir.join(&conv_name);
+    match pneuflex_plot::write_convergence(
+        &conv,
+        &format!(
+            "tune {}: run `{run_name}`, worst case over the environments",
+            tuner.base_scene.name
+        ),
+        "J (worst case)",
+        &candidates,
+        &best_line,
+    ) {
+        Ok(()) => {}
+        // Every candidate infinite: nothing to draw; the report says so.
+        Err(pneuflex_plot::PlotError::Empty) => {}
+        Err(e) => return Err(SweepError::Other(e.to_string())),
+    }
+
+    // The report.
+    let mut r = report_head(
+        tuner,
+        opts,
+        history.len(),
+        &outcome,
+        interrupted,
+        kept_start.as_deref(),
+        &tuned_name,
+    );
+    if interrupted.is_none() {
+        report_tables(&mut r, tuner, &all_before, &all_after);
+    }
+    let rep = dir.join("report.md");
+    std::fs::write(&rep, r).map_err(|e| io(&rep, e))?;
+    let tuned = kept_start.is_none().then_some(tuned_name);
+    finish(
+        dir,
+        tuner,
+        history,
+        before,
+        after,
+        j_before,
+        j_after,
+        generations,
+        tuned,
+        kept_start,
+        interrupted,
+    )
+}
+
+/// The report's head: the command, the objective, the search, each free key before and after, the worst
+/// case, and whether a tuned scene was written (`kept_start`: why not).
+fn report_head(
+    tuner: &Tuner,
+    opts: &TuneOptions,
+    candidates: usize,
+    o: &Outcome,
+    interrupted: Option<&str>,
+    kept_start: Option<&str>,
+    tuned_name: &str,
+) -> String {
+    let Outcome {
+        command,
+        objective,
+        population,
+        generations,
+        before,
+        after,
+        j_before,
+        j_after,
+    } = *o;
+    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let mut r = String::new();
+    let _ = writeln!(r, "# pneuflex tune: {}\n", tuner.base_scene.name);
+    if let Some(sig) = interrupted {
+        let _ = writeln!(
+            r,
+            "**Interrupted by {sig}: a partial search of {} candidate(s), not the result of the budget asked \
+             for. No tuned scene is written.**\n",
+            candidates
+        );
+    }
+    let _ = writeln!(r, "Command: `{command}`\n");
+    let _ = writeln!(r, "Objective: {objective}.\n");
+    let _ = writeln!(
+        r,
+        "Search: CMA-ES (cmaes crate), seed {}, population {population}, budget {}, {} candidates in {generations} generations, each over {} environment(s).\n",
+        opts.seed,
+        opts.budget,
+        candidates,
+        tuner.envs.len()
+    );
+    let _ = writeln!(r, "| key | box | before | after |\n|---|---|---|---|");
+    for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(after)) {
+        let _ = writeln!(
+            r,
+            "| `{}` | {}[{}, {}] | {b} | {a} |",
+            f.key.text,
+            if f.log { "log" } else { "" },
+            f.lo,
+            f.hi
+        );
+    }
+    let _ = writeln!(
+        r,
+        "\nWorst-case J of `{run_name}`: **{} → {}**{}.\n",
+        j_text(j_before),
+        j_text(j_after),
+        if interrupted.is_some() {
+            " (the first candidate's and the best one's, as the search evaluated them)"
+        } else {
+            ""
+        }
+    );
+    match kept_start {
+        Some(why) => {
+            let _ = writeln!(r, "**No tuned scene: {why}.**\n");
+        }
+        None => {
+            let _ = writeln!(r, "Tuned scene: `{tuned_name}`.\n");
+        }
+    }
+    r
+}
+
+/// What the search did, as the tuned scene's comment and the report state it.
+struct Outcome<'a> {
+    command: &'a str,
+    objective: &'a str,
+    population: usize,
+    generations: usize,
+    /// The free keys' values before (as the file writes them) and after (the best candidate, as written).
+    before: &'a [f64],
+    after: &'a [f64],
+    /// The worst-case objective before and after.
+    j_before: f64,
+    j_after: f64,
+}
+
+/// The tuned scene's head comment: the command, the search, the objective, each free key's change.
+fn tuned_comment(tuner: &Tuner, opts: &TuneOptions, candidates: usize, o: &Outcome) -> String {
+    let Outcome {
+        command,
+        objective,
+        population,
+        generations,
+        before,
+        after,
+        j_before,
+        j_after,
+    } = *o;
     let mut comment = String::new();
     let _ = writeln!(comment, "Tuned by `{command}`:");
     let _ = writeln!(
         comment,
         "CMA-ES (cmaes crate), seed {}, population {population}, {} candidates in {generations} generations.",
-        opts.seed,
-        history.len()
+        opts.seed, candidates
     );
     let _ = writeln!(comment, "Objective: {objective}.");
     if !tuner.envs.keys.is_empty() {
         let _ = writeln!(comment, "Environments: {}.", tuner.over_specs.join(", "));
     }
-    for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(&after)) {
+    for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(after)) {
         let _ = writeln!(
             comment,
             "{} in {}[{}, {}]: {} -> {}",
@@ -154,15 +331,28 @@ pub fn write(
         j_text(j_before),
         j_text(j_after)
     );
-    let text = tuner.tuned_text(&after, &comment, dir)?;
-    // Written only if it loads and is no worse than the start.
-    let kept_start = if let Some(sig) = interrupted {
+    comment
+}
+
+/// Why the start is kept instead of a tuned scene (None: the tuned scene is written): an interrupted
+/// search, a best candidate whose scene `text` (to be written at `tuned_path`) does not load, or one no
+/// better than the start.
+fn why_start_kept(
+    text: &str,
+    tuned_path: &Path,
+    dir: &Path,
+    candidates: usize,
+    o: &Outcome,
+    interrupted: Option<&str>,
+) -> Option<String> {
+    let (j_before, j_after) = (o.j_before, o.j_after);
+    if let Some(sig) = interrupted {
         Some(format!(
             "the search was interrupted by {sig} after {} candidate(s): no tuned scene",
-            history.len()
+            candidates
         ))
-    } else if let Err(e) = pneuflex_scene::Scene::from_toml_str(&text, &dir.join(&tuned_name), dir)
-        .and_then(|s| {
+    } else if let Err(e) =
+        pneuflex_scene::Scene::from_toml_str(text, tuned_path, dir).and_then(|s| {
             // Loading the sheet (and the URDF) is part of loading: a plant that cannot be built does not load.
             pneuflex_scene::build_plant(&s).map(|_| ())
         })
@@ -183,15 +373,16 @@ pub fn write(
         ))
     } else {
         None
-    };
-    let mut files = Vec::new();
-    if kept_start.is_none() {
-        let tuned_path = dir.join(&tuned_name);
-        std::fs::write(&tuned_path, text).map_err(|e| io(&tuned_path, e))?;
-        files.push(PathBuf::from(&tuned_name));
     }
+}
 
-    // History.
+/// history.csv's text, with each candidate's J and the best J so far, by evaluation (for the convergence
+/// figure).
+#[allow(clippy::type_complexity)]
+fn history_csv(
+    tuner: &Tuner,
+    history: &[HistoryRow],
+) -> (String, Vec<(f64, f64)>, Vec<(f64, f64)>) {
     let mut csv = String::from("evaluation,generation");
     for f in &tuner.free {
         csv.push(',');
@@ -219,96 +410,17 @@ pub fn write(
         best_so_far = best_so_far.min(h.eval.j);
         best_line.push(((i + 1) as f64, best_so_far));
     }
-    let hist_path = dir.join("history.csv");
-    std::fs::write(&hist_path, csv).map_err(|e| io(&hist_path, e))?;
-    let conv_name = format!("convergence.{}", figures.ext());
-    let conv = dir.join(&conv_name);
-    files.push(PathBuf::from("history.csv"));
-    match pneuflex_plot::write_convergence(
-        &conv,
-        &format!(
-            "tune {}: run `{run_name}`, worst case over the environments",
-            tuner.base_scene.name
-        ),
-        "J (worst case)",
-        &candidates,
-        &best_line,
-    ) {
-        Ok(()) => files.push(PathBuf::from(conv_name)),
-        // Every candidate infinite: nothing to draw; the report says so.
-        Err(pneuflex_plot::PlotError::Empty) => {}
-        Err(e) => return Err(SweepError::Other(e.to_string())),
-    }
+    (csv, candidates, best_line)
+}
 
-    // The report.
-    let mut r = String::new();
-    let _ = writeln!(r, "# pneuflex tune: {}\n", tuner.base_scene.name);
-    if let Some(sig) = interrupted {
-        let _ = writeln!(
-            r,
-            "**Interrupted by {sig}: a partial search of {} candidate(s), not the result of the budget asked \
-             for. No tuned scene is written.**\n",
-            history.len()
-        );
-    }
-    let _ = writeln!(r, "Command: `{command}`\n");
-    let _ = writeln!(r, "Objective: {objective}.\n");
-    let _ = writeln!(
-        r,
-        "Search: CMA-ES (cmaes crate), seed {}, population {population}, budget {}, {} candidates in {generations} generations, each over {} environment(s).\n",
-        opts.seed,
-        opts.budget,
-        history.len(),
-        tuner.envs.len()
-    );
-    let _ = writeln!(r, "| key | box | before | after |\n|---|---|---|---|");
-    for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(&after)) {
-        let _ = writeln!(
-            r,
-            "| `{}` | {}[{}, {}] | {b} | {a} |",
-            f.key.text,
-            if f.log { "log" } else { "" },
-            f.lo,
-            f.hi
-        );
-    }
-    let _ = writeln!(
-        r,
-        "\nWorst-case J of `{run_name}`: **{} → {}**{}.\n",
-        j_text(j_before),
-        j_text(j_after),
-        if interrupted.is_some() {
-            " (the first candidate's and the best one's, as the search evaluated them)"
-        } else {
-            ""
-        }
-    );
-    match &kept_start {
-        Some(why) => {
-            let _ = writeln!(r, "**No tuned scene: {why}.**\n");
-        }
-        None => {
-            let _ = writeln!(r, "Tuned scene: `{tuned_name}`.\n");
-        }
-    }
-    if interrupted.is_some() {
-        let rep = dir.join("report.md");
-        std::fs::write(&rep, r).map_err(|e| io(&rep, e))?;
-        files.push(PathBuf::from("report.md"));
-        return finish(
-            dir,
-            tuner,
-            history,
-            before,
-            after,
-            j_before,
-            j_after,
-            generations,
-            None,
-            kept_start,
-            interrupted,
-        );
-    }
+/// The report's tables: the tuned run's J_e per environment, and every run's terms, before → after.
+fn report_tables(
+    r: &mut String,
+    tuner: &Tuner,
+    all_before: &[Vec<EnvEval>],
+    all_after: &[Vec<EnvEval>],
+) {
+    let run_name = &tuner.base_scene.runs[tuner.run].name;
     let _ = writeln!(r, "## J_e of `{run_name}` per environment\n");
     let _ = writeln!(
         r,
@@ -352,24 +464,6 @@ pub fn write(
         r,
         "\nThe free keys apply to the scene as the tuned file has them; runs whose keys are not free keep their values (their change, if any, comes from shared keys)."
     );
-    let rep = dir.join("report.md");
-    std::fs::write(&rep, r).map_err(|e| io(&rep, e))?;
-    files.push(PathBuf::from("report.md"));
-
-    let tuned = kept_start.is_none().then_some(tuned_name);
-    finish(
-        dir,
-        tuner,
-        history,
-        before,
-        after,
-        j_before,
-        j_after,
-        generations,
-        tuned,
-        kept_start,
-        None,
-    )
 }
 
 /// Writes tune.json and returns the summary.
