@@ -442,83 +442,50 @@ pub fn fit_stoppable(
     let variance = ssr / (m - n).max(1) as f64;
     let j = pb.physical_jacobian(&values, &r0, 1e-3);
     evaluations += 2 * n + 1;
-    let jtj = j.transpose() * &j;
-    // Pseudo-inverse by eigen-decomposition: a direction with no information gets infinite variance.
-    let eig = jtj.clone().symmetric_eigen();
-    let lmax = eig.eigenvalues.iter().cloned().fold(0.0_f64, f64::max);
-    let mut pinv = DMatrix::<f64>::zeros(n, n);
-    let mut null = vec![false; n];
-    for (i, &l) in eig.eigenvalues.iter().enumerate() {
-        let v = eig.eigenvectors.column(i);
-        if l > 1e-12 * lmax && l > 0.0 {
-            pinv += (v * v.transpose()) / l;
-        } else {
-            for (k, nk) in null.iter_mut().enumerate() {
-                if v[k].abs() > 0.1 {
-                    *nk = true;
-                }
-            }
-        }
-    }
-    // Covariance robust to correlated errors (Newey-West over segments): the replay restarts each segment
-    // from a measured, noisy state, and carries velocity, temperatures and the PWM clock into the next, so
-    // the residuals of a segment share errors with each other and with the next few segments. With s_c =
-    // J_c^T r_c the score of segment c, meat = sum_c s_c s_c^T + sum_{l=1..L} (1 - l/(L+1)) sum_c (s_c
-    // s_{c-l}^T + s_{c-l} s_c^T) within each log, L = `hac_lag_s` / segment length; covariance
-    // (J^T J)^-1 meat (J^T J)^-1 with the small-sample factor G/(G-1) (N-1)/(N-p), and never below the
-    // white-noise covariance s^2 (J^T J)^-1.
-    let lag = (opts.hac_lag_s / opts.replay.segment_s).ceil().max(0.0) as usize;
-    let mut scores: Vec<Vec<DVector<f64>>> = Vec::new();
-    let mut at = 0;
-    for d in data {
-        let mut sc = Vec::new();
-        for c in d.fit_clusters() {
-            let rows = 3 * c;
-            sc.push(j.rows(at, rows).transpose() * r0.rows(at, rows));
-            at += rows;
-        }
-        scores.push(sc);
-    }
-    let g: usize = scores.iter().map(Vec::len).sum();
-    let mut meat = DMatrix::<f64>::zeros(n, n);
-    for sc in &scores {
-        for (c, s_c) in sc.iter().enumerate() {
-            meat += s_c * s_c.transpose();
-            for l in 1..=lag.min(c) {
-                let w = 1.0 - l as f64 / (lag + 1) as f64;
-                let s_l = &sc[c - l];
-                meat += (s_c * s_l.transpose() + s_l * s_c.transpose()) * w;
-            }
-        }
-    }
-    let small = if g > 1 {
-        (g as f64 / (g as f64 - 1.0)) * ((m as f64 - 1.0) / (m - n).max(1) as f64)
-    } else {
-        1.0
-    };
-    let sandwich = &pinv * meat * &pinv * small;
-    let white = &pinv * variance;
-    let mut cov = sandwich.clone();
-    for k in 0..n {
-        // Keep the correlations of the sandwich; take the larger variance of the two estimates.
-        let f = (white[(k, k)] / sandwich[(k, k)].max(f64::MIN_POSITIVE))
-            .max(1.0)
-            .sqrt();
-        for l in 0..n {
-            cov[(k, l)] *= f;
-            cov[(l, k)] *= f;
-        }
-    }
+    let (pinv, null) = pseudo_inverse(&(j.transpose() * &j));
+    let mut cov = robust_covariance(&j, &r0, data, &pinv, variance, opts);
     // The replay's own bias (restart noise, see `restart_bootstrap`), and its sampling spread under the
     // sensor noise alone, in the same scaled units as `cov`.
     let rms_fit = pb.rms_at(&values, false);
     let boot = restart_bootstrap(&pb, &values, &j, &pinv, opts.bias_replicates);
     evaluations += opts.bias_replicates;
+    let estimates = estimates_of(free, &values, &mut cov, &null, boot.as_ref());
+    let correlation = correlation_of(&cov, &null);
+    let rms_validation = if data.iter().any(|d| !d.validation.is_empty()) {
+        pb.rms_at(&values, true)
+    } else {
+        [f64::NAN; 3]
+    };
+    Ok(FitResult {
+        estimates,
+        correlation,
+        rms_fit,
+        rms_start,
+        rms_validation,
+        sigma: pb.sigma,
+        rows,
+        residual_variance: variance,
+        termination,
+        evaluations,
+    })
+}
+
+/// Each free parameter's estimate with its 95 % interval: the covariance's standard error (at least the
+/// restart bootstrap's spread, which scales `cov`), the bootstrap's bias and its bound; infinite for a
+/// parameter without information (`null`).
+fn estimates_of(
+    free: &[Free],
+    values: &[f64],
+    cov: &mut DMatrix<f64>,
+    null: &[bool],
+    boot: Option<&Bootstrap>,
+) -> Vec<Estimate> {
+    let n = free.len();
     let mut estimates = Vec::with_capacity(n);
     let mut std = vec![0.0; n];
     for (k, f) in free.iter().enumerate() {
         let s = f.key.scale(f.start);
-        let (bias, bias_bound) = match &boot {
+        let (bias, bias_bound) = match boot {
             Some(b) => {
                 // A variance at least the bootstrap's (it sees the restart noise through the replay).
                 let sd_k = b.sd[k];
@@ -562,7 +529,97 @@ pub fn fit_stoppable(
             interval_valid: true,
         });
     }
-    let correlation = (0..n)
+    estimates
+}
+
+/// The pseudo-inverse of JᵀJ by eigen-decomposition, and which parameters lie in its null space (a
+/// direction with no information: infinite variance).
+fn pseudo_inverse(jtj: &DMatrix<f64>) -> (DMatrix<f64>, Vec<bool>) {
+    let n = jtj.nrows();
+    let eig = jtj.clone().symmetric_eigen();
+    let lmax = eig.eigenvalues.iter().cloned().fold(0.0_f64, f64::max);
+    let mut pinv = DMatrix::<f64>::zeros(n, n);
+    let mut null = vec![false; n];
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        let v = eig.eigenvectors.column(i);
+        if l > 1e-12 * lmax && l > 0.0 {
+            pinv += (v * v.transpose()) / l;
+        } else {
+            for (k, nk) in null.iter_mut().enumerate() {
+                if v[k].abs() > 0.1 {
+                    *nk = true;
+                }
+            }
+        }
+    }
+    (pinv, null)
+}
+
+/// Covariance robust to correlated errors (Newey-West over segments): the replay restarts each segment
+/// from a measured, noisy state, and carries velocity, temperatures and the PWM clock into the next, so
+/// the residuals of a segment share errors with each other and with the next few segments. With s_c =
+/// J_c^T r_c the score of segment c, meat = sum_c s_c s_c^T + sum_{l=1..L} (1 - l/(L+1)) sum_c (s_c
+/// s_{c-l}^T + s_{c-l} s_c^T) within each log, L = `hac_lag_s` / segment length; covariance
+/// (J^T J)^-1 meat (J^T J)^-1 with the small-sample factor G/(G-1) (N-1)/(N-p), and never below the
+/// white-noise covariance s^2 (J^T J)^-1.
+fn robust_covariance(
+    j: &DMatrix<f64>,
+    r0: &DVector<f64>,
+    data: &[Prepared],
+    pinv: &DMatrix<f64>,
+    variance: f64,
+    opts: &FitOptions,
+) -> DMatrix<f64> {
+    let (m, n) = (r0.len(), pinv.nrows());
+    let lag = (opts.hac_lag_s / opts.replay.segment_s).ceil().max(0.0) as usize;
+    let mut scores: Vec<Vec<DVector<f64>>> = Vec::new();
+    let mut at = 0;
+    for d in data {
+        let mut sc = Vec::new();
+        for c in d.fit_clusters() {
+            let rows = 3 * c;
+            sc.push(j.rows(at, rows).transpose() * r0.rows(at, rows));
+            at += rows;
+        }
+        scores.push(sc);
+    }
+    let g: usize = scores.iter().map(Vec::len).sum();
+    let mut meat = DMatrix::<f64>::zeros(n, n);
+    for sc in &scores {
+        for (c, s_c) in sc.iter().enumerate() {
+            meat += s_c * s_c.transpose();
+            for l in 1..=lag.min(c) {
+                let w = 1.0 - l as f64 / (lag + 1) as f64;
+                let s_l = &sc[c - l];
+                meat += (s_c * s_l.transpose() + s_l * s_c.transpose()) * w;
+            }
+        }
+    }
+    let small = if g > 1 {
+        (g as f64 / (g as f64 - 1.0)) * ((m as f64 - 1.0) / (m - n).max(1) as f64)
+    } else {
+        1.0
+    };
+    let sandwich = pinv * meat * pinv * small;
+    let white = pinv * variance;
+    let mut cov = sandwich.clone();
+    for k in 0..n {
+        // Keep the correlations of the sandwich; take the larger variance of the two estimates.
+        let f = (white[(k, k)] / sandwich[(k, k)].max(f64::MIN_POSITIVE))
+            .max(1.0)
+            .sqrt();
+        for l in 0..n {
+            cov[(k, l)] *= f;
+            cov[(l, k)] *= f;
+        }
+    }
+    cov
+}
+
+/// The correlation matrix of `cov` (NaN for a parameter without information).
+fn correlation_of(cov: &DMatrix<f64>, null: &[bool]) -> Vec<Vec<f64>> {
+    let n = cov.nrows();
+    (0..n)
         .map(|a| {
             (0..n)
                 .map(|b| {
@@ -575,24 +632,7 @@ pub fn fit_stoppable(
                 })
                 .collect()
         })
-        .collect();
-    let rms_validation = if data.iter().any(|d| !d.validation.is_empty()) {
-        pb.rms_at(&values, true)
-    } else {
-        [f64::NAN; 3]
-    };
-    Ok(FitResult {
-        estimates,
-        correlation,
-        rms_fit,
-        rms_start,
-        rms_validation,
-        sigma: pb.sigma,
-        rows,
-        residual_variance: variance,
-        termination,
-        evaluations,
-    })
+        .collect()
 }
 
 /// What the restart bootstrap measured, per free parameter in scaled units (value / scale).
