@@ -323,11 +323,6 @@ pub fn check(
         .iter()
         .map(|d| d.replay(model, off, opts, d.log.len()))
         .collect();
-    let res = |d: &Prepared, p: &crate::replay::Prediction, i: usize, k: usize| match i {
-        0 => p.p_a[k] - d.log.p_a[k],
-        1 => p.p_b[k] - d.log.p_b[k],
-        _ => p.x[k] - d.log.x[k],
-    };
     fn read(d: &Prepared, i: usize) -> &[f64] {
         match i {
             0 => &d.log.p_a,
@@ -350,40 +345,15 @@ pub fn check(
     for (i, signal) in ["p_a", "p_b", "x"].into_iter().enumerate() {
         let q = resolution[i];
         let qf = q / 12f64.sqrt();
-        // RMS over all compared rows (as the fit reports it), and the demeaned residuals per segment.
-        let (mut ss, mut n) = (0.0, 0usize);
-        let (mut ssv, mut nv) = (0.0, 0usize);
-        let mut demeaned: Vec<Vec<f64>> = Vec::new();
-        let (mut ssh, mut nh) = (0.0, 0usize);
-        for (((d, p), rows), held) in data.iter().zip(&preds).zip(&fit_rows).zip(&held_rows) {
-            for (_, seg) in &held.segments {
-                let r: Vec<f64> = seg.iter().map(|&k| res(d, p, i, k)).collect();
-                if r.iter().all(|v| v.is_finite()) {
-                    ssh += detrended(&r).iter().map(|v| v * v).sum::<f64>();
-                    nh += seg.len();
-                }
-            }
-            for &k in &d.compared {
-                let r = res(d, p, i, k);
-                if r.is_finite() {
-                    ss += r * r;
-                    n += 1;
-                }
-            }
-            for &k in &d.validation {
-                let r = res(d, p, i, k);
-                if r.is_finite() {
-                    ssv += r * r;
-                    nv += 1;
-                }
-            }
-            for (_, seg) in &rows.segments {
-                let r: Vec<f64> = seg.iter().map(|&k| res(d, p, i, k)).collect();
-                if r.iter().all(|v| v.is_finite()) {
-                    demeaned.push(detrended(&r));
-                }
-            }
-        }
+        let Residuals {
+            ss,
+            n,
+            ssv,
+            nv,
+            ssh,
+            nh,
+            demeaned,
+        } = residuals_of(data, &preds, &fit_rows, &held_rows, i);
         total_rows = total_rows.max(n);
         let rms_fit = (ss / n.max(1) as f64).sqrt();
         let rms_validation = if nv > 0 {
@@ -406,27 +376,7 @@ pub fn check(
         let big_n: usize = demeaned.iter().map(Vec::len).sum();
         // Against the floor: the residual less each segment's restart offset (see the module doc).
         let rms_demeaned = (c0 / big_n.max(1) as f64).sqrt();
-        let autocorrelation: Vec<f64> = (1..=LAGS)
-            .map(|l| {
-                let c: f64 = demeaned
-                    .iter()
-                    .map(|s| s.windows(l + 1).map(|w| w[0] * w[l]).sum::<f64>())
-                    .sum();
-                if c0 > 0.0 { c / c0 } else { 0.0 }
-            })
-            .collect();
-        let nf = big_n.max(1) as f64;
-        let band = 1.96 / nf.sqrt();
-        let mean_abs = autocorrelation.iter().map(|r| r.abs()).sum::<f64>() / LAGS as f64;
-        let outside =
-            autocorrelation.iter().filter(|r| r.abs() > band).count() as f64 / LAGS as f64;
-        let ljung_box = nf
-            * (nf + 2.0)
-            * autocorrelation
-                .iter()
-                .enumerate()
-                .map(|(l, r)| r * r / (nf - (l + 1) as f64).max(1.0))
-                .sum::<f64>();
+        let (autocorrelation, mean_abs, outside, ljung_box) = whiteness(&demeaned, c0, big_n);
         let floor_ratio = if floor > 0.0 {
             rms_demeaned / floor
         } else {
@@ -439,24 +389,7 @@ pub fn check(
         } else {
             f64::NAN
         };
-        // A NaN ratio (no rows) fails too.
-        if floor_ratio.is_nan() || floor_ratio > MAX_FLOOR_RATIO {
-            failed.push(format!(
-                "{signal} residual {floor_ratio:.2} times the noise floor (limit {MAX_FLOOR_RATIO})"
-            ));
-        }
-        if mean_abs > MAX_MEAN_ABS_AUTOCORRELATION {
-            failed.push(format!(
-                "{signal} residuals not white (mean |autocorrelation| {mean_abs:.2} over lags 1-{LAGS}, \
-                 limit {MAX_MEAN_ABS_AUTOCORRELATION})"
-            ));
-        }
-        if validation_ratio > MAX_VALIDATION_RATIO {
-            failed.push(format!(
-                "{signal} held-out residual {validation_ratio:.2} times the fit's (limit \
-                 {MAX_VALIDATION_RATIO})"
-            ));
-        }
+        failed.extend(failures(signal, floor_ratio, mean_abs, validation_ratio));
         channels.push(ChannelCheck {
             signal,
             resolution: q,
@@ -505,6 +438,127 @@ pub fn check(
             min_signature_correlation: MIN_SIGNATURE_CORRELATION,
         },
     }
+}
+
+/// One channel's residual sums over the logs: squares over the compared rows (`ss`, `n`), the held-out rows
+/// (`ssv`, `nv`) and the held-out segments less each one's line (`ssh`, `nh`), and each compared segment's
+/// residual less its line (`demeaned`).
+struct Residuals {
+    ss: f64,
+    n: usize,
+    ssv: f64,
+    nv: usize,
+    ssh: f64,
+    nh: usize,
+    demeaned: Vec<Vec<f64>>,
+}
+
+/// [`Residuals`] of channel `i` (p_a, p_b, x) of the predictions `preds` on `data`.
+fn residuals_of(
+    data: &[Prepared],
+    preds: &[crate::replay::Prediction],
+    fit_rows: &[Rows],
+    held_rows: &[Rows],
+    i: usize,
+) -> Residuals {
+    let res = |d: &Prepared, p: &crate::replay::Prediction, i: usize, k: usize| match i {
+        0 => p.p_a[k] - d.log.p_a[k],
+        1 => p.p_b[k] - d.log.p_b[k],
+        _ => p.x[k] - d.log.x[k],
+    };
+    let (mut ss, mut n) = (0.0, 0usize);
+    let (mut ssv, mut nv) = (0.0, 0usize);
+    let mut demeaned: Vec<Vec<f64>> = Vec::new();
+    let (mut ssh, mut nh) = (0.0, 0usize);
+    for (((d, p), rows), held) in data.iter().zip(preds).zip(fit_rows).zip(held_rows) {
+        for (_, seg) in &held.segments {
+            let r: Vec<f64> = seg.iter().map(|&k| res(d, p, i, k)).collect();
+            if r.iter().all(|v| v.is_finite()) {
+                ssh += detrended(&r).iter().map(|v| v * v).sum::<f64>();
+                nh += seg.len();
+            }
+        }
+        for &k in &d.compared {
+            let r = res(d, p, i, k);
+            if r.is_finite() {
+                ss += r * r;
+                n += 1;
+            }
+        }
+        for &k in &d.validation {
+            let r = res(d, p, i, k);
+            if r.is_finite() {
+                ssv += r * r;
+                nv += 1;
+            }
+        }
+        for (_, seg) in &rows.segments {
+            let r: Vec<f64> = seg.iter().map(|&k| res(d, p, i, k)).collect();
+            if r.iter().all(|v| v.is_finite()) {
+                demeaned.push(detrended(&r));
+            }
+        }
+    }
+    Residuals {
+        ss,
+        n,
+        ssv,
+        nv,
+        ssh,
+        nh,
+        demeaned,
+    }
+}
+
+/// Whether residuals less their segments' lines are white: their autocorrelation over lags 1..=LAGS (`c0`:
+/// the sum of squares, `big_n`: the rows), its mean magnitude, the fraction of lags outside the 95 % band,
+/// and the Ljung-Box statistic.
+fn whiteness(demeaned: &[Vec<f64>], c0: f64, big_n: usize) -> (Vec<f64>, f64, f64, f64) {
+    let autocorrelation: Vec<f64> = (1..=LAGS)
+        .map(|l| {
+            let c: f64 = demeaned
+                .iter()
+                .map(|s| s.windows(l + 1).map(|w| w[0] * w[l]).sum::<f64>())
+                .sum();
+            if c0 > 0.0 { c / c0 } else { 0.0 }
+        })
+        .collect();
+    let nf = big_n.max(1) as f64;
+    let band = 1.96 / nf.sqrt();
+    let mean_abs = autocorrelation.iter().map(|r| r.abs()).sum::<f64>() / LAGS as f64;
+    let outside = autocorrelation.iter().filter(|r| r.abs() > band).count() as f64 / LAGS as f64;
+    let ljung_box = nf
+        * (nf + 2.0)
+        * autocorrelation
+            .iter()
+            .enumerate()
+            .map(|(l, r)| r * r / (nf - (l + 1) as f64).max(1.0))
+            .sum::<f64>();
+    (autocorrelation, mean_abs, outside, ljung_box)
+}
+
+/// What fails in one channel's check: its residual against the noise floor (a NaN ratio, no rows, fails
+/// too), its whiteness, its held-out residual against the fit's.
+fn failures(signal: &str, floor_ratio: f64, mean_abs: f64, validation_ratio: f64) -> Vec<String> {
+    let mut failed = Vec::new();
+    if floor_ratio.is_nan() || floor_ratio > MAX_FLOOR_RATIO {
+        failed.push(format!(
+            "{signal} residual {floor_ratio:.2} times the noise floor (limit {MAX_FLOOR_RATIO})"
+        ));
+    }
+    if mean_abs > MAX_MEAN_ABS_AUTOCORRELATION {
+        failed.push(format!(
+            "{signal} residuals not white (mean |autocorrelation| {mean_abs:.2} over lags 1-{LAGS}, \
+             limit {MAX_MEAN_ABS_AUTOCORRELATION})"
+        ));
+    }
+    if validation_ratio > MAX_VALIDATION_RATIO {
+        failed.push(format!(
+            "{signal} held-out residual {validation_ratio:.2} times the fit's (limit \
+             {MAX_VALIDATION_RATIO})"
+        ));
+    }
+    failed
 }
 
 /// Partial correlations of a residual with several regressors, each given all the others, from the
