@@ -78,76 +78,8 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     // The pool is made after the points are checked; its size is refused before that.
     pneuflex_sweep::engine::thread_pool(args.threads)?;
     let stop = super::stop_flag()?;
-    let checking = Instant::now();
-    // Every point's scene is parsed and validated here, before anything runs (and before an output
-    // directory exists); the point count is checked first.
-    let sweep = {
-        let probe =
-            Sweep::new_unchecked(scene_path, &sets, args.samples, args.seed, args.max_points)?;
-        let bar = bar(probe.len() as u64, "checking the points", args.quiet);
-        bar.set_draw_target(ProgressDrawTarget::hidden());
-        let shown = std::sync::atomic::AtomicBool::new(false);
-        let tick = || {
-            if !args.quiet
-                && checking.elapsed().as_millis() > 500
-                && !shown.swap(true, Ordering::Relaxed)
-            {
-                bar.set_draw_target(ProgressDrawTarget::stderr());
-            }
-            bar.inc(1);
-        };
-        let checked = Sweep::new_checked(
-            scene_path,
-            &sets,
-            args.samples,
-            args.seed,
-            args.max_points,
-            args.limits,
-            pneuflex_sweep::Checking {
-                stop: Some(&stop),
-                tick: &tick,
-            },
-        );
-        bar.finish_and_clear();
-        match checked {
-            Err(SweepError::Interrupted) => {
-                return Err(super::interrupted(
-                    stop.load(Ordering::Relaxed),
-                    "stopped while checking the points; nothing was run or written".into(),
-                ));
-            }
-            other => other?,
-        }
-    };
-    let checked_s = checking.elapsed().as_secs_f64();
-    let metrics = if args.metric.is_empty() {
-        vec![
-            sweep
-                .default_metric()
-                .context("the scene has no metric windows: nothing to tabulate")?,
-        ]
-    } else {
-        args.metric.clone()
-    };
-    for m in &metrics {
-        sweep.metric_index(m)?;
-    }
-    if args.traces {
-        let bytes = sweep.traces_bytes();
-        let limit = args.max_output_mb.saturating_mul(1 << 20);
-        if bytes > limit {
-            anyhow::bail!(
-                "--traces: {} points x {} run(s) of {} s at dt {} s would write about {:.1} GiB, more than \
-                 the limit of {} MiB; sweep fewer points, or raise --max-output-mb",
-                sweep.len(),
-                sweep.base_scene.runs.len(),
-                sweep.base_scene.duration_s,
-                sweep.base_scene.dt_s,
-                bytes as f64 / (1u64 << 30) as f64,
-                args.max_output_mb
-            );
-        }
-    }
+    let (sweep, checked_s) = checked_sweep(scene_path, &sets, args, &stop)?;
+    let metrics = metrics_of(&sweep, args)?;
     let scene = &sweep.base_scene;
     let dest = out
         .map(PathBuf::from)
@@ -257,4 +189,89 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
         );
     }
     Ok(())
+}
+
+/// Every point's scene parsed and validated, before anything runs (and before an output directory exists),
+/// the point count checked first; a bar appears if the check takes over half a second. Returns the sweep
+/// and the seconds the check took.
+fn checked_sweep(
+    scene_path: &Path,
+    sets: &[SetArg],
+    args: &SweepArgs,
+    stop: &std::sync::atomic::AtomicUsize,
+) -> anyhow::Result<(Sweep, f64)> {
+    let checking = Instant::now();
+    let sweep = {
+        let probe =
+            Sweep::new_unchecked(scene_path, sets, args.samples, args.seed, args.max_points)?;
+        let bar = bar(probe.len() as u64, "checking the points", args.quiet);
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+        let shown = std::sync::atomic::AtomicBool::new(false);
+        let tick = || {
+            if !args.quiet
+                && checking.elapsed().as_millis() > 500
+                && !shown.swap(true, Ordering::Relaxed)
+            {
+                bar.set_draw_target(ProgressDrawTarget::stderr());
+            }
+            bar.inc(1);
+        };
+        let checked = Sweep::new_checked(
+            scene_path,
+            sets,
+            args.samples,
+            args.seed,
+            args.max_points,
+            args.limits,
+            pneuflex_sweep::Checking {
+                stop: Some(stop),
+                tick: &tick,
+            },
+        );
+        bar.finish_and_clear();
+        match checked {
+            Err(SweepError::Interrupted) => {
+                return Err(super::interrupted(
+                    stop.load(Ordering::Relaxed),
+                    "stopped while checking the points; nothing was run or written".into(),
+                ));
+            }
+            other => other?,
+        }
+    };
+    Ok((sweep, checking.elapsed().as_secs_f64()))
+}
+
+/// The metrics to tabulate (`--metric`, or the scene's default), each checked; `--traces` refused when it
+/// would write more than `--max-output-mb`.
+fn metrics_of(sweep: &Sweep, args: &SweepArgs) -> anyhow::Result<Vec<String>> {
+    let metrics = if args.metric.is_empty() {
+        vec![
+            sweep
+                .default_metric()
+                .context("the scene has no metric windows: nothing to tabulate")?,
+        ]
+    } else {
+        args.metric.clone()
+    };
+    for m in &metrics {
+        sweep.metric_index(m)?;
+    }
+    if args.traces {
+        let bytes = sweep.traces_bytes();
+        let limit = args.max_output_mb.saturating_mul(1 << 20);
+        if bytes > limit {
+            anyhow::bail!(
+                "--traces: {} points x {} run(s) of {} s at dt {} s would write about {:.1} GiB, more than \
+                 the limit of {} MiB; sweep fewer points, or raise --max-output-mb",
+                sweep.len(),
+                sweep.base_scene.runs.len(),
+                sweep.base_scene.duration_s,
+                sweep.base_scene.dt_s,
+                bytes as f64 / (1u64 << 30) as f64,
+                args.max_output_mb
+            );
+        }
+    }
+    Ok(metrics)
 }
