@@ -16,7 +16,9 @@ use pneuflex_identify::IdentifyError;
 use pneuflex_identify::fit::FitOptions;
 use pneuflex_identify::log::LogLimits;
 use pneuflex_identify::replay::ReplayOptions;
-use pneuflex_identify::request::{Request, identify_stoppable, stage_output, write_staged};
+use pneuflex_identify::request::{
+    Identified, Request, identify_stoppable, stage_output, write_staged,
+};
 use pneuflex_identify::select::{STRUCTURES, select};
 
 /// The options of `identify` beyond the logs and the sheet.
@@ -49,6 +51,61 @@ pub fn identify(
     out: Option<&Path>,
     a: IdentifyArgs,
 ) -> anyhow::Result<()> {
+    let select_structures = a.select;
+    let req = request_of(logs, actuator, a)?;
+    let dest = match out {
+        Some(d) => d.to_path_buf(),
+        None => {
+            let stem = req.logs[0]
+                .parent()
+                .and_then(|p| p.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "log".into());
+            Path::new("out").join("identify").join(stem)
+        }
+    };
+    // The keys, the sheet and every log are read (and refused) first, then the output is staged, then the fit.
+    let sheet = pneuflex_pneumatics::ActuatorSheet::load(&req.actuator)?;
+    let keys = pneuflex_identify::request::parse_free(&req.free, &sheet.model())?;
+    pneuflex_identify::request::parse_bounds(&keys, &req.bounds, &sheet.model())?;
+    for l in &req.logs {
+        pneuflex_files::input::check_regular(l, pneuflex_files::InputKind::Trace)?;
+    }
+    let stage = stage_output(&req, &dest)?;
+    let stop = super::stop_flag()?;
+    let fitted = if select_structures {
+        // Each structure's sheet set in the output, beside the fit it led to.
+        let work = stage.path().join("structures");
+        let progress = |name: &str| eprintln!("fitting structure `{name}` ...");
+        select(&req, &STRUCTURES, &work, Some(&stop), &progress)
+    } else {
+        identify_stoppable(&req, Some(&stop))
+    };
+    let id = match fitted {
+        Ok(id) => id,
+        Err(IdentifyError::Interrupted {
+            signal,
+            reached,
+            pass,
+        }) => return interrupted(stage, &req, &dest, signal, &reached, &pass),
+        Err(e) => return Err(e.into()),
+    };
+    let sheet = write_staged(&id, &req, stage)?;
+    if stop.load(Ordering::Relaxed) != 0 {
+        // The signal came after the fit: the complete output is written; say so and end as interrupted.
+        return Err(super::interrupted(
+            stop.load(Ordering::Relaxed),
+            format!(
+                "came after the fit had finished; its output is complete in {}",
+                dest.display()
+            ),
+        ));
+    }
+    print_result(&id, &sheet, &dest)
+}
+
+/// The request the options describe, each option checked first.
+fn request_of(logs: Vec<PathBuf>, actuator: &Path, a: IdentifyArgs) -> anyhow::Result<Request> {
     let (segment_s, settle_s) = (a.segment_s, a.settle_s);
     if !(segment_s.is_finite() && segment_s > 0.0) {
         bail!("--segment: must be > 0 s, got {segment_s}");
@@ -77,7 +134,7 @@ pub fn identify(
         Some(f) => pneuflex_identify::log_format::LogFormat::load(f)?,
         None => Default::default(),
     };
-    let req = Request {
+    Ok(Request {
         logs,
         actuator: actuator.to_path_buf(),
         free: a.free,
@@ -94,55 +151,12 @@ pub fn identify(
             },
             ..FitOptions::default()
         },
-    };
-    let dest = match out {
-        Some(d) => d.to_path_buf(),
-        None => {
-            let stem = req.logs[0]
-                .parent()
-                .and_then(|p| p.file_name())
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "log".into());
-            Path::new("out").join("identify").join(stem)
-        }
-    };
-    // The keys, the sheet and every log are read (and refused) first, then the output is staged, then the fit.
-    let sheet = pneuflex_pneumatics::ActuatorSheet::load(&req.actuator)?;
-    let keys = pneuflex_identify::request::parse_free(&req.free, &sheet.model())?;
-    pneuflex_identify::request::parse_bounds(&keys, &req.bounds, &sheet.model())?;
-    for l in &req.logs {
-        pneuflex_files::input::check_regular(l, pneuflex_files::InputKind::Trace)?;
-    }
-    let stage = stage_output(&req, &dest)?;
-    let stop = super::stop_flag()?;
-    let fitted = if a.select {
-        // Each structure's sheet set in the output, beside the fit it led to.
-        let work = stage.path().join("structures");
-        let progress = |name: &str| eprintln!("fitting structure `{name}` ...");
-        select(&req, &STRUCTURES, &work, Some(&stop), &progress)
-    } else {
-        identify_stoppable(&req, Some(&stop))
-    };
-    let id = match fitted {
-        Ok(id) => id,
-        Err(IdentifyError::Interrupted {
-            signal,
-            reached,
-            pass,
-        }) => return interrupted(stage, &req, &dest, signal, &reached, &pass),
-        Err(e) => return Err(e.into()),
-    };
-    let sheet = write_staged(&id, &req, stage)?;
-    if stop.load(Ordering::Relaxed) != 0 {
-        // The signal came after the fit: the complete output is written; say so and end as interrupted.
-        return Err(super::interrupted(
-            stop.load(Ordering::Relaxed),
-            format!(
-                "came after the fit had finished; its output is complete in {}",
-                dest.display()
-            ),
-        ));
-    }
+    })
+}
+
+/// Prints the structure selection (with `--select`), the fitted values with their intervals, the
+/// residuals, the model check and where the outputs are.
+fn print_result(id: &Identified, sheet: &Path, dest: &Path) -> anyhow::Result<()> {
     if let Some(sel) = &id.report.structure_selection {
         outln!("structure selection ({}):", sel.criterion);
         for c in &sel.candidates {
