@@ -193,6 +193,21 @@ pub fn markdown(r: &Report) -> String {
             g(e.bounds[1])
         );
     }
+    correlation_section(&mut s, f);
+    residual_section(&mut s, r);
+    model_check_section(&mut s, mc);
+    let _ = writeln!(s, "\n## Warnings\n");
+    if r.warnings.is_empty() {
+        let _ = writeln!(s, "None: every free parameter is identified by these logs.");
+    }
+    for w in &r.warnings {
+        let _ = writeln!(s, "- {w}");
+    }
+    s
+}
+
+/// The estimates' correlation matrix.
+fn correlation_section(s: &mut String, f: &FitResult) {
     let _ = writeln!(s, "\n## Correlation matrix\n");
     let _ = write!(s, "| |");
     for i in 0..f.estimates.len() {
@@ -210,6 +225,11 @@ pub fn markdown(r: &Report) -> String {
         }
         let _ = writeln!(s);
     }
+}
+
+/// The residual RMS per signal (start, fitted, held out) and the fit's figures.
+fn residual_section(s: &mut String, r: &Report) {
+    let f = &r.fit;
     let _ = writeln!(s, "\n## Residual RMS per signal\n");
     let _ = writeln!(s, "| | p_a [kPa] | p_b [kPa] | x [mm] |");
     let _ = writeln!(s, "|---|---|---|---|");
@@ -250,6 +270,10 @@ pub fn markdown(r: &Report) -> String {
         f.evaluations,
         r.fit_seconds
     );
+}
+
+/// The model check: each channel's floor, whiteness and held-out ratio, the limits and the signatures.
+fn model_check_section(s: &mut String, mc: &ModelCheck) {
     let _ = writeln!(
         s,
         "\n## Model check: {}\n",
@@ -294,14 +318,6 @@ pub fn markdown(r: &Report) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let _ = writeln!(s, "\n## Warnings\n");
-    if r.warnings.is_empty() {
-        let _ = writeln!(s, "None: every free parameter is identified by these logs.");
-    }
-    for w in &r.warnings {
-        let _ = writeln!(s, "- {w}");
-    }
-    s
 }
 
 /// The `--select` table: every candidate structure with its figures, the chosen one first in words.
