@@ -347,43 +347,17 @@ pub fn select(
             .map(|b| b.fit_over_floor_sq);
         if let (Ok(id), Some(base)) = (&fitted, base_fit)
             && normalised(id).0 > base
-            && let Ok(small) =
-                structure_sheet(req, s, &warm, 0.1, &work.join(format!("{}-small", s.name)))?
+            && let Some(better) = from_a_tenth(req, s, &warm, work, &r, normalised(id).0, stop)?
         {
-            let again = identify_stoppable(
-                &Request {
-                    actuator: small,
-                    free: keys,
-                    bounds,
-                    ..req.clone()
-                },
-                stop,
-            );
-            match again {
-                Ok(b) if normalised(&b).0 < normalised(id).0 => fitted = Ok(b),
-                Err(e @ IdentifyError::Interrupted { .. }) => return Err(e),
-                _ => {}
-            }
+            fitted = Ok(better);
         }
-        // The fitted values must make a sheet the tool can load again (the output's fitted sheet).
         if let Ok(id) = &fitted
-            && s.edits.iter().len() > 0
+            && !s.edits.is_empty()
+            && let Some(e) = invalid_fitted_sheet(work, s, id)?
         {
-            let check = work.join(format!("{}-fitted", s.name));
-            std::fs::create_dir_all(&check).map_err(|e| IdentifyError::Output {
-                file: check.clone(),
-                message: e.to_string(),
-            })?;
-            let values: Vec<(Key, f64)> = (id.keys.iter().zip(&id.report.fit.estimates))
-                .map(|(k, e)| (*k, e.value))
-                .collect();
-            let written = crate::sheet::write_sheets(&id.sheet, &values, &check, "");
-            let _ = std::fs::remove_dir_all(&check);
-            if let Err(e) = written {
-                fitted = Err(IdentifyError::Fit(format!(
-                    "its fitted values do not make a valid sheet: {e}"
-                )));
-            }
+            fitted = Err(IdentifyError::Fit(format!(
+                "its fitted values do not make a valid sheet: {e}"
+            )));
         }
         match fitted {
             Ok(id) => {
@@ -417,6 +391,71 @@ pub fn select(
             }
         }
     }
+    let (chosen, verdict) = choose(&candidates)?;
+    let c = &candidates[chosen];
+    let selection = Selection {
+        criterion: CRITERION,
+        chosen: c.structure,
+        verdict,
+        candidates,
+    };
+    let mut id = fits[chosen].take().expect("a chosen structure was fitted");
+    id.report.structure_selection = Some(selection);
+    Ok(id)
+}
+
+/// The fit of structure `s` once more from a tenth of its effect's start (`r`: the request of its first
+/// fit, which reached `current`, fit RMS over floor squared); the new fit if it is better.
+fn from_a_tenth(
+    req: &Request,
+    s: &Structure,
+    warm: &[(Key, f64)],
+    work: &Path,
+    r: &Request,
+    current: f64,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
+) -> Result<Option<Identified>, IdentifyError> {
+    let Ok(small) = structure_sheet(req, s, warm, 0.1, &work.join(format!("{}-small", s.name)))?
+    else {
+        return Ok(None);
+    };
+    let again = identify_stoppable(
+        &Request {
+            actuator: small,
+            ..r.clone()
+        },
+        stop,
+    );
+    match again {
+        Ok(b) if normalised(&b).0 < current => Ok(Some(b)),
+        Err(e @ IdentifyError::Interrupted { .. }) => Err(e),
+        _ => Ok(None),
+    }
+}
+
+/// Why the fitted values of structure `s` do not make a sheet the tool can load again (the output's fitted
+/// sheet), written into a scratch folder of `work` and removed; None when they do.
+fn invalid_fitted_sheet(
+    work: &Path,
+    s: &Structure,
+    id: &Identified,
+) -> Result<Option<String>, IdentifyError> {
+    let check = work.join(format!("{}-fitted", s.name));
+    std::fs::create_dir_all(&check).map_err(|e| IdentifyError::Output {
+        file: check.clone(),
+        message: e.to_string(),
+    })?;
+    let values: Vec<(Key, f64)> = (id.keys.iter().zip(&id.report.fit.estimates))
+        .map(|(k, e)| (*k, e.value))
+        .collect();
+    let written = crate::sheet::write_sheets(&id.sheet, &values, &check, "");
+    let _ = std::fs::remove_dir_all(&check);
+    Ok(written.err().map(|e| e.to_string()))
+}
+
+/// The chosen structure: among those fitted, significant, with a finite BIC and held-out residuals within
+/// `HELD_OUT_SLACK` of the sheet as given's, the lowest BIC; with the verdict in words.
+fn choose(candidates: &[Candidate]) -> Result<(usize, String), IdentifyError> {
     let base_val = candidates
         .iter()
         .find(|c| c.structure == "as_given" && c.skipped.is_none())
@@ -444,13 +483,5 @@ pub fn select(
             c.structure, c.adds
         )
     };
-    let selection = Selection {
-        criterion: CRITERION,
-        chosen: c.structure,
-        verdict,
-        candidates,
-    };
-    let mut id = fits[chosen].take().expect("a chosen structure was fitted");
-    id.report.structure_selection = Some(selection);
-    Ok(id)
+    Ok((chosen, verdict))
 }
