@@ -430,59 +430,8 @@ pub fn points(
     let sampled: Vec<usize> = (0..sets.len())
         .filter(|&i| matches!(sets[i].spec, Spec::Sample { .. }))
         .collect();
-    let n_samples = match (sampled.is_empty(), samples) {
-        (true, None) => 0,
-        (true, Some(_)) => {
-            return Err(SpecError {
-                arg: "--samples".into(),
-                message: "applies to sampled keys (rand:, lhs:, ...); no --set samples".into(),
-            });
-        }
-        (false, None) => {
-            let s = &sets[sampled[0]];
-            return Err(SpecError {
-                arg: format!("{}={}", s.key.text, s.spec_text),
-                message: "a sampled key needs --samples N (and --seed S, default 0)".into(),
-            });
-        }
-        (false, Some(0)) => {
-            return Err(SpecError {
-                arg: "--samples".into(),
-                message: "must be at least 1".into(),
-            });
-        }
-        (false, Some(n)) => n,
-    };
-    // Followers: the key they follow (an axis key, listed or sampled) and the factor; every value they
-    // would multiply is checked to be a number here, once.
-    let mut follows: Vec<(usize, usize, f64)> = Vec::new();
-    for (i, s) in sets.iter().enumerate() {
-        if let Spec::Follow { key, factor } = &s.spec {
-            let arg = format!("{}={}", s.key.text, s.spec_text);
-            let Some(j) = sets.iter().position(|o| &o.key.text == key) else {
-                return Err(SpecError {
-                    arg,
-                    message: format!("follows `{key}`, which is not swept (give it its own --set)"),
-                });
-            };
-            if matches!(sets[j].spec, Spec::Follow { .. }) {
-                return Err(SpecError {
-                    arg,
-                    message: format!("follows `{key}`, which follows another key itself"),
-                });
-            }
-            if *factor != 1.0
-                && let Spec::List(v) = &sets[j].spec
-                && let Some(bad) = v.first_non_number()
-            {
-                return Err(SpecError {
-                    arg,
-                    message: format!("`{key}` = {bad} is not a number to multiply"),
-                });
-            }
-            follows.push((i, j, *factor));
-        }
-    }
+    let n_samples = sample_count(sets, &sampled, samples)?;
+    let follows = followers(sets)?;
     // The axes' lengths, and their product, before anything is drawn or allocated.
     let mut lens = Vec::new();
     for (i, s) in sets.iter().enumerate() {
@@ -498,60 +447,8 @@ pub fn points(
             message: "every --set follows another key: nothing to sweep".into(),
         });
     }
-    let max = max_points.min(HARD_MAX_POINTS);
-    let total = lens
-        .iter()
-        .try_fold(1u64, |acc, &n| acc.checked_mul(n as u64))
-        .filter(|&t| t <= max)
-        .ok_or_else(|| {
-            let exact = lens
-                .iter()
-                .try_fold(1u128, |acc, &n| acc.checked_mul(n as u128));
-            let count = exact.map_or("more than 2^128".into(), |t| format!("{t}"));
-            let flag = if max_points >= HARD_MAX_POINTS {
-                format!("the ceiling of {limit_flag} is {HARD_MAX_POINTS}")
-            } else {
-                format!("{limit_flag} N raises the limit, up to {HARD_MAX_POINTS}")
-            };
-            SpecError {
-                arg: if sampled.is_empty() {
-                    String::new()
-                } else {
-                    "--set/--samples".into()
-                },
-                message: format!(
-                    "{count} points ({}) is more than the limit of {max}; {flag}",
-                    product_text(&lens)
-                ),
-            }
-        })? as usize;
-    // The samples: one value per sampled key per sample, drawn key by key in --set order.
-    let mut rng = SplitMix64::new(seed);
-    let mut sample_values: Vec<Vec<f64>> = Vec::new(); // [key][sample]
-    for &i in &sampled {
-        let Spec::Sample { lo, hi, log, lhs } = sets[i].spec else {
-            unreachable!("sampled keys are Spec::Sample")
-        };
-        let perm = if lhs {
-            rng.permutation(n_samples)
-        } else {
-            Vec::new()
-        };
-        let (a, b) = if log { (lo.ln(), hi.ln()) } else { (lo, hi) };
-        let vals = (0..n_samples)
-            .map(|k| {
-                let u = rng.uniform();
-                let f = if lhs {
-                    (perm[k] as f64 + u) / n_samples as f64
-                } else {
-                    u
-                };
-                let x = a + f * (b - a);
-                if log { x.exp() } else { x }
-            })
-            .collect();
-        sample_values.push(vals);
-    }
+    let total = checked_total(&lens, !sampled.is_empty(), max_points, limit_flag)?;
+    let sample_values = draw_samples(sets, &sampled, n_samples, seed);
     let mut axes = Vec::new();
     let mut sample_values = Some(sample_values);
     for (i, s) in sets.iter().enumerate() {
@@ -580,4 +477,138 @@ pub fn points(
         follows,
         len: total,
     })
+}
+
+/// The number of samples of the sampled keys (`sampled`: their indices in `sets`): `--samples`, required
+/// with them and refused without.
+fn sample_count(
+    sets: &[SetArg],
+    sampled: &[usize],
+    samples: Option<usize>,
+) -> Result<usize, SpecError> {
+    Ok(match (sampled.is_empty(), samples) {
+        (true, None) => 0,
+        (true, Some(_)) => {
+            return Err(SpecError {
+                arg: "--samples".into(),
+                message: "applies to sampled keys (rand:, lhs:, ...); no --set samples".into(),
+            });
+        }
+        (false, None) => {
+            let s = &sets[sampled[0]];
+            return Err(SpecError {
+                arg: format!("{}={}", s.key.text, s.spec_text),
+                message: "a sampled key needs --samples N (and --seed S, default 0)".into(),
+            });
+        }
+        (false, Some(0)) => {
+            return Err(SpecError {
+                arg: "--samples".into(),
+                message: "must be at least 1".into(),
+            });
+        }
+        (false, Some(n)) => n,
+    })
+}
+
+/// Followers: the key they follow (an axis key, listed or sampled) and the factor; every value they
+/// would multiply is checked to be a number here, once. Returns (follower, followed, factor) by index in `sets`.
+fn followers(sets: &[SetArg]) -> Result<Vec<(usize, usize, f64)>, SpecError> {
+    let mut follows: Vec<(usize, usize, f64)> = Vec::new();
+    for (i, s) in sets.iter().enumerate() {
+        if let Spec::Follow { key, factor } = &s.spec {
+            let arg = format!("{}={}", s.key.text, s.spec_text);
+            let Some(j) = sets.iter().position(|o| &o.key.text == key) else {
+                return Err(SpecError {
+                    arg,
+                    message: format!("follows `{key}`, which is not swept (give it its own --set)"),
+                });
+            };
+            if matches!(sets[j].spec, Spec::Follow { .. }) {
+                return Err(SpecError {
+                    arg,
+                    message: format!("follows `{key}`, which follows another key itself"),
+                });
+            }
+            if *factor != 1.0
+                && let Spec::List(v) = &sets[j].spec
+                && let Some(bad) = v.first_non_number()
+            {
+                return Err(SpecError {
+                    arg,
+                    message: format!("`{key}` = {bad} is not a number to multiply"),
+                });
+            }
+            follows.push((i, j, *factor));
+        }
+    }
+    Ok(follows)
+}
+
+/// The number of points, the product of the axes' lengths `lens` in checked arithmetic, refused above
+/// `max_points` (and the hard ceiling) with the flag that raises it; `sampled`: some keys are sampled.
+fn checked_total(
+    lens: &[usize],
+    sampled: bool,
+    max_points: u64,
+    limit_flag: &str,
+) -> Result<usize, SpecError> {
+    let max = max_points.min(HARD_MAX_POINTS);
+    lens.iter()
+        .try_fold(1u64, |acc, &n| acc.checked_mul(n as u64))
+        .filter(|&t| t <= max)
+        .ok_or_else(|| {
+            let exact = lens
+                .iter()
+                .try_fold(1u128, |acc, &n| acc.checked_mul(n as u128));
+            let count = exact.map_or("more than 2^128".into(), |t| format!("{t}"));
+            let flag = if max_points >= HARD_MAX_POINTS {
+                format!("the ceiling of {limit_flag} is {HARD_MAX_POINTS}")
+            } else {
+                format!("{limit_flag} N raises the limit, up to {HARD_MAX_POINTS}")
+            };
+            SpecError {
+                arg: if sampled {
+                    "--set/--samples".into()
+                } else {
+                    String::new()
+                },
+                message: format!(
+                    "{count} points ({}) is more than the limit of {max}; {flag}",
+                    product_text(lens)
+                ),
+            }
+        })
+        .map(|t| t as usize)
+}
+
+/// The samples: one value per sampled key per sample, drawn key by key in --set order ([key][sample]).
+fn draw_samples(sets: &[SetArg], sampled: &[usize], n_samples: usize, seed: u64) -> Vec<Vec<f64>> {
+    let mut rng = SplitMix64::new(seed);
+    let mut sample_values: Vec<Vec<f64>> = Vec::new();
+    for &i in sampled {
+        let Spec::Sample { lo, hi, log, lhs } = sets[i].spec else {
+            unreachable!("sampled keys are Spec::Sample")
+        };
+        let perm = if lhs {
+            rng.permutation(n_samples)
+        } else {
+            Vec::new()
+        };
+        let (a, b) = if log { (lo.ln(), hi.ln()) } else { (lo, hi) };
+        let vals = (0..n_samples)
+            .map(|k| {
+                let u = rng.uniform();
+                let f = if lhs {
+                    (perm[k] as f64 + u) / n_samples as f64
+                } else {
+                    u
+                };
+                let x = a + f * (b - a);
+                if log { x.exp() } else { x }
+            })
+            .collect();
+        sample_values.push(vals);
+    }
+    sample_values
 }
