@@ -76,60 +76,12 @@ pub fn on_board_grid(
     host: &Log,
     board: &BoardColumns,
 ) -> Result<Option<(Log, GridSummary)>, IdentifyError> {
-    let err = |line: Option<usize>, column: &str, message: String| IdentifyError::Log {
-        file: host.path.clone(),
-        line,
-        column: Some(column.to_string()),
-        message,
-    };
+    let err = |line, column, message| log_error(host, line, column, message);
     let samples = &board.samples;
     if board.applied.is_empty() || samples.is_empty() {
         return Ok(None);
     }
-    if samples.len() < 10 {
-        return Err(err(
-            None,
-            "board_t",
-            format!(
-                "{} samples in the board's record: too few to replay",
-                samples.len()
-            ),
-        ));
-    }
-    if let Some(w) = samples.windows(2).find(|w| w[1].t <= w[0].t) {
-        return Err(err(
-            Some(w[1].line),
-            "board_t",
-            format!(
-                "{} s after {} s: the board's record must go forward in time",
-                w[1].t, w[0].t
-            ),
-        ));
-    }
-    let b0 = samples[0].t;
-    let mut steps: Vec<f64> = samples.windows(2).map(|w| w[1].t - w[0].t).collect();
-    steps.sort_by(f64::total_cmp);
-    // The period is the step between consecutive samples: a low percentile of the steps, robust to samples
-    // missing from the record (a step of two periods or more).
-    // The board counts whole µs (the record's times are written to the µs).
-    let period = (steps[steps.len() / 20] * 1e6).round() * 1e-6;
-    // Each sample's place on the grid; off it by more than a tenth of a period is no board's clock.
-    let mut index = Vec::with_capacity(samples.len());
-    for s in samples {
-        let j = ((s.t - b0) / period).round();
-        if ((s.t - b0) - j * period).abs() > GRID_TOLERANCE * period {
-            return Err(err(
-                Some(s.line),
-                "board_t",
-                format!(
-                    "{} s is not on the board's sample grid ({b0} s + multiples of its period {period} s): \
-                     the board's clock must stamp one sample a period",
-                    s.t
-                ),
-            ));
-        }
-        index.push(j as usize);
-    }
+    let (b0, period, index) = sample_grid(host, samples)?;
     let mut echoes = board.applied.clone();
     echoes.sort_by(|a, b| a.0.total_cmp(&b.0));
     let tol = 1e-3 * period;
@@ -210,8 +162,87 @@ pub fn on_board_grid(
         grid.f_e.push(held.f_e);
         grid.measured.push(measured);
     }
-    // A sample missing from the record (it overflowed, or the board skipped one) is not compared; the
-    // contact force, an input of the replay, is the line between the samples either side across it.
+    interpolate_unmeasured_force(&mut grid);
+    let summary = GridSummary {
+        period_s: period,
+        rows: n,
+        measured: grid.measured.iter().filter(|&&m| m).count(),
+        echoes: echoes.len(),
+    };
+    grid.note = Some(match &host.note {
+        Some(n) => format!("{}; {n}", summary.note()),
+        None => summary.note(),
+    });
+    Ok(Some((grid, summary)))
+}
+
+/// The board's sample grid: its first sample's time, s, its period, s (a low percentile of the steps
+/// between samples, robust to samples missing from the record, to the µs the board counts), and each
+/// sample's index on it; refused when too few, not forward in time, or off the grid.
+fn sample_grid(
+    host: &Log,
+    samples: &[RecordedSample],
+) -> Result<(f64, f64, Vec<usize>), IdentifyError> {
+    let err = |line, column, message| log_error(host, line, column, message);
+    if samples.len() < 10 {
+        return Err(err(
+            None,
+            "board_t",
+            format!(
+                "{} samples in the board's record: too few to replay",
+                samples.len()
+            ),
+        ));
+    }
+    if let Some(w) = samples.windows(2).find(|w| w[1].t <= w[0].t) {
+        return Err(err(
+            Some(w[1].line),
+            "board_t",
+            format!(
+                "{} s after {} s: the board's record must go forward in time",
+                w[1].t, w[0].t
+            ),
+        ));
+    }
+    let b0 = samples[0].t;
+    let mut steps: Vec<f64> = samples.windows(2).map(|w| w[1].t - w[0].t).collect();
+    steps.sort_by(f64::total_cmp);
+    // A low percentile of the steps: a step of two periods or more is a sample missing from the record.
+    let period = (steps[steps.len() / 20] * 1e6).round() * 1e-6;
+    // Each sample's place on the grid; off it by more than a tenth of a period is no board's clock.
+    let mut index = Vec::with_capacity(samples.len());
+    for s in samples {
+        let j = ((s.t - b0) / period).round();
+        if ((s.t - b0) - j * period).abs() > GRID_TOLERANCE * period {
+            return Err(err(
+                Some(s.line),
+                "board_t",
+                format!(
+                    "{} s is not on the board's sample grid ({b0} s + multiples of its period {period} s): \
+                     the board's clock must stamp one sample a period",
+                    s.t
+                ),
+            ));
+        }
+        index.push(j as usize);
+    }
+    Ok((b0, period, index))
+}
+
+/// An error in `host`'s log at `line` (if known) in `column`.
+fn log_error(host: &Log, line: Option<usize>, column: &str, message: String) -> IdentifyError {
+    IdentifyError::Log {
+        file: host.path.clone(),
+        line,
+        column: Some(column.to_string()),
+        message,
+    }
+}
+
+/// A sample missing from the record (it overflowed, or the board skipped one) is not compared; the
+/// contact force, an input of the replay, is the line between the samples either side across it.
+fn interpolate_unmeasured_force(grid: &mut Log) {
+    let n = grid.measured.len();
     let mut k = 0;
     while k < n {
         if grid.measured[k] {
@@ -226,17 +257,6 @@ pub fn on_board_grid(
         }
         k = b + 1;
     }
-    let summary = GridSummary {
-        period_s: period,
-        rows: n,
-        measured: grid.measured.iter().filter(|&&m| m).count(),
-        echoes: echoes.len(),
-    };
-    grid.note = Some(match &host.note {
-        Some(n) => format!("{}; {n}", summary.note()),
-        None => summary.note(),
-    });
-    Ok(Some((grid, summary)))
 }
 
 #[cfg(test)]
