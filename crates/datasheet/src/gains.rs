@@ -92,7 +92,6 @@ pub fn choose(
     start: Gains,
     write: &mut dyn FnMut(&Gains) -> Result<std::path::PathBuf, DesignError>,
 ) -> Result<Gains, DesignError> {
-    let load = |p: &Path| Scene::load(p).map_err(|e| DesignError::Scene(e.to_string()));
     let mut g = start;
     // kp at the target margin, ki following it: a fixed point in a few rounds.
     let mut kp_margin = f64::INFINITY;
@@ -125,14 +124,7 @@ pub fn choose(
     );
     // Below the describing-function onset.
     let scene = load(&write(&g)?)?;
-    let mut onset = f64::INFINITY;
-    for k in pneuflex_scene::analysis::loop_margins::stiffnesses(&scene) {
-        if let Some((kp, _, _)) =
-            onset_at(&scene, 0, k).map_err(|e| DesignError::Scene(e.to_string()))?
-        {
-            onset = onset.min(kp);
-        }
-    }
+    let (onset, pwm_onset) = onsets(&scene)?;
     if onset.is_finite() && g.kp_per_m > ONSET_FRACTION * onset {
         g = g.with_kp(round2(ONSET_FRACTION * onset));
         note.push_str(&format!(
@@ -142,14 +134,6 @@ pub fn choose(
     }
     // On a PWM valve, the target margin against the sampled-data onset (the duty held over each period),
     // which the period average does not see.
-    let mut pwm_onset = f64::INFINITY;
-    for k in pneuflex_scene::analysis::loop_margins::stiffnesses(&scene) {
-        if let Some(p) =
-            pwm_onset_at(&scene, 0, k).map_err(|e| DesignError::Scene(e.to_string()))?
-        {
-            pwm_onset = pwm_onset.min(p.kp_per_m);
-        }
-    }
     let pwm_kp = pwm_onset * 10f64.powf(-TARGET_GAIN_MARGIN_DB / 20.0);
     if pwm_onset.is_finite() && g.kp_per_m > pwm_kp {
         g = g.with_kp(round2(pwm_kp));
@@ -159,38 +143,7 @@ pub fn choose(
             g.kp_per_m
         ));
     }
-    // The outer loop: b_d raised (never lowered below the paper's ratio) until it keeps the target margin.
-    let outer = |g: &mut Gains,
-                 note: &mut String,
-                 write: &mut dyn FnMut(&Gains) -> Result<std::path::PathBuf, DesignError>|
-     -> Result<(), DesignError> {
-        for _ in 0..3 {
-            let scene = load(&write(g)?)?;
-            let a = analyse(&scene, 0, TARGET_GAIN_MARGIN_DB)
-                .map_err(|e| DesignError::Scene(e.to_string()))?;
-            let need = a
-                .margins
-                .iter()
-                .map(|m| m.outer.b_d_min_ns_per_m.unwrap_or(f64::INFINITY))
-                .fold(0.0, f64::max);
-            if !need.is_finite() {
-                return Err(DesignError::Gains(format!(
-                    "the outer force loop has no {TARGET_GAIN_MARGIN_DB} dB gain margin for any b_d up to 100× {} N s/m                      with kp = {} /m: the inner loop is too slow for this environment",
-                    g.b_d_ns_per_m, g.kp_per_m
-                )));
-            }
-            if need <= g.b_d_ns_per_m {
-                break;
-            }
-            let b = round2(need * 1.05);
-            note.push_str(&format!(
-                "; b_d raised to {b} N s/m for {TARGET_GAIN_MARGIN_DB} dB of outer-loop gain margin"
-            ));
-            g.b_d_ns_per_m = b;
-        }
-        Ok(())
-    };
-    outer(&mut g, &mut note, write)?;
+    outer_loop(&mut g, &mut note, write)?;
     // Confirmed in simulation; a failure lowers kp (a PWM ripple limit cycle) and redesigns the outer loop.
     for _ in 0..SIMULATION_TRIES {
         let scene = load(&write(&g)?)?;
@@ -200,7 +153,7 @@ pub fn choose(
             break;
         }
         g = g.with_kp(round2(0.7 * g.kp_per_m));
-        outer(&mut g, &mut note, write)?;
+        outer_loop(&mut g, &mut note, write)?;
     }
     let Some((kp_ok, _)) = g.tried.iter().find(|(_, v)| v.is_ok()).cloned() else {
         let tried = g
@@ -243,4 +196,62 @@ pub fn choose(
         .collect();
     g.note = note;
     Ok(g)
+}
+
+/// The outer loop: b_d raised (never lowered below the paper's ratio) until it keeps the target margin.
+fn outer_loop(
+    g: &mut Gains,
+    note: &mut String,
+    write: &mut dyn FnMut(&Gains) -> Result<std::path::PathBuf, DesignError>,
+) -> Result<(), DesignError> {
+    for _ in 0..3 {
+        let scene = load(&write(g)?)?;
+        let a = analyse(&scene, 0, TARGET_GAIN_MARGIN_DB)
+            .map_err(|e| DesignError::Scene(e.to_string()))?;
+        let need = a
+            .margins
+            .iter()
+            .map(|m| m.outer.b_d_min_ns_per_m.unwrap_or(f64::INFINITY))
+            .fold(0.0, f64::max);
+        if !need.is_finite() {
+            return Err(DesignError::Gains(format!(
+                "the outer force loop has no {TARGET_GAIN_MARGIN_DB} dB gain margin for any b_d up to 100× {} N s/m with kp = {} /m: the inner loop is too slow for this environment",
+                g.b_d_ns_per_m, g.kp_per_m
+            )));
+        }
+        if need <= g.b_d_ns_per_m {
+            break;
+        }
+        let b = round2(need * 1.05);
+        note.push_str(&format!(
+            "; b_d raised to {b} N s/m for {TARGET_GAIN_MARGIN_DB} dB of outer-loop gain margin"
+        ));
+        g.b_d_ns_per_m = b;
+    }
+    Ok(())
+}
+
+/// The scene written at `p`, loaded.
+fn load(p: &Path) -> Result<Scene, DesignError> {
+    Scene::load(p).map_err(|e| DesignError::Scene(e.to_string()))
+}
+
+/// The lowest kp, over the stiffnesses the scene meets, of the describing functions' limit-cycle onset and
+/// of the PWM's sampled-data onset (infinite where none is predicted).
+fn onsets(scene: &Scene) -> Result<(f64, f64), DesignError> {
+    let mut onset = f64::INFINITY;
+    for k in pneuflex_scene::analysis::loop_margins::stiffnesses(scene) {
+        if let Some((kp, _, _)) =
+            onset_at(scene, 0, k).map_err(|e| DesignError::Scene(e.to_string()))?
+        {
+            onset = onset.min(kp);
+        }
+    }
+    let mut pwm_onset = f64::INFINITY;
+    for k in pneuflex_scene::analysis::loop_margins::stiffnesses(scene) {
+        if let Some(p) = pwm_onset_at(scene, 0, k).map_err(|e| DesignError::Scene(e.to_string()))? {
+            pwm_onset = pwm_onset.min(p.kp_per_m);
+        }
+    }
+    Ok((onset, pwm_onset))
 }
