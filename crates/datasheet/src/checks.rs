@@ -37,8 +37,16 @@ pub const FILL_TIME_ERROR_S: f64 = 1.0;
 /// Slower than this, the valve limits the loop's bandwidth: a warning.
 pub const FILL_TIME_WARNING_S: f64 = 0.2;
 
-/// Every check on a design.
+/// Every check on a design: the errors, then the warnings.
 pub fn check(d: &Design) -> Vec<Finding> {
+    let mut out = errors(d);
+    out.extend(warnings(d));
+    out
+}
+
+/// What makes the design fail: a sensor that cannot see the stroke or the pressures, a valve too slow for
+/// the bore or its PWM period, a load or a force the cylinder cannot hold, no room before the end stop.
+fn errors(d: &Design) -> Vec<Finding> {
     let mut out = Vec::new();
     let mut err = |key, message| {
         out.push(Finding {
@@ -148,7 +156,17 @@ pub fn check(d: &Design) -> Vec<Finding> {
             ),
         );
     }
-    // Warnings.
+    out
+}
+
+/// What works but costs: a valve that limits the bandwidth, friction that dominates the force, a
+/// transmitter that uses little of its span.
+fn warnings(d: &Design) -> Vec<Finding> {
+    let mut out = Vec::new();
+    let gauge = d.supply_abs_pa - d.atmosphere_pa;
+    let t_fill = d.fill_time_s();
+    let qn_for =
+        |t: f64| iso6358::qn_from_c(d.conductance_for_fill(t), d.critical_pressure_ratio) * 6e4;
     let mut warn = |key, message| {
         out.push(Finding {
             severity: Severity::Warning,
