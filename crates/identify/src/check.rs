@@ -345,19 +345,12 @@ pub fn check(
     for (i, signal) in ["p_a", "p_b", "x"].into_iter().enumerate() {
         let q = resolution[i];
         let qf = q / 12f64.sqrt();
-        let Residuals {
-            ss,
-            n,
-            ssv,
-            nv,
-            ssh,
-            nh,
-            demeaned,
-        } = residuals_of(data, &preds, &fit_rows, &held_rows, i);
-        total_rows = total_rows.max(n);
-        let rms_fit = (ss / n.max(1) as f64).sqrt();
-        let rms_validation = if nv > 0 {
-            (ssv / nv as f64).sqrt()
+        let r = residuals_of(data, &preds, &fit_rows, &held_rows, i);
+        let demeaned = &r.demeaned;
+        total_rows = total_rows.max(r.n);
+        let rms_fit = (r.ss / r.n.max(1) as f64).sqrt();
+        let rms_validation = if r.nv > 0 {
+            (r.ssv / r.nv as f64).sqrt()
         } else {
             f64::NAN
         };
@@ -376,7 +369,7 @@ pub fn check(
         let big_n: usize = demeaned.iter().map(Vec::len).sum();
         // Against the floor: the residual less each segment's restart offset (see the module doc).
         let rms_demeaned = (c0 / big_n.max(1) as f64).sqrt();
-        let (autocorrelation, mean_abs, outside, ljung_box) = whiteness(&demeaned, c0, big_n);
+        let (autocorrelation, mean_abs, outside, ljung_box) = whiteness(demeaned, c0, big_n);
         let floor_ratio = if floor > 0.0 {
             rms_demeaned / floor
         } else {
@@ -384,8 +377,8 @@ pub fn check(
         };
         // Both less each segment's line, as for the floor: the restarts' share of the RMS depends on how
         // the piston moves in each part (one matched truth's raw held-out x RMS was 1.43 times its fit's).
-        let validation_ratio = if nh > 0 {
-            (ssh / nh as f64).sqrt() / rms_demeaned
+        let validation_ratio = if r.nh > 0 {
+            (r.ssh / r.nh as f64).sqrt() / rms_demeaned
         } else {
             f64::NAN
         };

@@ -212,16 +212,6 @@ fn report_head(
     kept_start: Option<&str>,
     tuned_name: &str,
 ) -> String {
-    let Outcome {
-        command,
-        objective,
-        population,
-        generations,
-        before,
-        after,
-        j_before,
-        j_after,
-    } = *o;
     let run_name = &tuner.base_scene.runs[tuner.run].name;
     let mut r = String::new();
     let _ = writeln!(r, "# pneuflex tune: {}\n", tuner.base_scene.name);
@@ -233,18 +223,20 @@ fn report_head(
             candidates
         );
     }
-    let _ = writeln!(r, "Command: `{command}`\n");
-    let _ = writeln!(r, "Objective: {objective}.\n");
+    let _ = writeln!(r, "Command: `{}`\n", o.command);
+    let _ = writeln!(r, "Objective: {}.\n", o.objective);
     let _ = writeln!(
         r,
-        "Search: CMA-ES (cmaes crate), seed {}, population {population}, budget {}, {} candidates in {generations} generations, each over {} environment(s).\n",
+        "Search: CMA-ES (cmaes crate), seed {}, population {}, budget {}, {} candidates in {} generations, each over {} environment(s).\n",
         opts.seed,
+        o.population,
         opts.budget,
         candidates,
+        o.generations,
         tuner.envs.len()
     );
     let _ = writeln!(r, "| key | box | before | after |\n|---|---|---|---|");
-    for (f, (b, a)) in tuner.free.iter().zip(before.iter().zip(after)) {
+    for (f, (b, a)) in tuner.free.iter().zip(o.before.iter().zip(o.after)) {
         let _ = writeln!(
             r,
             "| `{}` | {}[{}, {}] | {b} | {a} |",
@@ -257,8 +249,8 @@ fn report_head(
     let _ = writeln!(
         r,
         "\nWorst-case J of `{run_name}`: **{} → {}**{}.\n",
-        j_text(j_before),
-        j_text(j_after),
+        j_text(o.j_before),
+        j_text(o.j_after),
         if interrupted.is_some() {
             " (the first candidate's and the best one's, as the search evaluated them)"
         } else {
