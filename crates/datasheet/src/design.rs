@@ -194,14 +194,14 @@ fn fill_time(c: f64, volume: f64, p_s: f64, p_atm: f64) -> f64 {
 }
 
 fn positive(key: &str, v: Option<f64>) -> Result<Option<f64>, DesignError> {
-    match v {
-        Some(x) if !(x.is_finite() && x > 0.0) => Err(DesignError::Value {
+    v.map(|x| {
+        pneuflex_files::check::positive(x).map_err(|why| DesignError::Value {
             key: key.into(),
             value: format!("{x}"),
-            why: "must be a positive, finite number".into(),
-        }),
-        other => Ok(other),
-    }
+            why,
+        })
+    })
+    .transpose()
 }
 
 /// Resolves a datasheet into a design: every value given is kept, every other derived and listed.
