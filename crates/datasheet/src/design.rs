@@ -257,31 +257,8 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
     let (pwm_frequency_hz, switching_delay_s, response_time_s) =
         valve_timing(ds, valve, &mut assumed);
 
-    // Sensors.
-    let position_range_m = ds.position_range_m.unwrap_or_else(|| {
-        let r = (stroke_m * 1.2 / 0.025).ceil() * 0.025;
-        assume(
-            &mut assumed,
-            "--position-range",
-            format!(
-                "0–{:.0} mm: the stroke with 20 % margin, to the next 25 mm",
-                r * 1e3
-            ),
-        );
-        r
-    });
-    let pressure_range_pa = ds.pressure_range_pa.unwrap_or_else(|| {
-        let r = (supply_gauge * 1.1 / 2e5).ceil() * 2e5;
-        assume(
-            &mut assumed,
-            "--pressure-range",
-            format!(
-                "±{:.1} MPa differential transmitter: the supply with 10 % margin, to the next 0.2 MPa",
-                r * 1e-6
-            ),
-        );
-        r
-    });
+    let (position_range_m, pressure_range_pa) =
+        sensor_ranges(ds, stroke_m, supply_gauge, &mut assumed);
 
     let force_range = supply_gauge * area_a;
     let (moving_mass_kg, incline_deg, coulomb_n, viscous) =
@@ -588,6 +565,41 @@ fn valve_timing(
         (ValveKind::Pwm, None) => 0.005,
     };
     (pwm_frequency_hz, switching_delay_s, response_time_s)
+}
+
+/// The sensors' spans: the position sensor's from 0, m, and the differential pressure transmitter's, Pa;
+/// `supply_gauge`, Pa.
+fn sensor_ranges(
+    ds: &Datasheet,
+    stroke_m: f64,
+    supply_gauge: f64,
+    assumed: &mut Vec<Assumption>,
+) -> (f64, f64) {
+    let position_range_m = ds.position_range_m.unwrap_or_else(|| {
+        let r = (stroke_m * 1.2 / 0.025).ceil() * 0.025;
+        assume(
+            assumed,
+            "--position-range",
+            format!(
+                "0–{:.0} mm: the stroke with 20 % margin, to the next 25 mm",
+                r * 1e3
+            ),
+        );
+        r
+    });
+    let pressure_range_pa = ds.pressure_range_pa.unwrap_or_else(|| {
+        let r = (supply_gauge * 1.1 / 2e5).ceil() * 2e5;
+        assume(
+            assumed,
+            "--pressure-range",
+            format!(
+                "±{:.1} MPa differential transmitter: the supply with 10 % margin, to the next 0.2 MPa",
+                r * 1e-6
+            ),
+        );
+        r
+    });
+    (position_range_m, pressure_range_pa)
 }
 
 /// The moving parts: mass, kg, incline, degrees below the horizontal, Coulomb and viscous friction;
