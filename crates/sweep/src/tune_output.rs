@@ -84,39 +84,12 @@ pub fn write(
         .map(|(w, i)| w.unwrap_or(*i))
         .collect();
     let after: Vec<f64> = best.map_or(before.clone(), |b| b.x.iter().map(|v| round4(*v)).collect());
-    let worst = |all: &[Vec<EnvEval>]| {
-        all.iter()
-            .map(|e| e[tuner.run].j)
-            .fold(f64::NEG_INFINITY, f64::max)
-    };
-    // Before and after as the files have them: every run, every environment (not re-run for an
-    // interrupted search: the user asked it to stop).
-    let (all_before, all_after) = if interrupted.is_none() {
-        (
-            tuner.evaluate_all_runs(None),
-            tuner.evaluate_all_runs(Some(&after)),
-        )
-    } else {
-        (Vec::new(), Vec::new())
-    };
-    let (j_before, j_after) = if interrupted.is_none() {
-        (worst(&all_before), worst(&all_after))
-    } else {
-        let j0 = history.first().map_or(f64::INFINITY, |h| h.eval.j);
-        (j0, best.map_or(f64::INFINITY, |b| b.j))
-    };
-    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let (all_before, all_after) = every_run_before_after(tuner, &after, interrupted);
+    let (j_before, j_after) =
+        worst_case_before_after(tuner, history, best, &all_before, &all_after, interrupted);
     let generations = history.last().map_or(0, |h| h.generation);
     let population = opts.population_for(tuner.free.len());
-    let terms_text: Vec<String> = tuner
-        .terms
-        .iter()
-        .map(|t| format!("{} × |{}|", t.weight, t.name()))
-        .collect();
-    let objective = format!(
-        "J = max over the environments of J_e, J_e = {} of run `{run_name}`; J_e = ∞ when the run diverged or an event window did not settle",
-        terms_text.join(" + ")
-    );
+    let objective = objective_text(tuner);
 
     // The tuned scene.
     let stem = tuner
@@ -152,23 +125,7 @@ pub fn write(
     let (csv, candidates, best_line) = history_csv(tuner, history);
     let hist_path = dir.join("history.csv");
     std::fs::write(&hist_path, csv).map_err(|e| io(&hist_path, e))?;
-    let conv_name = format!("convergence.{}", figures.ext());
-    let conv = dir.join(&conv_name);
-    match pneuflex_plot::write_convergence(
-        &conv,
-        &format!(
-            "tune {}: run `{run_name}`, worst case over the environments",
-            tuner.base_scene.name
-        ),
-        "J (worst case)",
-        &candidates,
-        &best_line,
-    ) {
-        Ok(()) => {}
-        // Every candidate infinite: nothing to draw; the report says so.
-        Err(pneuflex_plot::PlotError::Empty) => {}
-        Err(e) => return Err(SweepError::Other(e.to_string())),
-    }
+    convergence_figure(dir, tuner, &candidates, &best_line, figures)?;
 
     // The report.
     let mut r = report_head(
@@ -199,6 +156,89 @@ pub fn write(
         kept_start,
         interrupted,
     )
+}
+
+/// The objective as the tuned scene's comment and the report state it: the worst case over the
+/// environments of the weighted terms of the tuned run.
+fn objective_text(tuner: &Tuner) -> String {
+    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let terms_text: Vec<String> = tuner
+        .terms
+        .iter()
+        .map(|t| format!("{} × |{}|", t.weight, t.name()))
+        .collect();
+    format!(
+        "J = max over the environments of J_e, J_e = {} of run `{run_name}`; J_e = ∞ when the run diverged or an event window did not settle",
+        terms_text.join(" + ")
+    )
+}
+
+/// Before and after as the files have them: every run, every environment (not re-run for an
+/// interrupted search: the user asked it to stop).
+fn every_run_before_after(
+    tuner: &Tuner,
+    after: &[f64],
+    interrupted: Option<&str>,
+) -> (Vec<Vec<EnvEval>>, Vec<Vec<EnvEval>>) {
+    if interrupted.is_none() {
+        (
+            tuner.evaluate_all_runs(None),
+            tuner.evaluate_all_runs(Some(after)),
+        )
+    } else {
+        (Vec::new(), Vec::new())
+    }
+}
+
+/// The tuned run's worst-case J over the environments, before and after; for an interrupted search, the
+/// first candidate's and the best one's, as the search evaluated them.
+fn worst_case_before_after(
+    tuner: &Tuner,
+    history: &[HistoryRow],
+    best: Option<&Evaluation>,
+    all_before: &[Vec<EnvEval>],
+    all_after: &[Vec<EnvEval>],
+    interrupted: Option<&str>,
+) -> (f64, f64) {
+    let worst = |all: &[Vec<EnvEval>]| {
+        all.iter()
+            .map(|e| e[tuner.run].j)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    if interrupted.is_none() {
+        (worst(all_before), worst(all_after))
+    } else {
+        let j0 = history.first().map_or(f64::INFINITY, |h| h.eval.j);
+        (j0, best.map_or(f64::INFINITY, |b| b.j))
+    }
+}
+
+/// convergence.png (or .svg, .pdf): each candidate's worst-case J and the best so far, by evaluation.
+fn convergence_figure(
+    dir: &Path,
+    tuner: &Tuner,
+    candidates: &[(f64, f64)],
+    best_line: &[(f64, f64)],
+    figures: pneuflex_plot::Format,
+) -> Result<(), SweepError> {
+    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let conv_name = format!("convergence.{}", figures.ext());
+    let conv = dir.join(&conv_name);
+    match pneuflex_plot::write_convergence(
+        &conv,
+        &format!(
+            "tune {}: run `{run_name}`, worst case over the environments",
+            tuner.base_scene.name
+        ),
+        "J (worst case)",
+        candidates,
+        best_line,
+    ) {
+        Ok(()) => Ok(()),
+        // Every candidate infinite: nothing to draw; the report says so.
+        Err(pneuflex_plot::PlotError::Empty) => Ok(()),
+        Err(e) => Err(SweepError::Other(e.to_string())),
+    }
 }
 
 /// The report's head: the command, the objective, the search, each free key before and after, the worst
