@@ -11,7 +11,7 @@
 //!
 //! Bounds: p = lo + (hi - lo) (1 + sin z) / 2, LM works on z (MINUIT's transform): every z is inside.
 
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, MinimizationReport};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use pneuflex_pneumatics::OneDofModel;
 use rayon::prelude::*;
@@ -389,30 +389,10 @@ pub fn fit_stoppable(
     let mut termination = Vec::new();
     let mut evaluations = 0;
     if let Some(seg) = opts.coarse_segment_s.filter(|&s| s < opts.replay.segment_s) {
-        let ro = ReplayOptions {
-            segment_s: seg,
-            settle_s: opts.replay.settle_s.min(0.4 * seg),
-            ..opts.replay
-        };
-        let coarse: Vec<Prepared> = data
-            .iter()
-            .map(|d| Prepared::new(d.log.clone(), &ro, d.fit_end))
-            .collect();
-        let mut cp = Problem::new(
-            *base,
-            Offsets::default(),
-            free.to_vec(),
-            &coarse,
-            ro,
-            sigma0,
-        );
-        cp.stop = stop;
-        let (cp, report) = LevenbergMarquardt::new()
-            .with_patience(opts.patience)
-            .minimize(cp);
+        let (z, report) = coarse_pass(base, free, data, opts, seg, sigma0, stop);
         evaluations += report.number_of_evaluations * (n + 1);
         termination.push(format!("coarse {:?}", report.termination));
-        pb.z = cp.z.clone();
+        pb.z = z;
         if pb.stopped() {
             return Err(interrupted(&pb, "the coarse pass"));
         }
@@ -468,6 +448,41 @@ pub fn fit_stoppable(
         termination,
         evaluations,
     })
+}
+
+/// The coarse pass (`FitOptions::coarse_segment_s`): LM over the logs cut into segments of `seg` s, from the
+/// start values; the optimum it reaches (in LM's variables, z) and LM's report.
+fn coarse_pass(
+    base: &OneDofModel,
+    free: &[Free],
+    data: &[Prepared],
+    opts: &FitOptions,
+    seg: f64,
+    sigma0: [f64; 3],
+    stop: Option<&AtomicUsize>,
+) -> (DVector<f64>, MinimizationReport<f64>) {
+    let ro = ReplayOptions {
+        segment_s: seg,
+        settle_s: opts.replay.settle_s.min(0.4 * seg),
+        ..opts.replay
+    };
+    let coarse: Vec<Prepared> = data
+        .iter()
+        .map(|d| Prepared::new(d.log.clone(), &ro, d.fit_end))
+        .collect();
+    let mut cp = Problem::new(
+        *base,
+        Offsets::default(),
+        free.to_vec(),
+        &coarse,
+        ro,
+        sigma0,
+    );
+    cp.stop = stop;
+    let (cp, report) = LevenbergMarquardt::new()
+        .with_patience(opts.patience)
+        .minimize(cp);
+    (cp.z, report)
 }
 
 /// Each free parameter's estimate with its 95 % interval: the covariance's standard error (at least the

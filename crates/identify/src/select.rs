@@ -323,15 +323,7 @@ pub fn select(
                 continue;
             }
         };
-        // F_s must stay above F_c for the law (the sheet refuses less): the friction structures bound it.
-        let mut bounds = req.bounds.clone();
-        if s.keys.contains(&Key::Static) {
-            let f_c = warm
-                .iter()
-                .find(|(k, _)| *k == Key::Coulomb)
-                .map_or_else(|| coulomb(&sheet_model), |w| w.1);
-            bounds.push(format!("{}=[{},{}]", Key::Static.name(), f_c, 20.0 * f_c));
-        }
+        let bounds = structure_bounds(req, s, &warm, &sheet_model);
         let r = Request {
             actuator,
             free: keys.clone(),
@@ -370,15 +362,7 @@ pub fn select(
                         .map(|(k, e)| (*k, e.value))
                         .collect();
                 }
-                let (fit, val, n) = normalised(&id);
-                let k = id.keys.len() as f64;
-                c.fit_over_floor_sq = fit;
-                c.validation_over_floor_sq = val;
-                c.bic = n as f64 * fit.ln() + k * (n as f64).ln();
-                c.adequate = id.report.model_check.adequate;
-                c.significant = s.edits.is_empty()
-                    || effect_seen(s, &id, sheet_model.actuator.gas.polytropic_exponent);
-                c.fit_seconds = id.report.fit_seconds;
+                score(&mut c, s, &id, sheet_model.actuator.gas.polytropic_exponent);
                 candidates.push(c);
                 fits.push(Some(id));
             }
@@ -402,6 +386,39 @@ pub fn select(
     let mut id = fits[chosen].take().expect("a chosen structure was fitted");
     id.report.structure_selection = Some(selection);
     Ok(id)
+}
+
+/// The bounds of structure `s`'s fit: the request's, and F_s's for a friction structure; `warm`: the values
+/// the sheet as given was fitted to.
+fn structure_bounds(
+    req: &Request,
+    s: &Structure,
+    warm: &[(Key, f64)],
+    sheet_model: &pneuflex_pneumatics::OneDofModel,
+) -> Vec<String> {
+    // F_s must stay above F_c for the law (the sheet refuses less): the friction structures bound it.
+    let mut bounds = req.bounds.clone();
+    if s.keys.contains(&Key::Static) {
+        let f_c = warm
+            .iter()
+            .find(|(k, _)| *k == Key::Coulomb)
+            .map_or_else(|| coulomb(sheet_model), |w| w.1);
+        bounds.push(format!("{}=[{},{}]", Key::Static.name(), f_c, 20.0 * f_c));
+    }
+    bounds
+}
+
+/// A fitted candidate's numbers: its fit and validation RMS over the noise floor, squared, its BIC, its
+/// model check's verdict and whether its effect is seen (`n0`: the sheet's polytropic exponent).
+fn score(c: &mut Candidate, s: &Structure, id: &Identified, n0: f64) {
+    let (fit, val, n) = normalised(id);
+    let k = id.keys.len() as f64;
+    c.fit_over_floor_sq = fit;
+    c.validation_over_floor_sq = val;
+    c.bic = n as f64 * fit.ln() + k * (n as f64).ln();
+    c.adequate = id.report.model_check.adequate;
+    c.significant = s.edits.is_empty() || effect_seen(s, id, n0);
+    c.fit_seconds = id.report.fit_seconds;
 }
 
 /// The fit of structure `s` once more from a tenth of its effect's start (`r`: the request of its first
