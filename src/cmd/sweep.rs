@@ -132,7 +132,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
             Ok(())
         },
     );
-    let interrupted = match ran {
+    let signal = match ran {
         Ok(()) => None,
         Err(SweepError::Interrupted) => Some(stop.load(Ordering::Relaxed)),
         Err(e) => return Err(e.into()),
@@ -146,26 +146,8 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
         env!("CARGO_PKG_VERSION"),
         pneuflex_scene::scene_inputs(scene),
     );
-    if let Some(signal) = interrupted {
-        // The rows done so far, marked: no heatmaps of a grid with holes.
-        pneuflex_sweep::output::write_record(stage.path(), &sweep, Vec::new(), Some(done))?;
-        let reason = pneuflex_scene::signal_name(signal);
-        let to = stage.commit_partial(
-            manifest,
-            Partial {
-                reason,
-                time_reached_s: 0.0,
-                done: Some(format!("{done} of {n} points")),
-            },
-        )?;
-        return Err(super::interrupted(
-            signal,
-            format!(
-                "stopped after {done} of {n} points; their rows are in {} (marked partial); {} is untouched",
-                to.join("sweep.csv").display(),
-                dest.display()
-            ),
-        ));
+    if let Some(signal) = signal {
+        return interrupted(stage, manifest, &sweep, signal, done, &dest);
     }
     pneuflex_sweep::output::write_figures(stage.path(), &sweep, &kept, &metrics, args.format)?;
     let dest = stage.commit(manifest)?;
@@ -189,6 +171,38 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
         );
     }
     Ok(())
+}
+
+/// Commits an interrupted sweep as `<dest>.partial`: the `done` points' rows, marked partial in its manifest
+/// and sweep.json.
+fn interrupted(
+    stage: OutputDir,
+    manifest: Manifest,
+    sweep: &Sweep,
+    signal: usize,
+    done: usize,
+    dest: &Path,
+) -> anyhow::Result<()> {
+    let n = sweep.len();
+    // The rows done so far, marked: no heatmaps of a grid with holes.
+    pneuflex_sweep::output::write_record(stage.path(), sweep, Vec::new(), Some(done))?;
+    let reason = pneuflex_scene::signal_name(signal);
+    let to = stage.commit_partial(
+        manifest,
+        Partial {
+            reason,
+            time_reached_s: 0.0,
+            done: Some(format!("{done} of {n} points")),
+        },
+    )?;
+    Err(super::interrupted(
+        signal,
+        format!(
+            "stopped after {done} of {n} points; their rows are in {} (marked partial); {} is untouched",
+            to.join("sweep.csv").display(),
+            dest.display()
+        ),
+    ))
 }
 
 /// Every point's scene parsed and validated, before anything runs (and before an output directory exists),
