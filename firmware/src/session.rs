@@ -4,13 +4,10 @@
 
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
-use pneuflex_control::{
-    AdaptiveImpedanceController, Controller, ImpedanceController, Sensors, Setpoint,
-    SetpointSchedule,
-};
+use pneuflex_control::{Controller, Sensors, SetUpController, Setpoint, SetpointSchedule};
 use pneuflex_protocol::ctrl::{
-    ControllerSetup, MAX_SIGNALS, OutputPayload, ReadyPayload, SafePayload, SetupCollector,
-    StartPayload, ready, status,
+    MAX_SIGNALS, OutputPayload, ReadyPayload, SafePayload, SetupCollector, StartPayload, ready,
+    status,
 };
 use pneuflex_protocol::{DecodeEvent, Message, RESET_MAGIC, ValveMode, fault_code};
 use pneuflex_valve_driver::{SafeMode, ValveDriver};
@@ -19,23 +16,6 @@ use pneuflex_valve_driver::{SafeMode, ValveDriver};
 pub const BAD_FRAMES_MAX: usize = 8;
 /// The bad-frame window, ns of board time.
 pub const BAD_FRAME_WINDOW_NS: u64 = 100_000_000;
-
-/// The controller the host set up.
-// No heap to box the larger one in: the session lives in main's frame (stack peak reported in Safe).
-#[allow(clippy::large_enum_variant)]
-enum Running {
-    Impedance(ImpedanceController),
-    Adaptive(AdaptiveImpedanceController),
-}
-
-impl Running {
-    fn controller(&mut self) -> &mut dyn Controller {
-        match self {
-            Running::Impedance(c) => c,
-            Running::Adaptive(c) => c,
-        }
-    }
-}
 
 enum State {
     /// Collecting parameters and segments; the valve is safe, the watchdog off.
@@ -50,7 +30,7 @@ enum State {
 pub struct Session<A, B, D> {
     state: State,
     setup: SetupCollector,
-    controller: Option<Running>,
+    controller: Option<SetUpController>,
     schedule: SetpointSchedule,
     dt_s: f64,
     watchdog_ns: u64,
@@ -185,7 +165,6 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
                         if s.tick == 500 {
                             panic!("test-panic build: deliberate panic at tick {}", s.tick);
                         }
-                        let c = c.controller();
                         let t0 = clock();
                         let cmd = c.update(&sensors, &sp, self.dt_s);
                         let t1 = clock();
@@ -254,32 +233,18 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
             return;
         }
         let built = self.setup.finish(s).and_then(|setup| {
-            let bad = |id: u8| ReadyPayload {
+            setup.build().map_err(|_| ReadyPayload {
                 result: ready::PARAM,
-                detail: id,
-            };
-            match setup {
-                ControllerSetup::Impedance { impedance, pid } => {
-                    ImpedanceController::new(impedance, pid)
-                        .map(Running::Impedance)
-                        .map_err(|_| bad(0))
-                }
-                ControllerSetup::Adaptive {
-                    impedance,
-                    adaptive,
-                    pid,
-                } => AdaptiveImpedanceController::new(impedance, adaptive, pid)
-                    .map(Running::Adaptive)
-                    .map_err(|_| bad(0)),
-            }
+                detail: 0,
+            })
         });
         let safe = match s.safe_mode {
             ValveMode::SafeHold => SafeMode::Hold,
             _ => SafeMode::Vent,
         };
         // A controller with more signals than a CtrlOutput carries would lose some: refused.
-        let built = built.and_then(|mut c| {
-            if c.controller().signals().len() > MAX_SIGNALS {
+        let built = built.and_then(|c| {
+            if c.signals().len() > MAX_SIGNALS {
                 Err(ReadyPayload {
                     result: ready::START,
                     detail: 2,
@@ -295,7 +260,7 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
                 // keeps the caches, so no control tick pays for them.
                 // The sample is "in contact" (f_e above any contact threshold) so that the adaptive law's
                 // path runs too, not only its hold.
-                let ctl = c.controller();
+                let ctl = &mut c;
                 let contact = Sensors {
                     f_e: 1e6,
                     ..Sensors::default()

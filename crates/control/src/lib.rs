@@ -17,6 +17,7 @@ pub mod io;
 pub mod lyapunov;
 pub mod pid;
 pub mod reference;
+pub mod setup;
 pub mod signal;
 pub mod tick;
 
@@ -30,5 +31,6 @@ pub use lyapunov::{
 };
 pub use pid::{AntiWindup, Pid, PidParams};
 pub use reference::{Reference, SCHEDULE_CAPACITY, Schedule, SetpointSchedule};
+pub use setup::{ControllerSetup, SetUpController, SetupError};
 pub use signal::{LOOP_SIGNALS, Signal, Sink};
 pub use tick::{control_tick, write_loop_row};

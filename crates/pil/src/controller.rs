@@ -3,12 +3,12 @@
 //! exactly as it drives a controller on the host, so the plant, the events, the trace and the metrics are the
 //! simulation's own.
 
+use pneuflex_control::ControllerSetup;
 use pneuflex_control::{
     Controller, Sensors, Setpoint, SetpointSchedule, Signal, Telemetry, ValveCommand,
 };
 use pneuflex_protocol::ctrl::{
-    ControllerSetup, MAX_SIGNALS, OutputPayload, SafePayload, SensorsPayload, StartPayload, ready,
-    setup_crc_update,
+    MAX_SIGNALS, OutputPayload, SafePayload, SensorsPayload, StartPayload, ready, setup_crc_update,
 };
 use pneuflex_protocol::{Message, ValveMode, ValvePayload, crc::CRC16_INIT, fault_code};
 
@@ -63,37 +63,11 @@ pub struct FirmwareController {
     live: Rc<Cell<Live>>,
 }
 
-/// The setup a scene run describes.
+/// The setup a scene run describes ([`pneuflex_scene::schema::RunSpec::board_setup`]), refused with the
+/// run's name and key.
 pub fn setup_of(run: &pneuflex_scene::schema::RunSpec) -> Result<ControllerSetup, PilError> {
-    use pneuflex_scene::ControllerKind;
-    if let Some(f) = &run.frozen {
-        return Err(PilError::Setup(format!(
-            "run `{}` is frozen (the controller of `{}` with g, p, d held): the board runs the adapting \
-             controllers only; choose another run",
-            run.name, f.run
-        )));
-    }
-    match (run.controller, run.adaptive) {
-        (ControllerKind::Impedance, _) => Ok(ControllerSetup::Impedance {
-            impedance: run.impedance,
-            pid: run.inner,
-        }),
-        (ControllerKind::Adaptive, Some(adaptive)) => Ok(ControllerSetup::Adaptive {
-            impedance: run.impedance,
-            adaptive,
-            pid: run.inner,
-        }),
-        (ControllerKind::Adaptive, None) => Err(PilError::Setup(format!(
-            "run `{}`: adaptive without its gains",
-            run.name
-        ))),
-        // A kind the board has not learnt (ControllerKind is non-exhaustive): refused by name.
-        (other, _) => Err(PilError::Setup(format!(
-            "run `{}`: the board runs the impedance and adaptive controllers; `{}` runs in simulation only",
-            run.name,
-            other.name()
-        ))),
-    }
+    run.board_setup()
+        .map_err(|e| PilError::Setup(format!("run `{}`: {e}", run.name)))
 }
 
 /// Uploads the setup and starts the controller; Ok once the board answered Ready OK.
@@ -105,7 +79,7 @@ pub fn start(
     watchdog_ms: u16,
 ) -> Result<(), PilError> {
     let mut crc = CRC16_INIT;
-    let (params, n) = setup.params();
+    let (params, n) = pneuflex_protocol::ctrl::param_payloads(setup);
     let segments: Vec<_> = pneuflex_protocol::ctrl::segments(schedule).collect();
     for m in params[..n]
         .iter()

@@ -4,12 +4,11 @@
 //! `CtrlOutput` (valve command and telemetry). Values travel as IEEE-754 f64 so that the board computes
 //! with exactly the numbers the host simulation uses.
 //!
-//! The setup's encoding ([`Setup`], parameter ids, segment kinds) is here so that both ends share it.
+//! The wire form of the setup is here (the frames, segment kinds) so that both ends share it; what a
+//! controller's parameters are, and their ids, is the control crate's (`pneuflex_control::setup`).
 
-use pneuflex_control::{
-    AdaptiveParams, AntiWindup, ImpedanceParams, LambdaDSign, PidParams, Reference,
-    SetpointSchedule, Sigma1Sign, VelocitySource,
-};
+use pneuflex_control::setup::{ControllerSetup, SetupError};
+use pneuflex_control::{Reference, SetpointSchedule};
 
 use crate::crc::crc16_update;
 use crate::{Message, Reader, ValveMode, Writer, msg_type};
@@ -336,120 +335,17 @@ pub(crate) fn parse_fields(t: u8, r: &mut Reader<'_>) -> Option<Message> {
     })
 }
 
-/// Parameter ids of [`ParamPayload::id`]: the fields of the control crate's parameter structs.
-pub mod param {
-    /// ImpedanceParams: m_d, b_d, k_d.
-    pub const IMPEDANCE: [u8; 3] = [1, 2, 3];
-    /// PidParams: kp, ki, kd, derivative filter, u_min, u_max, anti-windup (0 clamping, 1 back-calculation),
-    /// tracking time (back-calculation only).
-    pub const PID: [u8; 8] = [10, 11, 12, 13, 14, 15, 16, 17];
-    /// AdaptiveParams in declaration order: λp, λd, μ1, μ2, μ3, σ1, σ2, σ3, force unit, position unit,
-    /// λd sign (0 from ė, 1 as printed), σ1 sign (0 leakage, 1 as printed), adapt in contact only (0/1),
-    /// contact threshold, velocity source (0 measured, 1 impedance filter), g_max, p_max, d_max.
-    pub const ADAPTIVE: [u8; 18] = [
-        20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37,
-    ];
-}
+/// Parameter ids of [`ParamPayload::id`]: the control crate's, beside the setups they encode.
+pub use pneuflex_control::setup::{MAX_PARAMS, param};
 
-/// Which controller the board runs.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ControllerSetup {
-    /// Impedance filter + PID.
-    Impedance {
-        /// Target impedance.
-        impedance: ImpedanceParams,
-        /// Inner loop.
-        pid: PidParams,
-    },
-    /// Impedance filter + adaptive law + PID.
-    Adaptive {
-        /// Target impedance.
-        impedance: ImpedanceParams,
-        /// Adaptive law.
-        adaptive: AdaptiveParams,
-        /// Inner loop.
-        pid: PidParams,
-    },
-}
-
-/// Most parameters a setup sends.
-pub const MAX_PARAMS: usize = 3 + 8 + 18;
-
-fn flag(b: bool) -> f64 {
-    if b { 1.0 } else { 0.0 }
-}
-
-impl ControllerSetup {
-    /// The wire code of the kind (StartPayload::controller).
-    pub fn code(&self) -> u8 {
-        match self {
-            ControllerSetup::Impedance { .. } => 1,
-            ControllerSetup::Adaptive { .. } => 2,
-        }
+/// The parameters a setup sends, as CtrlParam payloads; returns the array and how many are used.
+pub fn param_payloads(setup: &ControllerSetup) -> ([ParamPayload; MAX_PARAMS], usize) {
+    let (params, n) = setup.params();
+    let mut out = [ParamPayload { id: 0, value: 0.0 }; MAX_PARAMS];
+    for (o, &(id, value)) in out.iter_mut().zip(&params[..n]) {
+        *o = ParamPayload { id, value };
     }
-
-    /// The parameters to send, in order; returns the array and how many are used.
-    pub fn params(&self) -> ([ParamPayload; MAX_PARAMS], usize) {
-        let (imp, pid, ad) = match *self {
-            ControllerSetup::Impedance { impedance, pid } => (impedance, pid, None),
-            ControllerSetup::Adaptive {
-                impedance,
-                adaptive,
-                pid,
-            } => (impedance, pid, Some(adaptive)),
-        };
-        let mut out = [ParamPayload { id: 0, value: 0.0 }; MAX_PARAMS];
-        let mut n = 0;
-        let mut push = |id: u8, value: f64| {
-            out[n] = ParamPayload { id, value };
-            n += 1;
-        };
-        let i = param::IMPEDANCE;
-        push(i[0], imp.m_d_kg);
-        push(i[1], imp.b_d_ns_per_m);
-        push(i[2], imp.k_d_n_per_m);
-        let p = param::PID;
-        push(p[0], pid.kp_per_m);
-        push(p[1], pid.ki_per_m_s);
-        push(p[2], pid.kd_s_per_m);
-        push(p[3], pid.derivative_filter_s);
-        push(p[4], pid.u_min);
-        push(p[5], pid.u_max);
-        match pid.anti_windup {
-            AntiWindup::Clamping => push(p[6], 0.0),
-            AntiWindup::BackCalculation { tracking_time_s } => {
-                push(p[6], 1.0);
-                push(p[7], tracking_time_s);
-            }
-        }
-        if let Some(a) = ad {
-            let ids = param::ADAPTIVE;
-            let values = [
-                a.lambda_p,
-                a.lambda_d,
-                a.mu1,
-                a.mu2,
-                a.mu3,
-                a.sigma1,
-                a.sigma2,
-                a.sigma3,
-                a.force_unit_n,
-                a.position_unit_m,
-                flag(a.lambda_d_sign == LambdaDSign::AsPrinted),
-                flag(a.sigma1_sign == Sigma1Sign::AsPrinted),
-                flag(a.adapt_in_contact_only),
-                a.contact_threshold_n,
-                flag(a.velocity_source == VelocitySource::ImpedanceFilter),
-                a.g_max_m,
-                a.p_max_m_per_n,
-                a.d_max_s,
-            ];
-            for (id, v) in ids.into_iter().zip(values) {
-                push(id, v);
-            }
-        }
-        (out, n)
-    }
+    (out, n)
 }
 
 /// The segments of a setpoint schedule, force first then position, as sent.
@@ -535,8 +431,8 @@ pub fn setup_crc_update(crc: u16, m: &Message) -> u16 {
 /// them (the tracking time with clamping); every other one must arrive.
 #[derive(Clone, Copy, Debug)]
 pub struct SetupCollector {
-    values: [f64; 38],
-    seen: [bool; 38],
+    values: [f64; param::IDS],
+    seen: [bool; param::IDS],
     /// Segments received, force and position schedules.
     pub schedule: SetpointSchedule,
     n_params: u8,
@@ -549,8 +445,8 @@ pub struct SetupCollector {
 impl Default for SetupCollector {
     fn default() -> Self {
         Self {
-            values: [0.0; 38],
-            seen: [false; 38],
+            values: [0.0; param::IDS],
+            seen: [false; param::IDS],
             schedule: SetpointSchedule::default(),
             n_params: 0,
             n_segments: 0,
@@ -617,90 +513,18 @@ impl SetupCollector {
         if !(start.dt_s.is_finite() && start.dt_s > 0.0) || start.watchdog_ms == 0 {
             return Err(fail(ready::START, 0));
         }
-        let get = |id: u8| -> Result<f64, ReadyPayload> {
+        let value = |id: u8| {
             let i = usize::from(id);
-            if self.seen[i] {
-                Ok(self.values[i])
-            } else {
-                Err(fail(ready::PARAM, id))
-            }
+            self.seen
+                .get(i)
+                .copied()
+                .unwrap_or(false)
+                .then(|| self.values[i])
         };
-        let choice = |id: u8| -> Result<bool, ReadyPayload> {
-            let v = get(id)?;
-            if v == 0.0 {
-                Ok(false)
-            } else if v == 1.0 {
-                Ok(true)
-            } else {
-                Err(fail(ready::PARAM, id))
-            }
-        };
-        let i = param::IMPEDANCE;
-        let impedance = ImpedanceParams {
-            m_d_kg: get(i[0])?,
-            b_d_ns_per_m: get(i[1])?,
-            k_d_n_per_m: get(i[2])?,
-        };
-        let p = param::PID;
-        let pid = PidParams {
-            kp_per_m: get(p[0])?,
-            ki_per_m_s: get(p[1])?,
-            kd_s_per_m: get(p[2])?,
-            derivative_filter_s: get(p[3])?,
-            u_min: get(p[4])?,
-            u_max: get(p[5])?,
-            anti_windup: if choice(p[6])? {
-                AntiWindup::BackCalculation {
-                    tracking_time_s: get(p[7])?,
-                }
-            } else {
-                AntiWindup::Clamping
-            },
-        };
-        match start.controller {
-            1 => Ok(ControllerSetup::Impedance { impedance, pid }),
-            2 => {
-                let a = param::ADAPTIVE;
-                let adaptive = AdaptiveParams {
-                    lambda_p: get(a[0])?,
-                    lambda_d: get(a[1])?,
-                    mu1: get(a[2])?,
-                    mu2: get(a[3])?,
-                    mu3: get(a[4])?,
-                    sigma1: get(a[5])?,
-                    sigma2: get(a[6])?,
-                    sigma3: get(a[7])?,
-                    force_unit_n: get(a[8])?,
-                    position_unit_m: get(a[9])?,
-                    lambda_d_sign: if choice(a[10])? {
-                        LambdaDSign::AsPrinted
-                    } else {
-                        LambdaDSign::FromEdot
-                    },
-                    sigma1_sign: if choice(a[11])? {
-                        Sigma1Sign::AsPrinted
-                    } else {
-                        Sigma1Sign::Leakage
-                    },
-                    adapt_in_contact_only: choice(a[12])?,
-                    contact_threshold_n: get(a[13])?,
-                    velocity_source: if choice(a[14])? {
-                        VelocitySource::ImpedanceFilter
-                    } else {
-                        VelocitySource::Measured
-                    },
-                    g_max_m: get(a[15])?,
-                    p_max_m_per_n: get(a[16])?,
-                    d_max_s: get(a[17])?,
-                };
-                Ok(ControllerSetup::Adaptive {
-                    impedance,
-                    adaptive,
-                    pid,
-                })
-            }
-            _ => Err(fail(ready::START, 0)),
-        }
+        ControllerSetup::from_params(start.controller, value).map_err(|e| match e {
+            SetupError::Param(id) => fail(ready::PARAM, id),
+            SetupError::Kind(_) => fail(ready::START, 0),
+        })
     }
 }
 
@@ -708,6 +532,9 @@ impl SetupCollector {
 mod tests {
     use super::*;
     use crate::{DecodeEvent, Decoder, Frame, MAX_FRAME, encode};
+    use pneuflex_control::{
+        AdaptiveParams, AntiWindup, ImpedanceParams, PidParams, VelocitySource,
+    };
 
     fn round_trip(m: Message) -> Message {
         let mut buf = [0u8; MAX_FRAME];
@@ -835,7 +662,7 @@ mod tests {
         let sp = SetpointSchedule::paper_fig3(0.004).unwrap();
         let mut board = SetupCollector::default();
         let mut host_crc = crate::crc::CRC16_INIT;
-        let (params, n) = setup.params();
+        let (params, n) = param_payloads(&setup);
         let segs: Vec<_> = segments(&sp).collect();
         for m in params[..n]
             .iter()

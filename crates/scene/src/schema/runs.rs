@@ -115,6 +115,39 @@ impl RunSpec {
         self.build_with(Some(values))
     }
 
+    /// What the board builds this run's controller from (`pneuflex rig pil`): its kind and parameters,
+    /// checked here first as [`RunSpec::build`] checks them, so that a bad value is named by its key
+    /// before anything is sent. A frozen run is refused: its values come from another run's trace.
+    pub fn board_setup(&self) -> Result<pneuflex_control::ControllerSetup, RunSpecError> {
+        use pneuflex_control::ControllerSetup;
+        if let Some(f) = &self.frozen {
+            return Err(RunSpecError {
+                key: "frozen".into(),
+                message: format!(
+                    "holds the controller of `{}` with g, p, d fixed: the board runs the adapting controllers \
+                     only; choose another run",
+                    f.run
+                ),
+            });
+        }
+        self.build()?;
+        // One arm per kind: a controller for the board is a compile error here until it has its setup.
+        Ok(match self.controller {
+            ControllerKind::Impedance => ControllerSetup::Impedance {
+                impedance: self.impedance,
+                pid: self.inner,
+            },
+            ControllerKind::Adaptive => ControllerSetup::Adaptive {
+                impedance: self.impedance,
+                adaptive: self.adaptive.ok_or_else(|| RunSpecError {
+                    key: "adaptive".into(),
+                    message: "missing".into(),
+                })?,
+                pid: self.inner,
+            },
+        })
+    }
+
     fn build_with(
         &self,
         frozen: Option<FrozenValues>,
@@ -186,8 +219,8 @@ impl RunSpec {
 /// The controller of a run.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
-// Non-exhaustive: beyond this crate, a kind a host cannot run (the board) is refused by name, so that a
-// controller added for simulation touches the scene and control crates only.
+// Non-exhaustive: beyond this crate, a host that serves some kinds only (the Gymnasium environment) refuses
+// the others by name, so that a new controller touches the scene and control crates only.
 #[non_exhaustive]
 pub enum ControllerKind {
     /// Position-based impedance control, eqs. (19)–(24), with the inner position PID.
