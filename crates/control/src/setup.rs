@@ -141,80 +141,16 @@ impl ControllerSetup {
     /// numbers are checked by the controller's constructor in [`ControllerSetup::build`].
     pub fn from_params(code: u8, value: impl Fn(u8) -> Option<f64>) -> Result<Self, SetupError> {
         let get = |id: u8| value(id).ok_or(SetupError::Param(id));
-        let choice = |id: u8| {
-            let v = get(id)?;
-            if v == 0.0 {
-                Ok(false)
-            } else if v == 1.0 {
-                Ok(true)
-            } else {
-                Err(SetupError::Param(id))
-            }
-        };
-        let i = param::IMPEDANCE;
-        let impedance = ImpedanceParams {
-            m_d_kg: get(i[0])?,
-            b_d_ns_per_m: get(i[1])?,
-            k_d_n_per_m: get(i[2])?,
-        };
-        let p = param::PID;
-        let pid = PidParams {
-            kp_per_m: get(p[0])?,
-            ki_per_m_s: get(p[1])?,
-            kd_s_per_m: get(p[2])?,
-            derivative_filter_s: get(p[3])?,
-            u_min: get(p[4])?,
-            u_max: get(p[5])?,
-            anti_windup: if choice(p[6])? {
-                AntiWindup::BackCalculation {
-                    tracking_time_s: get(p[7])?,
-                }
-            } else {
-                AntiWindup::Clamping
-            },
-        };
         match code {
-            1 => Ok(ControllerSetup::Impedance { impedance, pid }),
-            2 => {
-                let a = param::ADAPTIVE;
-                let adaptive = AdaptiveParams {
-                    lambda_p: get(a[0])?,
-                    lambda_d: get(a[1])?,
-                    mu1: get(a[2])?,
-                    mu2: get(a[3])?,
-                    mu3: get(a[4])?,
-                    sigma1: get(a[5])?,
-                    sigma2: get(a[6])?,
-                    sigma3: get(a[7])?,
-                    force_unit_n: get(a[8])?,
-                    position_unit_m: get(a[9])?,
-                    lambda_d_sign: if choice(a[10])? {
-                        LambdaDSign::AsPrinted
-                    } else {
-                        LambdaDSign::FromEdot
-                    },
-                    sigma1_sign: if choice(a[11])? {
-                        Sigma1Sign::AsPrinted
-                    } else {
-                        Sigma1Sign::Leakage
-                    },
-                    adapt_in_contact_only: choice(a[12])?,
-                    contact_threshold_n: get(a[13])?,
-                    velocity_source: if choice(a[14])? {
-                        VelocitySource::ImpedanceFilter
-                    } else {
-                        VelocitySource::Measured
-                    },
-                    g_max_m: get(a[15])?,
-                    p_max_m_per_n: get(a[16])?,
-                    d_max_s: get(a[17])?,
-                };
-                Ok(ControllerSetup::Adaptive {
-                    impedance,
-                    adaptive,
-                    pid,
-                })
-            }
+            1 => Ok(ControllerSetup::Impedance {
+                impedance: impedance_from(&get)?,
+                pid: pid_from(&get)?,
+            }),
+            2 => Ok(ControllerSetup::Adaptive {
+                impedance: impedance_from(&get)?,
+                pid: pid_from(&get)?,
+                adaptive: adaptive_from(&get)?,
+            }),
             other => Err(SetupError::Kind(other)),
         }
     }
@@ -234,6 +170,85 @@ impl ControllerSetup {
             )?),
         })
     }
+}
+
+/// A value the receiver holds, or the id it lacks.
+type Get<'a> = &'a dyn Fn(u8) -> Result<f64, SetupError>;
+
+/// A 0/1 choice: any other value is refused by its id.
+fn choice(get: Get<'_>, id: u8) -> Result<bool, SetupError> {
+    let v = get(id)?;
+    if v == 0.0 {
+        Ok(false)
+    } else if v == 1.0 {
+        Ok(true)
+    } else {
+        Err(SetupError::Param(id))
+    }
+}
+
+fn impedance_from(get: Get<'_>) -> Result<ImpedanceParams, SetupError> {
+    let i = param::IMPEDANCE;
+    Ok(ImpedanceParams {
+        m_d_kg: get(i[0])?,
+        b_d_ns_per_m: get(i[1])?,
+        k_d_n_per_m: get(i[2])?,
+    })
+}
+
+fn pid_from(get: Get<'_>) -> Result<PidParams, SetupError> {
+    let p = param::PID;
+    Ok(PidParams {
+        kp_per_m: get(p[0])?,
+        ki_per_m_s: get(p[1])?,
+        kd_s_per_m: get(p[2])?,
+        derivative_filter_s: get(p[3])?,
+        u_min: get(p[4])?,
+        u_max: get(p[5])?,
+        anti_windup: if choice(get, p[6])? {
+            AntiWindup::BackCalculation {
+                tracking_time_s: get(p[7])?,
+            }
+        } else {
+            AntiWindup::Clamping
+        },
+    })
+}
+
+fn adaptive_from(get: Get<'_>) -> Result<AdaptiveParams, SetupError> {
+    let a = param::ADAPTIVE;
+    Ok(AdaptiveParams {
+        lambda_p: get(a[0])?,
+        lambda_d: get(a[1])?,
+        mu1: get(a[2])?,
+        mu2: get(a[3])?,
+        mu3: get(a[4])?,
+        sigma1: get(a[5])?,
+        sigma2: get(a[6])?,
+        sigma3: get(a[7])?,
+        force_unit_n: get(a[8])?,
+        position_unit_m: get(a[9])?,
+        lambda_d_sign: if choice(get, a[10])? {
+            LambdaDSign::AsPrinted
+        } else {
+            LambdaDSign::FromEdot
+        },
+        sigma1_sign: if choice(get, a[11])? {
+            Sigma1Sign::AsPrinted
+        } else {
+            Sigma1Sign::Leakage
+        },
+        adapt_in_contact_only: choice(get, a[12])?,
+        contact_threshold_n: get(a[13])?,
+        velocity_source: if choice(get, a[14])? {
+            VelocitySource::ImpedanceFilter
+        } else {
+            VelocitySource::Measured
+        },
+        g_max_m: get(a[15])?,
+        p_max_m_per_n: get(a[16])?,
+        d_max_s: get(a[17])?,
+    })
 }
 
 /// A controller built from a setup, held by value (no heap to box it in).
@@ -337,6 +352,11 @@ mod tests {
             );
             assert_eq!(
                 ControllerSetup::from_params(9, |id| values[usize::from(id)]),
+                Err(SetupError::Kind(9))
+            );
+            // The kind is read first: it says which parameters must have come.
+            assert_eq!(
+                ControllerSetup::from_params(9, |_| None),
                 Err(SetupError::Kind(9))
             );
         }
