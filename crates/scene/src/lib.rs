@@ -12,6 +12,7 @@
 pub mod analysis;
 pub mod error;
 pub mod mechanism;
+pub mod origin;
 pub mod plants;
 pub mod run;
 pub mod schema;
@@ -19,7 +20,7 @@ pub mod schema;
 pub use error::SceneError;
 pub use plants::{
     IdealLoop, LinearSpring, MultibodyPlant, OneDofPneumatic, Plant, Visual, VisualPose,
-    VisualShape, build_plant,
+    VisualShape,
 };
 pub use run::output::{Summary, scene_inputs, summary, write_results, write_summary, write_trace};
 pub use run::trace::Trace;
@@ -27,6 +28,7 @@ pub use run::{
     LyapunovSummary, RunOptions, RunResult, Sink, Sinks, TickTiming, WindowMetrics, run_scene,
     run_scene_observed, run_scene_with, signal_name, simulate, simulate_observed, time_ticks,
 };
+pub use schema::plant::build_plant;
 pub use schema::{
     Budget, ControllerKind, EventSpec, FrozenAt, FrozenValues, Limits, MaterialSpec, MultibodySpec,
     PlantSpec, SCENE_SCHEMA_VERSION, Scene, WindowKind,

@@ -14,7 +14,8 @@
 use serde::Serialize;
 
 use crate::error::SceneError;
-use crate::plants::{Linearisable, linearisable_at};
+use crate::plants::Linearisable;
+use crate::schema::plant::linearisable_at;
 use crate::schema::{EventSpec, Scene};
 
 /// Margins of the inner loop at one environment stiffness.

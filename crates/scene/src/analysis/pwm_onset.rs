@@ -18,7 +18,8 @@ use nalgebra::DMatrix;
 
 use super::loop_margins::{linearise_secant, settle};
 use crate::SceneError;
-use crate::plants::{Linearisable, linearisable_at};
+use crate::plants::Linearisable;
+use crate::schema::plant::linearisable_at;
 use crate::schema::{RunSpec, Scene};
 
 /// The sampled-data onset at one stiffness.

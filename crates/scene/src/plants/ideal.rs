@@ -2,8 +2,7 @@
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 
-use super::{LinearSpring, Plant, PlantError};
-use crate::schema::EventSpec;
+use super::{EventSpec, LinearSpring, Plant, PlantError};
 
 /// An ideal inner position loop: x'' = ω² (x_r - x) - 2 ζ ω x', with x_r from the controller's telemetry.
 ///

@@ -7,8 +7,8 @@
 use pneuflex_control::{Sensors, Signal, Telemetry, ValveCommand};
 
 use crate::error::SceneError;
+use crate::plants::{EventSpec, PlantSite, PlantSpec};
 use crate::plants::{LinearSpring, Plant};
-use crate::schema::{EventSpec, PlantSpec, Scene};
 
 /// The load pressure the plant is driven with (its own recorded signal).
 const LINEAR_SIGNALS: [Signal; 1] = [Signal::new(
@@ -75,7 +75,12 @@ impl LinearPlant {
     }
 
     /// The plant a `kind = "linear"` scene describes.
-    pub fn from_scene(scene: &Scene, env: LinearSpring) -> Result<Self, SceneError> {
+    pub fn from_spec(
+        spec: &PlantSpec,
+        site: &PlantSite<'_>,
+        env: LinearSpring,
+    ) -> Result<Self, SceneError> {
+        let origin = site.origin;
         let PlantSpec::Linear {
             actuator,
             k_n_m_per_pa_s,
@@ -85,21 +90,18 @@ impl LinearPlant {
             load_pressure_range_pa,
             substeps,
             x0_m,
-        } = &scene.plant
+        } = spec
         else {
-            return Err(SceneError::Plant {
-                file: scene.source.clone(),
-                message: "not a linear plant".into(),
-            });
+            return Err(origin.plant_error("not a linear plant".into()));
         };
         let model = match actuator {
             Some(a) => {
-                let sheet = scene
-                    .load_sheet(&scene.resolve(a))
-                    .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
+                let sheet = origin
+                    .load_sheet(&origin.resolve(a))
+                    .map_err(|e| origin.invalid("plant.actuator", e.to_string()))?;
                 let m = sheet.model();
                 let (_, tf) = m.transfer_function_mid_stroke().map_err(|e| {
-                    scene.invalid(
+                    origin.invalid(
                         "plant.actuator",
                         format!("no operating point at mid-stroke to linearise at: {e}"),
                     )
@@ -117,7 +119,7 @@ impl LinearPlant {
             None => {
                 // Validation requires every number without a sheet.
                 let need = |x: Option<f64>, key: &str| {
-                    x.ok_or_else(|| scene.invalid(key, "missing".into()))
+                    x.ok_or_else(|| origin.invalid(key, "missing".into()))
                 };
                 LinearModel {
                     k_n: need(*k_n_m_per_pa_s, "plant.k_n_m_per_pa_s")?,

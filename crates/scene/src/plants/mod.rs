@@ -1,386 +1,375 @@
-//! Plants: what the controller drives, one file per kind. Every plant is stepped the same way,
-//! `sense → controller.update → actuate → advance(dt)`; [`build_plant`] is the one place a scene's plant
-//! spec becomes a plant.
+//! Plants: what the controller drives, one file per kind, and the `[plant]` table that says which. Every
+//! plant is stepped the same way, `sense → controller.update → actuate → advance(dt)` ([`Plant`]). This file
+//! is the registry: a kind's `mod` line, its [`PlantSpec`] variant with its keys and checks, and one arm in
+//! each dispatch ([`PlantSpec::build`], [`PlantSpec::linearisable`]). The plants see the scene through a
+//! [`PlantSite`], never the scene itself, so that the scene's file format can hold a `PlantSpec`.
 
 mod chambers;
+pub mod events;
 pub mod ideal;
 pub mod linear;
 pub mod multibody;
+pub mod plant;
 pub mod pneumatic;
+pub mod visual;
 
-use pneuflex_control::{Sensors, Telemetry, ValveCommand};
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
 
 use crate::error::SceneError;
-use crate::schema::{EventSpec, PlantSpec, Scene};
+use crate::origin::{Check, SceneOrigin};
 pub use chambers::{PRESSURE_MARGIN, VALVE_SIGNALS, chamber_invariants};
+pub use events::EventSpec;
 pub use ideal::IdealLoop;
 pub use linear::LinearPlant;
-pub use multibody::{FlangeDrive, MultibodyPlant};
+pub use multibody::{FlangeDrive, MaterialSpec, MultibodyPlant, MultibodySpec};
+pub use plant::{LinearSpring, Linearisable, Plant, PlantError, PlantErrorKind};
 pub use pneumatic::OneDofPneumatic;
+pub use visual::{
+    ActuatorGeometry, Visual, VisualPose, VisualRole, VisualShape, drawn_links, drawn_poses,
+};
 
-/// Builds the plant a scene describes, at its initial state.
-pub fn build_plant(scene: &Scene) -> Result<Box<dyn Plant>, SceneError> {
-    let env = spring_at(scene, scene.environment.stiffness_n_per_m);
-    match &scene.plant {
-        PlantSpec::Ideal {
-            omega_rad_per_s,
-            zeta,
-            x0_m,
-        } => Ok(Box::new(IdealLoop::new(
-            *omega_rad_per_s,
-            *zeta,
-            *x0_m,
-            env,
-        ))),
-        PlantSpec::Pneumatic { .. } => Ok(Box::new(OneDofPneumatic::from_scene(scene, env)?)),
-        PlantSpec::Multibody(_) => Ok(Box::new(MultibodyPlant::from_scene(scene)?)),
-        PlantSpec::Linear { .. } => Ok(Box::new(LinearPlant::from_scene(scene, env)?)),
-    }
+/// What a plant is checked and built against: the scene around it, as the plants see it.
+#[derive(Clone, Copy)]
+pub struct PlantSite<'a> {
+    /// The scene's file, text, folder and overlay: where an error is placed and a path resolved.
+    pub origin: SceneOrigin<'a>,
+    /// The control period, s.
+    pub dt_s: f64,
+    /// The environment at t = 0: `environment.stiffness_n_per_m` at `environment.x_e_m`.
+    pub environment: LinearSpring,
+    /// The scene's events (a physics step of several ticks must not fall between them).
+    pub events: &'a [EventSpec],
 }
 
-/// The scene's plant against a spring of stiffness `k_e` at the scene's contact position, as the loop
-/// analyses take it ([`crate::analysis::loop_margins`], [`crate::analysis::pwm_onset`]): a plant the valve
-/// command drives continuously and that linearises. None for the ideal loop and the multibody rig, which
-/// they do not analyse.
-pub fn linearisable_at(
-    scene: &Scene,
-    k_e: f64,
-) -> Result<Option<Box<dyn Linearisable>>, SceneError> {
-    let env = spring_at(scene, k_e);
-    Ok(match &scene.plant {
-        PlantSpec::Pneumatic { .. } => Some(Box::new(OneDofPneumatic::from_scene(scene, env)?)),
-        PlantSpec::Linear { .. } => Some(Box::new(LinearPlant::from_scene(scene, env)?)),
-        PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => None,
-    })
-}
-
-/// The scene's environment as a spring of stiffness `k_e`.
-fn spring_at(scene: &Scene, k_e: f64) -> LinearSpring {
-    LinearSpring {
-        stiffness_n_per_m: k_e,
-        x_e_m: scene.environment.x_e_m,
-    }
-}
-
-/// What a plant gives the analysis: its continuous state as a vector, and back.
-pub trait Linearisable: Plant {
-    /// A copy at the same state, for an analysis that tries several linearisations from one point.
-    fn boxed_clone(&self) -> Box<dyn Linearisable>;
-    /// Whether the plant has the valve saturation and friction the describing-function prediction of a
-    /// limit cycle models ([`crate::analysis::loop_margins::limit_cycle_onset`]).
-    fn has_valve_and_friction(&self) -> bool {
-        false
-    }
-    /// The state (position first).
-    fn state_vector(&self) -> Vec<f64>;
-    /// Sets the state from a vector of the same layout.
-    fn set_state_vector(&mut self, v: &[f64]);
-    /// A perturbation size per state component for the finite differences.
-    fn perturbation_scales(&self) -> Vec<f64>;
-    /// Whether the valve switches (PWM): then the analysis uses its period-averaged model.
-    fn switching(&self) -> bool {
-        false
-    }
-    /// Replaces a switching valve by its average over one PWM period: the spool's duty d = (1 + u)/2 opens
-    /// supply→A and B→exhaust for d of the period and the other paths for 1 − d, i.e. a proportional valve
-    /// open both ways at the centre (underlap 1), lagging by the switching delay plus half a period.
-    fn average_switching(&mut self) {}
-    /// For the sampled-data analysis of a switching valve ([`crate::analysis::pwm_onset`]): replaces it by
-    /// the valve its latched duty drives over a period — open both ways at the centre as in
-    /// [`Linearisable::average_switching`], but without the lag, which the analysis models exactly as the
-    /// hold of the duty over the period and the switching delay. Returns (PWM period, switching delay), s;
-    /// None for a valve that does not switch.
-    fn hold_switching(&mut self) -> Option<(f64, f64)> {
-        None
-    }
-    /// Leaves out Coulomb friction: linearised at rest its tanh or stick band is a steep viscous damping
-    /// (F_c/v_s, 600 N·s/m on the shipped sheet) that an oscillation of any size never sees — its describing
-    /// function falls as 4 F_c/(π ω A) — so a small-signal margin with it would promise far more than the
-    /// loop has. The viscous K_v stays.
-    fn without_coulomb_friction(&mut self) {}
-    /// The Coulomb friction force F_c, N (0 without), for its describing function.
-    fn coulomb_n(&self) -> f64 {
-        0.0
-    }
-    /// Adds a viscous damping c, N·s/m (the describing function of Coulomb friction at an amplitude).
-    fn add_viscous(&mut self, _c: f64) {}
-}
-
-/// What kind of thing went wrong in a plant.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PlantErrorKind {
-    /// The plant has nothing the event could change (a swap on a 1-DOF plant, an incline on the ideal loop).
-    Unsupported,
-    /// The event's values cannot be applied here (an unknown material, a carriage in motion).
-    Rejected,
-    /// A physical invariant of the state is violated: the run has diverged.
-    Invariant,
-    /// The plant's own machinery failed (an exception in a plant written in Python).
-    External,
-}
-
-/// A plant's error: its kind and a message for people.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("{message}")]
-pub struct PlantError {
-    /// What kind of failure.
-    pub kind: PlantErrorKind,
-    /// What happened, with the numbers.
-    pub message: String,
-}
-
-impl PlantError {
-    /// An error of `kind`.
-    pub fn new(kind: PlantErrorKind, message: impl Into<String>) -> Self {
-        Self {
-            kind,
-            message: message.into(),
+impl PlantSite<'_> {
+    /// The checks of the plant's values, blamed on their keys in the scene file.
+    pub(crate) fn check(&self) -> Check<'_> {
+        Check {
+            origin: self.origin,
         }
     }
-    /// The plant has nothing the event could change.
-    pub fn unsupported(message: impl Into<String>) -> Self {
-        Self::new(PlantErrorKind::Unsupported, message)
-    }
-    /// A violated physical invariant.
-    pub fn invariant(message: impl Into<String>) -> Self {
-        Self::new(PlantErrorKind::Invariant, message)
-    }
 }
 
-impl From<String> for PlantError {
-    fn from(message: String) -> Self {
-        Self::new(PlantErrorKind::Rejected, message)
-    }
+/// Which plant the controllers drive.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum PlantSpec {
+    /// x follows the reference position x_r through a stiff second-order loop (an ideal inner loop).
+    Ideal {
+        /// Natural frequency of the position loop, rad/s.
+        omega_rad_per_s: f64,
+        /// Damping ratio of the position loop, 1.
+        #[serde(default = "one")]
+        zeta: f64,
+        /// Initial flange position, m.
+        #[serde(default)]
+        x0_m: f64,
+    },
+    /// The 1-DOF pneumatic actuator model (pneuflex-pneumatics) driven by the valve command.
+    Pneumatic {
+        /// Actuator sheet (TOML), relative to the scene file.
+        actuator: PathBuf,
+        /// RK4 substeps per control period (the chamber dynamics are faster than the controller).
+        #[serde(default = "default_substeps")]
+        substeps: u32,
+        /// Incline of the platform below horizontal, degrees; gravity aids extension by m g sin(alpha).
+        /// Absent: the actuator sheet's value.
+        #[serde(default)]
+        alpha_deg: Option<f64>,
+        /// Initial flange position, m. Absent: the actuator sheet's initial state.
+        #[serde(default)]
+        x0_m: Option<f64>,
+    },
+    /// The rig as a Rapier multibody world built from URDF (pneuflex-multibody): the pneumatic force
+    /// element between cylinder and flange, compliant material faces on a kinematic carriage.
+    Multibody(MultibodySpec),
+    /// The paper's linear model, eqs. (16)/(17): Y(s)/P_L(s) = K_n / (s (s²/ω_n² + 2 ξ_n s/ω_n + 1)), with the
+    /// valve command as a load-pressure command p_L = u · load_pressure_range_pa and the contact force as the
+    /// load-pressure disturbance -f_e/S_a (Section III-B's simulation). From an actuator sheet (linearised at
+    /// mid-stroke, as `pneuflex tf` prints) or from given numbers.
+    Linear {
+        /// Actuator sheet to linearise; absent = the numbers below are all given.
+        #[serde(default)]
+        actuator: Option<PathBuf>,
+        /// K_n of eq. (17), m/(Pa·s).
+        #[serde(default)]
+        k_n_m_per_pa_s: Option<f64>,
+        /// ω_n of eq. (17), rad/s.
+        #[serde(default)]
+        omega_n_rad_per_s: Option<f64>,
+        /// ξ_n of eq. (17), 1.
+        #[serde(default)]
+        zeta_n: Option<f64>,
+        /// Piston area S_a, m² (turns the contact force into a load pressure).
+        #[serde(default)]
+        area_a_m2: Option<f64>,
+        /// Load pressure commanded by u = 1, Pa. Absent with a sheet: the supply's gauge pressure.
+        #[serde(default)]
+        load_pressure_range_pa: Option<f64>,
+        /// RK4 substeps per control period.
+        #[serde(default = "default_substeps")]
+        substeps: u32,
+        /// Initial flange position, m. Absent: environment.x_e_m (touching).
+        #[serde(default)]
+        x0_m: Option<f64>,
+    },
 }
 
-impl From<&str> for PlantError {
-    fn from(message: &str) -> Self {
-        Self::new(PlantErrorKind::Rejected, message)
+impl PlantSpec {
+    /// The plant's `kind` as the scene file writes it.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PlantSpec::Ideal { .. } => "ideal",
+            PlantSpec::Pneumatic { .. } => "pneumatic",
+            PlantSpec::Multibody(_) => "multibody",
+            PlantSpec::Linear { .. } => "linear",
+        }
     }
-}
 
-/// Something a controller drives: a simulated plant (integrated) or, later, an adapter to the rig.
-pub trait Plant {
-    /// Sensor values of the current state (the caller sets `t`).
-    fn sense(&self) -> Sensors;
-    /// Applies the controller's output for the next period. The ideal plant follows `telemetry.x_r`,
-    /// a pneumatic plant the valve `command`.
-    fn actuate(&mut self, command: ValveCommand, telemetry: &Telemetry);
-    /// Integrates the plant over `dt` seconds with the last command held (zero-order hold).
-    fn advance(&mut self, dt: f64);
-    /// Applies a scene event; Err explains why this plant cannot.
-    fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError>;
-    /// Back to the initial state and initial environment.
-    fn reset(&mut self);
-    /// Checks the physical invariants of the current state (absolute pressures within [0, a margin above
-    /// supply], temperatures positive, the piston within its stroke); Err names the variable and its value.
-    fn check_invariants(&self) -> Result<(), PlantError> {
+    /// The actuator sheet the plant runs, as the scene writes it (relative to the scene), if it has one.
+    pub fn actuator_sheet(&self) -> Option<&Path> {
+        match self {
+            PlantSpec::Pneumatic { actuator, .. } => Some(actuator),
+            PlantSpec::Multibody(mb) => Some(&mb.actuator),
+            PlantSpec::Linear { actuator, .. } => actuator.as_deref(),
+            PlantSpec::Ideal { .. } => None,
+        }
+    }
+
+    /// Every file the plant names, with its key in the scene, as written: the actuator sheet
+    /// (`plant.actuator`) and the URDF (`plant.urdf`).
+    pub fn files(&self) -> Vec<(&'static str, &Path)> {
+        let mut out: Vec<(&'static str, &Path)> = self
+            .actuator_sheet()
+            .map(|a| ("plant.actuator", a))
+            .into_iter()
+            .collect();
+        if let PlantSpec::Multibody(mb) = self {
+            out.push(("plant.urdf", &mb.urdf));
+        }
+        out
+    }
+
+    /// The finest integration steps the plant takes per control period `dt_s` (RK4 substeps, or chamber
+    /// substeps of the physics step).
+    pub fn steps_per_tick(&self, dt_s: f64) -> f64 {
+        match self {
+            PlantSpec::Ideal { .. } => 1.0,
+            PlantSpec::Pneumatic { substeps, .. } | PlantSpec::Linear { substeps, .. } => {
+                f64::from(*substeps)
+            }
+            PlantSpec::Multibody(mb) => dt_s / mb.chamber_substep_s(dt_s),
+        }
+    }
+
+    /// The multibody rig's spec, for a multibody plant.
+    pub fn multibody(&self) -> Option<&MultibodySpec> {
+        match self {
+            PlantSpec::Multibody(mb) => Some(mb),
+            PlantSpec::Ideal { .. } | PlantSpec::Pneumatic { .. } | PlantSpec::Linear { .. } => {
+                None
+            }
+        }
+    }
+
+    /// The actuator whose force comes from the two-chamber model (the pneumatic and multibody plants): its
+    /// sheet as written and the incline the scene sets (None: the sheet's). A force element coupled to
+    /// another engine (MuJoCo) simulates this actuator.
+    pub fn force_element(&self) -> Option<(&Path, Option<f64>)> {
+        match self {
+            PlantSpec::Pneumatic {
+                actuator,
+                alpha_deg,
+                ..
+            } => Some((actuator, *alpha_deg)),
+            PlantSpec::Multibody(mb) => Some((&mb.actuator, mb.alpha_deg)),
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => None,
+        }
+    }
+
+    /// The chambers' integration step for a plant with chambers: the step h, s, the key that sets it, and
+    /// its current number of substeps.
+    pub fn chamber_step(&self, dt_s: f64) -> Option<(f64, &'static str, f64)> {
+        match self {
+            PlantSpec::Pneumatic { substeps, .. } => Some((
+                dt_s / f64::from(*substeps),
+                "plant.substeps",
+                f64::from(*substeps),
+            )),
+            PlantSpec::Multibody(mb) => Some((
+                mb.chamber_substep_s(dt_s),
+                "plant.chamber_substeps",
+                f64::from(mb.chamber_substeps),
+            )),
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => None,
+        }
+    }
+
+    /// Whether the environment's spring is integrated inside the chambers' substeps (the 1-DOF pneumatic
+    /// plant), so that the contact mode must be resolved by that step; the multibody plant leaves contact
+    /// to Rapier.
+    pub fn contact_in_substeps(&self) -> bool {
+        match self {
+            PlantSpec::Pneumatic { .. } => true,
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } | PlantSpec::Multibody(_) => false,
+        }
+    }
+
+    /// Whether gravity acts in the plant (an incline event changes something).
+    pub fn has_gravity(&self) -> bool {
+        match self {
+            PlantSpec::Pneumatic { .. } | PlantSpec::Multibody(_) => true,
+            PlantSpec::Ideal { .. } | PlantSpec::Linear { .. } => false,
+        }
+    }
+
+    /// The key that sets the plant's finest step: what to change when a run needs too many steps.
+    pub fn step_key(&self) -> &'static str {
+        match self {
+            PlantSpec::Multibody(_) => "plant.physics_dt_s",
+            PlantSpec::Pneumatic { .. } | PlantSpec::Linear { .. } => "plant.substeps",
+            PlantSpec::Ideal { .. } => "dt_s",
+        }
+    }
+
+    /// The plant this spec describes, at its initial state, against the environment `env`.
+    pub fn build(
+        &self,
+        site: &PlantSite<'_>,
+        env: LinearSpring,
+    ) -> Result<Box<dyn Plant>, SceneError> {
+        Ok(match self {
+            PlantSpec::Ideal {
+                omega_rad_per_s,
+                zeta,
+                x0_m,
+            } => Box::new(IdealLoop::new(*omega_rad_per_s, *zeta, *x0_m, env)),
+            PlantSpec::Pneumatic { .. } => Box::new(OneDofPneumatic::from_spec(self, site, env)?),
+            PlantSpec::Multibody(mb) => Box::new(MultibodyPlant::from_spec(mb, site)?),
+            PlantSpec::Linear { .. } => Box::new(LinearPlant::from_spec(self, site, env)?),
+        })
+    }
+
+    /// The plant against the spring `env` as the loop analyses take it ([`crate::analysis::loop_margins`],
+    /// [`crate::analysis::pwm_onset`]): a plant the valve command drives continuously and that linearises.
+    /// None for the ideal loop and the multibody rig, which they do not analyse.
+    pub fn linearisable(
+        &self,
+        site: &PlantSite<'_>,
+        env: LinearSpring,
+    ) -> Result<Option<Box<dyn Linearisable>>, SceneError> {
+        Ok(match self {
+            PlantSpec::Pneumatic { .. } => {
+                Some(Box::new(OneDofPneumatic::from_spec(self, site, env)?))
+            }
+            PlantSpec::Linear { .. } => Some(Box::new(LinearPlant::from_spec(self, site, env)?)),
+            PlantSpec::Ideal { .. } | PlantSpec::Multibody(_) => None,
+        })
+    }
+
+    /// Checks the plant's keys: every number of its kind, and the multibody rig's materials and physics
+    /// step against the scene around it.
+    pub(crate) fn check(&self, site: &PlantSite<'_>) -> Result<(), SceneError> {
+        let v = &site.check();
+        match self {
+            PlantSpec::Ideal {
+                omega_rad_per_s,
+                zeta,
+                x0_m,
+            } => {
+                v.positive("plant.omega_rad_per_s", *omega_rad_per_s)?;
+                v.non_negative("plant.zeta", *zeta)?;
+                v.finite("plant.x0_m", *x0_m)?;
+                // RK4 is stable for |λ dt| below ~2.8; keep well inside.
+                if omega_rad_per_s * site.dt_s > 1.0 {
+                    return Err(v.err(
+                        "plant.omega_rad_per_s",
+                        format!(
+                            "omega * dt_s must be <= 1 for an accurate fixed-step RK4, got {} (dt_s = {})",
+                            omega_rad_per_s * site.dt_s,
+                            site.dt_s
+                        ),
+                    ));
+                }
+            }
+            PlantSpec::Pneumatic {
+                actuator,
+                substeps,
+                alpha_deg,
+                x0_m,
+            } => {
+                if *substeps == 0 {
+                    return Err(v.err("plant.substeps", "must be >= 1, got 0".into()));
+                }
+                if actuator.as_os_str().is_empty() {
+                    return Err(v.err("plant.actuator", "must name an actuator sheet".into()));
+                }
+                if let Some(a) = alpha_deg {
+                    v.within("plant.alpha_deg", *a, -90.0, 90.0)?;
+                }
+                if let Some(x) = x0_m {
+                    v.finite("plant.x0_m", *x)?;
+                }
+            }
+            PlantSpec::Multibody(mb) => multibody::check(mb, site)?,
+            PlantSpec::Linear {
+                actuator,
+                k_n_m_per_pa_s,
+                omega_n_rad_per_s,
+                zeta_n,
+                area_a_m2,
+                load_pressure_range_pa,
+                substeps,
+                x0_m,
+            } => {
+                if *substeps == 0 {
+                    return Err(v.err("plant.substeps", "must be >= 1, got 0".into()));
+                }
+                let given = [
+                    ("plant.k_n_m_per_pa_s", *k_n_m_per_pa_s),
+                    ("plant.omega_n_rad_per_s", *omega_n_rad_per_s),
+                    ("plant.zeta_n", *zeta_n),
+                    ("plant.area_a_m2", *area_a_m2),
+                    ("plant.load_pressure_range_pa", *load_pressure_range_pa),
+                ];
+                for (key, val) in given {
+                    match (val, key) {
+                        (Some(z), "plant.zeta_n") => v.non_negative(key, z)?,
+                        (Some(x), _) => v.positive(key, x)?,
+                        (None, _) => {
+                            // Without a sheet every number is needed; with one, only the pressure range
+                            // has a default and the rest comes from the linearisation.
+                            if actuator.is_none() {
+                                return Err(v.err(
+                                    key,
+                                    "missing: give an actuator sheet (plant.actuator) or all of k_n_m_per_pa_s, omega_n_rad_per_s, zeta_n, area_a_m2 and load_pressure_range_pa".into(),
+                                ));
+                            }
+                        }
+                    }
+                }
+                if actuator.is_some() && given[..4].iter().any(|(_, x)| x.is_some()) {
+                    return Err(v.err(
+                        "plant.actuator",
+                        "give either an actuator sheet or K_n, omega_n, zeta_n and S_a, not both"
+                            .into(),
+                    ));
+                }
+                if let Some(x) = x0_m {
+                    v.finite("plant.x0_m", *x)?;
+                }
+            }
+        }
         Ok(())
     }
-    /// The plant's own recorded signals (beyond what `sense` returns), declared once.
-    fn signals(&self) -> &'static [pneuflex_control::Signal] {
-        &[]
-    }
-    /// Writes the values of [`Plant::signals`] at the current state into `out` (same length).
-    fn record(&self, _out: &mut [f64]) {}
-    /// The plant's bodies as drawn in 3D (name and shape), for viewers; empty for plants without geometry.
-    fn visuals(&self) -> Vec<Visual> {
-        Vec::new()
-    }
-    /// World pose of each entry of [`Plant::visuals`], in that order, at the current state.
-    fn visual_poses(&self, _pose: &mut dyn FnMut(usize, VisualPose)) {}
-    /// The actuator's geometry as a viewer draws it (cylinder, chambers, incline, environment surface);
-    /// None for a plant without a pneumatic actuator (the ideal loop).
-    fn actuator_geometry(&self) -> Option<ActuatorGeometry> {
-        None
-    }
-    /// The period of the valve's PWM carrier, s (an on/off valve under PWM), which the metrics average
-    /// over; None for a proportional valve or a plant without one. The plant knows it once built.
-    fn pwm_period_s(&self) -> Option<f64> {
-        self.actuator_geometry().and_then(|g| g.pwm_period_s)
-    }
 }
 
-/// What a drawn shape is to the experiment, set by the plant that builds it: viewers colour by it and
-/// attach the chambers to the cylinder and the contact force to the flange.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum VisualRole {
-    /// The moving flange (piston rod end) that pushes the environment.
-    Flange,
-    /// The cylinder body, in which the chambers are.
-    Cylinder,
-    /// The environment the flange pushes (faces and their blocks).
-    Environment,
-    /// Anything else (platform, carriage, ...).
-    #[default]
-    Other,
+fn one() -> f64 {
+    1.0
 }
 
-/// The actuator's geometry for viewers (SI), at the plant's initial state.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ActuatorGeometry {
-    /// Piston stroke, m.
-    pub stroke_m: f64,
-    /// Cylinder bore, m.
-    pub bore_m: f64,
-    /// Incline of the actuator axis below the horizontal, rad.
-    pub alpha_rad: f64,
-    /// Flange extension at which the environment is first touched, m.
-    pub x_e_m: f64,
-    /// Period of the valve's PWM carrier, s (an on/off valve under PWM); None for a proportional valve.
-    pub pwm_period_s: Option<f64>,
-}
-
-/// One drawable collision shape of a plant's link.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Visual {
-    /// Link name (with `/<i>` for a link's i-th shape when it has several).
-    pub name: String,
-    /// The shape, centred on its pose.
-    pub shape: VisualShape,
-    /// What the shape is to the experiment.
-    pub role: VisualRole,
-}
-
-/// A shape for viewers (SI).
-#[derive(Clone, Debug, PartialEq)]
-pub enum VisualShape {
-    /// Box with half edge lengths along its x, y, z, m.
-    Box {
-        /// Half edge lengths, m.
-        half_extents_m: [f64; 3],
-    },
-    /// Cylinder along its z axis, m.
-    Cylinder {
-        /// Radius, m.
-        radius_m: f64,
-        /// Half length, m.
-        half_length_m: f64,
-    },
-    /// Sphere, m.
-    Sphere {
-        /// Radius, m.
-        radius_m: f64,
-    },
-    /// A triangle mesh (a URDF mesh's convex hull): vertices, m, and triangles, indices into them.
-    Mesh {
-        /// Vertices, m.
-        vertices_m: Vec<[f64; 3]>,
-        /// Triangles, counter-clockwise seen from outside.
-        triangles: Vec<[u32; 3]>,
-    },
-}
-
-impl VisualShape {
-    /// How a URDF collision shape is drawn (the one conversion: every plant and scene with a URDF uses it).
-    pub fn of(shape: &pneuflex_multibody::LinkShape) -> Self {
-        use pneuflex_multibody::LinkShape;
-        match shape.clone() {
-            LinkShape::Box { size_m } => VisualShape::Box {
-                half_extents_m: size_m.map(|v| 0.5 * v),
-            },
-            LinkShape::Cylinder { radius_m, length_m } => VisualShape::Cylinder {
-                radius_m,
-                half_length_m: 0.5 * length_m,
-            },
-            // Drawn as its cylinder part plus the caps' length.
-            LinkShape::Capsule { radius_m, length_m } => VisualShape::Cylinder {
-                radius_m,
-                half_length_m: 0.5 * length_m + radius_m,
-            },
-            LinkShape::Sphere { radius_m } => VisualShape::Sphere { radius_m },
-            LinkShape::ConvexHull(hull) => VisualShape::Mesh {
-                vertices_m: hull.vertices,
-                triangles: hull.triangles,
-            },
-        }
-    }
-}
-
-/// The drawn shapes of a URDF's links: each collision shape (`<link>`, or `<link>/<i>` for a link's i-th of
-/// several), then each visual mesh (`<link>/visual/<i>`); `role` says what a link is to the experiment.
-pub fn drawn_links<'a>(
-    links: impl Iterator<Item = pneuflex_multibody::LinkView<'a>>,
-    role: impl Fn(&str) -> VisualRole,
-) -> Vec<Visual> {
-    let mut out = Vec::new();
-    for l in links {
-        for (j, g) in l.collisions.iter().enumerate() {
-            out.push(Visual {
-                name: if l.collisions.len() == 1 {
-                    l.name.to_string()
-                } else {
-                    format!("{}/{j}", l.name)
-                },
-                shape: VisualShape::of(&g.shape),
-                role: role(l.name),
-            });
-        }
-        for (j, (_, mesh)) in l.visual_meshes.iter().enumerate() {
-            out.push(Visual {
-                name: format!("{}/visual/{j}", l.name),
-                shape: VisualShape::Mesh {
-                    vertices_m: mesh.vertices.clone(),
-                    triangles: mesh.triangles.clone(),
-                },
-                role: role(l.name),
-            });
-        }
-    }
-    out
-}
-
-/// The pose of each of [`drawn_links`]' shapes now, in that order, in the frame `world` takes the URDF's
-/// root frame to.
-pub fn drawn_poses<'a>(
-    links: impl Iterator<Item = pneuflex_multibody::LinkView<'a>>,
-    world: pneuflex_multibody::Pose,
-    pose: &mut dyn FnMut(usize, VisualPose),
-) {
-    let mut i = 0;
-    for l in links {
-        let origins = l.collisions.iter().map(|g| g.origin);
-        for origin in origins.chain(l.visual_meshes.iter().map(|(o, _)| *o)) {
-            let p = world * l.pose * origin;
-            let (t, q) = (p.translation, p.rotation);
-            pose(
-                i,
-                VisualPose {
-                    translation_m: [t.x, t.y, t.z],
-                    rotation_xyzw: [q.x, q.y, q.z, q.w],
-                },
-            );
-            i += 1;
-        }
-    }
-}
-
-/// Pose of a shape in the world: translation (m) and unit quaternion [x, y, z, w].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VisualPose {
-    /// Translation, m.
-    pub translation_m: [f64; 3],
-    /// Rotation as a unit quaternion [x, y, z, w].
-    pub rotation_xyzw: [f64; 4],
-}
-
-/// Linear-spring environment of eq. (21): f_e = k_e (x - x_e) while x > x_e; no contact (0) otherwise.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LinearSpring {
-    /// Stiffness k_e, N/m.
-    pub stiffness_n_per_m: f64,
-    /// Surface position x_e, m.
-    pub x_e_m: f64,
-}
-
-impl LinearSpring {
-    /// Contact force f_e >= 0 on the environment (positive = the flange pushes), N. eq. (21)
-    pub fn force(&self, x: f64) -> f64 {
-        let d = x - self.x_e_m;
-        if d > 0.0 {
-            self.stiffness_n_per_m * d
-        } else {
-            0.0
-        }
-    }
+fn default_substeps() -> u32 {
+    10
 }

@@ -20,6 +20,8 @@
 
 use std::path::PathBuf;
 
+use serde::{Deserialize, Serialize};
+
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 use pneuflex_multibody::{
     AxialActuator, MaterialConfig, MaterialParams, Measurements, MultibodyConfig, MultibodyError,
@@ -27,9 +29,11 @@ use pneuflex_multibody::{
 };
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
 
+use super::{
+    ActuatorGeometry, EventSpec, LinearSpring, Plant, PlantSite, Visual, VisualPose, VisualRole,
+};
 use crate::error::SceneError;
-use crate::plants::{ActuatorGeometry, LinearSpring, Plant, Visual, VisualPose, VisualRole};
-use crate::schema::{EventSpec, MultibodySpec, PlantSpec, Scene};
+use crate::origin::Check;
 
 /// The pneumatic force element plus the sheet's Coulomb friction, acting between cylinder and flange.
 #[derive(Debug, Clone)]
@@ -84,29 +88,20 @@ impl std::fmt::Debug for MultibodyPlant {
     }
 }
 
-fn plant_err(scene: &Scene, message: String) -> SceneError {
-    SceneError::Plant {
-        file: scene.source.clone(),
-        message,
-    }
-}
-
 impl MultibodyPlant {
     /// The plant a multibody scene describes (URDF and actuator sheet resolved against the scene's
     /// directory). Checks `environment.x_e_m` against the URDF's first-touch position of the initial
     /// material.
-    pub fn from_scene(scene: &Scene) -> Result<Self, SceneError> {
-        let PlantSpec::Multibody(mb) = &scene.plant else {
-            return Err(plant_err(scene, "not a multibody plant".into()));
-        };
-        let sheet_path = scene.resolve(&mb.actuator);
-        let sheet = scene
+    pub fn from_spec(mb: &MultibodySpec, site: &PlantSite<'_>) -> Result<Self, SceneError> {
+        let origin = site.origin;
+        let sheet_path = origin.resolve(&mb.actuator);
+        let sheet = origin
             .load_sheet(&sheet_path)
-            .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
+            .map_err(|e| origin.invalid("plant.actuator", e.to_string()))?;
         // The rig's force element integrates the paper's chambers and friction only.
         let beyond = sheet.effects_beyond_paper();
         if !beyond.is_empty() {
-            return Err(scene.invalid(
+            return Err(origin.invalid(
                 "plant.actuator",
                 format!(
                     "{} gives {}: the multibody plant models the paper's chambers, valve and friction \
@@ -116,11 +111,11 @@ impl MultibodyPlant {
                 ),
             ));
         }
-        let urdf_file = scene.resolve(&mb.urdf);
+        let urdf_file = origin.resolve(&mb.urdf);
         let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf_file)
-            .map_err(|e| scene.invalid("plant.urdf", e.to_string()))?;
+            .map_err(|e| origin.invalid("plant.urdf", e.to_string()))?;
         let mut config = config_of(mb, &sheet);
-        let mb_err = |field: &str, e: MultibodyError| scene.invalid(field, e.to_string());
+        let mb_err = |field: &str, e: MultibodyError| origin.invalid(field, e.to_string());
         // Build once at x = 0 to learn the initial material's contact position.
         let probe = RigWorld::from_robot(&urdf_file, &robot, &config)
             .map_err(|e| mb_err(&multibody_field(mb, &e), e))?;
@@ -128,20 +123,20 @@ impl MultibodyPlant {
         let x_e = probe
             .material_x_e(&init)
             .map_err(|e| mb_err("plant.initial_material", e))?;
-        if (x_e - scene.environment.x_e_m).abs() > 1e-6 {
-            return Err(scene.invalid(
+        if (x_e - site.environment.x_e_m).abs() > 1e-6 {
+            return Err(origin.invalid(
                 "environment.x_e_m",
                 format!(
                     "must be the flange extension where {} first touches material {init:?}: {x_e:.6} m, got {}",
                     urdf_file.display(),
-                    scene.environment.x_e_m
+                    site.environment.x_e_m
                 ),
             ));
         }
         let stroke = probe.stroke();
         let x0 = mb.x0_m.unwrap_or(x_e);
         if !(0.0..=stroke).contains(&x0) {
-            return Err(scene.invalid(
+            return Err(origin.invalid(
                 if mb.x0_m.is_some() {
                     "plant.x0_m"
                 } else {
@@ -186,15 +181,15 @@ impl MultibodyPlant {
         };
         let last = world.measurements();
         Ok(Self {
-            scene_file: scene.source.clone(),
+            scene_file: origin.source.to_path_buf(),
             urdf_file,
             robot,
             config,
             world,
             drive0: drive.clone(),
             drive,
-            steps_per_tick: mb.steps_per_tick(scene.dt_s),
-            ticks_per_step: mb.ticks_per_step(scene.dt_s),
+            steps_per_tick: mb.steps_per_tick(site.dt_s),
+            ticks_per_step: mb.ticks_per_step(site.dt_s),
             tick_in_step: 0,
             force_sum_n: 0.0,
             flange_mass_kg,
@@ -512,6 +507,240 @@ impl Plant for MultibodyPlant {
     }
 }
 
+/// The multibody plant: URDF rig, actuator sheet, physics step and the environment materials.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MultibodySpec {
+    /// URDF of the rig, relative to the scene file.
+    pub urdf: PathBuf,
+    /// Actuator sheet (TOML) of the pneumatic force element, relative to the scene file.
+    pub actuator: PathBuf,
+    /// Rapier physics step, s: `dt_s` is a whole number of physics steps, or a physics step is a whole
+    /// number of control periods (the chambers and the controller still run at `dt_s`).
+    pub physics_dt_s: f64,
+    /// Rapier solver iterations per physics step.
+    #[serde(default = "default_solver_iterations")]
+    pub solver_iterations: usize,
+    /// Chamber (valve + thermodynamics) substeps per physics step, or per control period when a
+    /// physics step spans several.
+    #[serde(default = "default_chamber_substeps")]
+    pub chamber_substeps: u32,
+    /// Incline of the actuator axis below horizontal, degrees. Absent: the actuator sheet's value.
+    #[serde(default)]
+    pub alpha_deg: Option<f64>,
+    /// Initial flange extension, m. Absent: `environment.x_e_m` (touching the initial material).
+    #[serde(default)]
+    pub x0_m: Option<f64>,
+    /// Material facing the flange at t = 0. Absent: the first material.
+    #[serde(default)]
+    pub initial_material: Option<String>,
+    /// Coulomb friction coefficient of the flange-face contacts, 1.
+    #[serde(default = "default_contact_friction")]
+    pub contact_friction: f64,
+    /// Environment materials on the carriage (at least one).
+    pub materials: Vec<MaterialSpec>,
+    /// The URDF's link that the cylinder pushes (rod and flange). Absent: `flange` (urdf/rig.urdf).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_link: Option<String>,
+    /// The prismatic joint between the cylinder and the flange link. Absent: `flange_slide`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_joint: Option<String>,
+    /// The URDF's link of the cylinder body (the force's reaction side). Absent: `cylinder`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cylinder_link: Option<String>,
+    /// The URDF's link that carries the materials, driven kinematically. Absent: `carriage`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub carriage_link: Option<String>,
+}
+
+impl MultibodySpec {
+    /// The material facing the flange at t = 0.
+    pub fn initial_material(&self) -> Option<&MaterialSpec> {
+        match &self.initial_material {
+            Some(n) => self.materials.iter().find(|m| &m.name == n),
+            None => self.materials.first(),
+        }
+    }
+
+    /// Physics steps per control period `dt_s` (rounded; validation requires a whole number; 1 when a
+    /// physics step spans several control periods).
+    pub fn steps_per_tick(&self, dt_s: f64) -> u32 {
+        (dt_s / self.physics_dt_s).round().max(1.0) as u32
+    }
+
+    /// Control periods per physics step (rounded; validation requires a whole number; 1 when a control
+    /// period holds one or more physics steps).
+    pub fn ticks_per_step(&self, dt_s: f64) -> u32 {
+        (self.physics_dt_s / dt_s).round().max(1.0) as u32
+    }
+
+    /// The chamber substep, s: `chamber_substeps` per physics step or per control period, the shorter.
+    pub fn chamber_substep_s(&self, dt_s: f64) -> f64 {
+        self.physics_dt_s.min(dt_s) / f64::from(self.chamber_substeps)
+    }
+}
+
+/// One environment material of the multibody rig: its compliant mount joint in the URDF, k and c.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Material name used by events ("wood", "iron").
+    pub name: String,
+    /// Prismatic URDF joint that carries the material's contact face on the carriage.
+    pub mount_joint: String,
+    /// Mount stiffness k_e of eq. (21), N/m.
+    pub stiffness_n_per_m: f64,
+    /// Mount damping, N·s/m.
+    #[serde(default)]
+    pub damping_n_s_per_m: f64,
+}
+
+fn default_solver_iterations() -> usize {
+    4
+}
+
+fn default_chamber_substeps() -> u32 {
+    10
+}
+
+fn default_contact_friction() -> f64 {
+    0.3
+}
+
+/// Checks the multibody plant's keys, its physics step against `dt_s` and the events, and its materials
+/// against `[environment]`'s stiffness.
+pub(crate) fn check(mb: &MultibodySpec, site: &PlantSite<'_>) -> Result<(), SceneError> {
+    let v = &site.check();
+    if mb.urdf.as_os_str().is_empty() {
+        return Err(v.err("plant.urdf", "must name a URDF file".into()));
+    }
+    if mb.actuator.as_os_str().is_empty() {
+        return Err(v.err("plant.actuator", "must name an actuator sheet".into()));
+    }
+    v.positive("plant.physics_dt_s", mb.physics_dt_s)?;
+    let whole = |r: f64| r >= 1.0 - 1e-9 && (r - r.round()).abs() <= 1e-6 * r.max(1.0);
+    let ratio = site.dt_s / mb.physics_dt_s;
+    let inverse = mb.physics_dt_s / site.dt_s;
+    if !whole(ratio) && !whole(inverse) {
+        return Err(v.err(
+            "plant.physics_dt_s",
+            format!(
+                "must divide dt_s ({}) or be a whole multiple of it, got physics_dt_s / dt_s = {inverse}",
+                site.dt_s
+            ),
+        ));
+    }
+    if inverse.round() > 1000.0 {
+        return Err(v.err(
+            "plant.physics_dt_s",
+            format!("must be at most 1000 dt_s, got {inverse} dt_s"),
+        ));
+    }
+    // A physics step of several ticks: an event changes the rig between physics steps only.
+    if inverse.round() > 1.0 {
+        for (i, e) in site.events.iter().enumerate() {
+            let k = e.t_s() / mb.physics_dt_s;
+            if (k - k.round()).abs() > 1e-6 * k.abs().max(1.0) {
+                return Err(v.err(
+                    &format!("events[{i}].t_s"),
+                    format!(
+                        "must be a whole number of physics steps (plant.physics_dt_s = {} s) when a physics step spans several control periods, got t_s / physics_dt_s = {k}",
+                        mb.physics_dt_s
+                    ),
+                ));
+            }
+        }
+    }
+    if mb.solver_iterations == 0 || mb.solver_iterations > 1000 {
+        return Err(v.err(
+            "plant.solver_iterations",
+            format!("must be in 1 ..= 1000, got {}", mb.solver_iterations),
+        ));
+    }
+    if mb.chamber_substeps == 0 || mb.chamber_substeps > 10_000 {
+        return Err(v.err(
+            "plant.chamber_substeps",
+            format!("must be in 1 ..= 10000, got {}", mb.chamber_substeps),
+        ));
+    }
+    if let Some(a) = mb.alpha_deg {
+        v.within("plant.alpha_deg", a, -90.0, 90.0)?;
+    }
+    if let Some(x) = mb.x0_m {
+        v.finite("plant.x0_m", x)?;
+    }
+    v.non_negative("plant.contact_friction", mb.contact_friction)?;
+    if mb.materials.is_empty() {
+        return Err(v.err("plant.materials", "needs at least one material".into()));
+    }
+    for (i, m) in mb.materials.iter().enumerate() {
+        let at = |k: &str| format!("plant.materials[{i}].{k}");
+        if m.name.trim().is_empty() {
+            return Err(v.err(&at("name"), "must not be empty".into()));
+        }
+        if mb.materials[..i].iter().any(|o| o.name == m.name) {
+            return Err(v.err(&at("name"), format!("duplicate material {:?}", m.name)));
+        }
+        if m.mount_joint.trim().is_empty() {
+            return Err(v.err(&at("mount_joint"), "must name a URDF joint".into()));
+        }
+        v.positive(&at("stiffness_n_per_m"), m.stiffness_n_per_m)?;
+        v.non_negative(&at("damping_n_s_per_m"), m.damping_n_s_per_m)?;
+    }
+    let Some(init) = mb.initial_material() else {
+        return Err(v.err(
+            "plant.initial_material",
+            format!(
+                "{:?} is not one of the materials ({})",
+                mb.initial_material.as_deref().unwrap_or(""),
+                material_names(mb)
+            ),
+        ));
+    };
+    // [environment] states the initial contact (used by the Lyapunov summary and checked against the
+    // URDF's geometry when the plant is built): its stiffness must be the initial material's.
+    if (site.environment.stiffness_n_per_m - init.stiffness_n_per_m).abs()
+        > 1e-9 * init.stiffness_n_per_m
+    {
+        return Err(v.err(
+            "environment.stiffness_n_per_m",
+            format!(
+                "must equal the initial material {:?}'s stiffness_n_per_m ({}) on a multibody plant, got {}",
+                init.name, init.stiffness_n_per_m, site.environment.stiffness_n_per_m
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a material name the multibody plant does not list, naming the ones it does.
+pub(crate) fn known_material(
+    v: &Check<'_>,
+    path: &str,
+    mb: &MultibodySpec,
+    name: &str,
+) -> Result<(), SceneError> {
+    if mb.materials.iter().any(|m| m.name == name) {
+        Ok(())
+    } else {
+        Err(v.err(
+            path,
+            format!(
+                "unknown material {name:?}, expected one of {}",
+                material_names(mb)
+            ),
+        ))
+    }
+}
+
+fn material_names(mb: &MultibodySpec) -> String {
+    mb.materials
+        .iter()
+        .map(|m| format!("{:?}", m.name))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -521,7 +750,7 @@ mod tests {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../scenes")
             .join(scene);
-        MultibodyPlant::from_scene(&Scene::load(&path).unwrap()).unwrap()
+        MultibodyPlant::from_scene(&crate::schema::Scene::load(&path).unwrap()).unwrap()
     }
 
     #[test]

@@ -7,7 +7,7 @@ use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState};
 
 use crate::error::SceneError;
 use crate::plants::{ActuatorGeometry, LinearSpring, Plant};
-use crate::schema::{EventSpec, PlantSpec, Scene};
+use crate::plants::{EventSpec, PlantSite, PlantSpec};
 
 /// The pneumatic actuator against a linear spring, integrated with `substeps` RK4 steps per control period.
 #[derive(Clone, Debug, PartialEq)]
@@ -49,23 +49,25 @@ impl OneDofPneumatic {
     }
 
     /// The plant a pneumatic scene describes (actuator sheet resolved against the scene's directory).
-    pub fn from_scene(scene: &Scene, env: LinearSpring) -> Result<Self, SceneError> {
+    pub fn from_spec(
+        spec: &PlantSpec,
+        site: &PlantSite<'_>,
+        env: LinearSpring,
+    ) -> Result<Self, SceneError> {
+        let origin = site.origin;
         let PlantSpec::Pneumatic {
             actuator,
             substeps,
             alpha_deg,
             x0_m,
-        } = &scene.plant
+        } = spec
         else {
-            return Err(SceneError::Plant {
-                file: scene.source.clone(),
-                message: "not a pneumatic plant".into(),
-            });
+            return Err(origin.plant_error("not a pneumatic plant".into()));
         };
-        let path = scene.resolve(actuator);
-        let sheet = scene
+        let path = origin.resolve(actuator);
+        let sheet = origin
             .load_sheet(&path)
-            .map_err(|e| scene.invalid("plant.actuator", e.to_string()))?;
+            .map_err(|e| origin.invalid("plant.actuator", e.to_string()))?;
         let mut model = sheet.model();
         if let Some(a) = alpha_deg {
             model.mechanics.alpha_rad = a.to_radians();
@@ -74,7 +76,7 @@ impl OneDofPneumatic {
         // Default start: touching the environment surface.
         let x0 = x0_m.unwrap_or(env.x_e_m);
         if !(0.0..=stroke).contains(&x0) {
-            return Err(scene.invalid(
+            return Err(origin.invalid(
                 if x0_m.is_some() {
                     "plant.x0_m"
                 } else {
@@ -312,6 +314,7 @@ impl Plant for OneDofPneumatic {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::schema::Scene;
 
     fn plant() -> OneDofPneumatic {
         let path =

@@ -9,8 +9,8 @@ use pneuflex_control::signal::index;
 use pneuflex_control::{Signal, Sink};
 
 use crate::error::SceneError;
-use crate::plants::build_plant;
 use crate::schema::Scene;
+use crate::schema::plant::build_plant;
 
 /// What [`time_ticks`] measured.
 #[derive(Clone, Debug, PartialEq)]

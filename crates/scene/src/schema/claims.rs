@@ -3,9 +3,9 @@
 use serde::{Deserialize, Serialize};
 
 use super::Scene;
-use super::check::Check;
 use super::windows::WindowKind;
 use crate::error::SceneError;
+use crate::origin::Check;
 
 /// A claim: run `better` has a lower `metric` than run `than` over window `window` (every metric here is
 /// better when lower; a run that did not settle has an infinite settling time).

@@ -3,8 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::Scene;
-use super::check::Check;
 use crate::error::SceneError;
+use crate::origin::Check;
 
 /// A linear-spring environment, eq. (21): f_e = k_e (x - x_e) while x > x_e, 0 otherwise.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]

@@ -3,7 +3,6 @@
 //! Every key is documented with its unit and default in `docs/scenes.md`. Unknown keys, missing keys and
 //! out-of-range numbers (negative stiffness, NaN, ...) are rejected with the file name and the key path.
 
-mod check;
 pub mod claims;
 pub mod divergence;
 pub mod environment;
@@ -20,6 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::SceneError;
+pub use crate::origin::SceneOrigin;
 pub use claims::{CLAIM_METRICS, ClaimSpec};
 pub use divergence::DivergenceSpec;
 pub use environment::EnvironmentSpec;
@@ -166,22 +166,28 @@ impl Scene {
         (self.duration_s / self.dt_s).round() as usize
     }
 
+    /// Where the scene's values come from: its file, text, folder and overlay.
+    pub fn origin(&self) -> SceneOrigin<'_> {
+        SceneOrigin {
+            source: &self.source,
+            text: &self.text,
+            base_dir: &self.base_dir,
+            overlay: &self.overlay,
+        }
+    }
+
     /// The actuator sheet at `resolved` (a path from [`Scene::resolve`]), with the scene's
     /// [`Scene::overlay`] texts standing in for the files they name.
     pub fn load_sheet(
         &self,
         resolved: &Path,
     ) -> Result<pneuflex_pneumatics::ActuatorSheet, pneuflex_pneumatics::ComponentError> {
-        pneuflex_pneumatics::ActuatorSheet::load_overlaid(resolved, &self.overlay)
+        self.origin().load_sheet(resolved)
     }
 
     /// Path of the pneumatic actuator sheet, resolved against the scene's directory.
     pub fn resolve(&self, p: &Path) -> PathBuf {
-        if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            self.base_dir.join(p)
-        }
+        self.origin().resolve(p)
     }
 
     /// The scene's input files, resolved: the scene itself, then the files its plant names (the actuator
@@ -207,18 +213,15 @@ impl Scene {
     /// An error about the value at `path` (a dotted key path), with the line of that key when the text
     /// of the file is known.
     pub fn invalid(&self, path: &str, message: String) -> SceneError {
-        SceneError::Invalid {
-            file: self.source.clone(),
-            at: pneuflex_files::toml_key_position(&self.text, path),
-            key: path.to_string(),
-            message,
-        }
+        self.origin().invalid(path, message)
     }
 
     /// Checks every number and cross-reference, table by table; the error names the file, the line and
     /// the key path.
     pub fn validate(&self) -> Result<(), SceneError> {
-        let v = check::Check { scene: self };
+        let v = crate::origin::Check {
+            origin: self.origin(),
+        };
         if let Some(version) = self.schema_version
             && version != SCENE_SCHEMA_VERSION
         {

@@ -3,8 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::Scene;
-use super::check::Check;
 use crate::error::SceneError;
+use crate::origin::Check;
 
 /// Force reference schedule and desired position.
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]

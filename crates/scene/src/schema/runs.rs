@@ -3,8 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::Scene;
-use super::check::Check;
 use crate::error::SceneError;
+use crate::origin::Check;
 pub use pneuflex_control::{AdaptiveParams, ImpedanceParams, PidParams};
 
 /// One named controller run.

@@ -3,8 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::Scene;
-use super::check::Check;
 use crate::error::SceneError;
+use crate::origin::Check;
 
 /// What a metric window measures.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
