@@ -11,66 +11,90 @@ use pneuflex_files::output::{Manifest, OutputDir, Writer};
 use pneuflex_scene::analysis::claims::{ClaimResult, check_all};
 use pneuflex_scene::analysis::comparison::{Comparison, compare as compare_runs};
 use pneuflex_scene::analysis::recorded::recorded_run;
-use pneuflex_scene::{PlantSpec, RunResult, Scene, Trace};
+use pneuflex_scene::{PlantSpec, RunResult, Scene};
 
-/// One `--rig-log`: the run it recorded, its path, its trace.
+mod rig_log;
+
+/// One `--rig-log`: the run it recorded, its path, its trace (up to a fault), how it ended and what the
+/// checks could not confirm.
 struct Log {
     run: usize,
     path: PathBuf,
-    trace: Trace,
+    log: rig_log::RigLog,
 }
 
-/// The run a log recorded: `RUN=` before the path; else `--run` or, beside the trace, the summary.json
-/// `rig run --scene` wrote; else, for a single log, the scene's first run.
+/// The run a log recorded: `RUN=` before the path, or `--run` for a single log; else the run the
+/// summary.json beside it names (`rig run --scene` writes it); else, for a single log, the scene's first
+/// run. A summary.json of another scene or another run than the one named is refused.
 fn run_of(
     scene: &Scene,
     arg: &str,
     run: Option<&str>,
     single: bool,
 ) -> anyhow::Result<(usize, PathBuf)> {
-    if let Some((name, path)) = arg.split_once('=')
-        && let Ok(i) = scene.run_index(name)
+    let runs = || {
+        scene
+            .runs
+            .iter()
+            .map(|r| format!("`{}`", r.name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if arg.trim().is_empty() {
+        bail!("--rig-log: an empty path; give a recording's trace.csv");
+    }
+    let (mut named, path) = match arg.split_once('=') {
+        Some((name, p)) if scene.run_index(name).is_ok() => (Some(name), PathBuf::from(p)),
+        Some((name, _)) if !Path::new(arg).exists() => bail!(
+            "--rig-log {arg}: `{name}` is not a run of scene `{}` (its runs: {}), and there is no file {arg}",
+            scene.name,
+            runs()
+        ),
+        _ => (None, PathBuf::from(arg)),
+    };
+    if single && let Some(r) = run {
+        if scene.run_index(r).is_err() {
+            bail!(
+                "--run {r}: not a run of scene `{}` (its runs: {})",
+                scene.name,
+                runs()
+            );
+        }
+        if let Some(n) = named
+            && n != r
+        {
+            bail!("--run {r} and --rig-log {arg} name two different runs; give one");
+        }
+        named = Some(r);
+    }
+    let recorded = rig_log::summary_of(&path);
+    if let Some((s, _)) = &recorded
+        && *s != scene.name
     {
-        return Ok((i, PathBuf::from(path)));
+        bail!(
+            "--rig-log {arg}: a recording of scene `{s}` (its summary.json), not of `{}`",
+            scene.name
+        );
     }
-    let path = PathBuf::from(arg);
-    if single && let Some(name) = run {
-        return Ok((scene.run_index(name)?, path));
-    }
-    let beside = path.parent().unwrap_or(Path::new(".")).join("summary.json");
-    let recorded = std::fs::read_to_string(&beside)
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .filter(|s| s["scene"].as_str() == Some(scene.name.as_str()))
-        .and_then(|s| s["runs"][0]["name"].as_str().map(str::to_string));
-    match recorded {
-        Some(name) => Ok((scene.run_index(&name)?, path)),
-        None if single => Ok((0, path)),
-        None => bail!(
+    match (named, recorded) {
+        (Some(n), Some((_, r))) if n != r => {
+            bail!("--rig-log {arg}: a recording of run `{r}` (its summary.json), not of run `{n}`")
+        }
+        (Some(n), _) => Ok((scene.run_index(n)?, path)),
+        (None, Some((_, r))) => match scene.run_index(&r) {
+            Ok(i) => Ok((i, path)),
+            Err(_) => bail!(
+                "--rig-log {arg}: its summary.json names run `{r}`, which scene `{}` does not have (its runs: {})",
+                scene.name,
+                runs()
+            ),
+        },
+        (None, None) if single => Ok((0, path)),
+        (None, None) => bail!(
             "--rig-log {arg}: which run did it record? No summary.json of scene `{}` beside it: give RUN={arg}",
             scene.name
         ),
     }
-}
-
-fn read_log(scene: &Scene, run: usize, path: PathBuf) -> anyhow::Result<Log> {
-    let shown = path.display().to_string();
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("--rig-log {shown}: cannot read"))?;
-    let trace = Trace::from_csv(&text, &pneuflex_files::output::RIG_TRACE_COLUMNS)
-        .map_err(|e| anyhow::anyhow!("--rig-log {shown}: {e}"))?;
-    if trace.len() < 2 {
-        bail!("--rig-log {shown}: fewer than two rows");
-    }
-    let t = trace.t();
-    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    if (dt - scene.dt_s).abs() > 0.01 * scene.dt_s {
-        bail!(
-            "--rig-log {shown}: rows {dt:.6} s apart, the scene's dt_s is {} s: a log of another scene?",
-            scene.dt_s
-        );
-    }
-    Ok(Log { run, path, trace })
 }
 
 /// What `pneuflex compare` was given (cli/simulate.rs's `Compare`, parsed).
@@ -107,12 +131,23 @@ pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
                 other.path.display()
             );
         }
-        logs.push(read_log(&scene, run, path)?);
+        let log = rig_log::check(&scene, a.scene, run, arg, &path)?;
+        logs.push(Log { run, path, log });
+    }
+    // What the checks could not confirm, and a recording that ended early, are said before the work.
+    for l in &logs {
+        let shown = l.path.display();
+        for n in &l.log.notes {
+            errln!("warning: {n}");
+        }
+        if let Some(f) = &l.log.fault {
+            errln!("note: --rig-log {shown}: {f}");
+        }
     }
     // Every run simulated for as long as the shortest log ran (N ticks cover N·dt).
     let end_s = logs
         .iter()
-        .map(|l| l.trace.t()[l.trace.len() - 1] + scene.dt_s)
+        .map(|l| l.log.trace.t()[l.log.trace.len() - 1] + scene.dt_s)
         .fold(f64::INFINITY, f64::min);
     let indices: Vec<usize> = logs.iter().map(|l| l.run).collect();
     let mut sim_scene = scene.some_runs(&indices, end_s);
@@ -129,10 +164,16 @@ pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
             ),
         }
     }
-    let first = &scene.runs[logs[0].run].name;
+    // One log's output and several logs' are folders side by side, never one inside the other.
+    let names: Vec<&str> = logs
+        .iter()
+        .map(|l| scene.runs[l.run].name.as_str())
+        .collect();
     let dest = a.out.map(Path::to_path_buf).unwrap_or_else(|| {
-        let d = Path::new("out").join("compare").join(&scene.name);
-        if single { d.join(first) } else { d }
+        Path::new("out")
+            .join("compare")
+            .join(&scene.name)
+            .join(names.join("+"))
     });
     let log_dirs: Vec<PathBuf> = logs
         .iter()
@@ -144,12 +185,32 @@ pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
     if let Some(why) = sims.iter().find_map(|r| r.diverged.as_ref()) {
         bail!("the simulation diverged: {why}");
     }
+    let mut ends = Vec::new();
+    let mut paths = Vec::new();
     let rigs: Vec<RunResult> = logs
         .into_iter()
         .enumerate()
         .map(|(i, l)| {
             let name = sim_scene.runs[i].name.clone();
-            recorded_run(&sim_scene, i, &name, l.trace, None, sims[i].pwm_period_s)
+            let mut notes = l.log.notes;
+            let ran_s = l.log.trace.t()[l.log.trace.len() - 1] + scene.dt_s;
+            if ran_s > sim_scene.duration_s + 0.5 * scene.dt_s {
+                notes.push(format!(
+                    "{}: the log runs {ran_s} s, compared over the first {} s",
+                    l.path.display(),
+                    sim_scene.duration_s
+                ));
+            }
+            ends.push((l.log.fault, notes));
+            paths.push(l.path);
+            recorded_run(
+                &sim_scene,
+                i,
+                &name,
+                l.log.trace,
+                None,
+                sims[i].pwm_period_s,
+            )
         })
         .collect();
     let comparisons: Vec<Comparison> = rigs
@@ -160,20 +221,31 @@ pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
     let claims = (check_all(&sim_scene, &rigs), check_all(&sim_scene, &sims));
     let dir = stage.path();
     let mut md = String::new();
-    for c in &comparisons {
-        md.push_str(&markdown(c, a));
+    for (c, (fault, notes)) in comparisons.iter().zip(&ends) {
+        md.push_str(&markdown(c, a, fault.as_deref(), notes));
     }
+    // Each run's comparison with how its recording ended and what was not confirmed.
+    let runs_json: Vec<serde_json::Value> = comparisons
+        .iter()
+        .zip(&ends)
+        .map(|(c, (fault, notes))| {
+            let mut v = serde_json::to_value(c)?;
+            v["rig_fault"] = serde_json::json!(fault);
+            v["rig_notes"] = serde_json::json!(notes);
+            Ok(v)
+        })
+        .collect::<anyhow::Result<_>>()?;
     if !sim_scene.claims.is_empty() {
         md.push_str(&claims_markdown(&claims.0, &claims.1));
     }
     if single {
         std::fs::write(
             dir.join("compare.json"),
-            serde_json::to_string_pretty(&comparisons[0])?,
+            serde_json::to_string_pretty(&runs_json[0])?,
         )?;
     } else {
         let json = serde_json::json!({
-            "runs": comparisons,
+            "runs": runs_json,
             "claims": {"rig": claims.0, "simulation": claims.1},
         });
         std::fs::write(
@@ -202,9 +274,8 @@ pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
         pneuflex_viz::write_figures(&fig_dir, &one, &[rig, sim], a.format)?;
     }
     let mut inputs = vec![pneuflex_files::InputDigest::of_file(a.scene, "scene")?];
-    for arg in a.rig_log {
-        let (_, path) = run_of(&scene, arg, a.run, single)?;
-        inputs.push(pneuflex_files::InputDigest::of_file(&path, "log")?);
+    for path in &paths {
+        inputs.push(pneuflex_files::InputDigest::of_file(path, "log")?);
     }
     if let Some(s) = a.actuator {
         inputs.push(pneuflex_files::InputDigest::of_file(s, "actuator")?);
@@ -215,7 +286,7 @@ pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn markdown(c: &Comparison, a: &CompareArgs<'_>) -> String {
+fn markdown(c: &Comparison, a: &CompareArgs<'_>, fault: Option<&str>, notes: &[String]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -236,6 +307,12 @@ fn markdown(c: &Comparison, a: &CompareArgs<'_>) -> String {
         c.f_e_rms_difference_n,
         c.x_rms_difference_m * 1e3
     );
+    if let Some(f) = fault {
+        let _ = writeln!(s, "**The rig's run ended early**: {f}.\n");
+    }
+    for n in notes {
+        let _ = writeln!(s, "Warning: {n}.\n");
+    }
     let _ = writeln!(
         s,
         "| window | metric | rig | simulation | rig − simulation |\n|---|---|---|---|---|"
