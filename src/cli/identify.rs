@@ -74,19 +74,29 @@ pub struct Perturb {
 }
 
 /// Fit friction laws (constant Coulomb, and rising with the pressure) to a seal's bench tests at held
-/// pressures: force, pressure and position logs `circle_<P>bar.csv` (docs/identification.md, "Real data").
+/// pressures: force, pressure and position logs `<seal>_<P>bar.csv` (docs/identification.md, "Real data").
 #[derive(Args)]
 pub struct Seal {
-    /// Folder of the tests (or its parent with a `friction/` folder), e.g.
+    /// Folder of the tests `<seal>_<P>bar.csv` (or its parent with a `friction/` folder), e.g.
     /// data/zillen-2021-printed-cylinder.
-    #[arg(long)]
-    pub data: PathBuf,
-    /// Piston bore, m.
+    #[arg(long, required_unless_present = "tests", conflicts_with = "tests")]
+    pub data: Option<PathBuf>,
+    /// Which seal's tests of --data, when the folder holds several (`circle` for circle_<P>bar.csv).
+    #[arg(long, value_name = "NAME", requires = "data")]
+    pub seal: Option<String>,
+    /// A test file instead of --data, FILE=P with P the held pressure in bar gauge (FILE alone: from its
+    /// name <seal>_<P>bar.csv, else the readings' median); repeat for each test.
+    #[arg(long = "test", value_name = "FILE[=P]")]
+    pub tests: Vec<String>,
+    /// Piston bore, m (25 mm is 0.025).
     #[arg(long, default_value_t = 0.025)]
     pub bore_m: f64,
     /// Speed below which a sample is still and left out, m/s.
     #[arg(long, default_value_t = 0.002)]
     pub still_below: f64,
+    /// The pressure sensor's full scale, bar gauge: a reading beyond is refused at its line.
+    #[arg(long, value_name = "BAR", default_value_t = 16.0)]
+    pub max_pressure_bar: f64,
     /// Print one JSON object (SI units) instead of tables.
     #[arg(long)]
     pub json: bool,
@@ -99,12 +109,15 @@ pub struct Leak {
     /// Decay logs; repeat for several chambers.
     #[arg(long = "log", required = true)]
     pub logs: Vec<PathBuf>,
-    /// Gas temperature in the chamber, K.
+    /// Gas temperature in the chamber, K (20 degC is 293.15 K).
     #[arg(long, default_value_t = pneuflex_pneumatics::T_DEFAULT)]
     pub temperature_k: f64,
     /// Atmospheric pressure, Pa absolute.
     #[arg(long, default_value_t = pneuflex_pneumatics::P_ATM)]
     pub atmosphere_pa: f64,
+    /// The pressure sensor's full scale, bar gauge: a reading beyond is refused at its line.
+    #[arg(long, value_name = "BAR", default_value_t = 16.0)]
+    pub max_pressure_bar: f64,
     /// Print JSON (SI units) instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -142,13 +155,21 @@ impl Perturb {
 
 impl Seal {
     pub fn call(self) -> anyhow::Result<()> {
+        let source = match self.data {
+            Some(dir) => cmd::seal::SealSource::Folder {
+                dir,
+                seal: self.seal,
+            },
+            None => cmd::seal::SealSource::List(self.tests),
+        };
         cmd::seal::seal(
-            &self.data,
+            &source,
             &pneuflex_identify::seal::SealOptions {
                 bore_m: self.bore_m,
                 still_below_m_per_s: self.still_below,
                 ..Default::default()
             },
+            self.max_pressure_bar,
             self.json,
         )
     }
@@ -163,6 +184,7 @@ impl Leak {
                 temperature_k: self.temperature_k,
                 ..Default::default()
             },
+            self.max_pressure_bar,
             self.json,
         )
     }

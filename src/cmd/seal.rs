@@ -1,16 +1,90 @@
-//! `pneuflex seal --data DIR` and `pneuflex leak --log FILE...`: friction laws fitted to a seal's bench
+//! `pneuflex seal --data DIR` (or `--test FILE[=P]...`) and `pneuflex leak --log FILE...`: friction laws fitted to a seal's bench
 //! tests and leaks fitted to closed-chamber pressure decays (docs/identification.md, "Real data"). The
 //! fitting is `pneuflex_identify::seal` and `pneuflex_identify::leak`; this prints it.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use pneuflex_identify::leak::{LeakFit, LeakOptions, RankStep, fit_leak, rank, read_decay_log};
-use pneuflex_identify::seal::{LawFit, SealOptions, SealReport, fit_seal, read_seal_tests};
+use anyhow::bail;
+use pneuflex_identify::leak::{LeakFit, LeakOptions, RankStep, fit_leak, rank, read_decay_logs};
+use pneuflex_identify::seal::{
+    LawFit, MIN_GAUGE_PA, SealOptions, SealReport, Sensors, find_seal_tests, fit_seal,
+    read_seal_list, seal_file_name,
+};
 
-/// The friction laws of the tests in `dir` (or its `friction/` folder): a table, or JSON.
-pub fn seal(dir: &Path, o: &SealOptions, json: bool) -> anyhow::Result<()> {
-    let tests = read_seal_tests(dir)?;
+/// Where a seal's tests are: a folder of `<seal>_<P>bar.csv`, or `--test FILE[=P]` each.
+pub enum SealSource {
+    /// `--data DIR [--seal NAME]`.
+    Folder { dir: PathBuf, seal: Option<String> },
+    /// `--test FILE[=P]`, as typed.
+    List(Vec<String>),
+}
+
+/// The pressure sensor's range of `--max-pressure-bar`, refused when no sensor's.
+fn sensors(max_pressure_bar: f64) -> anyhow::Result<Sensors> {
+    if !(max_pressure_bar.is_finite() && max_pressure_bar > 0.0 && max_pressure_bar <= 1000.0) {
+        bail!(
+            "--max-pressure-bar {max_pressure_bar}: the sensor's full scale in bar gauge must be in (0, 1000]"
+        );
+    }
+    Ok(Sensors {
+        max_gauge_pa: max_pressure_bar * 1e5,
+        ..Sensors::default()
+    })
+}
+
+/// `--test FILE[=P]`: the file and its held pressure, Pa gauge (None: from the file's name or readings).
+fn test_arg(arg: &str, s: &Sensors) -> anyhow::Result<(PathBuf, Option<f64>)> {
+    let Some((file, p)) = arg.rsplit_once('=') else {
+        let path = PathBuf::from(arg);
+        let named = path
+            .file_name()
+            .and_then(|n| seal_file_name(&n.to_string_lossy()).map(|(_, p)| p));
+        return Ok((path, named));
+    };
+    let bar: f64 = p
+        .trim()
+        .parse()
+        .ok()
+        .filter(|v: &f64| v.is_finite())
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "--test {arg}: `{p}` is not a pressure in bar gauge (FILE=P, e.g. circle.csv=3)"
+            )
+        })?;
+    if !(MIN_GAUGE_PA / 1e5..=s.max_gauge_pa / 1e5).contains(&bar) {
+        bail!(
+            "--test {arg}: {bar} bar gauge is outside the sensor's range [{}, {}] bar (--max-pressure-bar)",
+            MIN_GAUGE_PA / 1e5,
+            s.max_gauge_pa / 1e5
+        );
+    }
+    if file.is_empty() {
+        bail!("--test {arg}: no file before the '='");
+    }
+    Ok((PathBuf::from(file), Some(bar * 1e5)))
+}
+
+/// The friction laws of a seal's tests: a table, or JSON.
+pub fn seal(
+    source: &SealSource,
+    o: &SealOptions,
+    max_pressure_bar: f64,
+    json: bool,
+) -> anyhow::Result<()> {
+    o.check()?;
+    let s = sensors(max_pressure_bar)?;
+    let list: Vec<(PathBuf, Option<f64>)> = match source {
+        SealSource::Folder { dir, seal } => find_seal_tests(dir, seal.as_deref())?
+            .into_iter()
+            .map(|(f, p)| (f, Some(p)))
+            .collect(),
+        SealSource::List(args) => args
+            .iter()
+            .map(|a| test_arg(a, &s))
+            .collect::<anyhow::Result<_>>()?,
+    };
+    let tests = read_seal_list(&list, &s)?;
     let r = fit_seal(&tests, o)?;
     if json {
         outln!("{}", serde_json::to_string_pretty(&r)?);
@@ -128,10 +202,17 @@ fn seal_text(r: &SealReport) -> anyhow::Result<String> {
 }
 
 /// The leaks of the decay logs, tightest first: a table, or JSON.
-pub fn leak(logs: &[PathBuf], o: &LeakOptions, json: bool) -> anyhow::Result<()> {
+pub fn leak(
+    logs: &[PathBuf],
+    o: &LeakOptions,
+    max_pressure_bar: f64,
+    json: bool,
+) -> anyhow::Result<()> {
+    o.check()?;
+    let s = sensors(max_pressure_bar)?;
     let mut fits = Vec::new();
-    for l in logs {
-        fits.push(fit_leak(&read_decay_log(l)?, o)?);
+    for l in read_decay_logs(logs, &s)? {
+        fits.push(fit_leak(&l, o)?);
     }
     let steps = rank(&mut fits);
     if json {

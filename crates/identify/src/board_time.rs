@@ -209,6 +209,19 @@ fn sample_grid(
     steps.sort_by(f64::total_cmp);
     // A low percentile of the steps: a step of two periods or more is a sample missing from the record.
     let period = (steps[steps.len() / 20] * 1e6).round() * 1e-6;
+    // A period of 0 (steps below half a µs) would put every sample at one grid row.
+    let (lo, hi) = crate::log::PERIOD_RANGE_S;
+    if !(lo..=hi).contains(&period) {
+        return Err(err(
+            Some(samples[1].line),
+            "board_t",
+            format!(
+                "the board's sample period is {:e} s (to the µs it counts), outside [{lo:e}, {hi}] s: no \
+                 board's clock",
+                steps[steps.len() / 20]
+            ),
+        ));
+    }
     // Each sample's place on the grid; off it by more than a tenth of a period is no board's clock.
     let mut index = Vec::with_capacity(samples.len());
     for s in samples {

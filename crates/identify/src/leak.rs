@@ -34,6 +34,8 @@ pub struct DecayLog {
     pub t_s: Vec<f64>,
     /// Pressure, Pa gauge.
     pub gauge_pa: Vec<f64>,
+    /// The file's line of each row (for messages; empty for a log made in memory).
+    pub lines: Vec<usize>,
 }
 
 /// The conditions of the test.
@@ -56,6 +58,49 @@ impl Default for LeakOptions {
         }
     }
 }
+
+impl LeakOptions {
+    /// Refuses conditions no bench has, naming the option: a temperature in degC, a gauge atmosphere.
+    pub fn check(&self) -> Result<(), IdentifyError> {
+        let key = |option, v: f64, message: String| IdentifyError::Key {
+            option,
+            key: v.to_string(),
+            message,
+        };
+        if !(200.0..=400.0).contains(&self.temperature_k) {
+            return Err(key(
+                "--temperature-k",
+                self.temperature_k,
+                "the gas temperature in kelvin must be in [200, 400] K (20 degC is 293.15 K)"
+                    .into(),
+            ));
+        }
+        if !(3e4..=1.2e5).contains(&self.atmosphere_pa) {
+            return Err(key(
+                "--atmosphere-pa",
+                self.atmosphere_pa,
+                "the atmosphere in Pa absolute must be in [30000, 120000] Pa (sea level: 101325)"
+                    .into(),
+            ));
+        }
+        if !(self.gas_constant_j_per_kg_k.is_finite() && self.gas_constant_j_per_kg_k > 0.0) {
+            return Err(key(
+                "gas constant",
+                self.gas_constant_j_per_kg_k,
+                "must be > 0 J/(kg K)".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The sample periods a decay log may have, s: a median outside is a time in another unit or a corrupt
+/// clock (a slow decay may be logged every few minutes).
+pub const PERIOD_RANGE_S: (f64, f64) = (1e-5, 600.0);
+
+/// The ideal gas's critical pressure ratio, the largest b of any orifice: with p_atm / p above it the flow
+/// out is not choked anywhere, and the choked law does not hold.
+pub const CHOKED_RATIO_MAX: f64 = 0.528;
 
 /// The choked decay fitted to a span of a log.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -132,8 +177,60 @@ pub fn parse_thousands_ms(s: &str) -> Option<f64> {
     Some(us as f64 / 1e6)
 }
 
-/// Reads a pressure-decay log (';'-separated, three columns, CRLF or LF, blank lines skipped).
+/// Reads a pressure-decay log (';'-separated, three columns, CRLF or LF, blank lines skipped) against
+/// the default [`crate::seal::Sensors`].
 pub fn read_decay_log(path: &Path) -> Result<DecayLog, IdentifyError> {
+    read_decay_log_with(path, &crate::seal::Sensors::default())
+}
+
+/// Reads the decay logs in order; the same file twice (by path or by content) and two chambers of one
+/// name (the ranking would not tell them apart) are refused with both files.
+pub fn read_decay_logs(
+    paths: &[PathBuf],
+    sensors: &crate::seal::Sensors,
+) -> Result<Vec<DecayLog>, IdentifyError> {
+    let mut logs: Vec<DecayLog> = Vec::with_capacity(paths.len());
+    let mut real: Vec<PathBuf> = Vec::new();
+    for p in paths {
+        let canonical = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if let Some(k) = real.iter().position(|r| *r == canonical) {
+            return Err(IdentifyError::Input(format!(
+                "{}: given twice (also as {}): each chamber once",
+                p.display(),
+                logs[k].file.display()
+            )));
+        }
+        let log = read_decay_log_with(p, sensors)?;
+        if let Some(twin) = logs
+            .iter()
+            .find(|l| l.t_s == log.t_s && l.gauge_pa == log.gauge_pa)
+        {
+            return Err(IdentifyError::Input(format!(
+                "{}: the same measurements as {}: one chamber ranked against itself",
+                p.display(),
+                twin.file.display()
+            )));
+        }
+        if let Some(twin) = logs.iter().find(|l| l.chamber == log.chamber) {
+            return Err(IdentifyError::Input(format!(
+                "{}: a chamber named {:?} as {} is: the ranking names chambers by their file's stem; rename one",
+                p.display(),
+                log.chamber,
+                twin.file.display()
+            )));
+        }
+        real.push(canonical);
+        logs.push(log);
+    }
+    Ok(logs)
+}
+
+/// [`read_decay_log`] against `sensors`: every pressure within the sensor's range, the sample period
+/// within [`PERIOD_RANGE_S`] and even, no single reading far from the rest, each refused at its line.
+pub fn read_decay_log_with(
+    path: &Path,
+    sensors: &crate::seal::Sensors,
+) -> Result<DecayLog, IdentifyError> {
     let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Trace)
         .map_err(|e| IdentifyError::Input(e.to_string()))?;
     let mut log = DecayLog {
@@ -143,7 +240,9 @@ pub fn read_decay_log(path: &Path) -> Result<DecayLog, IdentifyError> {
             .map_or_else(String::new, |s| s.to_string_lossy().into_owned()),
         t_s: Vec::new(),
         gauge_pa: Vec::new(),
+        lines: Vec::new(),
     };
+    let mut lines = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() {
@@ -189,8 +288,21 @@ pub fn read_decay_log(path: &Path) -> Result<DecayLog, IdentifyError> {
                     format!("not a finite number: {:?}", f[2]),
                 )
             })?;
+        let (lo, hi) = (crate::seal::MIN_GAUGE_PA / 1e5, sensors.max_gauge_pa / 1e5);
+        if !(lo..=hi).contains(&bar) {
+            return Err(log_err(
+                path,
+                i + 1,
+                "pressure_bar",
+                format!(
+                    "{bar} bar gauge: outside the pressure sensor's range [{lo}, {hi}] bar (a column in Pa, kPa \
+                     or mbar? a sensor of a larger range: --max-pressure-bar)"
+                ),
+            ));
+        }
         log.t_s.push(t);
         log.gauge_pa.push(bar * 1e5);
+        lines.push(i + 1);
     }
     if log.t_s.len() < 10 {
         return Err(IdentifyError::Fit(format!(
@@ -199,6 +311,50 @@ pub fn read_decay_log(path: &Path) -> Result<DecayLog, IdentifyError> {
             log.t_s.len()
         )));
     }
+    let mut steps: Vec<f64> = log.t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let first = steps.clone();
+    steps.sort_by(f64::total_cmp);
+    let period = steps[steps.len() / 2];
+    let (lo, hi) = PERIOD_RANGE_S;
+    if !(lo..=hi).contains(&period) {
+        return Err(log_err(
+            path,
+            lines[1],
+            "time_ms",
+            format!(
+                "the median sample period is {period:e} s, outside [{lo:e}, {hi}] s: no logger samples a \
+                 decay at that rate (the time is read in ms, '.' the thousands separator)"
+            ),
+        ));
+    }
+    if let Some(k) = first.iter().position(|d| *d < 0.01 * period) {
+        return Err(log_err(
+            path,
+            lines[k + 1],
+            "time_ms",
+            format!(
+                "a step of {:e} s where the median sample period is {period:e} s: the clock does not tick \
+                 evenly (a repeated or corrupt time stamp)",
+                first[k]
+            ),
+        ));
+    }
+    if let Some((k, m, bound)) = crate::seal::spike(&log.gauge_pa, 0.1e5) {
+        return Err(log_err(
+            path,
+            lines[k],
+            "pressure_bar",
+            format!(
+                "{} bar is {:.3} bar from the log's median {:.3} bar, beyond {:.3} bar (10 times the spread of \
+                 its middle half): a glitch or a corrupt row, not a reading",
+                log.gauge_pa[k] / 1e5,
+                (log.gauge_pa[k] - m).abs() / 1e5,
+                m / 1e5,
+                bound / 1e5
+            ),
+        ));
+    }
+    log.lines = lines;
     Ok(log)
 }
 
@@ -282,7 +438,23 @@ fn noise(y: &[f64]) -> f64 {
 
 /// Fits the choked leak to a decay log (module doc).
 pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyError> {
+    o.check()?;
     let (t, y) = (&log.t_s, &log.gauge_pa);
+    if let Some(k) =
+        (0..y.len()).find(|&k| o.atmosphere_pa / (y[k] + o.atmosphere_pa) > CHOKED_RATIO_MAX)
+    {
+        return Err(IdentifyError::Fit(format!(
+            "{}:{}: column `pressure_bar`: {:.4} bar gauge, where p_atm / p = {:.3} is above {CHOKED_RATIO_MAX} \
+             (with --atmosphere-pa {}): the flow out is not choked there and the choked leak does not hold; give \
+             the part of the decay above {:.3} bar gauge",
+            log.file.display(),
+            log.lines.get(k).copied().unwrap_or(k + 1),
+            y[k] / 1e5,
+            o.atmosphere_pa / (y[k] + o.atmosphere_pa),
+            o.atmosphere_pa,
+            (o.atmosphere_pa / CHOKED_RATIO_MAX - o.atmosphere_pa) / 1e5
+        )));
+    }
     let decay = fit_decay(t, y, o.atmosphere_pa)?;
     if !(decay.rate_per_s.is_finite() && decay.rate_per_s > 0.0) {
         return Err(IdentifyError::Fit(format!(

@@ -55,6 +55,13 @@ pub const MAX_GAP_PERIODS: f64 = 50.0;
 /// Gaps shorter than this are accepted whatever the sample period.
 pub const MIN_GAP_S: f64 = 0.05;
 
+/// The sample periods identification replays, s: a median period outside is no rig's log (a time column in
+/// the wrong unit, a corrupt clock); the replay would take a step per row at that period.
+pub const PERIOD_RANGE_S: (f64, f64) = (1e-5, 1.0);
+/// A step in time shorter than this share of the median period is a clock that does not tick evenly (a
+/// duplicated or corrupt time stamp), refused at its line.
+pub const MIN_PERIOD_SHARE: f64 = 0.01;
+
 /// The longest line a log may have, bytes: a rig trace's row is ~120 bytes; a longer line is not a row.
 pub const MAX_LINE_BYTES: usize = 64 << 10;
 
@@ -221,6 +228,8 @@ struct LogParser<'a> {
     log: Log,
     /// pneuflex's rig trace with the board's record: the indices of [`BOARD_COLUMNS`] and what they held.
     board: Option<([usize; 7], BoardColumns)>,
+    /// Lines read (for the message when `skip_lines` skips them all).
+    lines: usize,
 }
 
 impl<'a> LogParser<'a> {
@@ -248,6 +257,7 @@ impl<'a> LogParser<'a> {
                 note: None,
             },
             board: None,
+            lines: 0,
         }
     }
 
@@ -262,6 +272,7 @@ impl<'a> LogParser<'a> {
 
     /// Takes one line; false once the rest of the log is not used (after a fault row).
     fn line(&mut self, line_no: usize, line: &str) -> Result<bool, IdentifyError> {
+        self.lines = line_no;
         if line.starts_with('#') {
             self.end_marker |= line.starts_with("# end:");
             return Ok(true);
@@ -552,6 +563,21 @@ impl<'a> LogParser<'a> {
 
     fn finish(mut self, sha256: String) -> Result<Log, IdentifyError> {
         if self.names.is_none() {
+            if self.format.skip_lines > 0 && self.preamble < self.format.skip_lines {
+                let at = self
+                    .format
+                    .skip_lines_at
+                    .as_deref()
+                    .unwrap_or("--log-format");
+                return Err(self.err(
+                    None,
+                    None,
+                    format!(
+                        "no column header: the log has {} line(s), and --log-format's skip_lines = {} ({at}) skips past its end; count the preamble's lines before the header again",
+                        self.lines, self.format.skip_lines
+                    ),
+                ));
+            }
             return Err(self.err(None, None, "no column header (an empty trace?)".into()));
         }
         if self.log.t.len() < 10 {
@@ -567,6 +593,30 @@ impl<'a> LogParser<'a> {
         // A gap: the replay would integrate across it with the last command held, at the log's step.
         let dt = self.log.dt();
         let t = &self.log.t;
+        let (lo, hi) = PERIOD_RANGE_S;
+        if !(lo..=hi).contains(&dt) {
+            return Err(self.err(
+                Some(self.row_lines[1]),
+                Some("t"),
+                format!(
+                    "the median sample period is {dt:e} s, outside [{lo:e}, {hi}] s: no rig samples at that rate; \
+                     check the time column's unit (seconds in a trace; a log format's columns.t.unit)"
+                ),
+            ));
+        }
+        if let Some(k) = (1..t.len()).find(|&k| t[k] - t[k - 1] < MIN_PERIOD_SHARE * dt) {
+            return Err(self.err(
+                Some(self.row_lines[k]),
+                Some("t"),
+                format!(
+                    "a step of {:e} s, from {} to {} s, where the median sample period is {dt:e} s: the clock \
+                     does not tick evenly (a repeated or corrupt time stamp)",
+                    t[k] - t[k - 1],
+                    t[k - 1],
+                    t[k]
+                ),
+            ));
+        }
         if let Some(k) = (1..t.len()).find(|&k| {
             let gap = t[k] - t[k - 1];
             gap > MAX_GAP_PERIODS * dt && gap > MIN_GAP_S

@@ -103,6 +103,9 @@ pub struct LogFormat {
     pub columns: [ColumnMap; COLUMNS.len()],
     /// Whether this is pneuflex's own trace (comment lines, the `fault` column and the end marker).
     pub own_trace: bool,
+    /// Where `skip_lines` was given, `format.toml:LINE:COLUMN` (the format file alone when the key is
+    /// absent), for the log's errors that it can cause; None for pneuflex's own trace.
+    pub skip_lines_at: Option<String>,
 }
 
 impl Default for LogFormat {
@@ -118,6 +121,7 @@ impl Default for LogFormat {
                 offset: 0.0,
             }),
             own_trace: true,
+            skip_lines_at: None,
         }
     }
 }
@@ -298,6 +302,10 @@ impl LogFormat {
                 offset: if spec.gauge { f.atmosphere_pa } else { 0.0 },
             };
         }
+        let skip_lines_at = pneuflex_files::toml_key_position(text, "skip_lines").map_or_else(
+            || path.display().to_string(),
+            |p| format!("{}:{p}", path.display()),
+        );
         Ok(LogFormat {
             separator,
             decimal,
@@ -305,6 +313,7 @@ impl LogFormat {
             skip_lines: f.skip_lines,
             columns,
             own_trace: false,
+            skip_lines_at: Some(skip_lines_at),
         })
     }
 

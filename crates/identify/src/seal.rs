@@ -77,6 +77,31 @@ impl SealOptions {
     pub fn area_m2(&self) -> f64 {
         0.25 * core::f64::consts::PI * self.bore_m * self.bore_m
     }
+
+    /// Refuses a bore or a speed threshold no bench has, naming the option.
+    pub fn check(&self) -> Result<(), IdentifyError> {
+        let key = |option, v: f64, message: String| IdentifyError::Key {
+            option,
+            key: v.to_string(),
+            message,
+        };
+        if !(1e-3..=1.0).contains(&self.bore_m) {
+            return Err(key(
+                "--bore-m",
+                self.bore_m,
+                "the piston's bore in metres must be in [0.001, 1] m (a 25 mm bore is 0.025)"
+                    .into(),
+            ));
+        }
+        if !(self.still_below_m_per_s > 0.0 && self.still_below_m_per_s <= 1.0) {
+            return Err(key(
+                "--still-below",
+                self.still_below_m_per_s,
+                "the speed below which a sample is still, in m/s, must be in (0, 1] (2 mm/s is 0.002)".into(),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// A moving sample: friction with its pressure and velocity.
@@ -257,18 +282,83 @@ const COLUMNS: [&str; 7] = [
     "force_n",
 ];
 
-/// Reads one friction file (whitespace-separated, seven numbers a row, blank lines skipped).
+/// What a bench's sensors read at most: a reading beyond is a unit mistake (Pa or mbar where bar is
+/// expected) or a corrupt row, refused at its line and column (`--max-pressure-bar`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sensors {
+    /// The pressure sensor's full scale, Pa gauge (default 16 bar).
+    pub max_gauge_pa: f64,
+    /// The load cell's full scale, N (default 1e5 N).
+    pub max_force_n: f64,
+}
+
+impl Default for Sensors {
+    fn default() -> Self {
+        Self {
+            max_gauge_pa: 16e5,
+            max_force_n: 1e5,
+        }
+    }
+}
+
+/// A gauge pressure below this is below vacuum (absolute 0 at sea level, with room for an offset), Pa.
+pub const MIN_GAUGE_PA: f64 = -1.1e5;
+/// The largest |position| of a bench's rod, mm (as a rig log's: 10 m).
+const MAX_POSITION_MM: f64 = 1e4;
+/// A reading further from its file's median than this many times (its middle half's spread + the floor
+/// below) is a glitch, not a measurement: one such cell moves a cell mean by its size over the samples.
+const SPIKE_SPREADS: f64 = 10.0;
+
+/// Reads one friction file (whitespace-separated, seven numbers a row, blank lines skipped), with the
+/// default [`Sensors`] and the held pressure `nominal_pa` it must show.
 pub fn read_seal_test(path: &Path, nominal_pa: f64) -> Result<SealTest, IdentifyError> {
+    read_seal_test_with(path, Some(nominal_pa), &Sensors::default())
+}
+
+/// The sample period's plausible range, s (a time in another unit, a corrupt clock).
+pub const PERIOD_RANGE_S: (f64, f64) = (1e-5, 1.0);
+
+/// The median of `v`, and the spread of its middle half (interquartile range).
+fn median_spread(v: &[f64]) -> (f64, f64) {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let q = |f: f64| s[((s.len() - 1) as f64 * f).round() as usize];
+    (q(0.5), q(0.75) - q(0.25))
+}
+
+/// The first value of `v` further from its median than [`SPIKE_SPREADS`] times (its spread + `floor`):
+/// its index, the median and the bound.
+pub(crate) fn spike(v: &[f64], floor: f64) -> Option<(usize, f64, f64)> {
+    if v.is_empty() {
+        return None;
+    }
+    let (m, iqr) = median_spread(v);
+    let bound = SPIKE_SPREADS * (iqr + floor);
+    v.iter()
+        .position(|x| (x - m).abs() > bound)
+        .map(|i| (i, m, bound))
+}
+
+/// [`read_seal_test`] against `sensors`; `nominal_pa` None takes the held pressure from the readings
+/// (their median). Every reading is checked against the sensors' range, the time's period against
+/// [`PERIOD_RANGE_S`], a single reading far from the rest is refused at its line, and the readings'
+/// median must be the held pressure the file is named or listed with.
+pub fn read_seal_test_with(
+    path: &Path,
+    nominal_pa: Option<f64>,
+    sensors: &Sensors,
+) -> Result<SealTest, IdentifyError> {
     let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Trace)
         .map_err(|e| IdentifyError::Input(e.to_string()))?;
     let mut test = SealTest {
         file: path.to_path_buf(),
-        nominal_pa,
+        nominal_pa: nominal_pa.unwrap_or(f64::NAN),
         t_s: Vec::new(),
         x_m: Vec::new(),
         gauge_pa: Vec::new(),
         force_n: Vec::new(),
     };
+    let mut lines = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
             continue;
@@ -283,10 +373,106 @@ pub fn read_seal_test(path: &Path, nominal_pa: f64) -> Result<SealTest, Identify
                 format!("time {} ms does not increase", row[0]),
             ));
         }
+        let (lo, hi) = (MIN_GAUGE_PA / 1e5, sensors.max_gauge_pa / 1e5);
+        if !(lo..=hi).contains(&row[5]) {
+            return Err(log_err(
+                path,
+                Some(i + 1),
+                Some(COLUMNS[5]),
+                format!(
+                    "{} bar gauge: outside the pressure sensor's range [{lo}, {hi}] bar (a column in Pa, kPa or \
+                     mbar? a sensor of a larger range: --max-pressure-bar)",
+                    row[5]
+                ),
+            ));
+        }
+        if row[6].abs() > sensors.max_force_n {
+            return Err(log_err(
+                path,
+                Some(i + 1),
+                Some(COLUMNS[6]),
+                format!(
+                    "{:e} N: beyond a bench load cell's {:e} N",
+                    row[6], sensors.max_force_n
+                ),
+            ));
+        }
+        if row[4].abs() > MAX_POSITION_MM {
+            return Err(log_err(
+                path,
+                Some(i + 1),
+                Some(COLUMNS[4]),
+                format!(
+                    "{:e} mm: beyond {MAX_POSITION_MM} mm, no rod's travel",
+                    row[4]
+                ),
+            ));
+        }
+        lines.push(i + 1);
         test.t_s.push(t);
         test.x_m.push(row[4] * 1e-3);
         test.gauge_pa.push(row[5] * 1e5);
         test.force_n.push(row[6]);
+    }
+    if test.t_s.len() < 10 {
+        return Err(log_err(
+            path,
+            None,
+            None,
+            format!("{} rows: a friction test needs many", test.t_s.len()),
+        ));
+    }
+    let steps: Vec<f64> = test.t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let period = median_spread(&steps).0;
+    let (lo, hi) = PERIOD_RANGE_S;
+    if !(lo..=hi).contains(&period) {
+        return Err(log_err(
+            path,
+            Some(lines[1]),
+            Some(COLUMNS[0]),
+            format!(
+                "the median sample period is {period:e} s, outside [{lo:e}, {hi}] s: no bench samples at that \
+                 rate (the time is read in ms)"
+            ),
+        ));
+    }
+    for (column, v, floor, unit, scale) in [
+        (6, &test.force_n, 1.0, "N", 1.0),
+        (5, &test.gauge_pa, 0.1e5, "bar", 1e-5),
+    ] {
+        if let Some((k, m, bound)) = spike(v, floor) {
+            return Err(log_err(
+                path,
+                Some(lines[k]),
+                Some(COLUMNS[column]),
+                format!(
+                    "{} {unit} is {:.3} {unit} from the file's median {:.3} {unit}, beyond {:.3} {unit} (10 times \
+                     the spread of its middle half): a glitch or a corrupt row, not a reading",
+                    v[k] * scale,
+                    (v[k] - m).abs() * scale,
+                    m * scale,
+                    bound * scale
+                ),
+            ));
+        }
+    }
+    let held = median_spread(&test.gauge_pa).0;
+    match nominal_pa {
+        None => test.nominal_pa = held,
+        Some(n) if (held - n).abs() > (0.3e5f64).max(0.15 * n.abs()) => {
+            return Err(log_err(
+                path,
+                None,
+                Some(COLUMNS[5]),
+                format!(
+                    "the pressure reads {:.3} bar (median) where the test is named or listed at {} bar: a column \
+                     in another unit, or the wrong file",
+                    held / 1e5,
+                    n / 1e5
+                ),
+            ));
+        }
+        Some(_) => {}
     }
     Ok(test)
 }
@@ -324,31 +510,141 @@ fn parse_row(path: &Path, line_no: usize, line: &str) -> Result<[f64; 7], Identi
     Ok(row)
 }
 
-/// The friction tests in `dir` (or its `friction/` folder): every `circle_<P>bar.csv`, by pressure.
-pub fn read_seal_tests(dir: &Path) -> Result<Vec<SealTest>, IdentifyError> {
+/// The held pressure of a file named `<seal>_<P>bar.csv` (P in bar gauge: digits with at most one '.'),
+/// and the seal's name; None for another name.
+pub fn seal_file_name(name: &str) -> Option<(&str, f64)> {
+    let stem = name.strip_suffix("bar.csv")?;
+    let (seal, bar) = stem.rsplit_once('_')?;
+    let digits = |g: &str| !g.is_empty() && g.bytes().all(|b| b.is_ascii_digit());
+    let ok = match bar.split_once('.') {
+        Some((a, b)) => digits(a) && digits(b),
+        None => digits(bar),
+    };
+    (!seal.is_empty() && ok)
+        .then(|| bar.parse::<f64>().ok())
+        .flatten()
+        .map(|p| (seal, p * 1e5))
+}
+
+/// The tests of one seal in `dir` (or its `friction/` folder): every `<seal>_<P>bar.csv`, by pressure.
+/// `seal` picks one when the folder holds several seals' tests; a file that ends in `bar.csv` without the
+/// naming is refused (it would be left out without a word).
+pub fn find_seal_tests(
+    dir: &Path,
+    seal: Option<&str>,
+) -> Result<Vec<(PathBuf, f64)>, IdentifyError> {
     let sub = dir.join("friction");
     let dir = if sub.is_dir() { sub } else { dir.to_path_buf() };
     let entries = std::fs::read_dir(&dir)
         .map_err(|e| IdentifyError::Input(format!("{}: cannot read: {e}", dir.display())))?;
-    let mut found: Vec<(f64, PathBuf)> = Vec::new();
+    let mut found: Vec<(String, f64, PathBuf)> = Vec::new();
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        let bar = name
-            .strip_prefix("circle_")
-            .and_then(|n| n.strip_suffix("bar.csv"))
-            .and_then(|p| p.parse::<f64>().ok());
-        if let Some(bar) = bar {
-            found.push((bar * 1e5, e.path()));
+        match seal_file_name(&name) {
+            Some((s, p)) => found.push((s.to_string(), p, e.path())),
+            None if name.ends_with("bar.csv") => {
+                return Err(IdentifyError::Input(format!(
+                    "{}: not named <seal>_<P>bar.csv (P the held pressure in bar gauge, digits with at most one \
+                     '.', e.g. circle_2.5bar.csv): rename it, or list the tests with --test FILE=P",
+                    e.path().display()
+                )));
+            }
+            None => {}
         }
     }
-    if found.is_empty() {
-        return Err(IdentifyError::Input(format!(
-            "{}: no friction test (circle_<P>bar.csv) in it",
-            dir.display()
-        )));
+    let mut seals: Vec<&str> = found.iter().map(|f| f.0.as_str()).collect();
+    seals.sort_unstable();
+    seals.dedup();
+    let count = |s: &str| found.iter().filter(|f| f.0 == s).count();
+    let listed = || {
+        seals
+            .iter()
+            .map(|s| format!("{s} ({} files)", count(s)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let chosen = match seal {
+        Some(s) if seals.contains(&s) => s.to_string(),
+        Some(s) => {
+            return Err(IdentifyError::Input(format!(
+                "--seal {s}: {} has no test {s}_<P>bar.csv; its seals: {}",
+                dir.display(),
+                if seals.is_empty() {
+                    "none".into()
+                } else {
+                    listed()
+                }
+            )));
+        }
+        None => match seals.as_slice() {
+            [one] => one.to_string(),
+            [] => {
+                return Err(IdentifyError::Input(format!(
+                    "{}: no friction test (<seal>_<P>bar.csv, e.g. circle_3bar.csv) in it",
+                    dir.display()
+                )));
+            }
+            _ => {
+                return Err(IdentifyError::Input(format!(
+                    "{}: the tests of {} seals, {}: choose one with --seal NAME",
+                    dir.display(),
+                    seals.len(),
+                    listed()
+                )));
+            }
+        },
+    };
+    let mut tests: Vec<(PathBuf, f64)> = found
+        .into_iter()
+        .filter(|f| f.0 == chosen)
+        .map(|f| (f.2, f.1))
+        .collect();
+    tests.sort_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)));
+    Ok(tests)
+}
+
+/// The friction tests in `dir` (or its `friction/` folder): every `<seal>_<P>bar.csv` of its one seal, by
+/// pressure ([`find_seal_tests`], [`read_seal_list`]).
+pub fn read_seal_tests(dir: &Path) -> Result<Vec<SealTest>, IdentifyError> {
+    let list: Vec<(PathBuf, Option<f64>)> = find_seal_tests(dir, None)?
+        .into_iter()
+        .map(|(f, p)| (f, Some(p)))
+        .collect();
+    read_seal_list(&list, &Sensors::default())
+}
+
+/// Reads the tests `(file, held pressure Pa gauge or None: from the readings)` in order; the same file
+/// twice (by path or by content) is refused with both.
+pub fn read_seal_list(
+    list: &[(PathBuf, Option<f64>)],
+    sensors: &Sensors,
+) -> Result<Vec<SealTest>, IdentifyError> {
+    let mut tests: Vec<SealTest> = Vec::with_capacity(list.len());
+    let mut real: Vec<PathBuf> = Vec::new();
+    for (file, nominal) in list {
+        let canonical = std::fs::canonicalize(file).unwrap_or_else(|_| file.clone());
+        if let Some(k) = real.iter().position(|r| *r == canonical) {
+            return Err(IdentifyError::Input(format!(
+                "{}: given twice (also as {}): each test once",
+                file.display(),
+                tests[k].file.display()
+            )));
+        }
+        let test = read_seal_test_with(file, *nominal, sensors)?;
+        if let Some(twin) = tests
+            .iter()
+            .find(|t| t.t_s == test.t_s && t.force_n == test.force_n && t.gauge_pa == test.gauge_pa)
+        {
+            return Err(IdentifyError::Input(format!(
+                "{}: the same measurements as {}: one test counted twice would weigh its cells double",
+                file.display(),
+                twin.file.display()
+            )));
+        }
+        real.push(canonical);
+        tests.push(test);
     }
-    found.sort_by(|a, b| a.0.total_cmp(&b.0));
-    found.iter().map(|(p, f)| read_seal_test(f, *p)).collect()
+    Ok(tests)
 }
 
 /// The median of `w` (a short window).
@@ -645,8 +941,106 @@ fn adequacy(fit: &LawFit, cells: &[Cell], samples: &[Sample]) -> Adequacy {
     }
 }
 
+/// The checks a fitted seal must pass to be a seal's friction: each cell's friction within the force the
+/// load cell read, a Coulomb force that opposes the motion at every tested pressure, and offsets that do
+/// not grow with the pressure as a wrong piston area makes them.
+fn plausible(
+    tests: &[SealTest],
+    cells: &[Cell],
+    law: &LawFit,
+    o: &SealOptions,
+) -> Result<(), IdentifyError> {
+    let area = o.area_m2();
+    let hint = format!(
+        "A = {area:.4e} m^2 from --bore-m {} (m, not mm); check it and the pressure's and force's units and sign",
+        o.bore_m
+    );
+    for c in cells {
+        let t = &tests[c.test];
+        let start = o.skip_rows.min(t.force_n.len());
+        let max_f = t.force_n[start..]
+            .iter()
+            .fold(0.0f64, |m, f| m.max(f.abs()));
+        if c.mean_friction_n.abs() > max_f {
+            return Err(IdentifyError::Fit(format!(
+                "{}: the friction F - p A averages {:.4} N towards {} x, more than the largest force the load \
+                 cell read ({:.4} N), with p A = {:.4} N at its mean pressure: {hint}",
+                t.file.display(),
+                c.mean_friction_n,
+                if c.direction > 0.0 { "+" } else { "-" },
+                max_f,
+                c.mean_gauge_pa * area
+            )));
+        }
+    }
+    for (i, t) in tests.iter().enumerate() {
+        let p = 0.5 * (cells[2 * i].mean_gauge_pa + cells[2 * i + 1].mean_gauge_pa);
+        let f = law.coulomb_at(p);
+        if f <= 0.0 {
+            return Err(IdentifyError::Fit(format!(
+                "{}: the fitted Coulomb force at {:.3} bar is {f:.4} N: friction that pushes the rod along its \
+                 motion is no seal's; {hint}",
+                t.file.display(),
+                p / 1e5
+            )));
+        }
+    }
+    // F = p A_true + f + o: with the wrong A, F - p A carries p (A_true - A), which per-test offsets take up
+    // as a slope against the pressure. Judged only over a span of pressures where it shows.
+    if law.offsets == Offsets::PerTest && tests.len() >= 2 {
+        let p: Vec<f64> = (0..tests.len())
+            .map(|i| 0.5 * (cells[2 * i].mean_gauge_pa + cells[2 * i + 1].mean_gauge_pa))
+            .collect();
+        let span = p.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b))
+            - p.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+        if span >= 2e5 {
+            let n = p.len() as f64;
+            let (mp, mo) = (
+                p.iter().sum::<f64>() / n,
+                law.offset_n.iter().sum::<f64>() / n,
+            );
+            let spp: f64 = p.iter().map(|v| (v - mp).powi(2)).sum();
+            let slope = p
+                .iter()
+                .zip(&law.offset_n)
+                .map(|(a, b)| (a - mp) * (b - mo))
+                .sum::<f64>()
+                / spp;
+            if slope.abs() > 0.1 * area {
+                let fits = area + slope;
+                let bore = if fits > 0.0 {
+                    format!(
+                        "a bore of {:.1} mm fits them",
+                        1e3 * (4.0 * fits / core::f64::consts::PI).sqrt()
+                    )
+                } else {
+                    "no area fits them".into()
+                };
+                return Err(IdentifyError::Fit(format!(
+                    "the zero offsets of F - p A grow by {:.3} N/bar with the pressure over the tests ({}): a piston \
+                     area {:.0} % off would do that ({bore}); {hint}",
+                    slope * 1e5,
+                    tests
+                        .iter()
+                        .map(|t| t
+                            .file
+                            .file_name()
+                            .unwrap_or_default()
+                            .to_string_lossy()
+                            .into_owned())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    100.0 * slope / area
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Fits the seal's friction laws to the tests (module doc).
 pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, IdentifyError> {
+    o.check()?;
     let samples: Vec<Sample> = tests
         .iter()
         .enumerate()
@@ -656,6 +1050,7 @@ pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, Ident
     let n = tests.len();
     let constant = fit_law(false, Offsets::PerTest, n, &cells, &samples)?;
     let pressure = fit_law(true, Offsets::PerTest, n, &cells, &samples)?;
+    plausible(tests, &cells, &pressure, o)?;
     let adequacy = adequacy(&pressure, &cells, &samples);
     let rest_minus_midline_n = tests
         .iter()

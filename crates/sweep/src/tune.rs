@@ -20,6 +20,9 @@ use crate::engine::{SweepError, metric_of};
 use crate::key::{Base, KeyPath, Value};
 use crate::points::{Points, SetArg, Spec};
 
+/// The largest magnitude of a `--free` box's bound: beyond any gain, stiffness or pressure of a scene.
+pub const MAX_FREE_BOUND: f64 = 1e12;
+
 /// A `--free KEY=[LO,HI]`: a key the optimiser moves within a box.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FreeArg {
@@ -65,6 +68,14 @@ impl FreeArg {
                 .ok_or_else(|| bad(&format!("`{s}` is not a finite number")))
         };
         let (lo, hi) = (num(parts[0])?, num(parts[1])?);
+        // CMA-ES steps a share of the box: a box of 1e300 puts every candidate where no run stays finite,
+        // and the tune ends with an infinite J and a "best" value no one could use.
+        if let Some(v) = [lo, hi].into_iter().find(|v| v.abs() > MAX_FREE_BOUND) {
+            return Err(bad(&format!(
+                "a bound of {v:e}: no setting of a rig is beyond {MAX_FREE_BOUND:e} in magnitude; give the range \
+                 the key can take (KEY=log[LO,HI] when its scale is unknown by decades)"
+            )));
+        }
         if hi <= lo {
             return Err(bad(&format!("needs LO < HI, got {lo} and {hi}")));
         }
