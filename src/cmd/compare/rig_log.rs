@@ -212,14 +212,11 @@ pub(super) fn check(
                     head(&given.sha256)
                 );
             }
-            let which = summary_of(path)
-                .map(|(s, _)| format!("scene `{s}`"))
-                .unwrap_or_else(|| "another scene".into());
             bail!(
-                "--rig-log {arg}: a recording of {which} ({was}, sha256 {}…), not of {} (`{}`, sha256 {}…)",
+                "--rig-log {arg}: recorded with {was} (sha256 {}…), and {} is sha256 {}…: another scene, or \
+                 this one changed since the recording",
                 head(&hash),
                 scene_path.display(),
-                scene.name,
                 head(&given.sha256)
             );
         }
