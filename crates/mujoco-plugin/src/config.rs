@@ -149,6 +149,13 @@ const VALVE_KIND_KEYS: &[(&str, &[&str])] = &[
 /// Most chamber substeps per MuJoCo step (a 1 ms step in 1 us substeps).
 const MAX_SUBSTEPS: u32 = 1000;
 
+/// Initial chamber pressures, Pa absolute: the supply sheet's bounds (a vacuum exhaust's 1 kPa, the
+/// largest supply's 10 MPa).
+const CHAMBER_PRESSURE_PA: (f64, f64) = (1e3, 10e6);
+
+/// Initial gas temperature, K: the sheets' range of the constant-property air model.
+const GAS_TEMPERATURE_K: (f64, f64) = (200.0, 400.0);
+
 /// What the plugin runs: the sheet with its inline values applied.
 #[derive(Clone, Debug)]
 pub struct Config {
@@ -254,24 +261,40 @@ pub fn parse(get: impl Fn(&str) -> Option<String>) -> Result<Config, ConfigError
             }
         },
     };
-    let positive = |key: &str| -> Result<Option<f64>, ConfigError> {
-        match given(key) {
-            None => Ok(None),
-            Some(v) => match v.trim().parse::<f64>() {
-                Ok(x) if x.is_finite() && x > 0.0 => Ok(Some(x)),
-                _ => Err(err(key, format!("expected a finite number > 0, got '{v}'"))),
-            },
-        }
+    // The sheets' own ranges: absolute pressures from a vacuum exhaust's 1 kPa to the largest supply's
+    // 10 MPa, temperatures of the constant-property air model. A chamber at 1e300 Pa gives an infinite
+    // force on the first step, one at 1e-300 Pa a meaningless one.
+    let within =
+        |key: &str, (lo, hi): (f64, f64), what: &str| -> Result<Option<f64>, ConfigError> {
+            match given(key) {
+                None => Ok(None),
+                Some(v) => match v.trim().parse::<f64>() {
+                    Ok(x) if (lo..=hi).contains(&x) => Ok(Some(x)),
+                    _ => Err(err(key, format!("expected {what}, got '{v}'"))),
+                },
+            }
+        };
+    let pressure = |key: &str| {
+        within(
+            key,
+            CHAMBER_PRESSURE_PA,
+            "an absolute pressure in [1e3, 1e7] Pa (gauge + atmosphere)",
+        )
     };
     let s = &actuator.supply;
     // Defaults: B at the mean of supply and atmosphere (as the scene plants start), A where the piston
     // force is zero (gravity and loads are the MJCF's).
-    let p_b = positive("initial_p_b_pa")?
+    let p_b = pressure("initial_p_b_pa")?
         .unwrap_or(0.5 * (s.supply_pressure_pa + s.atmosphere_pressure_pa));
     let c = &actuator.cylinder;
-    let p_a = positive("initial_p_a_pa")?
+    let p_a = pressure("initial_p_a_pa")?
         .unwrap_or((p_b * c.area_b() + s.atmosphere_pressure_pa * c.area_rod()) / c.area_a());
-    let t_k = positive("initial_temperature_k")?.unwrap_or(T_DEFAULT);
+    let t_k = within(
+        "initial_temperature_k",
+        GAS_TEMPERATURE_K,
+        "a temperature in [200, 400] K",
+    )?
+    .unwrap_or(T_DEFAULT);
     Ok(Config {
         actuator,
         friction,
@@ -551,11 +574,32 @@ mod tests {
                 "chamber_substeps",
                 "got '2.5'",
             ),
-            (&[("initial_p_a_pa", "-1")], "initial_p_a_pa", "> 0"),
+            (
+                &[("initial_p_a_pa", "-1")],
+                "initial_p_a_pa",
+                "[1e3, 1e7] Pa",
+            ),
+            // Beyond any chamber: an infinite force on the first step, or a meaningless one.
+            (
+                &[("initial_p_b_pa", "1e300")],
+                "initial_p_b_pa",
+                "got '1e300'",
+            ),
+            (
+                &[("initial_p_a_pa", "1e-300")],
+                "initial_p_a_pa",
+                "got '1e-300'",
+            ),
+            (&[("initial_p_b_pa", "nan")], "initial_p_b_pa", "got 'nan'"),
             (
                 &[("initial_temperature_k", "inf")],
                 "initial_temperature_k",
-                "finite",
+                "[200, 400] K",
+            ),
+            (
+                &[("initial_temperature_k", "1000")],
+                "initial_temperature_k",
+                "got '1000'",
             ),
             // A value that makes another (not inline) value of its file invalid names the inline key.
             (

@@ -20,7 +20,9 @@ pub struct MjData {
 }
 
 type NState = unsafe extern "C" fn(*const MjModel, c_int) -> c_int;
-type Init = unsafe extern "C" fn(*const MjModel, *mut MjData, c_int) -> c_int;
+/// "C-unwind": `init` reports a bad configuration through `mju_error`, whose handler leaves `init` by a
+/// longjmp (MuJoCo's compiler) or an exception (a host's), never by returning (see plugin.rs).
+type Init = unsafe extern "C-unwind" fn(*const MjModel, *mut MjData, c_int) -> c_int;
 type Destroy = unsafe extern "C" fn(*mut MjData, c_int);
 type Reset = unsafe extern "C" fn(*const MjModel, *mut f64, *mut c_void, c_int);
 type Compute = unsafe extern "C" fn(*const MjModel, *mut MjData, c_int, c_int);
@@ -68,6 +70,8 @@ pub struct Api {
         unsafe extern "C" fn(*const MjModel, c_int, *const c_char) -> *const c_char,
     pub mj_id2name: unsafe extern "C" fn(*const MjModel, c_int, c_int) -> *const c_char,
     pub mju_warning: unsafe extern "C" fn(*const c_char, ...),
+    /// Does not return when a handler is installed (MuJoCo's compiler installs one while it loads a model).
+    pub mju_error: unsafe extern "C-unwind" fn(*const c_char, ...),
 }
 
 static API: OnceLock<Api> = OnceLock::new();
@@ -138,6 +142,10 @@ pub fn load_api() -> Result<&'static Api, String> {
             unsafe extern "C" fn(*const MjModel, c_int, c_int) -> *const c_char
         ),
         mju_warning: f!(c"mju_warning", unsafe extern "C" fn(*const c_char, ...)),
+        mju_error: f!(
+            c"mju_error",
+            unsafe extern "C-unwind" fn(*const c_char, ...)
+        ),
     };
     // SAFETY: mj_version takes nothing and returns an int.
     let version = unsafe { (api.mj_version)() };

@@ -1,9 +1,12 @@
 //! The MuJoCo callbacks of `pneuflex.cylinder` and its registration.
 //!
 //! Every callback runs inside `catch_unwind`: a panic never crosses into MuJoCo (init then fails, a
-//! force is written as 0). Errors are MuJoCo warnings followed by `init` returning -1, which MuJoCo's
-//! compiler turns into the load error (`mj_loadXML`'s error string, Python's ValueError); `mju_error`
-//! is never called (it longjmps over Rust frames).
+//! force is written as 0). A bad configuration is `init`'s `mju_error` with the message naming the
+//! instance and the key: MuJoCo's compiler makes it the load error (`mj_loadXML`'s error string,
+//! Python's ValueError). A return of -1 alone would give only MuJoCo's "plugin->init failed for plugin
+//! id 0", and a warning goes to stdout, not into the error. `mju_error` leaves `init` by a longjmp or
+//! an exception, so it is called from `init`'s own frame once every Rust value there is dropped; other
+//! callbacks never call it. Run-time problems are warnings.
 
 use std::ffi::{c_char, c_int, c_void};
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -81,8 +84,37 @@ unsafe extern "C" fn nstate(m: *const MjModel, instance: c_int) -> c_int {
     })
 }
 
-unsafe extern "C" fn init(m: *const MjModel, d: *mut MjData, instance: c_int) -> c_int {
+/// Room for `init`'s message (MuJoCo's compiler keeps 500 bytes of an error; the key comes first).
+const MESSAGE_LEN: usize = 1000;
+
+unsafe extern "C-unwind" fn init(m: *const MjModel, d: *mut MjData, instance: c_int) -> c_int {
     let Some(api) = ffi::api() else { return -1 };
+    // A plain array: nothing in this frame has a destructor when mju_error leaves it (below).
+    let mut text = [0 as c_char; MESSAGE_LEN];
+    // SAFETY: MuJoCo's call: m and d are live, instance < nplugin.
+    if unsafe { set_up(api, m, d, instance, &mut text) } {
+        return 0;
+    }
+    // SAFETY: "%s" with one NUL-terminated string. With a handler installed (the compiler's, a host's)
+    // it does not return: it leaves by a longjmp or an exception, which the "C-unwind" ABI lets through
+    // this frame, which holds nothing to drop. Without one, MuJoCo prints the message and exits, as it
+    // does for -1.
+    unsafe { (api.mju_error)(c"%s".as_ptr(), text.as_ptr()) };
+    -1
+}
+
+/// Makes the instance and stores it in plugin_data (true), or writes the message naming what is wrong
+/// into `text`, NUL-terminated (false). Every Rust value made here is dropped when it returns.
+///
+/// # Safety
+/// `m`, `d` are live and `instance` one of the model's plugin instances.
+unsafe fn set_up(
+    api: &Api,
+    m: *const MjModel,
+    d: *mut MjData,
+    instance: c_int,
+    text: &mut [c_char; MESSAGE_LEN],
+) -> bool {
     let r = catch_unwind(AssertUnwindSafe(|| unsafe {
         make(api, Model(m), instance)
     }));
@@ -91,7 +123,7 @@ unsafe extern "C" fn init(m: *const MjModel, d: *mut MjData, instance: c_int) ->
             let p = Box::into_raw(Box::new(inst));
             // SAFETY: d is live and instance < nplugin (MuJoCo's call).
             unsafe { Data(d).set_plugin_data(instance as usize, p.cast()) };
-            return 0;
+            return true;
         }
         Ok(Err(msg)) => msg,
         Err(_) => format!(
@@ -99,8 +131,22 @@ unsafe extern "C" fn init(m: *const MjModel, d: *mut MjData, instance: c_int) ->
             NAME.to_string_lossy()
         ),
     };
-    ffi::warn(api, &msg);
-    -1
+    c_text(&msg, text);
+    false
+}
+
+/// `msg` as a NUL-terminated C string in `out`, cut at a character boundary if it is too long; an
+/// interior NUL becomes a space.
+fn c_text(msg: &str, out: &mut [c_char]) {
+    let room = out.len() - 1;
+    let mut end = msg.len().min(room);
+    while !msg.is_char_boundary(end) {
+        end -= 1;
+    }
+    for (o, b) in out.iter_mut().zip(msg[..end].bytes()) {
+        *o = if b == 0 { b' ' } else { b } as c_char;
+    }
+    out[end] = 0;
 }
 
 /// The instance's configuration and actuators, or the message naming what is wrong.
@@ -368,4 +414,31 @@ pub fn register() -> Result<(), String> {
         return Err(format!("mjp_registerPlugin returned {slot}"));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn back(out: &[c_char]) -> String {
+        // SAFETY: c_text always writes a NUL.
+        unsafe { std::ffi::CStr::from_ptr(out.as_ptr()) }
+            .to_string_lossy()
+            .into_owned()
+    }
+
+    #[test]
+    fn a_message_reaches_mujoco_whole_or_cut_at_a_character() {
+        let mut out = [1 as c_char; 8];
+        c_text("key 'a'", &mut out);
+        assert_eq!(back(&out), "key 'a'");
+        // Too long: cut to 7 bytes and terminated, never split inside the 2-byte 'é'.
+        c_text("cléf 'bore'", &mut out);
+        assert_eq!(back(&out), "cléf '");
+        c_text("abcdefé", &mut out);
+        assert_eq!(back(&out), "abcdef");
+        // A NUL inside would end the C string early: it becomes a space.
+        c_text("a\0b", &mut out);
+        assert_eq!(back(&out), "a b");
+    }
 }

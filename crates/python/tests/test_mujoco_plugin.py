@@ -124,6 +124,8 @@ def load_error(xml: str) -> str:
 
 @test
 def bad_configuration_is_a_mujoco_error_naming_the_key():
+    """Each bad value is the ValueError of MjModel.from_xml_string, whose text names the instance, the key and
+    what is wrong (init's mju_error: not MuJoCo's bare "plugin->init failed for plugin id 0")."""
     load_plugin()
     cases = [
         ({"cylinder.bore_m": "-3"}, "config key 'cylinder.bore_m': must be"),
@@ -132,6 +134,11 @@ def bad_configuration_is_a_mujoco_error_naming_the_key():
         ({"supply.pressure_abs_pa": "1e12"}, "config key 'supply.pressure_abs_pa'"),
         ({"chamber_substeps": "0"}, "config key 'chamber_substeps'"),
         ({"initial_p_a_pa": "-1"}, "config key 'initial_p_a_pa'"),
+        # Beyond any chamber or gas: an infinite force on the first step, or a meaningless one.
+        ({"initial_p_b_pa": "1e300"}, "config key 'initial_p_b_pa': expected an absolute pressure in [1e3, 1e7] Pa"),
+        ({"initial_p_a_pa": "1e-300"}, "config key 'initial_p_a_pa': expected an absolute pressure"),
+        ({"initial_temperature_k": "1000"}, "config key 'initial_temperature_k': expected a temperature in [200, 400] K"),
+        ({"cylinder.bore_m": "nan"}, "config key 'cylinder.bore_m': must be a finite number, got NaN"),
         ({"mechanics.friction": "stick_slip"}, "config key 'mechanics.friction'"),
         ({"sheet": None}, "config key 'sheet': required"),
         ({"sheet": "/no/such/sheet.toml"}, "config key 'sheet': /no/such/sheet.toml"),
@@ -143,10 +150,58 @@ def bad_configuration_is_a_mujoco_error_naming_the_key():
         e = load_error(rig(cfg))
         assert says in e, (cfg, e)
         if "config key" in says:
-            assert "pneuflex.cylinder: instance 'cyl'" in e, e
+            assert "pneuflex.cylinder: instance 'cyl'" in e and "init failed" not in e, e
     e = load_error(rig(integrator="RK4"))
-    assert "integrator=\"RK4\" is not supported" in e, e
+    assert "integrator=\"RK4\" is not supported" in e and "init failed" not in e, e
     # Each case left MuJoCo working: a good model still loads and steps.
+    assert plugin_run(rig(), 10).shape == (10, 4)
+
+
+# A bad model loaded in a fresh process (its own working directory): what it prints and what it leaves there.
+LOAD_IN_A_CHILD = """
+import sys
+import mujoco
+mujoco.mj_loadPluginLibrary(sys.argv[1])
+try:
+    mujoco.MjModel.from_xml_string(sys.stdin.read())
+except ValueError as e:
+    print("refused:", str(e).replace(chr(10), " | "))
+"""
+
+
+@test
+def a_load_error_prints_nothing_and_leaves_no_log_file():
+    """The reason is in the exception only: nothing on stdout or stderr (a warning would print there), and no
+    MUJOCO_LOG.TXT in the working directory (MuJoCo's default warning handler appends to one)."""
+    path = load_plugin()
+    with tempfile.TemporaryDirectory() as tmp:
+        r = subprocess.run([sys.executable, "-c", LOAD_IN_A_CHILD, path], input=rig({"cylinder.bore_m": "-3"}),
+                           capture_output=True, text=True, cwd=tmp, timeout=120)
+        assert r.returncode == 0, (r.returncode, r.stdout, r.stderr)
+        assert r.stdout == ("refused: Error: engine error: pneuflex.cylinder: instance 'cyl': config key "
+                            "'cylinder.bore_m': must be > 0, got -3\n"), r.stdout
+        assert r.stderr == "", r.stderr
+        assert os.listdir(tmp) == [], os.listdir(tmp)
+
+
+@test
+def an_mjdata_whose_sheet_is_gone_is_an_error_naming_the_key():
+    """init runs again for every MjData: a sheet deleted after the model loaded makes MjData(model) raise
+    mujoco.FatalError naming the key and the file (it was "plugin->init failed for plugin id 0", the reason on
+    stdout); MuJoCo goes on working afterwards."""
+    load_plugin()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp) / "pneumatics"
+        shutil.copytree(Path(SHEET).parent, folder)
+        sheet = folder / Path(SHEET).name
+        m = mujoco.MjModel.from_xml_string(rig({"sheet": str(sheet)}))
+        sheet.unlink()
+        try:
+            mujoco.MjData(m)
+            raise AssertionError("an MjData was made without its sheet")
+        except mujoco.FatalError as e:
+            text = str(e)
+        assert text.startswith(f"pneuflex.cylinder: instance 'cyl': config key 'sheet': {sheet}: cannot read"), text
     assert plugin_run(rig(), 10).shape == (10, 4)
 
 
@@ -274,8 +329,13 @@ def a_c_host_loads_the_plugin():
         py = plugin_run(rig(), 300, ctrl=lambda k: 0.4, x0=None)[-1]  # the host starts at qpos0
         # The same library on the same model: the same numbers (printed with 17 digits).
         assert float(vals["force"]) == py[1] and float(vals["p_a"]) == py[2] and float(vals["p_b"]) == py[3], (vals, py)
-        r = subprocess.run([str(host), path, str(bad), "1", "0"], capture_output=True, text=True, timeout=60)
-        assert r.returncode == 2 and "config key 'valve.critical_pressure_ratio'" in r.stdout, (r.returncode, r.stdout, r.stderr)
+        r = subprocess.run([str(host), path, str(bad), "1", "0"], capture_output=True, text=True, timeout=60,
+                           cwd=tmp)
+        # The key and the reason in mj_loadXML's error buffer, which the host prints; nothing else printed.
+        assert r.returncode == 2 and r.stdout.startswith(
+            "load error: Error: engine error: pneuflex.cylinder: instance 'cyl': config key "
+            "'valve.critical_pressure_ratio': must be in [0, 1), got 1.5"), (r.returncode, r.stdout, r.stderr)
+        assert r.stdout.count("\n") == 1 and r.stderr == "", (r.stdout, r.stderr)
 
 
 if __name__ == "__main__":
