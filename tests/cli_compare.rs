@@ -1,6 +1,7 @@
-//! `pneuflex compare`: a log made by a hidden truth (the shipped sheet with six values moved 20-40 %) is
-//! compared with the shipped sheet's simulation and with the truth's: every metric difference and the trace
-//! difference shrink to nothing with the true sheet; bad logs are refused with their line.
+//! `pneuflex compare`: a recording made on the lockstep emulator hiding a truth (the shipped sheet with values
+//! moved 20-40 %) is compared with the shipped sheet's simulation and with the truth's: every window's RMS
+//! error difference shrinks with the true sheet; two recorded runs give the claims' verdicts on the rig from
+//! the recordings' own metrics; bad logs are refused with their line (tests/corpus_compare.rs has the rest).
 
 use std::path::Path;
 use std::process::Command;
@@ -53,106 +54,70 @@ fn perturb(dir: &Path, keys: &str) {
     ok(&pneuflex(&args, dir));
 }
 
-#[test]
-fn the_true_sheet_closes_the_gap_the_shipped_one_leaves() {
+/// `rig run --lockstep-truth TRUTH` of paper-fig3's `run` (seconds `duration`, the scene's when None) into
+/// `dir/out`.
+fn record(dir: &Path, truth: &str, run: &str, duration: Option<&str>, out: &str) {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let tmp = tempfile::tempdir().unwrap();
-    let t = tmp.path();
-    let keys = "valve.sonic_conductance_m3_per_s_pa,valve.critical_pressure_ratio,cylinder.dead_volume_a_m3,\
-                cylinder.dead_volume_b_m3,mechanics.coulomb_n,mechanics.moving_mass_kg";
-    perturb(t, keys);
-    let truth = t.join("truth/paper-actuator.toml");
-    // The "rig": the scene run on the truth.
+    let rig = repo.join("rigs/emulated.toml");
     let scene = repo.join("scenes/paper-fig3.toml");
-    let text = std::fs::read_to_string(&scene).unwrap().replace(
-        "actuator = \"../pneumatics/paper-actuator.toml\"",
-        &format!("actuator = {:?}", truth.to_str().unwrap()),
-    );
-    std::fs::write(t.join("truth-scene.toml"), text).unwrap();
-    ok(&pneuflex(
-        &["run", "truth-scene.toml", "--quiet", "--out", "rig"],
-        t,
-    ));
-    let log = t.join("rig/impedance/trace.csv");
-    let scene = scene.to_str().unwrap();
-    let log = log.to_str().unwrap();
-    ok(&compare(
-        t,
+    let (rig, scene) = (rig.to_str().unwrap(), scene.to_str().unwrap());
+    let mut args = vec![
+        "rig",
+        "run",
+        "--rig",
+        rig,
+        "--lockstep-truth",
+        truth,
+        "--scene",
         scene,
-        &[log],
-        &["--run", "impedance", "--out", "shipped"],
-    ));
-    let truth = truth.to_str().unwrap();
-    ok(&compare(
-        t,
-        scene,
-        &[log],
-        &["--run", "impedance", "--actuator", truth, "--out", "true"],
-    ));
-    let read = |d: &str| -> serde_json::Value {
-        serde_json::from_str(&std::fs::read_to_string(t.join(d).join("compare.json")).unwrap())
-            .unwrap()
-    };
-    let (shipped, truth) = (read("shipped"), read("true"));
-    let f = |v: &serde_json::Value| v["f_e_rms_difference_n"].as_f64().unwrap();
-    assert!(
-        f(&shipped) > 0.1,
-        "the shipped sheet differs from the truth: {}",
-        f(&shipped)
-    );
-    assert!(
-        f(&truth) < 1e-9,
-        "the true sheet reproduces the log: {}",
-        f(&truth)
-    );
-    let diffs = |v: &serde_json::Value| -> Vec<f64> {
-        v["metrics"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter_map(|m| m["difference"].as_f64())
-            .map(f64::abs)
-            .collect()
-    };
-    assert!(diffs(&shipped).iter().sum::<f64>() > 0.1);
-    assert!(
-        diffs(&truth).iter().all(|d| *d < 1e-9),
-        "{:?}",
-        diffs(&truth)
-    );
-    for d in ["shipped", "true"] {
-        for f in ["compare.md", "force.png", "position.png"] {
-            assert!(t.join(d).join(f).is_file(), "{d}/{f}");
-        }
+        "--run",
+        run,
+        "--out",
+        out,
+    ];
+    if let Some(d) = duration {
+        args.extend(["--duration", d]);
     }
-    // The log is an input: compare never writes inside the rig's directory.
-    refused(&compare(t, scene, &[log], &["--out", "rig/impedance/cmp"]));
+    ok(&pneuflex(&args, dir));
 }
 
 #[test]
 fn a_bad_log_is_refused_with_its_line() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
     let scene = repo.join("scenes/paper-fig3.toml");
     let scene = scene.to_str().unwrap();
-    std::fs::write(
-        tmp.path().join("bad.csv"),
-        "t,f_ref,f_e,x,x_r,p_a,p_b,u\n0,1,1,0,0,1e5,1e5,0\n0.001,1,x,0,0,1e5,1e5,0\n",
-    )
-    .unwrap();
-    let e = refused(&compare(tmp.path(), scene, &["bad.csv"], &[]));
+    let sheet = repo.join("pneumatics/paper-actuator.toml");
+    record(t, sheet.to_str().unwrap(), "impedance", Some("0.5"), "rec");
+    // The recording copied with its manifest, one cell made a word (data starts on line 5).
+    std::fs::create_dir(t.join("bad")).unwrap();
+    for f in [".pneuflex-output.json", "summary.json", "trace.csv"] {
+        std::fs::copy(t.join("rec").join(f), t.join("bad").join(f)).unwrap();
+    }
+    let text = std::fs::read_to_string(t.join("rec/trace.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let mut cells: Vec<&str> = lines[6].split(',').collect();
+    cells[2] = "x";
+    lines[6] = cells.join(",");
+    std::fs::write(t.join("bad/trace.csv"), lines.join("\n") + "\n").unwrap();
+    let e = refused(&compare(t, scene, &["bad/trace.csv"], &["--out", "x"]));
     assert!(
-        e.contains("bad.csv: line 3: column `f_e`: `x` is not a number"),
+        e.contains("bad/trace.csv: line 7: column `f_e`: `x` is not a number"),
         "{e}"
     );
+    // A CSV of the loop's columns alone is not a recording of the rig.
     std::fs::write(
-        tmp.path().join("coarse.csv"),
+        t.join("coarse.csv"),
         "t,f_ref,f_e,x,x_r,p_a,p_b,u\n0,1,1,0,0,1e5,1e5,0\n0.01,1,1,0,0,1e5,1e5,0\n",
     )
     .unwrap();
-    let e = refused(&compare(tmp.path(), scene, &["coarse.csv"], &[]));
-    assert!(e.contains("a log of another scene?"), "{e}");
-    assert!(!tmp.path().join("out").exists(), "nothing written");
+    let e = refused(&compare(t, scene, &["coarse.csv"], &["--out", "x"]));
+    assert!(
+        e.contains("coarse.csv: line 1: none of the rig's columns"),
+        "{e}"
+    );
+    assert!(!t.join("x").exists(), "nothing written");
 }
 
 #[test]
@@ -160,7 +125,8 @@ fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation()
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();
-    // The "rig": paper-fig3 run with the Coulomb friction doubled, both runs (the sheets copied beside it).
+    // The "rig": the emulator hiding the shipped sheet with its Coulomb friction doubled (the sheets copied
+    // beside it), both runs recorded.
     std::fs::create_dir(t.join("pneumatics")).unwrap();
     for e in std::fs::read_dir(repo.join("pneumatics")).unwrap() {
         let p = e.unwrap().path();
@@ -179,34 +145,50 @@ fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation()
         sheet.replace("coulomb_n = 0.6 ", "coulomb_n = 1.2 "),
     )
     .unwrap();
-    std::fs::create_dir(t.join("scenes")).unwrap();
-    let scene = repo.join("scenes/paper-fig3.toml");
-    std::fs::copy(&scene, t.join("scenes/rig-scene.toml")).unwrap();
-    ok(&pneuflex(
-        &["run", "scenes/rig-scene.toml", "--quiet", "--out", "rig"],
+    record(
         t,
-    ));
+        "pneumatics/paper-actuator.toml",
+        "impedance",
+        None,
+        "rec-impedance",
+    );
+    record(
+        t,
+        "pneumatics/paper-actuator.toml",
+        "adaptive",
+        None,
+        "rec-adaptive",
+    );
+    let scene = repo.join("scenes/paper-fig3.toml");
     let scene = scene.to_str().unwrap();
-    let imp = format!("impedance={}", t.join("rig/impedance/trace.csv").display());
-    let ada = format!("adaptive={}", t.join("rig/adaptive/trace.csv").display());
-    ok(&compare(t, scene, &[&imp, &ada], &["--out", "cmp"]));
+    let imp = "rec-impedance/trace.csv";
+    let ada = "rec-adaptive/trace.csv";
+    ok(&compare(t, scene, &[imp, ada], &["--out", "cmp"]));
     let read = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
     let c = read(&t.join("cmp/compare.json"));
-    let rig_summary = read(&t.join("rig/summary.json"));
-    // The rig's verdicts are the rig scene's own claims (its summary.json), value for value.
+    // The rig's verdicts are read on each recording's own metrics (the summary.json `rig run` wrote).
+    let metric = |run: &str, window: &str, metric: &str| -> Option<f64> {
+        let s = read(&t.join(format!("rec-{run}/summary.json")));
+        let w = s["runs"][0]["windows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|w| w["name"] == window)?
+            .clone();
+        w[metric].as_f64().or_else(|| w["event"][metric].as_f64())
+    };
     let claims = c["claims"]["rig"].as_array().unwrap();
-    let own = rig_summary["claims"].as_array().unwrap();
-    assert_eq!(claims.len(), own.len());
-    for (a, b) in claims.iter().zip(own) {
-        assert_eq!(a["statement"], b["statement"]);
-        assert_eq!(a["holds"], b["holds"], "{}", a["statement"]);
-        for k in ["better_value", "than_value"] {
-            let (x, y) = (a[k].as_f64().unwrap(), b[k].as_f64().unwrap());
+    assert!(!claims.is_empty(), "{c}");
+    for a in claims {
+        let (window, m) = (a["window"].as_str().unwrap(), a["metric"].as_str().unwrap());
+        for (who, value) in [("better", "better_value"), ("than", "than_value")] {
+            let own = metric(a[who].as_str().unwrap(), window, m).expect("the recording's metric");
+            let x = a[value].as_f64().unwrap();
             assert!(
-                (x - y).abs() <= 1e-9 * x.abs().max(1.0),
-                "{}: {k} {x} vs {y}",
+                (x - own).abs() <= 1e-9 * own.abs().max(1.0),
+                "{}: {value} {x} vs the recording's {own}",
                 a["statement"]
             );
         }
@@ -214,7 +196,7 @@ fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation()
     // The simulation side is the shipped scene's.
     assert_eq!(
         c["claims"]["simulation"].as_array().unwrap().len(),
-        own.len()
+        claims.len()
     );
     assert_eq!(c["runs"].as_array().unwrap().len(), 2);
     let md = std::fs::read_to_string(t.join("cmp/compare.md")).unwrap();
@@ -225,13 +207,11 @@ fn two_recorded_runs_give_the_claims_verdicts_on_the_rig_beside_the_simulation()
     for f in ["impedance/force.png", "adaptive/force.png"] {
         assert!(t.join("cmp").join(f).is_file(), "{f}");
     }
-    // Two logs must say which run each recorded, and two of one run are refused.
-    let bare = t.join("rig/impedance/trace.csv");
-    let bare = bare.to_str().unwrap();
-    let e = refused(&compare(t, scene, &[bare, &ada], &["--out", "x"]));
-    assert!(e.contains("give RUN="), "{e}");
-    let twice = format!("adaptive={bare}");
-    let e = refused(&compare(t, scene, &[&ada, &twice], &["--out", "x"]));
+    // Each log's summary.json names its run; two of one run are refused.
+    let twice = format!("impedance={ada}");
+    let e = refused(&compare(t, scene, &[imp, &twice], &["--out", "x"]));
+    assert!(e.contains("a recording of run `adaptive`"), "{e}");
+    let e = refused(&compare(t, scene, &[imp, imp], &["--out", "x"]));
     assert!(e.contains("already given"), "{e}");
     assert!(!t.join("x").exists(), "nothing written");
 }
@@ -330,6 +310,19 @@ fn on_the_lockstep_emulator_the_true_sheet_explains_the_rig_better_than_the_ship
             "each window's RMS error difference shrinks: {a:?} -> {b:?}"
         );
     }
+    for d in ["shipped", "true"] {
+        for f in ["compare.md", "force.png", "position.png"] {
+            assert!(t.join(d).join(f).is_file(), "{d}/{f}");
+        }
+    }
+    // The log is an input: compare never writes inside the recording.
+    refused(&compare(
+        t,
+        scene,
+        &["rec/trace.csv"],
+        &["--out", "rec/cmp"],
+    ));
+    assert!(!t.join("rec/cmp").exists());
     let fe = |c: &serde_json::Value| c["f_e_rms_difference_n"].as_f64().unwrap();
     assert!(
         fe(&truth) < fe(&shipped),
