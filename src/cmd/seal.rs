@@ -54,7 +54,8 @@ fn test_arg(arg: &str, s: &Sensors) -> anyhow::Result<(PathBuf, Option<f64>)> {
         })?;
     if !(MIN_GAUGE_PA / 1e5..=s.max_gauge_pa / 1e5).contains(&bar) {
         bail!(
-            "--test {arg}: {bar} bar gauge is outside the sensor's range [{}, {}] bar (--max-pressure-bar)",
+            "--test {arg}: {} bar gauge is outside the sensor's range [{}, {}] bar (--max-pressure-bar)",
+            p.trim(),
             MIN_GAUGE_PA / 1e5,
             s.max_gauge_pa / 1e5
         );

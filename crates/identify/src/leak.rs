@@ -64,7 +64,7 @@ impl LeakOptions {
     pub fn check(&self) -> Result<(), IdentifyError> {
         let key = |option, v: f64, message: String| IdentifyError::Key {
             option,
-            key: v.to_string(),
+            key: crate::seal::shown(v),
             message,
         };
         if !(200.0..=400.0).contains(&self.temperature_k) {
@@ -213,7 +213,7 @@ pub fn read_decay_logs(
         }
         if let Some(twin) = logs.iter().find(|l| l.chamber == log.chamber) {
             return Err(IdentifyError::Input(format!(
-                "{}: a chamber named {:?} as {} is: the ranking names chambers by their file's stem; rename one",
+                "{}: the chamber name {:?} of {} too: the ranking names chambers by their file's stem; rename one",
                 p.display(),
                 log.chamber,
                 twin.file.display()
@@ -295,8 +295,9 @@ pub fn read_decay_log_with(
                 i + 1,
                 "pressure_bar",
                 format!(
-                    "{bar} bar gauge: outside the pressure sensor's range [{lo}, {hi}] bar (a column in Pa, kPa \
-                     or mbar? a sensor of a larger range: --max-pressure-bar)"
+                    "{} bar gauge: outside the pressure sensor's range [{lo}, {hi}] bar (a column in Pa, kPa \
+                     or mbar? a sensor of a larger range: --max-pressure-bar)",
+                    crate::seal::shown(bar)
                 ),
             ));
         }
@@ -322,7 +323,7 @@ pub fn read_decay_log_with(
             lines[1],
             "time_ms",
             format!(
-                "the median sample period is {period:e} s, outside [{lo:e}, {hi}] s: no logger samples a \
+                "the median sample period is {period:.3e} s, outside [{lo:e}, {hi}] s: no logger samples a \
                  decay at that rate (the time is read in ms, '.' the thousands separator)"
             ),
         ));
@@ -347,7 +348,7 @@ pub fn read_decay_log_with(
             format!(
                 "{} bar is {:.3} bar from the log's median {:.3} bar, beyond {:.3} bar (10 times the spread of \
                  its middle half): a glitch or a corrupt row, not a reading",
-                log.gauge_pa[k] / 1e5,
+                crate::seal::shown(log.gauge_pa[k] / 1e5),
                 (log.gauge_pa[k] - m).abs() / 1e5,
                 m / 1e5,
                 bound / 1e5

@@ -585,8 +585,15 @@ impl<'a> LogParser<'a> {
                 None,
                 None,
                 format!(
-                    "{} data rows; identification needs a log of many ticks",
-                    self.log.t.len()
+                    "{} data rows; identification needs a log of many ticks{}",
+                    self.log.t.len(),
+                    match &self.format.skip_lines_at {
+                        Some(at) if self.format.skip_lines > 0 => format!(
+                            " (after --log-format's skip_lines = {} ({at}) and the header)",
+                            self.format.skip_lines
+                        ),
+                        _ => String::new(),
+                    }
                 ),
             ));
         }
@@ -599,7 +606,7 @@ impl<'a> LogParser<'a> {
                 Some(self.row_lines[1]),
                 Some("t"),
                 format!(
-                    "the median sample period is {dt:e} s, outside [{lo:e}, {hi}] s: no rig samples at that rate; \
+                    "the median sample period is {dt:.3e} s, outside [{lo:e}, {hi}] s: no rig samples at that rate; \
                      check the time column's unit (seconds in a trace; a log format's columns.t.unit)"
                 ),
             ));
@@ -609,7 +616,7 @@ impl<'a> LogParser<'a> {
                 Some(self.row_lines[k]),
                 Some("t"),
                 format!(
-                    "a step of {:e} s, from {} to {} s, where the median sample period is {dt:e} s: the clock \
+                    "a step of {:.3e} s, from {} to {} s, where the median sample period is {dt:.3e} s: the clock \
                      does not tick evenly (a repeated or corrupt time stamp)",
                     t[k] - t[k - 1],
                     t[k - 1],

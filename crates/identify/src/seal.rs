@@ -82,7 +82,7 @@ impl SealOptions {
     pub fn check(&self) -> Result<(), IdentifyError> {
         let key = |option, v: f64, message: String| IdentifyError::Key {
             option,
-            key: v.to_string(),
+            key: crate::seal::shown(v),
             message,
         };
         if !(1e-3..=1.0).contains(&self.bore_m) {
@@ -301,6 +301,16 @@ impl Default for Sensors {
     }
 }
 
+/// A number as a message shows it: plain in the range of readings, else in exponent form (1e300, not 301
+/// digits).
+pub fn shown(v: f64) -> String {
+    if v == 0.0 || (1e-4..1e6).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// A gauge pressure below this is below vacuum (absolute 0 at sea level, with room for an offset), Pa.
 pub const MIN_GAUGE_PA: f64 = -1.1e5;
 /// The largest |position| of a bench's rod, mm (as a rig log's: 10 m).
@@ -382,7 +392,7 @@ pub fn read_seal_test_with(
                 format!(
                     "{} bar gauge: outside the pressure sensor's range [{lo}, {hi}] bar (a column in Pa, kPa or \
                      mbar? a sensor of a larger range: --max-pressure-bar)",
-                    row[5]
+                    shown(row[5])
                 ),
             ));
         }
@@ -431,7 +441,7 @@ pub fn read_seal_test_with(
             Some(lines[1]),
             Some(COLUMNS[0]),
             format!(
-                "the median sample period is {period:e} s, outside [{lo:e}, {hi}] s: no bench samples at that \
+                "the median sample period is {period:.3e} s, outside [{lo:e}, {hi}] s: no bench samples at that \
                  rate (the time is read in ms)"
             ),
         ));
@@ -448,7 +458,7 @@ pub fn read_seal_test_with(
                 format!(
                     "{} {unit} is {:.3} {unit} from the file's median {:.3} {unit}, beyond {:.3} {unit} (10 times \
                      the spread of its middle half): a glitch or a corrupt row, not a reading",
-                    v[k] * scale,
+                    shown(v[k] * scale),
                     (v[k] - m).abs() * scale,
                     m * scale,
                     bound * scale
@@ -1017,7 +1027,7 @@ fn plausible(
                     "no area fits them".into()
                 };
                 return Err(IdentifyError::Fit(format!(
-                    "the zero offsets of F - p A grow by {:.3} N/bar with the pressure over the tests ({}): a piston \
+                    "the zero offsets of F - p A change by {:+.3} N/bar with the pressure over the tests ({}): a piston \
                      area {:.0} % off would do that ({bore}); {hint}",
                     slope * 1e5,
                     tests
@@ -1041,6 +1051,24 @@ fn plausible(
 /// Fits the seal's friction laws to the tests (module doc).
 pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, IdentifyError> {
     o.check()?;
+    // The pressure term and the per-test offsets need two held pressures: say which tests were given.
+    if let Some(first) = tests.first()
+        && tests
+            .iter()
+            .all(|t| (t.nominal_pa - first.nominal_pa).abs() < 1e3)
+    {
+        return Err(IdentifyError::Fit(format!(
+            "{} test(s), all at {:.3} bar ({}): a friction law of the pressure needs tests at two held \
+             pressures or more",
+            tests.len(),
+            first.nominal_pa / 1e5,
+            tests
+                .iter()
+                .map(|t| t.file.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
     let samples: Vec<Sample> = tests
         .iter()
         .enumerate()

@@ -472,9 +472,20 @@ impl Tuner {
         tuner.find_integer_keys()?;
         let lo: Vec<f64> = tuner.free.iter().map(|f| f.lo).collect();
         let hi: Vec<f64> = tuner.free.iter().map(|f| f.hi).collect();
-        for x in [&tuner.initial, &lo, &hi] {
+        // A corner the scene refuses is named as the --free box's, the option to change.
+        for (x, which) in [
+            (&tuner.initial, "start"),
+            (&lo, "lower corner"),
+            (&hi, "upper corner"),
+        ] {
             for e in 0..tuner.envs.len() {
-                tuner.scene(x, e, true)?;
+                tuner.scene(x, e, true).map_err(|err| match err {
+                    SweepError::Point { point, error } => SweepError::Point {
+                        point: format!("the --free box's {which}: {point}"),
+                        error,
+                    },
+                    other => other,
+                })?;
             }
         }
         Ok(tuner)
