@@ -132,7 +132,7 @@ impl Task {
                     .map_err(|e| scene.invalid("runs", e.to_string()))?;
                 Action::Impedance {
                     controller: Box::new(controller),
-                    ticks: decision_ticks.max(1),
+                    ticks: decision_ticks,
                 }
             }
             other => {
@@ -470,11 +470,78 @@ pub struct PyForceControlBatch {
     autoreset: bool,
 }
 
+/// The actions of a step: a 1-D float64 numpy array (contiguous or not); anything else is a TypeError
+/// saying what is expected.
+fn flat_actions(actions: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+    match actions.extract::<PyReadonlyArray1<'_, f64>>() {
+        Ok(a) => Ok(a.as_array().to_vec()),
+        Err(_) => Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "actions must be a 1-D float64 numpy array (num_envs x action_width values), got {}",
+            describe(actions)
+        ))),
+    }
+}
+
+/// A Python value's type, with a numpy array's dtype and shape.
+fn describe(v: &Bound<'_, PyAny>) -> String {
+    let ty = v
+        .get_type()
+        .name()
+        .map_or_else(|_| "?".into(), |n| n.to_string());
+    match (v.getattr("dtype"), v.getattr("shape")) {
+        (Ok(d), Ok(s)) => format!("{ty} of dtype {d} and shape {s}"),
+        _ => ty,
+    }
+}
+
 /// A reset's seed: one for the batch, or one per episode.
-#[derive(FromPyObject)]
 enum Seeds {
     One(u64),
     Each(Vec<u64>),
+}
+
+impl Seeds {
+    /// An int in [0, 2^64) or a list of them; anything else says what a seed must be.
+    fn extract(seed: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let one = |v: &Bound<'_, PyAny>, what: &str| -> PyResult<u64> {
+            if v.is_instance_of::<pyo3::types::PyBool>() {
+                return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                    "{what} must be an int, got a bool"
+                )));
+            }
+            v.extract::<u64>().map_err(|e| {
+                if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(v.py()) {
+                    PyValueError::new_err(format!("{what} must be in [0, 2^64), got {v}"))
+                } else {
+                    pyo3::exceptions::PyTypeError::new_err(format!(
+                        "{what} must be an int, got {}",
+                        describe(v)
+                    ))
+                }
+            })
+        };
+        // An int, or a numpy integer (an index that is not a sequence).
+        let sequence = seed.hasattr("__len__")?;
+        if seed.is_instance_of::<pyo3::types::PyInt>() || (seed.hasattr("__index__")? && !sequence)
+        {
+            return one(seed, "seed").map(Seeds::One);
+        }
+        if !sequence
+            || seed.is_instance_of::<pyo3::types::PyString>()
+            || seed.is_instance_of::<pyo3::types::PyBytes>()
+            || seed.is_instance_of::<pyo3::types::PyDict>()
+        {
+            return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                "seed must be an int or a list of ints (one per environment), got {}",
+                describe(seed)
+            )));
+        }
+        let mut each = Vec::new();
+        for (i, v) in seed.try_iter()?.enumerate() {
+            each.push(one(&v?, &format!("seed[{i}]"))?);
+        }
+        Ok(Seeds::Each(each))
+    }
 }
 
 fn seeded(seed: u64, i: usize) -> StdRng {
@@ -505,6 +572,12 @@ impl PyForceControlBatch {
         if num_envs == 0 {
             return Err(PyValueError::new_err("num_envs must be at least 1"));
         }
+        // A step of zero ticks would stand still: refused rather than read as 1.
+        if decision_ticks == 0 {
+            return Err(PyValueError::new_err(
+                "decision_ticks must be at least 1 (control ticks per impedance action)",
+            ));
+        }
         let task = Task::load(&scene_path, action, decision_ticks).map_err(errors::scene)?;
         let episodes = (0..num_envs)
             .map(|i| Episode::new(&task, seeded(0, i)))
@@ -526,9 +599,10 @@ impl PyForceControlBatch {
     fn reset<'py>(
         &mut self,
         py: Python<'py>,
-        seed: Seeds,
+        seed: &Bound<'py, PyAny>,
         randomize: Option<bool>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let seed = Seeds::extract(seed)?;
         let n = self.episodes.len();
         if let Seeds::Each(s) = &seed
             && s.len() != n
@@ -553,13 +627,15 @@ impl PyForceControlBatch {
         Ok(self.observations(py))
     }
 
-    /// One control tick of every episode under `actions` (one valve command in [-1, 1] each; NaN is 0):
-    /// (observations (num_envs, 6) float32, rewards, terminated, truncated).
+    /// One step of every episode under `actions`, `action_width` values per episode, flat (a valve command,
+    /// or the impedance adjustments a_m, a_b): finite values, clipped to [-1, 1]; a NaN or an infinity is
+    /// refused, naming the episode and the value. Returns (observations (num_envs, 6) float32, rewards,
+    /// terminated, truncated).
     #[allow(clippy::type_complexity)]
     fn step<'py>(
         &mut self,
         py: Python<'py>,
-        actions: PyReadonlyArray1<'py, f64>,
+        actions: &Bound<'py, PyAny>,
     ) -> PyResult<(
         Bound<'py, PyArray2<f32>>,
         Bound<'py, PyArray1<f64>>,
@@ -568,14 +644,23 @@ impl PyForceControlBatch {
     )> {
         let n = self.episodes.len();
         let width = self.task.action.width();
-        let u = actions.as_slice()?;
+        let u = flat_actions(actions)?;
         if u.len() != n * width {
             return Err(PyValueError::new_err(format!(
                 "actions: {} values for {n} environments of {width} each",
                 u.len()
             )));
         }
-        let u = u.to_vec();
+        // A NaN would be read as some command (the valve closed, the scene's gains): refused instead.
+        if let Some(k) = u.iter().position(|v| !v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "actions[{k}] (environment {}, value {}) is {}: an action must be finite (values outside \
+                 [-1, 1] are clipped)",
+                k / width,
+                k % width,
+                u[k]
+            )));
+        }
         let mut obs = vec![0f32; n * OBS];
         let mut out = vec![Outcome::default(); n];
         let (task, randomize, autoreset) = (&self.task, self.randomize, self.autoreset);

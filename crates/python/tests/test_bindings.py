@@ -4,6 +4,7 @@ failure). Run: scripts/test_python.sh (installs the bindings into .venv first)."
 from __future__ import annotations
 
 import math
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -313,7 +314,7 @@ def the_vector_environment_is_many_single_ones():
     try:
         vec.step(np.zeros(n + 1))
     except ValueError as e:
-        assert "values for 6 environments" in str(e), e
+        assert "the action has shape (7,); the action space's is (6, 1)" in str(e), e
     else:
         raise AssertionError("a wrong number of actions was accepted")
     try:
@@ -489,6 +490,294 @@ def bad_inputs_raise_python_exceptions_naming_the_file():
         assert "dt_s" in str(e)
     else:
         raise AssertionError("dt = 0 accepted")
+
+
+def refused(f, error, *says) -> str:
+    """Calls ``f``, which must raise ``error``; each of ``says`` must be in the text (the message and PyO3's
+    notes, which name a native function's argument: "while processing 'path'"). Returns the text."""
+    try:
+        f()
+    except error as e:
+        text = "\n".join([str(e), *getattr(e, "__notes__", [])])
+        for want in says:
+            assert want in text, (want, text)
+        return text
+    except BaseException as e:
+        raise AssertionError(f"{type(e).__name__}: {e}; expected {error.__name__} saying {says}") from e
+    raise AssertionError(f"accepted; expected {error.__name__} saying {says}")
+
+
+FREE = ["runs[adaptive].inner.kp_per_m=[2,20]"]
+MASS = ["mechanics.moving_mass_kg"]
+
+
+@test
+def a_path_of_another_type_is_a_type_error_naming_the_argument():
+    """run(42) was FileNotFoundError("42") (str() made the number a file name): a number, None or bytes of no
+    path where a file goes is a TypeError naming the function and the argument, before anything is read or
+    written; an empty path is a ValueError."""
+    import pneuflex.envs as envs
+
+    refused(lambda: pneuflex.run(42), TypeError, "pneuflex.run: scene_path must be a path (str or os.PathLike), got int 42")
+    refused(lambda: pneuflex.run(None), TypeError, "pneuflex.run: scene_path", "NoneType")
+    refused(lambda: pneuflex.run(""), ValueError, "pneuflex.run: scene_path is an empty path")
+    refused(lambda: pneuflex.sweep(42, ["environment.stiffness_n_per_m=700"]), TypeError, "pneuflex.sweep: scene must be a path")
+    refused(lambda: pneuflex.identify(42, SHEET, MASS), TypeError, "pneuflex.identify: logs must be a list of paths, got int 42")
+    refused(lambda: pneuflex.identify(["rig.csv", 42], SHEET, MASS), TypeError, "pneuflex.identify: logs[1] must be a path")
+    refused(lambda: pneuflex.identify("rig.csv", 42, MASS), TypeError, "pneuflex.identify: actuator must be a path")
+    refused(lambda: pneuflex.identify("rig.csv", SHEET, MASS, log_format=1), TypeError, "pneuflex.identify: log_format must be a path")
+    refused(lambda: envs.ForceControl(scene=42), TypeError, "ForceControl: scene must be a path")
+    refused(lambda: envs.ForceControlVector(4, scene=[SCENE]), TypeError, "ForceControlVector: scene must be a path")
+    # The native functions: PyO3's TypeError, the argument in its note.
+    refused(lambda: pneuflex.load_scene(42), TypeError, "while processing 'path'")
+    refused(lambda: pneuflex.ForceControlBatch(None), TypeError, "while processing 'scene_path'")
+    with tempfile.TemporaryDirectory() as d:
+        here = os.getcwd()
+        os.chdir(d)
+        try:
+            # An `out` of 3 would have been the directory "3" here.
+            refused(lambda: pneuflex.sweep(SCENE, ["environment.stiffness_n_per_m=700"], out=3), TypeError,
+                    "pneuflex.sweep: out must be a path")
+            refused(lambda: pneuflex.tune(SCENE, FREE, out=3), TypeError, "pneuflex.tune: out must be a path")
+            refused(lambda: pneuflex.identify("rig.csv", SHEET, MASS, out=3), TypeError, "pneuflex.identify: out")
+        finally:
+            os.chdir(here)
+        assert os.listdir(d) == [], os.listdir(d)
+
+
+@test
+def a_string_where_a_list_belongs_is_one_entry_not_its_characters():
+    """sweep(scene, "KEY=...") iterated the string's characters: one string is the one entry it reads as (as
+    identify's `free` already was), the same table as the list of it. A dict or a set (no order a user chose),
+    a number, or an element that is not a str is a TypeError naming the argument and the element."""
+    with tempfile.TemporaryDirectory() as d:
+        servo = Path(d) / "servo.toml"
+        servo.write_text(SERVO_SCENE)
+        one = "environment.stiffness_n_per_m=700,1400"
+        table = pneuflex.sweep(servo, one)
+        assert table == pneuflex.sweep(servo, [one]) and len(table.frame) == 2 * 2, table
+    refused(lambda: pneuflex.sweep(SCENE, [one, 42]), TypeError, 'pneuflex.sweep: sets[1] must be a str ("KEY=SPEC" strings), got int 42')
+    refused(lambda: pneuflex.sweep(SCENE, {one: 1}), TypeError, "pneuflex.sweep: sets must be a list", "got dict")
+    refused(lambda: pneuflex.sweep(SCENE, {one}), TypeError, "pneuflex.sweep: sets must be a list", "got set")
+    refused(lambda: pneuflex.sweep(SCENE, 700), TypeError, "pneuflex.sweep: sets must be a list")
+    refused(lambda: pneuflex.sweep(SCENE, [b"environment.stiffness_n_per_m=700"]), TypeError, "sets[0] must be a str")
+    refused(lambda: pneuflex.tune(SCENE, 42, out="unused"), TypeError, "pneuflex.tune: free must be a list")
+    refused(lambda: pneuflex.tune(SCENE, FREE, over=[700], out="unused"), TypeError, "pneuflex.tune: over[0] must be a str")
+    refused(lambda: pneuflex.tune(SCENE, FREE, terms=None, out="unused"), TypeError, "pneuflex.tune: terms must be a list")
+    refused(lambda: pneuflex.identify("rig.csv", SHEET, [b"mechanics.moving_mass_kg"]), TypeError, "pneuflex.identify: free[0] must be a str")
+    refused(lambda: pneuflex.identify("rig.csv", SHEET, MASS, bounds=5), TypeError, "pneuflex.identify: bounds must be a list")
+    assert not Path("unused").exists()
+
+
+@test
+def a_number_of_the_wrong_type_or_sign_is_refused_by_name():
+    """Counts, seeds and the search's numbers: a float, a str or a bool where an integer goes is a TypeError, a
+    negative count or seed or a NaN a ValueError, each naming the argument; nothing runs and nothing is written.
+    (The ranges beyond the sign are the Rust engine's own checks, the CLI's messages.)"""
+    s = ["environment.stiffness_n_per_m=700"]
+    refused(lambda: pneuflex.sweep(SCENE, s, seed=-1), ValueError, "pneuflex.sweep: seed must be at least 0, got -1")
+    refused(lambda: pneuflex.sweep(SCENE, s, seed=2**64), ValueError, "pneuflex.sweep: seed must be below 2^64")
+    refused(lambda: pneuflex.sweep(SCENE, s, seed=1.5), TypeError, "pneuflex.sweep: seed must be an integer, got float 1.5")
+    refused(lambda: pneuflex.sweep(SCENE, s, samples=0), ValueError, "pneuflex.sweep: samples must be at least 1, got 0")
+    refused(lambda: pneuflex.sweep(SCENE, s, samples="4"), TypeError, "pneuflex.sweep: samples must be an integer")
+    refused(lambda: pneuflex.sweep(SCENE, s, threads=-2), ValueError, "pneuflex.sweep: threads must be at least 0")
+    refused(lambda: pneuflex.sweep(SCENE, s, executor="dask"), ValueError, "pneuflex.sweep: executor must be 'local', 'ray'")
+    refused(lambda: pneuflex.sweep(SCENE, s, executor=4), TypeError, "pneuflex.sweep: executor must be")
+    refused(lambda: pneuflex.LocalExecutor(threads=-1), ValueError, "LocalExecutor: threads must be at least 0")
+    refused(lambda: pneuflex.RayExecutor(chunk_size="8"), TypeError, "RayExecutor: chunk_size must be an integer")
+    refused(lambda: pneuflex.RayExecutor(chunk_size=0), ValueError, "RayExecutor: chunk_size must be at least 1")
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d) / "tune"
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=out, budget=-1), ValueError, "pneuflex.tune: budget must be at least 0")
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=out, budget=True), TypeError, "pneuflex.tune: budget must be an integer")
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=out, population=2.0), TypeError, "pneuflex.tune: population")
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=out, sigma0=float("nan")), ValueError, "pneuflex.tune: sigma0 must be finite")
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=out, sigma0="0.3"), TypeError, "pneuflex.tune: sigma0 must be a number")
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=out, sigma0=0.0), ValueError, "--sigma0")
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=out, run=0), TypeError, "pneuflex.tune: run must be a str or None")
+        assert not out.exists()
+    refused(lambda: pneuflex.identify("rig.csv", SHEET, MASS, validation="0.2"), TypeError, "pneuflex.identify: validation must be a number")
+    refused(lambda: pneuflex.identify("rig.csv", SHEET, MASS, segment=float("inf")), ValueError, "pneuflex.identify: segment must be finite")
+    refused(lambda: pneuflex.identify("rig.csv", SHEET, MASS, select="yes"), TypeError, "pneuflex.identify: select must be True or False")
+
+
+@test
+def a_bad_scene_is_refused_naming_the_file_the_line_and_the_key():
+    """A misspelt key: every entry point that reads a scene (run, sweep, tune, the Gymnasium environments, a
+    controller from the scene) names the file, the line and the key, and writes nothing."""
+    import pneuflex.envs as envs
+
+    text = Path(SCENE).read_text()
+    line = text[: text.index("stiffness_n_per_m = 700.0")].count("\n") + 1
+    with tempfile.TemporaryDirectory() as d:
+        bad = Path(d) / "bad.toml"
+        bad.write_text(text.replace("stiffness_n_per_m = 700.0", "stifness_n_per_m = 700.0", 1))
+        where = f"bad.toml:{line}:"
+        out = Path(d) / "out"
+        for f in (lambda: pneuflex.run(bad), lambda: pneuflex.sweep(bad, ["environment.x_e_m=0"], out=out),
+                  lambda: pneuflex.tune(bad, FREE, out=out), lambda: envs.ForceControl(scene=bad),
+                  lambda: envs.ForceControlVector(2, scene=bad), lambda: pneuflex.Controller.from_scene(bad, 0)):
+            refused(f, pneuflex.PneuflexError, where, "stifness_n_per_m")
+        assert sorted(os.listdir(d)) == ["bad.toml"], os.listdir(d)
+        refused(lambda: envs.ForceControl(scene=Path(d) / "none.toml"), FileNotFoundError, "none.toml: no such scene")
+        refused(lambda: envs.ForceControl(scene=d), IsADirectoryError, "not a scene file")
+    refused(lambda: envs.ForceControl(scene=ROOT / "scenes" / "paper-fig3-ideal.toml"), pneuflex.PneuflexError,
+            "paper-fig3-ideal.toml:", "plant.kind", "needs a pneumatic or multibody plant")
+
+
+def _single(action="valve"):
+    import pneuflex.envs as envs
+
+    env = envs.ForceControl(action=action)
+    env.reset(seed=0, options={"randomize": False})
+    return env
+
+
+@test
+def an_action_of_another_shape_is_refused_not_cut():
+    """A (4,) action for Box(1) was cut to its first value: any shape other than the action space's (no
+    truncation, no broadcasting, no scalar for Box(1), as Gymnasium's Box.contains) is a ValueError giving both
+    shapes, and the episode does not move. The vector environment wants (num_envs, width): a flat or transposed
+    batch is refused, not reinterpreted."""
+    import pneuflex.envs as envs
+
+    env = _single()
+    for a in (np.zeros(4, np.float32), np.float32(0.3), 0.3, np.zeros((1, 1)), np.zeros(0), [[0.1], [0.2]]):
+        refused(lambda: env.step(a), ValueError, "ForceControl.step: the action has shape", "the action space's is (1,)")
+    assert env.t == 0.0
+    imp = _single("impedance")
+    refused(lambda: imp.step(np.zeros(1)), ValueError, "the action has shape (1,); the action space's is (2,)")
+    refused(lambda: imp.step(np.zeros(3)), ValueError, "the action has shape (3,)")
+    refused(lambda: env.step([[1.0], [1.0, 2.0]]), ValueError, "ForceControl.step: the action is not an array of shape (1,)")
+    vec = envs.ForceControlVector(3, action="impedance")
+    vec.reset(seed=0)
+    for a in (np.zeros(6), np.zeros((2, 3)), np.zeros((3, 1)), np.zeros((4, 2))):
+        refused(lambda: vec.step(a), ValueError, f"ForceControlVector.step: the action has shape {a.shape}; "
+                                                 "the action space's is (3, 2)")
+    assert all(vec.batch.sensors(i)[0] == 0.0 for i in range(3))
+    env.step(np.zeros(1, np.float32))
+    assert env.t > 0.0, "a good action after the refusals steps"
+
+
+@test
+def an_action_that_is_not_real_numbers_is_a_type_error():
+    """A str, None, a bool, a complex number or an object array is not a valve command: a TypeError with the
+    dtype, nothing stepped. Integers and float64 are real numbers and taken (as float32 would be)."""
+    env = _single()
+    for a in (np.array(["0.5"]), ["0.5"], None, np.array([True]), np.array([0.5j]), np.array([object()])):
+        refused(lambda: env.step(a), TypeError, "ForceControl.step: the action must hold real numbers", "got dtype")
+    assert env.t == 0.0
+    env.step(np.array([1]))
+    env.step(np.array([0.5]))
+    refused(lambda: pneuflex.ForceControlBatch(SCENE, 2).step([0.0, 0.0]), TypeError,
+            "actions must be a 1-D float64 numpy array (num_envs x action_width values), got list")
+    refused(lambda: pneuflex.ForceControlBatch(SCENE, 2).step(np.zeros(2, np.float32)), TypeError,
+            "got ndarray of dtype float32 and shape (2,)")
+
+
+@test
+def a_non_finite_action_is_refused_and_one_out_of_range_clipped():
+    """NaN was read as 0 (the valve closed): a NaN or an infinity is a ValueError naming the environment and the
+    value, in the single, the vector and the raw batch environments, and no episode moves. A finite value outside
+    [-1, 1] is clipped (Gymnasium's continuous-control convention; the valve saturates): 5 steps as 1, and
+    (3, -7) retunes as (1, -1)."""
+    import pneuflex.envs as envs
+
+    env = _single()
+    for bad, says in ((np.nan, "NaN"), (np.inf, "inf"), (-np.inf, "-inf")):
+        refused(lambda: env.step(np.array([bad], np.float32)), ValueError,
+                f"ForceControl.step: actions[0] (environment 0, value 0) is {says}: an action must be finite")
+    assert env.t == 0.0
+    vec = envs.ForceControlVector(3, action="impedance")
+    vec.reset(seed=0)
+    a = np.zeros((3, 2))
+    a[2, 1] = np.nan
+    refused(lambda: vec.step(a), ValueError, "ForceControlVector.step: actions[5] (environment 2, value 1) is NaN")
+    assert all(vec.batch.sensors(i)[0] == 0.0 for i in range(3))
+    batch = pneuflex.ForceControlBatch(SCENE, 2)
+    refused(lambda: batch.step(np.array([0.0, np.inf])), ValueError, "actions[1] (environment 1, value 0) is inf")
+    clipped, one = _single(), _single()
+    for _ in range(20):
+        assert np.array_equal(clipped.step(np.array([5.0]))[0], one.step(np.array([1.0]))[0])
+    clipped, one = _single("impedance"), _single("impedance")
+    for _ in range(5):
+        assert np.array_equal(clipped.step(np.array([3.0, -7.0]))[0], one.step(np.array([1.0, -1.0]))[0])
+
+
+@test
+def a_step_outside_an_episode_is_refused():
+    """Stepping before reset() (the vector environment too), or after the step that ended the episode, is a
+    RuntimeError saying to reset: an ended episode ran on past its end stop or its duration before. reset()
+    starts a new one."""
+    import pneuflex.envs as envs
+
+    refused(lambda: envs.ForceControl().step(np.zeros(1)), RuntimeError, "ForceControl.step: call reset() before step()")
+    refused(lambda: envs.ForceControlVector(2).step(np.zeros((2, 1))), RuntimeError,
+            "ForceControlVector.step: call reset() before step()")
+    env = _single()
+    for _ in range(10000):
+        _, _, terminated, truncated, _ = env.step(-np.ones(1))
+        if terminated or truncated:
+            break
+    assert terminated, "full retraction never reached the end stop"
+    t = env.t
+    refused(lambda: env.step(np.zeros(1)), RuntimeError, "the episode ended at t =", "terminated", "call reset()")
+    assert env.t == t
+    env.reset(seed=0)
+    env.step(np.zeros(1))
+    assert env.t > 0.0
+
+
+@test
+def reset_options_and_seeds_are_checked():
+    """options={"randomise": False} (a typo) was ignored and {"randomize": "no"} read as True: an unknown key is
+    a ValueError listing the keys, a non-bool a TypeError. A vector reset's seeds: one int per environment, each
+    in [0, 2^64), else an error naming the seed; so for the raw batch."""
+    import pneuflex.envs as envs
+
+    env = envs.ForceControl()
+    refused(lambda: env.reset(seed=0, options={"randomise": False}), ValueError,
+            "ForceControl.reset: options: unknown key 'randomise'; the keys are randomize")
+    refused(lambda: env.reset(seed=0, options={"randomize": "no"}), TypeError,
+            "ForceControl.reset: options[\"randomize\"] must be True or False, got str 'no'")
+    refused(lambda: env.reset(options=["randomize"]), TypeError, "ForceControl.reset: options must be a dict or None")
+    vec = envs.ForceControlVector(3)
+    refused(lambda: vec.reset(seed=[1, 2]), ValueError, "ForceControlVector.reset: seed: (2,) seeds for 3 environments")
+    refused(lambda: vec.reset(seed=[1, 2.5, 3]), TypeError, "ForceControlVector.reset: seed[1] must be an integer")
+    refused(lambda: vec.reset(seed=[1, -2, 3]), ValueError, "ForceControlVector.reset: seed[1] must be at least 0")
+    refused(lambda: vec.reset(seed="7"), TypeError, "ForceControlVector.reset: seed must be None, an int or a list of ints")
+    refused(lambda: vec.reset(seed=True), TypeError, "ForceControlVector.reset: seed must be None")
+    refused(lambda: vec.reset(seed=-1), ValueError, "ForceControlVector.reset: seed must be at least 0")
+    refused(lambda: vec.reset(seed=0, options={"randomize": 1}), TypeError, "options[\"randomize\"] must be True or False")
+    batch = pneuflex.ForceControlBatch(SCENE, 2)
+    refused(lambda: batch.reset(-1), ValueError, "seed must be in [0, 2^64), got -1")
+    refused(lambda: batch.reset([1, -2]), ValueError, "seed[1] must be in [0, 2^64), got -2")
+    refused(lambda: batch.reset("1"), TypeError, "seed must be an int or a list of ints (one per environment), got str")
+    refused(lambda: batch.reset([1, 2, 3]), ValueError, "seed: 3 seeds for 2 environments")
+
+
+@test
+def environment_arguments_are_checked():
+    """The environments' own arguments: num_envs and decision_ticks at least 1 and integers (decision_ticks=0
+    was read as 1), randomize a bool (randomize="no" was True), action a str the batch knows (naming the
+    scene); each an error naming the argument, through gymnasium.make too."""
+    import gymnasium
+
+    import pneuflex.envs as envs
+
+    refused(lambda: envs.ForceControlVector(0), ValueError, "ForceControlVector: num_envs must be at least 1, got 0")
+    refused(lambda: envs.ForceControlVector(2.0), TypeError, "ForceControlVector: num_envs must be an integer, got float 2.0")
+    refused(lambda: envs.ForceControl(action="impedance", decision_ticks=0), ValueError,
+            "ForceControl: decision_ticks must be at least 1, got 0")
+    refused(lambda: envs.ForceControlVector(2, decision_ticks=2.5), TypeError, "ForceControlVector: decision_ticks must be an integer")
+    refused(lambda: pneuflex.ForceControlBatch(SCENE, 1, action="impedance", decision_ticks=0), ValueError,
+            "decision_ticks must be at least 1")
+    refused(lambda: envs.ForceControl(randomize="no"), TypeError, "ForceControl: randomize must be True or False, got str 'no'")
+    refused(lambda: envs.ForceControl(action=None), TypeError, 'ForceControl: action must be "valve" or "impedance", got NoneType')
+    refused(lambda: envs.ForceControl(action="torque"), pneuflex.PneuflexError, "paper-fig3.toml", 'action = "torque"')
+    refused(lambda: gymnasium.make("pneuflex/ForceControl-v0", randomize="no"), TypeError, "randomize must be True or False")
+    refused(lambda: gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=-1, vectorization_mode="vector_entry_point"),
+            ValueError, "num_envs must be at least 1, got -1")
 
 
 # A scene for plants written in Python: 10 N step against a spring whose stiffness doubles at 2 s; k_d > 0

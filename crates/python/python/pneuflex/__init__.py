@@ -53,7 +53,9 @@ def run(scene_path) -> Results:
     """Runs every controller of the scene file: a :class:`Results`, the ``{run: {column: ndarray}}`` dict of the
     traces (trace.csv's columns), with ``.summary`` (summary.json), ``.claims``, ``.trace(run)`` (a DataFrame),
     ``.metrics`` and ``.claims_frame`` (pneuflex.frames; pandas for the DataFrames)."""
-    traces, summary, wall_s = _native.run_with_summary(str(scene_path))
+    from ._checks import path
+
+    traces, summary, wall_s = _native.run_with_summary(path(scene_path, "scene_path", "pneuflex.run"))
     return Results(traces, summary, wall_s)
 
 
@@ -103,17 +105,17 @@ def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settl
 
     import numpy as np
 
+    from . import _checks as c
     from ._native import identify_json
 
-    if isinstance(logs, (str, bytes)) or hasattr(logs, "__fspath__"):
-        logs = [logs]
-    if isinstance(free, str):
-        free = [free]
+    at = "pneuflex.identify"
     raw = json.loads(
         identify_json(
-            [str(p) for p in logs], str(actuator), list(free), [str(b) for b in bounds],
-            validation, segment, settle, None if out is None else str(out),
-            None if log_format is None else str(log_format), bool(select),
+            c.paths(logs, "logs", at), c.path(actuator, "actuator", at),
+            c.strings(free, "free", at, "sheet keys"), c.strings(bounds, "bounds", at, '"KEY=[LO,HI]" strings'),
+            # The ranges are the fit's own checks (the CLI's messages); here the types.
+            c.number(validation, "validation", at), c.number(segment, "segment", at), c.number(settle, "settle", at),
+            c.optional_path(out, "out", at), c.optional_path(log_format, "log_format", at), c.flag(select, "select", at),
         )
     )
     rep = raw["report"]

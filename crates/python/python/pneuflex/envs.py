@@ -5,6 +5,10 @@ plant of a scene (default ``scenes/paper-fig3.toml``): the flange starts touchin
 follow the scene's force reference while the environment's stiffness changes under it.
 
 - **Action**: the valve command u in [-1, 1] (``Box(1)``), held over one control tick of the scene's ``dt_s``.
+  Finite values outside [-1, 1] are clipped (as Gymnasium's continuous-control environments clip); another
+  shape than the space's, values that are not real numbers, NaN or infinity are refused (ValueError or
+  TypeError naming the environment and the value), as is a step before ``reset()`` or after the episode ended
+  (docs/gymnasium.md, "What an environment refuses").
   ``pneuflex/ForceControlImpedance-v0`` (``action="impedance"``): (a_m, a_b) in [-1, 1]^2 (``Box(2)``) retune
   the scene's impedance controller, m_d = m_d0 4^a_m and b_d = b_d0 4^a_b (k_d kept, the filter's state kept),
   which then runs ``decision_ticks`` control ticks (default 10); the reward is the sum over them.
@@ -38,6 +42,8 @@ import numpy as np
 
 import pneuflex
 
+from . import _checks as c
+
 _SCENES = Path(__file__).resolve().parents[4] / "scenes"
 _DEFAULT_SCENE = _SCENES / "paper-fig3.toml"
 
@@ -49,11 +55,64 @@ PARAMS = ("stiffness_n_per_m", "stiffness_after_n_per_m", "t_change_s", "mass_sc
           "switching_delay_scale")
 
 
-def _scene(scene) -> str:
-    scene = Path(scene) if scene is not None else _DEFAULT_SCENE
+def _scene(scene, where: str) -> str:
+    scene = Path(c.path(scene, "scene", where)) if scene is not None else _DEFAULT_SCENE
+    if not scene.exists():
+        raise FileNotFoundError(f"{scene}: no such scene (pass scene=PATH to a pneumatic or multibody scene)")
     if not scene.is_file():
-        raise FileNotFoundError(f"{scene}: no such scene (pass scene=PATH to a 1-DOF pneumatic scene)")
+        raise IsADirectoryError(f"{scene}: not a scene file (pass scene=PATH to a pneumatic or multibody scene)")
     return str(scene)
+
+
+def _action_kind(action, where: str) -> str:
+    """The ``action`` argument: a str (the batch says which ones, naming the scene)."""
+    if not isinstance(action, str):
+        raise TypeError(f'{where}: action must be "valve" or "impedance", got {c.kind(action)}')
+    return action
+
+
+def _step(batch, actions: np.ndarray, where: str):
+    """The batch's step; its refusal of a non-finite value under the caller's name."""
+    try:
+        return batch.step(actions)
+    except ValueError as e:
+        raise ValueError(f"{where}: {e}") from None
+
+
+#: The keys ``reset(options=...)`` takes.
+OPTIONS = ("randomize",)
+
+
+def _randomize(options, default: bool, where: str) -> bool:
+    """``options["randomize"]`` (a bool) or ``default``; another key (a typo such as "randomise") is refused, not
+    ignored."""
+    if options is None:
+        return default
+    if not isinstance(options, dict):
+        raise TypeError(f"{where}: options must be a dict or None, got {c.kind(options)}")
+    unknown = [k for k in options if k not in OPTIONS]
+    if unknown:
+        raise ValueError(f"{where}: options: unknown key {unknown[0]!r}; the keys are {', '.join(OPTIONS)}")
+    return c.flag(options.get("randomize", default), 'options["randomize"]', where)
+
+
+def _actions(action, shape: tuple, where: str) -> np.ndarray:
+    """An action (or a batch of them) as the flat float64 array the Rust batch steps. Refused: another shape
+    than the action space's (no truncation, no broadcasting), values that are not real numbers (bool, complex,
+    str, None). Non-finite values are refused by the batch, naming the environment and the value; finite ones
+    outside [-1, 1] are clipped there, as Gymnasium's continuous-control environments clip."""
+    if type(action) is not np.ndarray or action.dtype.kind != "f":
+        try:
+            action = np.asarray(action)
+        except (ValueError, TypeError) as e:
+            raise ValueError(f"{where}: the action is not an array of shape {shape}: {e}") from None
+        if action.dtype.kind not in "iuf":
+            raise TypeError(f"{where}: the action must hold real numbers (the action space is float32), got "
+                            f"dtype {action.dtype}: {c.kind(action)}")
+    if action.shape != shape:
+        raise ValueError(f"{where}: the action has shape {action.shape}; the action space's is {shape}")
+    # No copy of a float64 action; the batch reads a strided one as it is.
+    return action.astype(np.float64, copy=False).reshape(-1)
 
 
 def _spaces(width: int):
@@ -75,14 +134,17 @@ class ForceControl(gymnasium.Env):
 
     def __init__(self, scene: str | Path | None = None, randomize: bool = True, action: str = "valve",
                  decision_ticks: int = 10):
-        self.scene_path = _scene(scene)
+        at = "ForceControl"
+        self.scene_path = _scene(scene, at)
+        randomize, action = c.flag(randomize, "randomize", at), _action_kind(action, at)
         self.batch = pneuflex.ForceControlBatch(self.scene_path, 1, randomize=randomize, action=action,
-                                                decision_ticks=decision_ticks)
+                                                decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1))
         self.dt, self.duration = self.batch.dt, self.batch.duration
         self.setpoints = pneuflex.Setpoints(self.scene_path)
         self.randomize = randomize
         self.action_space, self.observation_space = _spaces(self.batch.action_width)
-        self._started = False
+        # Not reset yet, or the last step ended the episode: a step is refused until reset().
+        self._ended = "call reset() before step()"
 
     @property
     def t(self) -> float:
@@ -94,20 +156,24 @@ class ForceControl(gymnasium.Env):
         return self.batch.sensors(0)
 
     def reset(self, *, seed=None, options=None):
+        randomize = _randomize(options, self.randomize, "ForceControl.reset")
         super().reset(seed=seed)
-        randomize = (options or {}).get("randomize", self.randomize)
-        obs = self.batch.reset(_base_seed(self.np_random), randomize=bool(randomize))
-        self._started = True
+        obs = self.batch.reset(_base_seed(self.np_random), randomize=randomize)
+        self._ended = None
         info = {k: float(v[0]) for k, v in self.batch.params().items()}
         return obs[0], info
 
     def step(self, action):
-        if not self._started:
-            raise RuntimeError("call reset() before step()")
-        a = np.ascontiguousarray(np.asarray(action, dtype=np.float64).reshape(-1)[: self.batch.action_width])
-        obs, reward, terminated, truncated = self.batch.step(a)
-        f_e = self.batch.sensors(0)[3]
-        return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), {"f_e_n": f_e}
+        if self._ended:
+            raise RuntimeError(f"ForceControl.step: {self._ended}")
+        at = "ForceControl.step"
+        obs, reward, terminated, truncated = _step(self.batch, _actions(action, self.action_space.shape, at), at)
+        t, _, _, f_e, _, _ = self.batch.sensors(0)
+        terminated, truncated = bool(terminated[0]), bool(truncated[0])
+        if terminated or truncated:
+            why = "terminated (an end of the stroke)" if terminated else "truncated (the scene's duration)"
+            self._ended = f"the episode ended at t = {t:.6g} s, {why}: call reset() before step()"
+        return obs[0], float(reward[0]), terminated, truncated, {"f_e_n": f_e}
 
 
 class ForceControlVector(gymnasium.vector.VectorEnv):
@@ -123,37 +189,45 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
 
     def __init__(self, num_envs: int = 64, scene: str | Path | None = None, randomize: bool = True,
                  action: str = "valve", decision_ticks: int = 10):
-        self.scene_path = _scene(scene)
+        at = "ForceControlVector"
+        self.scene_path = _scene(scene, at)
+        num_envs = c.integer(num_envs, "num_envs", at, 1)
+        randomize, action = c.flag(randomize, "randomize", at), _action_kind(action, at)
         self.batch = pneuflex.ForceControlBatch(self.scene_path, num_envs, randomize=randomize, autoreset=True,
-                                                action=action, decision_ticks=decision_ticks)
+                                                action=action,
+                                                decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1))
         self.num_envs = num_envs
         self.single_action_space, self.single_observation_space = _spaces(self.batch.action_width)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, num_envs)
         self.randomize = randomize
+        self._started = False
 
     def reset(self, *, seed=None, options=None):
         """``seed``: None, an int (the batch's draws from it), or a list of one int per episode (episode i then
         draws exactly what ``ForceControl().reset(seed=seed[i])`` draws)."""
-        randomize = bool((options or {}).get("randomize", self.randomize))
+        at = "ForceControlVector.reset"
+        randomize = _randomize(options, self.randomize, at)
         if isinstance(seed, (list, tuple, np.ndarray)):
-            if len(seed) != self.num_envs:
-                raise ValueError(f"seed: {len(seed)} seeds for {self.num_envs} environments")
-            seeds = [_base_seed(gymnasium.utils.seeding.np_random(int(s))[0]) for s in seed]
+            if np.ndim(seed) != 1 or len(seed) != self.num_envs:
+                raise ValueError(f"{at}: seed: {np.shape(seed)} seeds for {self.num_envs} environments "
+                                 f"(one int per environment)")
+            seeds = [_base_seed(gymnasium.utils.seeding.np_random(c.seed(s, f"seed[{i}]", at))[0])
+                     for i, s in enumerate(seed)]
             obs = self.batch.reset(seeds, randomize=randomize)
-        elif seed is None or isinstance(seed, (int, np.integer)):
-            super().reset(seed=None if seed is None else int(seed))
+        elif seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)):
+            super().reset(seed=None if seed is None else c.seed(seed, "seed", at))
             obs = self.batch.reset(_base_seed(self.np_random), randomize=randomize)
         else:
-            raise TypeError(f"seed must be None, an int or a list of ints, got {type(seed).__name__}")
+            raise TypeError(f"{at}: seed must be None, an int or a list of ints, got {c.kind(seed)}")
+        self._started = True
         return obs, dict(self.batch.params())
 
     def step(self, actions):
-        u = np.ascontiguousarray(actions, dtype=np.float64).reshape(-1)
-        if u.size != self.num_envs * self.batch.action_width:
-            raise ValueError(f"actions: {u.size} values for {self.num_envs} environments of "
-                             f"{self.batch.action_width} each (shape {self.action_space.shape})")
-        obs, rewards, terminated, truncated = self.batch.step(u)
+        if not self._started:
+            raise RuntimeError("ForceControlVector.step: call reset() before step()")
+        at = "ForceControlVector.step"
+        obs, rewards, terminated, truncated = _step(self.batch, _actions(actions, self.action_space.shape, at), at)
         return obs, rewards, terminated, truncated, {}
 
 
@@ -174,15 +248,15 @@ def rollout(env: gymnasium.Env, policy, seed: int | None = None, options: dict |
 def adaptive_baseline(env: ForceControl, run: str = "adaptive"):
     """The scene's own controller (its ``run``, by default the adaptive one) as a policy: ``policy(obs) -> action``
     reading the plant's state through ``env`` (a baseline a learned policy should beat)."""
-    c = pneuflex.Controller.from_scene(env.scene_path, run)
+    controller = pneuflex.Controller.from_scene(env.scene_path, run)
 
     def policy(_obs):
         t, x, x_dot, f_e, p_a, p_b = env.sensors()
         f_ref, x_d = env.setpoints.at(t)
-        u = c.update(t, x, x_dot, f_e, p_a, p_b, f_ref, x_d, env.dt)
+        u = controller.update(t, x, x_dot, f_e, p_a, p_b, f_ref, x_d, env.dt)
         return np.array([u], dtype=np.float32)
 
-    policy.reset = c.reset
+    policy.reset = controller.reset
     return policy
 
 

@@ -18,6 +18,7 @@ Executors:
 
 import math
 
+from . import _checks as c
 from . import _native
 from .frames import SweepTable, TuneResult
 
@@ -26,26 +27,26 @@ class LocalExecutor:
     """The Rust thread pool of this process; ``threads=0``: one per core."""
 
     def __init__(self, threads=0):
-        self.threads = threads
+        self.threads = c.integer(threads, "threads", "LocalExecutor", 0)
 
 
 class RayExecutor:
     """Ray tasks, one chunk of ``chunk_size`` points per task (default: about four tasks per cluster CPU)."""
 
     def __init__(self, chunk_size=None):
-        if chunk_size is not None and chunk_size < 1:
-            raise ValueError("chunk_size must be at least 1")
-        self.chunk_size = chunk_size
+        self.chunk_size = c.optional_integer(chunk_size, "chunk_size", "RayExecutor", 1)
 
 
-def _executor(executor, threads):
+def _executor(executor, threads, where):
+    threads = c.integer(threads, "threads", where, 0)
+    if isinstance(executor, (LocalExecutor, RayExecutor)):
+        return executor
     if executor is None or executor == "local":
         return LocalExecutor(threads)
     if executor == "ray":
         return RayExecutor()
-    if isinstance(executor, (LocalExecutor, RayExecutor)):
-        return executor
-    raise ValueError(f"executor must be 'local', 'ray', LocalExecutor or RayExecutor, got {executor!r}")
+    error = ValueError if isinstance(executor, str) else TypeError
+    raise error(f"{where}: executor must be 'local', 'ray', LocalExecutor or RayExecutor, got {c.kind(executor)}")
 
 
 def _sweep_chunk(scene, sets, indices, samples, seed):
@@ -70,9 +71,13 @@ def sweep(scene, sets, samples=None, seed=0, executor="local", threads=0, out=No
     """The scene at every point of ``sets`` (``["KEY=SPEC", ...]``, as ``pneuflex sweep --set``); returns the
     table (sweep.csv's text, a ``SweepTable`` whose ``.frame`` is the table as a DataFrame). Every point is checked before anything runs (``PneuflexError`` naming the file, the
     key and the point). ``out``: also write it to ``out/sweep.csv``."""
-    sets = [str(s) for s in sets]
-    scene = str(scene)
-    ex = _executor(executor, threads)
+    at = "pneuflex.sweep"
+    scene = c.path(scene, "scene", at)
+    sets = c.strings(sets, "sets", at, '"KEY=SPEC" strings')
+    samples = c.optional_integer(samples, "samples", at, 1)
+    seed = c.seed(seed, "seed", at)
+    out = c.optional_path(out, "out", at)
+    ex = _executor(executor, threads, at)
     n, header = _native.sweep_plan(scene, sets, samples, seed)
     if isinstance(ex, LocalExecutor):
         rows = _native.sweep_rows(scene, sets, list(range(n)), samples, seed, ex.threads)
@@ -84,7 +89,7 @@ def sweep(scene, sets, samples=None, seed=0, executor="local", threads=0, out=No
             cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
             size = max(1, math.ceil(n / (4 * cpus)))
         task = ray.remote(num_cpus=1)(_sweep_chunk)
-        futures = [task.remote(scene, sets, c, samples, seed) for c in chunks(n, size)]
+        futures = [task.remote(scene, sets, chunk, samples, seed) for chunk in chunks(n, size)]
         rows = "".join(ray.get(futures))
     table = SweepTable(header + rows)
     if out is not None:
@@ -104,8 +109,17 @@ def tune(scene, free, over=(), out="out/tune", run=None, terms=(), budget=200, s
     ``.history`` is history.csv as a DataFrame)."""
     import json
 
-    scene, free, over, terms = str(scene), [str(f) for f in free], [str(o) for o in over], [str(t) for t in terms]
-    ex = _executor(executor, threads)
+    at = "pneuflex.tune"
+    scene, out = c.path(scene, "scene", at), c.path(out, "out", at)
+    free = c.strings(free, "free", at, '"KEY=[LO,HI]" strings')
+    over = c.strings(over, "over", at, '"KEY=V1,V2,..." strings')
+    terms = c.strings(terms, "terms", at, "objective terms")
+    run = c.optional_string(run, "run", at)
+    # Here the types and signs; the ranges are the search's own checks (the CLI's messages).
+    budget, seed = c.integer(budget, "budget", at, 0), c.seed(seed, "seed", at)
+    population = c.optional_integer(population, "population", at, 0)
+    sigma0 = c.number(sigma0, "sigma0", at)
+    ex = _executor(executor, threads, at)
     evaluate = None
     n_threads = ex.threads if isinstance(ex, LocalExecutor) else 0
     if isinstance(ex, RayExecutor):
@@ -125,6 +139,6 @@ def tune(scene, free, over=(), out="out/tune", run=None, terms=(), budget=200, s
         + [f"budget={budget}", f"seed={seed}"]
         + ([f"population={population}"] if population else [])
     ) + ")"
-    text = _native.tune_run(scene, free, over, str(out), run, terms, budget, seed, population, sigma0, n_threads,
+    text = _native.tune_run(scene, free, over, out, run, terms, budget, seed, population, sigma0, n_threads,
                             evaluate, command)
     return TuneResult(json.loads(text), str(out))
