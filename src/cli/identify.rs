@@ -89,13 +89,18 @@ pub struct Seal {
     #[arg(long = "test", value_name = "FILE[=P]")]
     pub tests: Vec<String>,
     /// Piston bore, m (25 mm is 0.025).
-    #[arg(long, default_value_t = 0.025)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.025)]
     pub bore_m: f64,
     /// Speed below which a sample is still and left out, m/s.
-    #[arg(long, default_value_t = 0.002)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.002)]
     pub still_below: f64,
     /// The pressure sensor's full scale, bar gauge: a reading beyond is refused at its line.
-    #[arg(long, value_name = "BAR", default_value_t = 16.0)]
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "BAR",
+        default_value_t = 16.0
+    )]
     pub max_pressure_bar: f64,
     /// Print one JSON object (SI units) instead of tables.
     #[arg(long)]
@@ -110,13 +115,18 @@ pub struct Leak {
     #[arg(long = "log", required = true)]
     pub logs: Vec<PathBuf>,
     /// Gas temperature in the chamber, K (20 degC is 293.15 K).
-    #[arg(long, default_value_t = pneuflex_pneumatics::T_DEFAULT)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = pneuflex_pneumatics::T_DEFAULT)]
     pub temperature_k: f64,
     /// Atmospheric pressure, Pa absolute.
-    #[arg(long, default_value_t = pneuflex_pneumatics::P_ATM)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = pneuflex_pneumatics::P_ATM)]
     pub atmosphere_pa: f64,
     /// The pressure sensor's full scale, bar gauge: a reading beyond is refused at its line.
-    #[arg(long, value_name = "BAR", default_value_t = 16.0)]
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "BAR",
+        default_value_t = 16.0
+    )]
     pub max_pressure_bar: f64,
     /// Print JSON (SI units) instead of a table.
     #[arg(long)]

@@ -1058,8 +1058,8 @@ pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, Ident
             .all(|t| (t.nominal_pa - first.nominal_pa).abs() < 1e3)
     {
         return Err(IdentifyError::Fit(format!(
-            "{} test(s), all at {:.3} bar ({}): a friction law of the pressure needs tests at two held \
-             pressures or more",
+            "{} test(s), all at {:.3} bar ({}): a friction law of the pressure cannot be fitted; it needs \
+             tests at two held pressures or more",
             tests.len(),
             first.nominal_pa / 1e5,
             tests

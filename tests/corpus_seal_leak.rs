@@ -1,0 +1,663 @@
+//! Issue 41, hostile inputs of `seal`, `leak`, `identify --log-format`, a log's sample period and `tune
+//! --free`'s box, as a user meets them: one test per class of bad input. Each refusal exits non-zero,
+//! names the file, line and column (or the option typed), and prints no table or JSON as if the fit were
+//! done; a command that writes a directory leaves none. The shipped measurements stay accepted with their
+//! documented figures (docs/identification.md, "Real data").
+//!
+//! Every command runs under a generous deadline: past it the test fails as a hang. No test measures time.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn repo() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn data(rel: &str) -> PathBuf {
+    repo().join("data/zillen-2021-printed-cylinder").join(rel)
+}
+
+/// What a command did; a panic or a hang fails the test here.
+struct Ran {
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+}
+
+impl Ran {
+    /// A refusal: a non-zero exit, nothing on stdout as if done, a message naming every one of `words`.
+    fn refused(&self, words: &[&str]) {
+        assert!(
+            self.code.is_some_and(|c| c != 0),
+            "accepted ({:?}):\n{}\n{}",
+            self.code,
+            self.stdout,
+            self.stderr
+        );
+        assert!(
+            self.stdout.trim().is_empty(),
+            "a refusal printed a result:\n{}",
+            self.stdout
+        );
+        for w in words {
+            assert!(
+                self.stderr.contains(w),
+                "the message does not name `{w}`:\n{}",
+                self.stderr
+            );
+        }
+    }
+
+    fn accepted(&self) {
+        assert_eq!(self.code, Some(0), "{}", self.stderr);
+    }
+}
+
+/// A command past this is a hang (generous, for a loaded machine).
+const DEADLINE: Duration = Duration::from_secs(300);
+
+fn run(args: &[&str], cwd: &Path) -> Ran {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+        .args(args)
+        .current_dir(cwd)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Drain the pipes on threads so that a large output cannot block the child.
+    let mut out = child.stdout.take().unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let o = std::thread::spawn(move || {
+        let mut s = String::new();
+        std::io::Read::read_to_string(&mut out, &mut s).unwrap();
+        s
+    });
+    let e = std::thread::spawn(move || {
+        let mut s = String::new();
+        std::io::Read::read_to_string(&mut err, &mut s).unwrap();
+        s
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > DEADLINE {
+            let _ = child.kill();
+            panic!(
+                "HANG: pneuflex {} still running after {DEADLINE:?}",
+                args.join(" ")
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let ran = Ran {
+        code: status.code(),
+        stdout: o.join().unwrap(),
+        stderr: e.join().unwrap(),
+    };
+    assert!(!ran.stderr.contains("panicked"), "PANIC: {}", ran.stderr);
+    ran
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A folder with the shipped friction tests, `edit` applied to the whitespace-separated rows of `file`
+/// (1-based line, 0-based column, new cell).
+fn friction_copy(dir: &Path, file: &str, edit: Option<(usize, usize, &str)>) -> PathBuf {
+    let out = dir.join("friction");
+    std::fs::create_dir_all(&out).unwrap();
+    for e in std::fs::read_dir(data("friction")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), out.join(e.file_name())).unwrap();
+    }
+    if let Some((line, column, cell)) = edit {
+        edit_rows(&out.join(file), |i, f| {
+            if i + 1 == line {
+                f[column] = cell.to_string();
+            }
+        });
+    }
+    out
+}
+
+/// Rewrites a whitespace-separated file row by row (`f` gets the 0-based row and its cells).
+fn edit_rows(path: &Path, mut f: impl FnMut(usize, &mut Vec<String>)) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut cells: Vec<String> = line.split_whitespace().map(str::to_string).collect();
+        f(i, &mut cells);
+        out += &cells.join("\t");
+        out += "\n";
+    }
+    std::fs::write(path, out).unwrap();
+}
+
+/// A copy of a shipped decay log with `f` applied to each row's ';'-separated fields.
+fn leak_copy(
+    dir: &Path,
+    name: &str,
+    from: &str,
+    mut f: impl FnMut(usize, &mut Vec<String>),
+) -> PathBuf {
+    let text = std::fs::read_to_string(data(&format!("leakage/{from}.csv"))).unwrap();
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut cells: Vec<String> = line.trim().split(';').map(str::to_string).collect();
+        f(i, &mut cells);
+        out += &cells.join(";");
+        out += "\r\n";
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, out).unwrap();
+    p
+}
+
+fn json(r: &Ran) -> serde_json::Value {
+    r.accepted();
+    serde_json::from_str(&r.stdout).unwrap()
+}
+
+#[test]
+fn the_shipped_measurements_stay_accepted_with_their_figures_by_folder_or_by_list() {
+    let d = tempfile::tempdir().unwrap();
+    let by_folder = json(&run(&["seal", "--data", s(&data("")), "--json"], d.path()));
+    let law = &by_folder["pressure"];
+    assert!(
+        (law["coulomb_n"].as_f64().unwrap() - 3.4397).abs() < 5e-5,
+        "{law}"
+    );
+    assert!((law["coulomb_pressure_n_per_pa"].as_f64().unwrap() - 7.8279e-6).abs() < 5e-10);
+    // Another seal's naming, and the same tests listed with their pressures: the same law.
+    let other = d.path().join("oring");
+    std::fs::create_dir(&other).unwrap();
+    let mut list = Vec::new();
+    for p in 1..=7 {
+        let to = other.join(format!("oring_{p}.0bar.csv"));
+        std::fs::copy(data(&format!("friction/circle_{p}bar.csv")), &to).unwrap();
+        list.push(format!("{}={p}", to.display()));
+    }
+    let renamed = json(&run(&["seal", "--data", s(&other), "--json"], d.path()));
+    assert_eq!(renamed["pressure"]["coulomb_n"], law["coulomb_n"]);
+    let mut args = vec!["seal", "--json"];
+    for l in &list {
+        args.extend(["--test", l.as_str()]);
+    }
+    let listed = json(&run(&args, d.path()));
+    assert_eq!(listed["pressure"]["coulomb_n"], law["coulomb_n"]);
+    let leak = json(&run(
+        &[
+            "leak",
+            "--json",
+            "--log",
+            s(&data("leakage/prusa.csv")),
+            "--log",
+            s(&data("leakage/aluminium.csv")),
+            "--log",
+            s(&data("leakage/ultimaker_010.csv")),
+        ],
+        d.path(),
+    ));
+    let names: Vec<&str> = leak["chambers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["chamber"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["aluminium", "prusa", "ultimaker_010"]);
+}
+
+#[test]
+fn a_folder_of_several_seals_or_a_misnamed_test_is_refused_by_name() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = friction_copy(d.path(), "circle_1bar.csv", None);
+    std::fs::copy(
+        data("friction/circle_3bar.csv"),
+        dir.join("square_3bar.csv"),
+    )
+    .unwrap();
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle (7 files)",
+        "square (1 files)",
+        "--seal",
+    ]);
+    run(&["seal", "--data", s(&dir), "--seal", "oval"], d.path()).refused(&[
+        "--seal oval",
+        "circle",
+        "square",
+    ]);
+    // One held pressure only: the files are named, not a rank-deficient matrix.
+    run(&["seal", "--data", s(&dir), "--seal", "square"], d.path())
+        .refused(&["square_3bar.csv", "two held pressures"]);
+    run(&["seal", "--data", s(&dir), "--seal", "circle"], d.path()).accepted();
+    std::fs::remove_file(dir.join("square_3bar.csv")).unwrap();
+    for bad in [
+        "circle_1 bar.csv",
+        "circle_1e300bar.csv",
+        "circle_-2bar.csv",
+        "circle_bar.csv",
+    ] {
+        std::fs::copy(data("friction/circle_1bar.csv"), dir.join(bad)).unwrap();
+        run(&["seal", "--data", s(&dir)], d.path()).refused(&[bad, "<seal>_<P>bar.csv", "--test"]);
+        std::fs::remove_file(dir.join(bad)).unwrap();
+    }
+    let empty = d.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    run(&["seal", "--data", s(&empty)], d.path()).refused(&["empty", "no friction test"]);
+    let one = data("friction/circle_1bar.csv");
+    for (arg, word) in [
+        (format!("{}=abc", one.display()), "`abc` is not a pressure"),
+        (format!("{}=1e300", one.display()), "1e300 bar gauge"),
+        (format!("{}=nan", one.display()), "`nan` is not a pressure"),
+        ("=3".to_string(), "no file"),
+    ] {
+        run(
+            &[
+                "seal",
+                "--test",
+                &arg,
+                "--test",
+                s(&data("friction/circle_2bar.csv")),
+            ],
+            d.path(),
+        )
+        .refused(&["--test", word]);
+    }
+    run(
+        &["seal", "--data", s(&data("")), "--test", s(&one)],
+        d.path(),
+    )
+    .refused(&["--data", "--test"]);
+}
+
+#[test]
+fn a_reading_beyond_the_sensors_range_is_refused_at_its_line_and_column() {
+    let d = tempfile::tempdir().unwrap();
+    // One 1e300 N cell (the issue: a Coulomb term of -2.2e295 N, exit 0).
+    let dir = friction_copy(d.path(), "circle_3bar.csv", Some((500, 6, "1e300")));
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_3bar.csv:500",
+        "force_n",
+        "1e300",
+    ]);
+    for (column, cell, name) in [
+        (5, "inf", "pressure_bar"),
+        (4, "1e300", "position_mm"),
+        (0, "nan", "time_ms"),
+    ] {
+        let dir = friction_copy(
+            &d.path().join(name),
+            "circle_3bar.csv",
+            Some((40, column, cell)),
+        );
+        run(&["seal", "--data", s(&dir)], d.path()).refused(&["circle_3bar.csv:40", name]);
+    }
+    // A pressure column in Pa where bar is expected.
+    let dir = friction_copy(&d.path().join("pa"), "circle_2bar.csv", None);
+    edit_rows(&dir.join("circle_2bar.csv"), |_, f| {
+        f[5] = format!("{}", f[5].parse::<f64>().unwrap() * 1e5);
+    });
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_2bar.csv:1",
+        "pressure_bar",
+        "Pa",
+    ]);
+    // A sensor of a smaller range than the readings, as the user says.
+    run(
+        &["seal", "--data", s(&data("")), "--max-pressure-bar", "5"],
+        d.path(),
+    )
+    .refused(&["circle_5bar.csv:1", "pressure_bar", "--max-pressure-bar"]);
+    for bad in ["0", "-3", "nan", "1e300"] {
+        run(
+            &["seal", "--data", s(&data("")), "--max-pressure-bar", bad],
+            d.path(),
+        )
+        .refused(&["--max-pressure-bar"]);
+    }
+    // The decay logs: a 1e300 bar row, a column in Pa.
+    let l = leak_copy(d.path(), "big.csv", "prusa", |i, f| {
+        if i == 299 {
+            f[2] = "1e300".into();
+        }
+    });
+    run(&["leak", "--log", s(&l)], d.path()).refused(&["big.csv:300", "pressure_bar", "1e300"]);
+    let l = leak_copy(d.path(), "pa.csv", "prusa", |_, f| {
+        f[2] = format!("{}", f[2].parse::<f64>().unwrap() * 1e5);
+    });
+    run(&["leak", "--log", s(&l)], d.path()).refused(&["pa.csv:1", "pressure_bar", "Pa"]);
+}
+
+#[test]
+fn a_single_glitch_among_the_readings_is_refused_at_its_line() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = friction_copy(d.path(), "circle_3bar.csv", Some((500, 6, "2000")));
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_3bar.csv:500",
+        "force_n",
+        "glitch",
+    ]);
+    let dir = friction_copy(
+        &d.path().join("p"),
+        "circle_3bar.csv",
+        Some((700, 5, "9.5")),
+    );
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_3bar.csv:700",
+        "pressure_bar",
+        "glitch",
+    ]);
+    let l = leak_copy(d.path(), "spike.csv", "prusa", |i, f| {
+        if i == 299 {
+            f[2] = "9.5".into();
+        }
+    });
+    run(&["leak", "--log", s(&l)], d.path()).refused(&["spike.csv:300", "pressure_bar", "glitch"]);
+}
+
+#[test]
+fn a_test_whose_pressure_is_not_the_held_one_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    // The 1 bar measurements under a 5 bar name, in a folder and in a list.
+    let dir = friction_copy(d.path(), "circle_1bar.csv", None);
+    std::fs::rename(dir.join("circle_5bar.csv"), d.path().join("spare.csv")).unwrap();
+    std::fs::copy(dir.join("circle_1bar.csv"), dir.join("circle_5bar.csv")).unwrap();
+    std::fs::remove_file(dir.join("circle_1bar.csv")).unwrap();
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_5bar.csv",
+        "pressure_bar",
+        "0.997 bar",
+        "5 bar",
+    ]);
+    let one = format!("{}=4", data("friction/circle_1bar.csv").display());
+    run(
+        &[
+            "seal",
+            "--test",
+            &one,
+            "--test",
+            s(&data("friction/circle_2bar.csv")),
+        ],
+        d.path(),
+    )
+    .refused(&["circle_1bar.csv", "pressure_bar", "4 bar"]);
+}
+
+#[test]
+fn a_bore_or_a_speed_no_bench_has_is_refused_naming_the_option() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = data("");
+    for (bore, words) in [
+        // The bore in mm given as metres, and non-numbers.
+        ("25", vec!["--bore-m", "25", "0.025"]),
+        ("0", vec!["--bore-m"]),
+        ("nan", vec!["--bore-m"]),
+        ("-0.025", vec!["--bore-m"]),
+        // Ten times the bore: the friction is more than the load cell ever read.
+        (
+            "0.25",
+            vec!["circle_1bar.csv", "largest force the load", "--bore-m 0.25"],
+        ),
+        // 40 % too wide: the per-test offsets grow with the pressure as the wrong area makes them.
+        (
+            "0.035",
+            vec!["offsets", "N/bar", "bore of 25.1 mm", "--bore-m 0.035"],
+        ),
+    ] {
+        run(&["seal", "--data", s(&dir), "--bore-m", bore], d.path()).refused(&words);
+    }
+    for still in ["0", "-1", "nan", "5"] {
+        run(
+            &["seal", "--data", s(&dir), "--still-below", still],
+            d.path(),
+        )
+        .refused(&["--still-below"]);
+    }
+}
+
+#[test]
+fn friction_that_pushes_the_rod_along_its_motion_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    // The position's sign flipped in every file: each direction's friction has the other's sign.
+    let dir = friction_copy(d.path(), "circle_1bar.csv", None);
+    for e in std::fs::read_dir(&dir).unwrap() {
+        edit_rows(&e.unwrap().path(), |_, f| {
+            f[4] = format!("{}", -f[4].parse::<f64>().unwrap());
+        });
+    }
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_1bar.csv",
+        "Coulomb force",
+        "along its motion",
+    ]);
+}
+
+#[test]
+fn the_same_file_twice_is_refused_with_both_names() {
+    let d = tempfile::tempdir().unwrap();
+    let one = data("friction/circle_1bar.csv");
+    let two = data("friction/circle_2bar.csv");
+    run(
+        &[
+            "seal",
+            "--test",
+            s(&one),
+            "--test",
+            s(&two),
+            "--test",
+            s(&one),
+        ],
+        d.path(),
+    )
+    .refused(&["circle_1bar.csv", "given twice"]);
+    // A copy under another name and pressure.
+    let copy = d.path().join("copy_5bar.csv");
+    std::fs::copy(&one, &copy).unwrap();
+    let listed = format!("{}=1", copy.display());
+    run(
+        &[
+            "seal",
+            "--test",
+            s(&one),
+            "--test",
+            s(&two),
+            "--test",
+            &listed,
+        ],
+        d.path(),
+    )
+    .refused(&["copy_5bar.csv", "circle_1bar.csv", "same measurements"]);
+    let prusa = data("leakage/prusa.csv");
+    run(&["leak", "--log", s(&prusa), "--log", s(&prusa)], d.path())
+        .refused(&["prusa.csv", "given twice"]);
+    let copy = d.path().join("prusa_copy.csv");
+    std::fs::copy(&prusa, &copy).unwrap();
+    run(&["leak", "--log", s(&prusa), "--log", s(&copy)], d.path()).refused(&[
+        "prusa_copy.csv",
+        "prusa.csv",
+        "same measurements",
+    ]);
+    // Another chamber of the same name: the ranking could not tell them apart.
+    std::fs::create_dir(d.path().join("b")).unwrap();
+    let other = leak_copy(&d.path().join("b"), "prusa.csv", "ultimaker_010", |_, _| {});
+    run(&["leak", "--log", s(&prusa), "--log", s(&other)], d.path())
+        .refused(&["\"prusa\"", "rename"]);
+}
+
+#[test]
+fn leak_conditions_no_bench_has_are_refused_naming_the_option() {
+    let d = tempfile::tempdir().unwrap();
+    let prusa = data("leakage/prusa.csv");
+    for (option, value, word) in [
+        ("--temperature-k", "20", "293.15 K"),
+        ("--temperature-k", "0", "kelvin"),
+        ("--temperature-k", "1e300", "1e300"),
+        ("--temperature-k", "nan", "kelvin"),
+        ("--atmosphere-pa", "0", "absolute"),
+        ("--atmosphere-pa", "1.01325", "absolute"),
+        ("--atmosphere-pa", "8e5", "absolute"),
+        ("--max-pressure-bar", "-1", "full scale"),
+    ] {
+        run(&["leak", "--log", s(&prusa), option, value], d.path()).refused(&[option, word]);
+    }
+    // A decay down to where the flow is no longer choked: the choked law does not hold there.
+    let low = leak_copy(d.path(), "low.csv", "prusa", |_, f| {
+        f[2] = format!("{:.3}", f[2].parse::<f64>().unwrap() - 7.3);
+    });
+    run(&["leak", "--log", s(&low)], d.path()).refused(&[
+        "low.csv:1",
+        "pressure_bar",
+        "not choked",
+    ]);
+}
+
+#[test]
+fn a_sample_period_no_logger_has_is_refused_at_its_line() {
+    let d = tempfile::tempdir().unwrap();
+    // The friction time in ns where ms is read.
+    let dir = friction_copy(d.path(), "circle_3bar.csv", None);
+    edit_rows(&dir.join("circle_3bar.csv"), |_, f| {
+        f[0] = format!("{}", f[0].parse::<f64>().unwrap() * 1e-6);
+    });
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_3bar.csv:2",
+        "time_ms",
+        "sample period",
+    ]);
+    // A decay logged every µs.
+    let l = leak_copy(d.path(), "fast.csv", "prusa", |i, f| {
+        f[0] = format!("0.{:03}", i % 1000)
+    });
+    let text = std::fs::read_to_string(&l).unwrap();
+    std::fs::write(&l, text.lines().take(900).collect::<Vec<_>>().join("\n")).unwrap();
+    run(&["leak", "--log", s(&l)], d.path()).refused(&["fast.csv:2", "time_ms", "sample period"]);
+    // Rig logs for identify: a 1 ns period, a 5 s period, one step of 0.1 µs in a 1 ms log.
+    let actuator = repo().join("pneumatics/paper-actuator.toml");
+    for (name, period, uneven, line, word) in [
+        ("ns.csv", 1e-9, None, ":3", "median sample period"),
+        ("slow.csv", 5.0, None, ":3", "median sample period"),
+        ("uneven.csv", 1e-3, Some(50), ":52", "does not tick evenly"),
+    ] {
+        let mut text = String::from("t,u,x,p_a,p_b,f_e,fault\n");
+        for k in 0..200 {
+            let t = match uneven {
+                Some(j) if j == k => (k as f64 - 1.0) * period + 1e-7,
+                _ => k as f64 * period,
+            };
+            text += &format!("{t:?},0.1,0.01,300000.0,200000.0,0.0,\n");
+        }
+        text += "# end: complete\n";
+        let log = d.path().join(name);
+        std::fs::write(&log, text).unwrap();
+        let out = d.path().join(format!("out-{name}"));
+        run(
+            &[
+                "identify",
+                "--log",
+                s(&log),
+                "--actuator",
+                s(&actuator),
+                "--free",
+                "valve.sonic_conductance_m3_per_s_pa",
+                "--out",
+                s(&out),
+            ],
+            d.path(),
+        )
+        .refused(&[&format!("{name}{line}"), "column `t`", word]);
+        assert!(!out.exists(), "{} left behind", out.display());
+    }
+}
+
+#[test]
+fn skip_lines_past_the_end_names_the_option_the_format_file_and_its_line() {
+    let d = tempfile::tempdir().unwrap();
+    let mut text = String::from("Messung\nPrüfstand 2\nZeit;Ventil;Weg;pA;pB;Kraft\n");
+    for k in 0..50 {
+        text += &format!("{};0;10;2,0;1,0;0\n", k);
+    }
+    let log = d.path().join("export.csv");
+    std::fs::write(&log, text).unwrap();
+    let columns = "[columns]\nt = { name = \"Zeit\", unit = \"ms\" }\nu = { name = \"Ventil\", unit = \"percent\" }\n\
+                   x = { name = \"Weg\", unit = \"mm\" }\np_a = { name = \"pA\", unit = \"bar\", gauge = true }\n\
+                   p_b = { name = \"pB\", unit = \"bar\", gauge = true }\nf_e = { name = \"Kraft\", unit = \"N\" }\n";
+    let actuator = repo().join("pneumatics/paper-actuator.toml");
+    for (skip, words) in [
+        // Past the end: no header left.
+        (
+            "500",
+            vec![
+                "export.csv",
+                "skip_lines = 500",
+                "format.toml:3",
+                "--log-format",
+                "53 line(s)",
+            ],
+        ),
+        // Onto the last row: a header of numbers.
+        ("52", vec!["export.csv:53", "columns.t.name", "skip_lines"]),
+        // Past the header but not the rows: the first row is taken as the header.
+        ("3", vec!["export.csv:4", "columns.t.name", "skip_lines"]),
+    ] {
+        let format = d.path().join("format.toml");
+        std::fs::write(
+            &format,
+            format!("separator = \";\"\ndecimal = \",\"\nskip_lines = {skip}\n{columns}"),
+        )
+        .unwrap();
+        let out = d.path().join("out");
+        run(
+            &[
+                "identify",
+                "--log",
+                s(&log),
+                "--log-format",
+                s(&format),
+                "--actuator",
+                s(&actuator),
+                "--free",
+                "valve.sonic_conductance_m3_per_s_pa",
+                "--out",
+                s(&out),
+            ],
+            d.path(),
+        )
+        .refused(&words);
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn tune_free_with_an_absurd_box_is_refused_naming_the_option() {
+    let d = tempfile::tempdir().unwrap();
+    let scene = repo().join("scenes/paper-fig3.toml");
+    for b in [
+        "[0,1e300]",
+        "[-1e300,1e300]",
+        "log[1e-3,1e300]",
+        "[-1e13,0]",
+    ] {
+        let free = format!("runs[adaptive].inner.kp_per_m={b}");
+        let out = d.path().join("out");
+        run(
+            &[
+                "tune",
+                s(&scene),
+                "--free",
+                &free,
+                "--budget",
+                "8",
+                "--out",
+                s(&out),
+            ],
+            d.path(),
+        )
+        .refused(&["--free", "runs[adaptive].inner.kp_per_m", "1e12"]);
+        assert!(!out.exists(), "a refused tune left {}", out.display());
+    }
+}
