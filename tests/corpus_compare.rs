@@ -335,12 +335,15 @@ fn a_nan_an_infinity_or_an_empty_cell_is_refused_with_its_line_and_column() {
     );
 }
 
+/// An edit of one row's cells.
+type RowEdit = dyn Fn(&mut Vec<String>);
+
 #[test]
 fn time_going_backwards_standing_still_jumping_or_not_starting_at_zero_is_refused_with_its_line() {
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();
     ok(&record(t, None, "impedance", "1", "rec"));
-    let cases: [(&str, &dyn Fn(&mut Vec<String>), usize, &str); 4] = [
+    let cases: [(&str, &RowEdit, usize, &str); 4] = [
         (
             "back",
             &|c| c[0] = "0.05".into(),

@@ -261,9 +261,11 @@ impl Tune {
 pub struct Compare {
     /// The scene the rig ran (scenes/*.toml).
     pub scene: PathBuf,
-    /// The rig's trace.csv (`rig run` output); repeat it with RUN=TRACE.csv for several runs, whose claims
-    /// are then judged on the rig beside the simulation. A log whose folder holds `rig run --scene`'s
-    /// summary.json names its run itself.
+    /// The trace.csv of a `rig run --scene` recording of this scene (checked: its manifest or trace names
+    /// the scene by hash; the board's columns; finite; time from 0 on the scene's ticks; a simulation's
+    /// trace or an excitation log is refused; a run that ended on a fault is compared up to the fault).
+    /// Repeat it (RUN=TRACE.csv when its folder has no summary.json) for several runs, whose claims are then
+    /// judged on the rig beside the simulation.
     #[arg(long, value_name = "[RUN=]TRACE.csv", required = true)]
     pub rig_log: Vec<String>,
     /// The scene's run a single --rig-log recorded (default: the one its summary.json names, else the first).
@@ -272,7 +274,7 @@ pub struct Compare {
     /// Simulate with this actuator sheet instead of the scene's (an identified one: how much closer it comes).
     #[arg(long, value_name = "SHEET.toml")]
     pub actuator: Option<PathBuf>,
-    /// Output directory (default: out/compare/<scene>/<run>/, out/compare/<scene>/ for several runs).
+    /// Output directory (default: out/compare/<scene>/<run>/, out/compare/<scene>/<run>+<run>/ for several).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// The figures' format: png (default), svg or pdf.

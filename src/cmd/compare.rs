@@ -1,7 +1,8 @@
 //! `pneuflex compare SCENE --rig-log [RUN=]TRACE.csv ...`: each recorded run of the scene simulated for as
 //! long as the rig ran, its windows' metrics and the rig's from the same metric code
 //! (`pneuflex_scene::analysis::comparison`), the figures of both overlaid, `compare.json` and `compare.md`.
-//! With the logs of two runs a claim compares, the claim's verdict on the rig beside the simulation's.
+//! With the logs of two runs a claim compares, the claim's verdict on the rig beside the simulation's. Each
+//! log is checked first to be a recording of this scene's run on the rig (rig_log.rs).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

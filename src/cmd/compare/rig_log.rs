@@ -27,7 +27,7 @@ pub(super) struct RigLog {
 /// even when it does not: the file was then put into a recording by hand), and the log's path in it.
 fn owner(path: &Path) -> Option<(PathBuf, Manifest, String)> {
     let abs = std::fs::canonicalize(path).ok()?;
-    for (depth, dir) in abs.ancestors().skip(1).take(3).enumerate() {
+    for (depth, dir) in abs.ancestors().skip(1).take(4).enumerate() {
         let Some(m) = read_manifest(dir) else {
             continue;
         };
