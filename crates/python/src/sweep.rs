@@ -5,6 +5,8 @@
 
 use std::path::PathBuf;
 
+use pneuflex_files::OutputDir;
+use pneuflex_files::output::{Manifest, Writer};
 use pneuflex_sweep::points::DEFAULT_MAX_POINTS;
 use pneuflex_sweep::tune::{Evaluation, FreeArg, Term, TuneOptions, Tuner};
 use pneuflex_sweep::{SetArg, Sweep, SweepError};
@@ -121,7 +123,8 @@ pub fn tune_evaluate(
 }
 
 /// Runs a tune and writes its outputs into `out` (the tuned scene, report.md, convergence.png,
-/// history.csv, tune.json). `evaluate`, when given, is called with each candidate's values and returns
+/// history.csv, tune.json, and the manifest), staged and committed as `pneuflex tune --out` does: an `out`
+/// that holds files pneuflex did not write is refused before the search. `evaluate`, when given, is called with each candidate's values and returns
 /// `tune_evaluate`'s text (a remote executor); otherwise the candidates run on the Rust pool. Returns
 /// tune.json's content as a JSON string.
 #[pyfunction]
@@ -146,6 +149,14 @@ pub fn tune_run(
     let t = py
         .detach(|| tuner(&scene_path, &free, &over, run.as_deref(), &terms))
         .map_err(err)?;
+    // Staged as `pneuflex tune --out` stages, before the search: a folder pneuflex did not write (or one
+    // holding an input) is refused, not written into; the files appear there only when complete.
+    let scene = &t.base_scene;
+    let mut inputs = vec![scene_path.clone()];
+    inputs.extend(scene.input_files().into_iter().skip(1).map(|(_, p)| p));
+    let protect: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let stage =
+        OutputDir::create(&out, &protect, Writer::simulation("tune")).map_err(errors::other)?;
     let opts = TuneOptions {
         budget,
         seed,
@@ -189,12 +200,11 @@ pub fn tune_run(
             "a candidate's evaluation failed: {why}"
         )));
     }
-    std::fs::create_dir_all(&out).map_err(|e| errors::other(format!("{}: {e}", out.display())))?;
     let command = command.unwrap_or_else(|| format!("pneuflex.tune({})", scene_path.display()));
     let summary = py
         .detach(|| {
             pneuflex_sweep::tune_output::write(
-                &out,
+                stage.path(),
                 &t,
                 &opts,
                 &history,
@@ -204,5 +214,11 @@ pub fn tune_run(
             )
         })
         .map_err(err)?;
+    let manifest = Manifest::new(
+        "tune",
+        env!("CARGO_PKG_VERSION"),
+        pneuflex_scene::scene_inputs(&t.base_scene),
+    );
+    stage.commit(manifest).map_err(errors::other)?;
     serde_json::to_string(&summary).map_err(errors::other)
 }

@@ -566,7 +566,39 @@ def a_string_where_a_list_belongs_is_one_entry_not_its_characters():
     refused(lambda: pneuflex.tune(SCENE, FREE, terms=None, out="unused"), TypeError, "pneuflex.tune: terms must be a list")
     refused(lambda: pneuflex.identify("rig.csv", SHEET, [b"mechanics.moving_mass_kg"]), TypeError, "pneuflex.identify: free[0] must be a str")
     refused(lambda: pneuflex.identify("rig.csv", SHEET, MASS, bounds=5), TypeError, "pneuflex.identify: bounds must be a list")
+    # An empty list: nothing to do, said in the package's words before the engine's.
+    refused(lambda: pneuflex.sweep(SCENE, []), ValueError, "pneuflex.sweep: sets is empty")
+    refused(lambda: pneuflex.tune(SCENE, [], out="unused"), ValueError, "pneuflex.tune: free is empty")
+    refused(lambda: pneuflex.identify([], SHEET, MASS), ValueError, "pneuflex.identify: logs is empty")
+    refused(lambda: pneuflex.identify("rig.csv", SHEET, []), ValueError, "pneuflex.identify: free is empty")
     assert not Path("unused").exists()
+
+
+@test
+def an_out_folder_is_checked_before_the_work_and_never_overwritten_when_foreign():
+    """tune(out=...) wrote into any folder (a user's report.md or tune.json replaced): it is staged as
+    `pneuflex tune --out` is, so a folder holding files pneuflex did not write is refused, naming a file, before
+    the search, and left as it was. sweep(out=...) refuses a file where the folder goes before anything runs,
+    and writes sweep.csv whole (renamed into place), leaving the folder's other files alone."""
+    with tempfile.TemporaryDirectory() as d:
+        mine = Path(d) / "mine"
+        mine.mkdir()
+        (mine / "report.md").write_text("my notes")
+        refused(lambda: pneuflex.tune(SCENE, FREE, out=mine, budget=8), pneuflex.PneuflexError, "report.md")
+        assert sorted(p.name for p in mine.iterdir()) == ["report.md"] and (mine / "report.md").read_text() == "my notes"
+        a_file = Path(d) / "a-file"
+        a_file.write_text("keep")
+        s = ["environment.stiffness_n_per_m=700"]
+        refused(lambda: pneuflex.sweep(SCENE, s, out=a_file), NotADirectoryError, "pneuflex.sweep: out:", "a-file")
+        (mine / "sweep.csv").mkdir()
+        refused(lambda: pneuflex.sweep(SCENE, s, out=mine), IsADirectoryError, "sweep.csv is a folder")
+        (mine / "sweep.csv").rmdir()
+        assert a_file.read_text() == "keep"
+        servo = Path(d) / "servo.toml"
+        servo.write_text(SERVO_SCENE)
+        table = pneuflex.sweep(servo, s, out=mine)
+        assert (mine / "sweep.csv").read_text() == table
+        assert sorted(p.name for p in mine.iterdir()) == ["report.md", "sweep.csv"], list(mine.iterdir())
 
 
 @test

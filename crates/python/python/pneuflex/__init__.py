@@ -111,8 +111,8 @@ def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settl
     at = "pneuflex.identify"
     raw = json.loads(
         identify_json(
-            c.paths(logs, "logs", at), c.path(actuator, "actuator", at),
-            c.strings(free, "free", at, "sheet keys"), c.strings(bounds, "bounds", at, '"KEY=[LO,HI]" strings'),
+            c.paths(logs, "logs", at, nonempty=True), c.path(actuator, "actuator", at),
+            c.strings(free, "free", at, "sheet keys", nonempty=True), c.strings(bounds, "bounds", at, '"KEY=[LO,HI]" strings'),
             # The ranges are the fit's own checks (the CLI's messages); here the types.
             c.number(validation, "validation", at), c.number(segment, "segment", at), c.number(settle, "settle", at),
             c.optional_path(out, "out", at), c.optional_path(log_format, "log_format", at), c.flag(select, "select", at),

@@ -43,21 +43,27 @@ def items(value, name: str, where: str, what: str) -> list:
     return list(value)
 
 
-def paths(value, name: str, where: str) -> list[str]:
-    """One path or a list of paths."""
+def paths(value, name: str, where: str, nonempty: bool = False) -> list[str]:
+    """One path or a list of paths (at least one when ``nonempty``)."""
     if isinstance(value, PathLike):
         return [path(value, name, where)]
-    return [path(v, f"{name}[{i}]", where) for i, v in enumerate(items(value, name, where, "paths"))]
+    out = [path(v, f"{name}[{i}]", where) for i, v in enumerate(items(value, name, where, "paths"))]
+    if nonempty and not out:
+        raise ValueError(f"{where}: {name} is empty: give at least one path")
+    return out
 
 
-def strings(value, name: str, where: str, what: str) -> list[str]:
-    """One string (a single entry) or a list of strings; every element must be a str."""
+def strings(value, name: str, where: str, what: str, nonempty: bool = False) -> list[str]:
+    """One string (a single entry) or a list of strings (at least one when ``nonempty``); every element must be
+    a str."""
     if isinstance(value, str):
         return [value]
     out = items(value, name, where, what)
     for i, v in enumerate(out):
         if not isinstance(v, str):
             raise TypeError(f"{where}: {name}[{i}] must be a str ({what}), got {kind(v)}")
+    if nonempty and not out:
+        raise ValueError(f"{where}: {name} is empty: give at least one of the {what}")
     return out
 
 

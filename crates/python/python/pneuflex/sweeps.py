@@ -17,6 +17,7 @@ Executors:
 """
 
 import math
+import os
 
 from . import _checks as c
 from . import _native
@@ -70,14 +71,21 @@ def chunks(n, size):
 def sweep(scene, sets, samples=None, seed=0, executor="local", threads=0, out=None):
     """The scene at every point of ``sets`` (``["KEY=SPEC", ...]``, as ``pneuflex sweep --set``); returns the
     table (sweep.csv's text, a ``SweepTable`` whose ``.frame`` is the table as a DataFrame). Every point is checked before anything runs (``PneuflexError`` naming the file, the
-    key and the point). ``out``: also write it to ``out/sweep.csv``."""
+    key and the point). ``out``: also write it to ``out/sweep.csv`` (created whole: written beside, then renamed;
+    the folder's other files are left as they are)."""
     at = "pneuflex.sweep"
     scene = c.path(scene, "scene", at)
-    sets = c.strings(sets, "sets", at, '"KEY=SPEC" strings')
+    sets = c.strings(sets, "sets", at, '"KEY=SPEC" strings', nonempty=True)
     samples = c.optional_integer(samples, "samples", at, 1)
     seed = c.seed(seed, "seed", at)
     out = c.optional_path(out, "out", at)
     ex = _executor(executor, threads, at)
+    if out is not None:
+        # Before anything runs: a file where the folder goes.
+        for p in (out, os.path.join(out, "sweep.csv")):
+            if os.path.exists(p) and os.path.isdir(p) != (p == out):
+                raise (NotADirectoryError if p == out else IsADirectoryError)(
+                    f"{at}: out: {p} is {'not a folder' if p == out else 'a folder'}")
     n, header = _native.sweep_plan(scene, sets, samples, seed)
     if isinstance(ex, LocalExecutor):
         rows = _native.sweep_rows(scene, sets, list(range(n)), samples, seed, ex.threads)
@@ -93,11 +101,18 @@ def sweep(scene, sets, samples=None, seed=0, executor="local", threads=0, out=No
         rows = "".join(ray.get(futures))
     table = SweepTable(header + rows)
     if out is not None:
-        import os
+        import tempfile
 
         os.makedirs(out, exist_ok=True)
-        with open(os.path.join(out, "sweep.csv"), "w", encoding="utf-8", newline="") as f:
-            f.write(table)
+        # Whole or not at all: written beside, then renamed over sweep.csv.
+        fd, tmp = tempfile.mkstemp(prefix=".sweep.csv.", dir=out)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
+                f.write(table)
+            os.replace(tmp, os.path.join(out, "sweep.csv"))
+        except BaseException:
+            os.unlink(tmp)
+            raise
     return table
 
 
@@ -111,7 +126,7 @@ def tune(scene, free, over=(), out="out/tune", run=None, terms=(), budget=200, s
 
     at = "pneuflex.tune"
     scene, out = c.path(scene, "scene", at), c.path(out, "out", at)
-    free = c.strings(free, "free", at, '"KEY=[LO,HI]" strings')
+    free = c.strings(free, "free", at, '"KEY=[LO,HI]" strings', nonempty=True)
     over = c.strings(over, "over", at, '"KEY=V1,V2,..." strings')
     terms = c.strings(terms, "terms", at, "objective terms")
     run = c.optional_string(run, "run", at)
