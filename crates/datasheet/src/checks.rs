@@ -37,6 +37,11 @@ pub const FILL_TIME_ERROR_S: f64 = 1.0;
 /// Slower than this, the valve limits the loop's bandwidth: a warning.
 pub const FILL_TIME_WARNING_S: f64 = 0.2;
 
+/// Coulomb friction over this fraction of the force range is refused.
+pub const FRICTION_OF_RANGE: f64 = 0.2;
+/// A contact force under this fraction of the force range is refused.
+pub const FORCE_FLOOR_OF_RANGE: f64 = 0.01;
+
 /// Every check on a design: the errors, then the warnings.
 pub fn check(d: &Design) -> Vec<Finding> {
     let mut out = errors(d);
@@ -91,12 +96,133 @@ fn errors(d: &Design) -> Vec<Finding> {
         |t: f64| iso6358::qn_from_c(d.conductance_for_fill(t), d.critical_pressure_ratio) * 6e4;
     if t_fill > FILL_TIME_ERROR_S {
         err(
-            "--valve-flow",
+            d.flow_key,
             format!(
-                "the valve fills a chamber at mid stroke in {t_fill:.2} s: too slow for the experiment's 1 Hz sine; \
-                 a valve of QN ≥ {:.0} l/min (fill in {:.0} ms) would work",
+                "the valve fills a chamber at mid stroke ({:.1} cm³, {:.1} of it dead volume) in {t_fill:.2} s: too \
+                 slow for the experiment's 1 Hz sine; a valve of QN ≥ {:.0} l/min (fill in {:.0} ms) would work \
+                 (--valve-flow {:.0}l/min)",
+                (d.area_a() * 0.5 * d.stroke_m + d.dead_volume_a_m3) * 1e6,
+                d.dead_volume_a_m3 * 1e6,
                 qn_for(0.1),
-                100.0
+                100.0,
+                qn_for(0.1).ceil()
+            ),
+        );
+    }
+    // The sensors' spans against what they measure: a 12-bit ADC over ten times the stroke or the supply
+    // resolves too coarsely for the loop (a count of a 100 mm stroke's 1 m span is 0.24 mm).
+    if d.position_range_m > 10.0 * d.stroke_m {
+        err(
+            "--position-range",
+            format!(
+                "{:.0} mm is over ten times the {:.0} mm stroke: the 12-bit ADC resolves {:.2} mm a count; a sensor \
+                 of {:.0} mm would work (--position-range {:.0}mm)",
+                mm(d.position_range_m),
+                mm(d.stroke_m),
+                mm(d.position_range_m) / 4096.0,
+                (mm(d.stroke_m) * 1.2 / 25.0).ceil() * 25.0,
+                (mm(d.stroke_m) * 1.2 / 25.0).ceil() * 25.0
+            ),
+        );
+    }
+    if d.pressure_range_pa > 10.0 * gauge {
+        err(
+            "--pressure-range",
+            format!(
+                "±{:.2} MPa is over ten times the {:.2} MPa gauge supply: the 12-bit ADC resolves {:.0} Pa a count; \
+                 ±{:.1} MPa would work (--pressure-range {:.1}MPa)",
+                d.pressure_range_pa * 1e-6,
+                gauge * 1e-6,
+                2.0 * d.pressure_range_pa / 4096.0,
+                (gauge * 1.1 / 2e5).ceil() * 0.2,
+                (gauge * 1.1 / 2e5).ceil() * 0.2
+            ),
+        );
+    }
+    // Everything that moves with the piston weighs at least the rod; on the chambers' air springs it must
+    // resonate above the experiment's force loop (the impedance filter's √(700/2) = 18.7 rad/s), or the
+    // loop cannot be faster than the load (measured: a 25 mm bore, 100 mm stroke settles with 15 kg, not 30).
+    let k_air = d.air_spring_n_per_m();
+    let heaviest = k_air / crate::design::PAPER_OMEGA2;
+    let rod = d.rod_mass_kg();
+    let typical = (rod + d.area_a() * 0.5 * d.bore_m * 2700.0 + 0.5).min(0.8 * heaviest);
+    if !d.assumed("--mass") && d.moving_mass_kg < rod {
+        err(
+            "--mass",
+            format!(
+                "{} kg is less than the steel rod alone ({:.3} kg: {} mm over the {} mm stroke and the bore); everything \
+                 that moves with the piston weighs more, e.g. --mass {}kg",
+                d.moving_mass_kg,
+                rod,
+                crate::design::fmt_mm(d.rod_m),
+                crate::design::fmt_mm(d.stroke_m),
+                crate::limits::num(crate::design::round2(typical.max(rod * 1.5)))
+            ),
+        );
+    } else if d.moving_mass_kg > heaviest {
+        let fix = if d.assumed("--mass") {
+            "the mass was assumed (0.5 kg of flange and carriage with the rod and piston): give --mass if yours is \
+             lighter, or a shorter --stroke or a larger --bore (stiffer air springs)"
+        } else {
+            "a lighter load, or a shorter --stroke or a larger --bore (stiffer air springs)"
+        };
+        err(
+            "--mass",
+            format!(
+                "{} kg on the chambers' air springs ({:.0} N/m at mid stroke) resonates at {:.1} rad/s, under the \
+                 experiment's {:.1} rad/s force loop: at most {} kg would work here (--mass {}kg); {fix}",
+                d.moving_mass_kg,
+                k_air,
+                (k_air / d.moving_mass_kg).sqrt(),
+                crate::design::PAPER_OMEGA2.sqrt(),
+                crate::limits::num(crate::design::round2(0.95 * heaviest)),
+                crate::limits::num(crate::design::round2(0.95 * heaviest))
+            ),
+        );
+    }
+    // Seal friction is 1–10 % of a cylinder's force (breakaway up to ~15 %); beyond a fifth the force loop
+    // has nothing left to control with.
+    if d.coulomb_n > FRICTION_OF_RANGE * d.force_range_n() {
+        err(
+            "--friction",
+            format!(
+                "{} N is over {:.0} % of the {:.1} N force range (seals take 1–10 %): the cylinder spends its force \
+                 on friction; at most {} N would work (--friction {}N)",
+                d.coulomb_n,
+                FRICTION_OF_RANGE * 100.0,
+                d.force_range_n(),
+                crate::limits::num(crate::design::round2(0.1 * d.force_range_n())),
+                crate::limits::num(crate::design::round2(0.1 * d.force_range_n()))
+            ),
+        );
+    }
+    // The end caps leave at least half a millimetre of bore at each end (cushioning and the port).
+    let least_dead = d.area_a() * 0.0005;
+    if !d.assumed("--dead-volume") && d.dead_volume_a_m3.min(d.dead_volume_b_m3) < least_dead {
+        err(
+            "--dead-volume",
+            format!(
+                "{} cm³ is less than half a millimetre of the {} mm bore ({:.3} cm³): the end cap and port alone hold \
+                 more; e.g. --dead-volume {}cm3",
+                crate::limits::num(d.dead_volume_a_m3 * 1e6),
+                crate::design::fmt_mm(d.bore_m),
+                least_dead * 1e6,
+                crate::limits::num(crate::design::round2(d.area_a() * 0.002 * 1e6 * 2.0))
+            ),
+        );
+    }
+    // The contact force against the force range: under 1 % it is lost in the chambers' pressure noise.
+    if d.force_n < FORCE_FLOOR_OF_RANGE * d.force_range_n() {
+        err(
+            "--force",
+            format!(
+                "{} N is under {:.0} % of the {:.1} N force range: the force is lost in friction and pressure noise; \
+                 at least {} N would work (--force {}N)",
+                d.force_n,
+                FORCE_FLOOR_OF_RANGE * 100.0,
+                d.force_range_n(),
+                crate::limits::num(crate::design::round2(0.1 * d.force_range_n())),
+                crate::limits::num(crate::design::round2(0.1 * d.force_range_n()))
             ),
         );
     }

@@ -16,6 +16,16 @@ pub enum ValveKind {
     Proportional,
 }
 
+impl ValveKind {
+    /// The value of `--valve` that chooses it.
+    pub fn option(self) -> &'static str {
+        match self {
+            ValveKind::Pwm => "pwm",
+            ValveKind::Proportional => "proportional",
+        }
+    }
+}
+
 /// How the datasheet rates the valve's flow.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FlowRating {
@@ -105,8 +115,9 @@ pub struct Design {
     pub pwm_frequency_hz: f64,
     pub switching_delay_s: f64,
     pub response_time_s: f64,
-    /// How the flow was given, for the sheet's comment.
+    /// How the flow was given, for the sheet's comment, and the option that gives it.
     pub flow_source: String,
+    pub flow_key: &'static str,
     /// Sensors: position span from 0, differential span ±, m and Pa.
     pub position_range_m: f64,
     pub pressure_range_pa: f64,
@@ -137,7 +148,8 @@ pub const FORCE_OF_RANGE: f64 = 0.10;
 pub const SURFACE_OF_STROKE: f64 = 0.40;
 pub const COMPRESSION_OF_STROKE: f64 = 0.34;
 pub const SINE_OF_FORCE: f64 = 0.2;
-const PAPER_OMEGA2: f64 = 700.0 / 2.0;
+/// The impedance filter's outer frequency squared, (rad/s)²: the paper's √(700/2) = 18.7 rad/s.
+pub const PAPER_OMEGA2: f64 = 700.0 / 2.0;
 const PAPER_ZETA: f64 = 52.4 / (2.0 * 37.416_573_867_739_41);
 
 /// The chamber fill time a valve is sized for when no flow is given: from the atmosphere to the supply at
@@ -152,6 +164,11 @@ pub fn round2(v: f64) -> f64 {
     }
     format!("{v:.1e}").parse().unwrap_or(v)
 }
+
+/// A rod's diameter against the bore's, the least and most `new rig` takes.
+pub const ROD_OF_BORE: (f64, f64) = (0.1, 0.7);
+/// The stroke in bores, the least and most `new rig` designs for.
+pub const STROKE_OF_BORE: (f64, f64) = (0.25, 25.0);
 
 /// Air's gas constant, J/(kg K).
 pub const R_AIR: f64 = 287.05;
@@ -182,6 +199,29 @@ impl Design {
         )
     }
 
+    /// The two chambers' air springs at mid stroke, N/m: γ p (A²/V_a + A_b²/V_b) with the chambers halfway
+    /// between atmosphere and supply, adiabatic (the actuator sheet's polytropic exponent).
+    pub fn air_spring_n_per_m(&self) -> f64 {
+        let p = 0.5 * (self.supply_abs_pa + self.atmosphere_pa);
+        let v_a = self.area_a() * 0.5 * self.stroke_m + self.dead_volume_a_m3;
+        let v_b = self.area_b() * 0.5 * self.stroke_m + self.dead_volume_b_m3;
+        1.4 * p * (self.area_a().powi(2) / v_a + self.area_b().powi(2) / v_b)
+    }
+
+    /// The steel rod alone, kg: the least mass that moves with the piston (over the stroke and the bore).
+    pub fn rod_mass_kg(&self) -> f64 {
+        std::f64::consts::FRAC_PI_4
+            * self.rod_m
+            * self.rod_m
+            * (self.stroke_m + self.bore_m)
+            * 7850.0
+    }
+
+    /// Whether `key`'s value was assumed (not given).
+    pub fn assumed(&self, key: &str) -> bool {
+        self.assumptions.iter().any(|a| a.key == key)
+    }
+
     /// The conductance that fills that chamber in `t` seconds.
     pub fn conductance_for_fill(&self, t: f64) -> f64 {
         self.sonic_conductance_m3_per_s_pa * self.fill_time_s() / t
@@ -194,21 +234,50 @@ fn fill_time(c: f64, volume: f64, p_s: f64, p_atm: f64) -> f64 {
 }
 
 fn positive(key: &str, v: Option<f64>) -> Result<Option<f64>, DesignError> {
+    let example = match key {
+        "--position-range" => "125mm",
+        "--pressure-range" => "0.8MPa",
+        "--force" => "10N",
+        _ => "a number > 0",
+    };
     v.map(|x| {
         pneuflex_files::check::positive(x).map_err(|why| DesignError::Value {
             key: key.into(),
             value: format!("{x}"),
-            why,
+            why: format!("{why} (SI), e.g. {key} {example}"),
         })
     })
     .transpose()
 }
 
-/// Resolves a datasheet into a design: every value given is kept, every other derived and listed.
-pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
-    let mut assumed = Vec::new();
+/// An option's value outside its own range (`limits`), refused with the value in the option's unit.
+fn in_range(key: &str, v: Option<f64>) -> Result<(), DesignError> {
+    let (Some(x), Some(r)) = (v, crate::limits::of(key)) else {
+        return Ok(());
+    };
+    r.check(x).map(|_| ()).map_err(|why| DesignError::Value {
+        key: key.into(),
+        value: r.typed(x / r.si_per_unit),
+        why,
+    })
+}
+
+/// The option of the flow rating given, with its value in SI.
+pub fn flow_option(flow: &FlowRating) -> (&'static str, f64) {
+    match *flow {
+        FlowRating::Qn(q) => ("--valve-flow", q),
+        FlowRating::Conductance(c) => ("--valve-c", c),
+        FlowRating::Kv(k) => ("--valve-kv", k),
+        FlowRating::Cv(c) => ("--valve-cv", c),
+    }
+}
+
+/// Every option given checked against its own range, and refused where it does not apply, before
+/// anything is derived from it.
+pub fn check_options(ds: &Datasheet) -> Result<(), DesignError> {
     for (key, v) in [
         ("--bore", ds.bore_m),
+        ("--iso-bore", ds.iso_bore_mm),
         ("--rod", ds.rod_m),
         ("--stroke", ds.stroke_m),
         ("--supply", ds.supply_gauge_pa),
@@ -216,15 +285,74 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         ("--pwm-frequency", ds.pwm_frequency_hz),
         ("--switching-delay", ds.switching_delay_s),
         ("--response-time", ds.response_time_s),
-        ("--position-range", ds.position_range_m),
-        ("--pressure-range", ds.pressure_range_pa),
         ("--mass", ds.moving_mass_kg),
+        ("--incline", ds.incline_deg),
         ("--dead-volume", ds.dead_volume_m3),
         ("--tube-length", ds.tube_length_m),
-        ("--force", ds.force_n),
     ] {
-        positive(key, v)?;
+        in_range(key, v)?;
     }
+    if let Some(f) = &ds.flow {
+        let (key, v) = flow_option(f);
+        in_range(key, Some(v))?;
+    }
+    for (key, v) in [
+        ("--position-range", ds.position_range_m),
+        ("--pressure-range", ds.pressure_range_pa),
+        ("--force", ds.force_n),
+        ("--friction", ds.coulomb_n),
+    ] {
+        in_range(key, v)?;
+    }
+    // An option that does not apply would be dropped without a word: refused, with what it applies to.
+    let valve = ds.valve.unwrap_or(ValveKind::Pwm);
+    let valve_said = if ds.valve.is_some() {
+        "the valve given"
+    } else {
+        "the valve assumed without --valve"
+    };
+    let not_applying = |key: &str, applies: &str, fix: &str| DesignError::NotApplying {
+        key: key.into(),
+        why: format!("{applies}, and {valve_said} is {}: {fix}", valve.option()),
+    };
+    if valve == ValveKind::Proportional {
+        for (key, given) in [
+            ("--pwm-frequency", ds.pwm_frequency_hz.is_some()),
+            ("--switching-delay", ds.switching_delay_s.is_some()),
+        ] {
+            if given {
+                return Err(not_applying(
+                    key,
+                    "applies to an on/off valve under PWM (--valve pwm)",
+                    &format!(
+                        "leave {key} out, or give --valve pwm (a proportional valve's speed is --response-time)"
+                    ),
+                ));
+            }
+        }
+    }
+    if valve == ValveKind::Pwm && ds.response_time_s.is_some() {
+        return Err(not_applying(
+            "--response-time",
+            "applies to a proportional valve's spool (--valve proportional)",
+            "leave it out, or give --valve proportional (an on/off valve's speed is --switching-delay)",
+        ));
+    }
+    if ds.tube_length_m.is_some() && ds.dead_volume_m3.is_some() {
+        return Err(DesignError::NotApplying {
+            key: "--tube-length".into(),
+            why: "sizes the dead volume when --dead-volume is not given, and --dead-volume is: give one of \
+                  the two"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
+/// Resolves a datasheet into a design: every value given is kept, every other derived and listed.
+pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
+    let mut assumed = Vec::new();
+    check_options(ds)?;
     let (bore_m, size, stroke_m, rod_m) = cylinder(ds, &mut assumed)?;
     let supply_gauge = ds.supply_gauge_pa.unwrap_or_else(|| {
         assume(
@@ -299,6 +427,10 @@ pub fn resolve(ds: &Datasheet) -> Result<Design, DesignError> {
         switching_delay_s,
         response_time_s,
         flow_source,
+        flow_key: ds
+            .flow
+            .as_ref()
+            .map_or("--valve-flow", |f| flow_option(f).0),
         position_range_m,
         pressure_range_pa,
         moving_mass_kg,
@@ -381,13 +513,47 @@ fn cylinder(
             r
         }
     };
-    if rod_m >= bore_m {
+    // Catalogue rods are 20–50 % of the bore (ISO 15552 320 mm: 63 mm; ISO 6432 8 mm: 4 mm): a thinner one
+    // buckles, a thicker one leaves the rod side too little area to pull the load back.
+    let ratio = rod_m / bore_m;
+    if !(ROD_OF_BORE.0..=ROD_OF_BORE.1).contains(&ratio) {
         return Err(DesignError::Value {
             key: "--rod".into(),
-            value: format!("{} mm", rod_m * 1e3),
+            value: format!("{}mm", fmt_mm(rod_m)),
             why: format!(
-                "the rod must be thinner than the bore ({} mm)",
-                bore_m * 1e3
+                "{:.0} % of the {} mm bore; a rod of {:.0}–{:.0} % of the bore would work (catalogue rods are \
+                 20–50 %: a thinner one buckles, a thicker one leaves the rod side no area to pull with), e.g. \
+                 --rod {}mm, the rod of the {} {} mm size",
+                ratio * 100.0,
+                fmt_mm(bore_m),
+                ROD_OF_BORE.0 * 100.0,
+                ROD_OF_BORE.1 * 100.0,
+                fmt_mm(size.rod_mm / size.bore_mm * bore_m),
+                size.standard,
+                size.bore_mm
+            ),
+        });
+    }
+    // The experiment scales with the stroke: a stroke under a quarter of the bore gives a force range too
+    // large for the few mm the environment may compress, one over 25 bores (ISO 6432's 8 mm bore stops at
+    // 200 mm) chambers whose air springs are too soft for the force loop.
+    let strokes = stroke_m / bore_m;
+    if !(STROKE_OF_BORE.0..=STROKE_OF_BORE.1).contains(&strokes) {
+        let (lo, hi) = (STROKE_OF_BORE.0 * bore_m, STROKE_OF_BORE.1 * bore_m);
+        return Err(DesignError::Value {
+            key: "--stroke".into(),
+            value: format!("{}mm", fmt_mm(stroke_m)),
+            why: format!(
+                "{:.2} bores on the {} mm bore; new rig designs for strokes of {}–{} bores ({}–{} mm here: a \
+                 shorter stroke gives a force range too large for the few mm the experiment compresses, a longer \
+                 one air springs too soft for its force loop); --stroke {}mm would work",
+                strokes,
+                fmt_mm(bore_m),
+                STROKE_OF_BORE.0,
+                STROKE_OF_BORE.1,
+                fmt_mm(lo.max(0.01)),
+                fmt_mm(hi.min(2.0)),
+                fmt_mm(stroke_m.clamp(lo.max(0.01), hi.min(2.0)))
             ),
         });
     }
@@ -449,15 +615,6 @@ fn valve_flow(
     assumed: &mut Vec<Assumption>,
 ) -> Result<(f64, f64, String), DesignError> {
     let b_given = ds.critical_pressure_ratio;
-    if let Some(b) = b_given
-        && b >= 1.0
-    {
-        return Err(DesignError::Value {
-            key: "--valve-b".into(),
-            value: format!("{b}"),
-            why: "a critical pressure ratio in (0, 1), e.g. 0.3".into(),
-        });
-    }
     Ok(match ds.flow {
         Some(FlowRating::Qn(q)) => {
             positive("--valve-flow", Some(q))?;
@@ -631,21 +788,7 @@ fn mechanics(
         assume(assumed, "--incline", "0 deg: the axis horizontal".into());
         0.0
     });
-    if !(incline_deg.is_finite() && (-90.0..=90.0).contains(&incline_deg)) {
-        return Err(DesignError::Value {
-            key: "--incline".into(),
-            value: format!("{incline_deg}"),
-            why: "an angle in [-90, 90] degrees below the horizontal".into(),
-        });
-    }
     let coulomb_n = match ds.coulomb_n {
-        Some(f) if !(f.is_finite() && f >= 0.0) => {
-            return Err(DesignError::Value {
-                key: "--friction".into(),
-                value: format!("{f}"),
-                why: "a Coulomb friction force ≥ 0 N".into(),
-            });
-        }
         Some(f) => f,
         None => {
             let f = round2(0.01 * force_range);
@@ -688,20 +831,31 @@ fn rig_name(
             }
         )
     });
-    if name.is_empty()
-        || !name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
-    {
+    if !valid_name(&name) {
         return Err(DesignError::Value {
             key: "--name".into(),
-            value: name,
-            why: "a rig name of letters, digits, '-', '_' and '.' (it names the scene and its output folder; the \
-                  default is the directory's name)"
-                .into(),
+            value: format!("`{name}`"),
+            why: format!(
+                "a rig name of up to {NAME_MAX} letters, digits, '-', '_' and '.', not starting with '.' or '-' (it \
+                 names the scene and its output folder out/NAME; the default is the directory's name), e.g. --name \
+                 my-rig"
+            ),
         });
     }
     Ok(name)
+}
+
+/// The longest rig name (it names a folder, and a line of every file).
+pub const NAME_MAX: usize = 64;
+
+/// A rig name: letters, digits, '-', '_' and '.', not hidden (`.x`, `..`) nor an option (`-x`).
+pub fn valid_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= NAME_MAX
+        && !name.starts_with(['.', '-'])
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
 }
 
 /// Notes what was taken for a value the datasheet does not give, and why.

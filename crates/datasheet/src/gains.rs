@@ -114,7 +114,7 @@ pub fn choose(
         }
         g = g.with_kp(kp_margin);
     }
-    if !kp_margin.is_finite() {
+    if !(kp_margin.is_finite() && kp_margin > 0.0) {
         return Err(DesignError::Gains(
             "the loop analysis found no kp with a gain margin: the loop's phase never crosses -180°".into(),
         ));
@@ -178,6 +178,13 @@ pub fn choose(
         ));
     } else {
         note.push_str("; the simulation settles after the stiffness change");
+    }
+    // A kp rounded to nothing is no controller: refused rather than written (seen with a load far too
+    // heavy for its air springs).
+    if !(kp_ok.is_finite() && kp_ok > 0.0) {
+        return Err(DesignError::Gains(format!(
+            "the simulation settles only with kp = {kp_ok} /m: no position loop at all"
+        )));
     }
     g = g.with_kp(kp_ok);
     let scene = load(&write(&g)?)?;

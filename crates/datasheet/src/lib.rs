@@ -5,6 +5,7 @@
 //!
 //! - `units`: quantities with unit suffixes;
 //! - `iso6358`: flow ratings to the sonic conductance and critical pressure ratio;
+//! - `limits`: each option's own range, checked before anything is derived;
 //! - `series`: the ISO 15552 / ISO 6432 bores, rods and ports;
 //! - `design`: the datasheet resolved into every value, with its assumptions;
 //! - `checks`: whether the rig can run the experiment, each finding naming its option;
@@ -15,11 +16,13 @@ pub mod checks;
 pub mod design;
 pub mod gains;
 pub mod iso6358;
+pub mod limits;
 pub mod series;
 pub mod units;
 pub mod write;
 
 use std::fmt::Write as _;
+
 use std::path::{Path, PathBuf};
 
 pub use checks::{Finding, Severity};
@@ -35,6 +38,8 @@ pub enum DesignError {
         value: String,
         why: String,
     },
+    #[error("{key}: does not apply: {why}")]
+    NotApplying { key: String, why: String },
     #[error("{key}: missing: {why}")]
     Missing { key: String, why: String },
     #[error("the rig cannot run the experiment as given:\n{}", .0.iter().map(|f| format!("  {f}")).collect::<Vec<_>>().join("\n"))]
@@ -70,12 +75,13 @@ pub const DT_S: f64 = 0.001;
 /// Resolves and checks `ds`, chooses gains, and writes the rig directory `dir` whole (staged beside it,
 /// renamed in at the end; nothing is left if anything fails). `command` is the command line, for the report.
 pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, DesignError> {
-    // The rig is named after its directory unless a name is given.
+    // The rig is named after its directory unless a name is given (or the directory's name is no rig name:
+    // then from its sizes).
     let named = Datasheet {
         name: ds.name.clone().or_else(|| {
             dir.file_name()
                 .map(|n| n.to_string_lossy().into_owned())
-                .filter(|n| !n.is_empty() && n != "." && n != "..")
+                .filter(|n| design::valid_name(n))
         }),
         ..ds.clone()
     };
@@ -98,21 +104,28 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
         .ok_or_else(|| DesignError::Value {
             key: "DIR".into(),
             value: dir.display().to_string(),
-            why: "name a directory to create".into(),
+            why: "name a directory to create, e.g. my-rig".into(),
         })?;
     let parent = match dir.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
+    // The folders above DIR this run creates, removed again (when empty) if it fails.
+    let created = Created(
+        parent
+            .ancestors()
+            .take_while(|a| !a.as_os_str().is_empty() && std::fs::symlink_metadata(a).is_err())
+            .map(Path::to_path_buf)
+            .collect(),
+    );
     std::fs::create_dir_all(&parent).map_err(|source| DesignError::Io {
         path: parent.clone(),
         what: "create",
         source,
     })?;
-    let stage = parent.join(format!(".{name}.partial-{}", std::process::id()));
-    let staged = Staged(stage.clone());
+    let (stage, staged) = stage_beside(&parent, &name)?;
     let result = (|| {
-        std::fs::create_dir_all(stage.join("pneumatics")).map_err(|source| DesignError::Io {
+        std::fs::create_dir(stage.join("pneumatics")).map_err(|source| DesignError::Io {
             path: stage.clone(),
             what: "create",
             source,
@@ -134,10 +147,27 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
             .map_err(|e| DesignError::Scene(e.to_string()))?;
         let pole = pneuflex_scene::analysis::advice::fastest_chamber_pole(&sheet.model());
         let substeps = ((pole * DT_S / 0.8).ceil() as usize).max(10);
+        if substeps > MAX_SUBSTEPS {
+            return Err(DesignError::Checks(vec![oversized_valve(
+                &design, substeps,
+            )]));
+        }
         let gains = gains::choose(
             Gains::start(substeps, design.m_d_kg, design.b_d_ns_per_m),
             &mut write,
         )?;
+        // A kp whose full-stroke error opens the valve a tenth is no position loop (the analysis returns
+        // such when the valve or the load is too slow for the experiment).
+        if gains.kp_per_m * design.stroke_m < MIN_KP_STROKE {
+            return Err(DesignError::Gains(format!(
+                "the loop settles only with kp = {} /m, which opens the valve by {:.2e} for an error of the whole \
+                 {} mm stroke: no position loop at all; the valve's timing (--response-time, --switching-delay, \
+                 --pwm-frequency) or the load (--mass) is too slow for the experiment's force loop",
+                limits::num(gains.kp_per_m),
+                gains.kp_per_m * design.stroke_m,
+                design::fmt_mm(design.stroke_m)
+            )));
+        }
         write(&gains)?;
         let report = Report {
             dir: dir.to_path_buf(),
@@ -153,7 +183,8 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
         })?;
         Ok(report)
     })();
-    let report = result?;
+    // Nothing is named inside the staging folder, which is gone when the user reads the message.
+    let report = result.map_err(|e| unstaged(e, &stage, dir))?;
     if std::fs::symlink_metadata(dir).is_ok() {
         return Err(DesignError::Exists(dir.to_path_buf()));
     }
@@ -163,7 +194,96 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
         source,
     })?;
     std::mem::forget(staged);
+    std::mem::forget(created);
     Ok(report)
+}
+
+/// The least kp times the stroke: the valve command a full-stroke position error gives.
+pub const MIN_KP_STROKE: f64 = 0.1;
+
+/// The most RK4 steps a control tick the generated scene may take: beyond it a run takes minutes, and the
+/// valve is far larger than the chamber it fills.
+pub const MAX_SUBSTEPS: usize = 100;
+
+/// A valve whose chamber pole needs `substeps` steps a tick: the finding, with a flow that would work.
+fn oversized_valve(d: &Design, substeps: usize) -> Finding {
+    let c_ok = d.sonic_conductance_m3_per_s_pa * MAX_SUBSTEPS as f64 / substeps as f64;
+    let qn_ok = iso6358::qn_from_c(c_ok, d.critical_pressure_ratio) * 6e4;
+    // A dead volume given with the valve assumed is the value to change; otherwise the valve's rating.
+    let key = if !d.assumed("--dead-volume") && d.assumed("--valve-flow") {
+        "--dead-volume"
+    } else {
+        d.flow_key
+    };
+    Finding {
+        severity: Severity::Error,
+        key,
+        message: format!(
+            "the valve (C = {:.3e} m³/(s Pa)) fills the cap side's {:.2} cm³ dead volume so fast that the simulation \
+             needs {substeps} RK4 steps a 1 ms tick (at most {MAX_SUBSTEPS}): the valve is far larger than the \
+             chamber; QN ≤ {:.0} l/min would work (--valve-flow {:.0}l/min), or a larger --dead-volume",
+            d.sonic_conductance_m3_per_s_pa,
+            d.dead_volume_a_m3 * 1e6,
+            qn_ok.floor(),
+            qn_ok.floor()
+        ),
+    }
+}
+
+/// A staging folder beside DIR, made by this call (a name already taken, by anyone, is skipped).
+fn stage_beside(parent: &Path, name: &str) -> Result<(PathBuf, Staged), DesignError> {
+    for n in 0..100 {
+        let stage = parent.join(format!(".{name}.partial-{}-{n}", std::process::id()));
+        match std::fs::create_dir(&stage) {
+            Ok(()) => return Ok((stage.clone(), Staged(stage))),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(source) => {
+                return Err(DesignError::Io {
+                    path: parent.to_path_buf(),
+                    what: "create a folder in",
+                    source,
+                });
+            }
+        }
+    }
+    Err(DesignError::Io {
+        path: parent.to_path_buf(),
+        what: "create a folder in",
+        source: std::io::Error::other("100 staging names beside the directory are taken"),
+    })
+}
+
+/// `e` with the staging folder's paths given as the files of `dir` they stand for; an error from loading
+/// a file new rig itself wrote is new rig's fault, and says so.
+fn unstaged(e: DesignError, stage: &Path, dir: &Path) -> DesignError {
+    let swap = |s: &str| s.replace(&stage.display().to_string(), &dir.display().to_string());
+    match e {
+        DesignError::Scene(m) => DesignError::Scene(format!(
+            "{}: new rig wrote a file its own loader refuses (an option's range is missing a check: please report \
+             the command line)",
+            swap(&m)
+        )),
+        DesignError::Io { path, what, source } => DesignError::Io {
+            path: path
+                .strip_prefix(stage)
+                .map(|rel| dir.join(rel))
+                .unwrap_or(path),
+            what,
+            source,
+        },
+        DesignError::Gains(m) => DesignError::Gains(swap(&m)),
+        e => e,
+    }
+}
+
+/// Removes the folders above DIR this run created (deepest first, only when empty), on any early return.
+struct Created(Vec<PathBuf>);
+impl Drop for Created {
+    fn drop(&mut self) {
+        for d in &self.0 {
+            let _ = std::fs::remove_dir(d);
+        }
+    }
 }
 
 /// Removes the staging directory this process made, on any early return.

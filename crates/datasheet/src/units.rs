@@ -56,6 +56,42 @@ impl Dimension {
         }
     }
 
+    const ALL: [Dimension; 10] = [
+        Dimension::Length,
+        Dimension::Pressure,
+        Dimension::Flow,
+        Dimension::Mass,
+        Dimension::Frequency,
+        Dimension::Time,
+        Dimension::Angle,
+        Dimension::Volume,
+        Dimension::Force,
+        Dimension::Stiffness,
+    ];
+
+    /// The dimension a unit (lower case) belongs to, if any.
+    fn of_unit(unit: &str) -> Option<Dimension> {
+        Self::ALL
+            .into_iter()
+            .find(|d| d.units().iter().any(|(u, _)| *u == unit))
+    }
+
+    /// What it measures, for messages.
+    fn noun(self) -> &'static str {
+        match self {
+            Dimension::Length => "length",
+            Dimension::Pressure => "pressure",
+            Dimension::Flow => "flow",
+            Dimension::Mass => "mass",
+            Dimension::Frequency => "frequency",
+            Dimension::Time => "time",
+            Dimension::Angle => "angle",
+            Dimension::Volume => "volume",
+            Dimension::Force => "force",
+            Dimension::Stiffness => "stiffness",
+        }
+    }
+
     fn example(self) -> &'static str {
         match self {
             Dimension::Length => "25mm",
@@ -117,14 +153,28 @@ pub fn parse(key: &str, text: &str, dimension: Dimension) -> Result<f64, DesignE
         .ok_or_else(|| DesignError::Value {
             key: key.into(),
             value: text.into(),
-            why: format!("unknown unit `{unit}` (units: {})", accepted()),
+            why: match Dimension::of_unit(&unit) {
+                // A unit of another kind (`--bore 3bar`): say what it measures and what the option takes.
+                Some(other) => format!(
+                    "`{unit}` is a unit of {}, and {key} takes {}: e.g. {key} {} (units: {})",
+                    other.noun(),
+                    dimension.noun(),
+                    dimension.example(),
+                    accepted()
+                ),
+                None => format!(
+                    "unknown unit `{unit}` (units: {}), e.g. {key} {}",
+                    accepted(),
+                    dimension.example()
+                ),
+            },
         })?;
     let si = value * factor;
     if !si.is_finite() {
         return Err(DesignError::Value {
             key: key.into(),
             value: text.into(),
-            why: "not a finite number".into(),
+            why: format!("not a finite number, e.g. {key} {}", dimension.example()),
         });
     }
     Ok(si)
