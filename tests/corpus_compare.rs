@@ -600,3 +600,66 @@ fn one_log_and_two_logs_write_beside_each_other_by_default() {
     assert!(base.join("impedance+adaptive/compare.json").is_file());
     assert!(base.join("impedance+adaptive/adaptive/force.png").is_file());
 }
+
+#[test]
+fn an_older_recording_without_the_scene_hash_is_compared_with_a_warning_and_its_reference_checked()
+{
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    ok(&record(t, None, "impedance", "1", "rec"));
+    // As an older `rig run` left it: no scene among the manifest's inputs, no `# input scene` line.
+    let older = |dir: &str, edit: &dyn Fn(&str) -> String| -> String {
+        let log = edited(t, "rec", dir, |text| {
+            let kept: Vec<&str> = text
+                .lines()
+                .filter(|l| !l.starts_with("# input scene "))
+                .collect();
+            edit(&(kept.join("\n") + "\n"))
+        });
+        let manifest = t.join(dir).join(".pneuflex-output.json");
+        let mut m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+        m["inputs"]
+            .as_array_mut()
+            .unwrap()
+            .retain(|i| i["role"] != "scene");
+        std::fs::write(&manifest, m.to_string()).unwrap();
+        log
+    };
+    let log = older("old", &|text| text.to_string());
+    let o = compare_with(t, &scene(), &[&log], &["--out", "done"]);
+    ok(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("warning") && e.contains(&log) && e.contains("an older recording"),
+        "{e}"
+    );
+    let c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(t.join("done/compare.json")).unwrap())
+            .unwrap();
+    assert!(
+        c["rig_notes"][0]
+            .as_str()
+            .unwrap()
+            .contains("an older recording"),
+        "{c}"
+    );
+    // Its reference is still the scene's, tick by tick: one f_ref moved is another scene's.
+    let line = std::cell::Cell::new(0);
+    let log = older("old-ref", &|text| {
+        let (text, at) = with_row(text, 700, |c| c[1] = "12.5".into());
+        line.set(at);
+        text
+    });
+    refused(
+        t,
+        &scene(),
+        &[&log],
+        &[],
+        &[
+            &log,
+            &format!("line {}: f_ref = 12.5 N", line.get()),
+            "the reference of scene `paper-fig3`",
+        ],
+    );
+}

@@ -360,6 +360,23 @@ pub(super) fn check(
             );
         }
     }
+    // The reference the rig followed is the scene's, tick by tick (computed by the same code on the same t):
+    // what no hash can say of an older recording or an edited manifest.
+    let setpoints = scene.setpoints()?;
+    let f_ref = trace.f_ref();
+    for i in 0..keep {
+        let want = setpoints.at(t[i]).f_ref;
+        if (f_ref[i] - want).abs() > 1e-6 * want.abs().max(1.0) {
+            bail!(
+                "--rig-log {arg}: line {}: f_ref = {} N, the reference of scene `{}` at t = {} s is {want} N: a \
+                 recording of another scene, or of this one before its reference changed",
+                rows[i].0,
+                f_ref[i],
+                scene.name,
+                t[i]
+            );
+        }
+    }
     Ok(RigLog {
         trace,
         fault,
