@@ -6,10 +6,12 @@ use std::path::PathBuf;
 use pneuflex_control::{Controller, Sensors, Setpoint, SetpointSchedule};
 use pneuflex_scene::Scene;
 use pneuflex_scene::schema::{ControllerKind, RunSpec};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyAny, PyDict};
 
 use crate::errors;
+use crate::model::{check_finite, check_positive};
 
 fn build(run: &RunSpec, what: &str) -> PyResult<Box<dyn Controller + Send + Sync>> {
     run.build()
@@ -84,8 +86,10 @@ impl PyController {
         })
     }
 
-    /// One control tick: sensors (t s, x m, x_dot m/s, f_e N, p_a and p_b Pa absolute), setpoint (f_ref N,
-    /// x_d m), period dt (s); returns the valve command u in [-1, 1].
+    /// One control tick: sensors (t s, x m, x_dot m/s, f_e N, p_a and p_b Pa absolute, NaN for a plant
+    /// without chambers), setpoint (f_ref N, x_d m), period dt (s); returns the valve command u in [-1, 1].
+    /// Any other non-finite input, or dt <= 0, is a ValueError naming it (a NaN force was read as a
+    /// command of 0, a dt of 0 gave 0).
     #[allow(clippy::too_many_arguments)]
     fn update(
         &mut self,
@@ -98,7 +102,25 @@ impl PyController {
         f_ref: f64,
         x_d: f64,
         dt: f64,
-    ) -> f64 {
+    ) -> PyResult<f64> {
+        for (name, v) in [
+            ("t", t),
+            ("x", x),
+            ("x_dot", x_dot),
+            ("f_e", f_e),
+            ("f_ref", f_ref),
+            ("x_d", x_d),
+        ] {
+            check_finite(name, v)?;
+        }
+        for (name, p) in [("p_a", p_a), ("p_b", p_b)] {
+            if p.is_infinite() {
+                return Err(PyValueError::new_err(format!(
+                    "{name} must be finite (or NaN: no chambers), got {p}"
+                )));
+            }
+        }
+        check_positive("dt", dt)?;
         let s = Sensors {
             t,
             x,
@@ -108,7 +130,7 @@ impl PyController {
             p_b,
         };
         let sp = Setpoint { f_ref, x_d };
-        self.ctl.update(&s, &sp, dt).u
+        Ok(self.ctl.update(&s, &sp, dt).u)
     }
 
     /// Internal signals of the last update: x_r, x_f, dx_f (m), e (N), then the controller's own signals by
@@ -189,9 +211,10 @@ impl PySetpoints {
         })
     }
 
-    /// (f_ref N, x_d m) at time `t` (s).
-    fn at(&self, t: f64) -> (f64, f64) {
+    /// (f_ref N, x_d m) at time `t` (s); a non-finite `t` is a ValueError.
+    fn at(&self, t: f64) -> PyResult<(f64, f64)> {
+        check_finite("t", t)?;
         let s = self.schedule.at(t);
-        (s.f_ref, s.x_d)
+        Ok((s.f_ref, s.x_d))
     }
 }

@@ -578,7 +578,18 @@ impl PyForceControlBatch {
                 "decision_ticks must be at least 1 (control ticks per impedance action)",
             ));
         }
-        let task = Task::load(&scene_path, action, decision_ticks).map_err(errors::scene)?;
+        let task = Task::load(&scene_path, action, decision_ticks).map_err(|e| {
+            // A scene with [[actuators]] reads as an unknown key of a one-plant scene: say what it is.
+            if pneuflex_scene::mechanism::MechanismScene::load(&scene_path).is_ok() {
+                errors::other(format!(
+                    "{}: a scene with [[actuators]] (several cylinders): the force-control environments \
+                     take a scene with one [plant], pneumatic or multibody",
+                    scene_path.display()
+                ))
+            } else {
+                errors::scene(e)
+            }
+        })?;
         let episodes = (0..num_envs)
             .map(|i| Episode::new(&task, seeded(0, i)))
             .collect::<Result<_, _>>()

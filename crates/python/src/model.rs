@@ -12,7 +12,7 @@ use pyo3::types::PyDict;
 
 use crate::errors;
 
-fn check_finite(name: &str, v: f64) -> PyResult<f64> {
+pub(crate) fn check_finite(name: &str, v: f64) -> PyResult<f64> {
     if v.is_finite() {
         Ok(v)
     } else {
@@ -22,7 +22,7 @@ fn check_finite(name: &str, v: f64) -> PyResult<f64> {
     }
 }
 
-fn check_positive(name: &str, v: f64) -> PyResult<f64> {
+pub(crate) fn check_positive(name: &str, v: f64) -> PyResult<f64> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
@@ -272,6 +272,14 @@ impl PyOneDof {
     ) -> PyResult<Self> {
         let model = actuator.model();
         let x0 = check_finite("x0_m", x0_m)?;
+        let stroke = model.actuator.cylinder.stroke_m;
+        // The end stops hold the piston in [0, stroke]: a start beyond them is no state of the model.
+        if !(0.0..=stroke).contains(&x0) {
+            return Err(PyValueError::new_err(format!(
+                "x0_m must be within the stroke [0, {stroke}] m, got {x0}"
+            )));
+        }
+        check_finite("f_ext_n", f_ext_n)?;
         let (pa0, pb0) = default_chambers(&model, f_ext_n);
         let p_b = check_positive("p_b", p_b.unwrap_or(pb0))?;
         let p_a = match p_a {
@@ -288,8 +296,11 @@ impl PyOneDof {
     }
 
     /// One RK4 step of `dt_s` under valve command `u` and external force `f_ext_n` (N along +x).
+    /// A NaN command or force is refused (it was read as some command); `u` outside [-1, 1] is clamped.
     fn step(&mut self, u: f64, f_ext_n: f64, dt_s: f64) -> PyResult<()> {
         check_positive("dt_s", dt_s)?;
+        check_finite("u", u)?;
+        check_finite("f_ext_n", f_ext_n)?;
         self.model.step(&mut self.state, u, f_ext_n, dt_s);
         Ok(())
     }
@@ -406,6 +417,7 @@ impl PyForceElement {
         check_positive("dt_s", dt_s)?;
         check_finite("x", x)?;
         check_finite("x_dot", x_dot)?;
+        check_finite("u", u)?;
         self.element.set_command(u);
         self.t += dt_s;
         Ok(self.element.force(x, x_dot, dt_s))
@@ -427,6 +439,7 @@ impl PyForceElement {
         check_positive("dt_s", dt_s)?;
         check_finite("x", x)?;
         check_finite("x_dot", x_dot)?;
+        check_finite("u", u)?;
         self.element.set_command(u);
         let el = &mut self.element;
         let wall = py.detach(|| {

@@ -655,6 +655,40 @@ def a_bad_scene_is_refused_naming_the_file_the_line_and_the_key():
         refused(lambda: envs.ForceControl(scene=d), IsADirectoryError, "not a scene file")
     refused(lambda: envs.ForceControl(scene=ROOT / "scenes" / "paper-fig3-ideal.toml"), pneuflex.PneuflexError,
             "paper-fig3-ideal.toml:", "plant.kind", "needs a pneumatic or multibody plant")
+    # A scene of several cylinders was "unknown field `actuators`": it says what the scene is.
+    refused(lambda: envs.ForceControl(scene=ROOT / "scenes" / "gripper.toml"), pneuflex.PneuflexError,
+            "gripper.toml: a scene with [[actuators]] (several cylinders)", "one [plant]")
+
+
+@test
+def the_model_and_the_controller_refuse_what_no_state_or_reading_can_be():
+    """A NaN valve command was read as some command, a NaN force as a controller output of 0, dt = 0 as a
+    tick, a start 1 m outside a 50 mm stroke as a state: each is a ValueError naming the argument. NaN
+    pressures stay the documented "no chambers" of a plant without them; u outside [-1, 1] is clamped."""
+    a = pneuflex.Actuator(SHEET)
+    refused(lambda: pneuflex.OneDof(a, -1.0), ValueError, "x0_m must be within the stroke [0, 0.05] m, got -1")
+    refused(lambda: pneuflex.OneDof(a, 0.01, f_ext_n=math.inf), ValueError, "f_ext_n must be finite")
+    od = pneuflex.OneDof(a, 0.01)
+    refused(lambda: od.step(math.nan, 0.0, 1e-4), ValueError, "u must be finite, got NaN")
+    refused(lambda: od.step(0.0, math.nan, 1e-4), ValueError, "f_ext_n must be finite")
+    assert od.t == 0.0 and od.x == 0.01
+    fe = pneuflex.ForceElement(a)
+    refused(lambda: fe.step(0.01, 0.0, math.nan, 1e-4), ValueError, "u must be finite, got NaN")
+    refused(lambda: fe.bench_steps(10, 0.01, 0.0, math.inf, 1e-4), ValueError, "u must be finite, got inf")
+    assert fe.t == 0.0
+    c = pneuflex.Controller.from_scene(SCENE, "adaptive")
+    ok = (0.0, 0.02, 0.0, 10.0, 3e5, 3e5, 10.0, 0.02, 1e-3)
+    names = ("t", "x", "x_dot", "f_e", "p_a", "p_b", "f_ref", "x_d", "dt")
+    for i, name in enumerate(names):
+        args = list(ok)
+        args[i] = math.inf
+        refused(lambda: c.update(*args), ValueError, f"{name} must be finite")
+        if name not in ("p_a", "p_b"):
+            args[i] = math.nan
+            refused(lambda: c.update(*args), ValueError, f"{name} must be finite")
+    refused(lambda: c.update(*ok[:8], 0.0), ValueError, "dt must be finite and > 0, got 0")
+    assert math.isfinite(c.update(*ok[:4], math.nan, math.nan, *ok[6:]))  # no chambers
+    refused(lambda: pneuflex.Setpoints(SCENE).at(math.nan), ValueError, "t must be finite, got NaN")
 
 
 def _single(action="valve"):
