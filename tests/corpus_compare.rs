@@ -548,6 +548,11 @@ fn what_is_not_a_trace_file_is_refused() {
         &[],
         &["binary.csv", "not a text file"],
     );
+    // A recording still being made: its staging folder.
+    let log = edited(t, "rec", ".rec2.partial-4194399", |text| {
+        text.lines().take(200).collect::<Vec<_>>().join("\n") + "\n"
+    });
+    refused(t, &scene(), &[&log], &[], &[&log, "still being made"]);
     // The rig trace of schema 1 (no board columns).
     let log = edited(t, "rec", "schema1", |text| {
         text.lines()

@@ -99,6 +99,22 @@ pub(super) fn check(
             "--rig-log {arg}: not a regular file (a pipe or a device); give a recording's trace.csv"
         );
     }
+    // A recording still being written is staged in `.<dest>.partial-<pid>/` (crates/files output.rs).
+    let folder = std::fs::canonicalize(path)
+        .ok()
+        .and_then(|p| {
+            p.parent()
+                .and_then(|d| d.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+        })
+        .unwrap_or_default();
+    if folder.starts_with('.') && folder.contains(".partial-") {
+        bail!(
+            "--rig-log {arg}: in {folder}/, the staging folder of a recording still being made (or of a run \
+             that died: the next `rig run` beside it keeps that as `<out>.unfinished-<pid>/`); compare a \
+             finished recording"
+        );
+    }
     let mut notes = Vec::new();
     // What wrote it: a recording of `rig run`, or something else, said so.
     let owner = owner(path);
