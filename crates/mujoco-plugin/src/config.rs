@@ -228,6 +228,18 @@ pub fn parse(get: impl Fn(&str) -> Option<String>) -> Result<Config, ConfigError
         {
             overridden(&sheet_path, &overrides)?
         }
+        Err(e) if sheet_path.is_relative() && !sheet_path.exists() => {
+            // MuJoCo gives a plugin no model folder: say where a relative path was looked for.
+            let cwd =
+                std::env::current_dir().map_or_else(|_| "?".into(), |d| d.display().to_string());
+            return Err(err(
+                "sheet",
+                format!(
+                    "{e} (a relative sheet is read from the working directory, {cwd}, not the model's \
+                     folder: give an absolute path)"
+                ),
+            ));
+        }
         Err(e) => return Err(err("sheet", e.to_string())),
         Ok(_) => overridden(&sheet_path, &overrides)?,
     };
@@ -591,6 +603,12 @@ mod tests {
                 "got '1e-300'",
             ),
             (&[("initial_p_b_pa", "nan")], "initial_p_b_pa", "got 'nan'"),
+            // A relative sheet that is not there: where it was looked for.
+            (
+                &[("sheet", "no/such/sheet.toml")],
+                "sheet",
+                "read from the working directory",
+            ),
             (
                 &[("initial_temperature_k", "inf")],
                 "initial_temperature_k",

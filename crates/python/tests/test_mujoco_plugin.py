@@ -142,6 +142,8 @@ def bad_configuration_is_a_mujoco_error_naming_the_key():
         ({"mechanics.friction": "stick_slip"}, "config key 'mechanics.friction'"),
         ({"sheet": None}, "config key 'sheet': required"),
         ({"sheet": "/no/such/sheet.toml"}, "config key 'sheet': /no/such/sheet.toml"),
+        # MuJoCo gives a plugin no model folder: a relative sheet says where it was looked for.
+        ({"sheet": "no/such/sheet.toml"}, f"(a relative sheet is read from the working directory, {os.getcwd()},"),
         # A key the plugin does not declare: MuJoCo's compiler names it.
         ({"cylinder.bore": "0.016"}, "unrecognized attribute 'plugin:cylinder.bore'"),
         ({"mechanics.moving_mass_kg": "1"}, "unrecognized attribute 'plugin:mechanics.moving_mass_kg'"),
