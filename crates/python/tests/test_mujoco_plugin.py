@@ -86,6 +86,22 @@ def the_package_gives_the_path_and_loading_twice_is_harmless():
     mujoco.mj_loadPluginLibrary(path)  # the same library again: dlopen does not register it twice
     m = mujoco.MjModel.from_xml_string(rig())
     assert m.nplugin == 1 and m.npluginstate == 11, (m.nplugin, m.npluginstate)
+    # $PNEUFLEX_MUJOCO_PLUGIN naming a folder or nothing: said so, not "no such file" for a folder.
+    saved = os.environ.get("PNEUFLEX_MUJOCO_PLUGIN")
+    try:
+        for value, error, says in ((str(Path(path).parent), IsADirectoryError, "not a file"),
+                                   (path + ".gone", FileNotFoundError, "no such file")):
+            os.environ["PNEUFLEX_MUJOCO_PLUGIN"] = value
+            try:
+                pneuflex.mujoco_plugin_path()
+                raise AssertionError(f"PNEUFLEX_MUJOCO_PLUGIN={value} accepted")
+            except error as e:
+                assert f"PNEUFLEX_MUJOCO_PLUGIN={value}: {says}" in str(e), e
+    finally:
+        if saved is None:
+            os.environ.pop("PNEUFLEX_MUJOCO_PLUGIN", None)
+        else:
+            os.environ["PNEUFLEX_MUJOCO_PLUGIN"] = saved
 
 
 @test

@@ -78,6 +78,8 @@ def mujoco_plugin_path() -> str:
     env = os.environ.get("PNEUFLEX_MUJOCO_PLUGIN")
     if env:
         if not Path(env).is_file():
+            if Path(env).exists():
+                raise IsADirectoryError(f"PNEUFLEX_MUJOCO_PLUGIN={env}: not a file (name the library, {MUJOCO_PLUGIN_FILE})")
             raise FileNotFoundError(f"PNEUFLEX_MUJOCO_PLUGIN={env}: no such file")
         return str(Path(env).resolve())
     workspace = Path(getattr(_native, "_workspace_dir", Path(__file__).resolve().parents[3]))
