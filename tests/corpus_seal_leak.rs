@@ -421,6 +421,37 @@ fn a_bore_or_a_speed_no_bench_has_is_refused_naming_the_option() {
 }
 
 #[test]
+fn a_column_in_another_unit_is_refused_by_its_consequence() {
+    let d = tempfile::tempdir().unwrap();
+    // The position in m where mm is read: nothing moves faster than --still-below.
+    let dir = friction_copy(d.path(), "circle_1bar.csv", None);
+    for e in std::fs::read_dir(&dir).unwrap() {
+        edit_rows(&e.unwrap().path(), |_, f| {
+            f[4] = format!("{}", f[4].parse::<f64>().unwrap() / 1e3);
+        });
+    }
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&[
+        "circle_1bar.csv",
+        "moving samples",
+        "mm",
+    ]);
+    // The pressure in MPa where bar is read, listed without pressures (taken from the readings): the offsets
+    // grow with the pressure as a piston ten times too small would make them.
+    let dir = friction_copy(&d.path().join("mpa"), "circle_1bar.csv", None);
+    let mut args = vec!["seal".to_string()];
+    for p in 1..=7 {
+        let to = dir.join(format!("t{p}.csv"));
+        std::fs::rename(dir.join(format!("circle_{p}bar.csv")), &to).unwrap();
+        edit_rows(&to, |_, f| {
+            f[5] = format!("{}", f[5].parse::<f64>().unwrap() / 10.0);
+        });
+        args.extend(["--test".to_string(), to.display().to_string()]);
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    run(&args, d.path()).refused(&["offsets", "N/bar", "--bore-m", "units"]);
+}
+
+#[test]
 fn friction_that_pushes_the_rod_along_its_motion_is_refused() {
     let d = tempfile::tempdir().unwrap();
     // The position's sign flipped in every file: each direction's friction has the other's sign.
@@ -513,6 +544,15 @@ fn leak_conditions_no_bench_has_are_refused_naming_the_option() {
         "low.csv:1",
         "pressure_bar",
         "not choked",
+    ]);
+    // A chamber that holds its pressure to the sensor's noise: no leak to rank (its C/V would be noise).
+    let flat = leak_copy(d.path(), "flat.csv", "prusa", |i, f| {
+        f[2] = if i % 2 == 0 { "7.500" } else { "7.502" }.into();
+    });
+    run(&["leak", "--log", s(&flat)], d.path()).refused(&[
+        "flat.csv",
+        "standard errors",
+        "no leak",
     ]);
 }
 

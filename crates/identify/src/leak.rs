@@ -464,6 +464,16 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
             decay.rate_per_s
         )));
     }
+    // A rate within two standard errors of 0 is the sensor's noise, not a leak: its C/V and t10 would be noise.
+    if decay.rate_per_s < 2.0 * decay.rate_std_error_per_s {
+        return Err(IdentifyError::Fit(format!(
+            "{}: the fitted decay rate {:.3e} 1/s is within two standard errors ({:.3e} 1/s) of 0: no leak \
+             this log can tell from the sensor's noise (a longer log, or a leakier chamber)",
+            log.file.display(),
+            decay.rate_per_s,
+            decay.rate_std_error_per_s
+        )));
+    }
     let h = t.len() / 2;
     let halves = [
         fit_decay(&t[..h], &y[..h], o.atmosphere_pa)?,

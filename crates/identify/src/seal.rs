@@ -884,7 +884,8 @@ pub fn cells(tests: &[SealTest], samples: &[Sample]) -> Result<Vec<Cell>, Identi
                 .collect();
             if own.len() < 2 {
                 return Err(IdentifyError::Fit(format!(
-                    "{}: {} moving samples towards {} x: a friction law needs both directions in every test",
+                    "{}: {} moving samples towards {} x: a friction law needs both directions in every test (the \
+                     position is read in mm; samples slower than --still-below are left out)",
                     t.file.display(),
                     own.len(),
                     if d > 0.0 { "+" } else { "-" }
@@ -996,14 +997,17 @@ fn plausible(
         }
     }
     // F = p A_true + f + o: with the wrong A, F - p A carries p (A_true - A), which per-test offsets take up
-    // as a slope against the pressure. Judged only over a span of pressures where it shows.
+    // as a slope against the pressure.
     if law.offsets == Offsets::PerTest && tests.len() >= 2 {
         let p: Vec<f64> = (0..tests.len())
             .map(|i| 0.5 * (cells[2 * i].mean_gauge_pa + cells[2 * i + 1].mean_gauge_pa))
             .collect();
         let span = p.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b))
             - p.iter().fold(f64::INFINITY, |a, &b| a.min(b));
-        if span >= 2e5 {
+        // Judged where the offsets' change across the tests stands out of their scatter (~1 N here).
+        let coulomb =
+            cells.iter().map(|c| c.mean_friction_n.abs()).sum::<f64>() / cells.len() as f64;
+        if span > 0.0 {
             let n = p.len() as f64;
             let (mp, mo) = (
                 p.iter().sum::<f64>() / n,
@@ -1016,7 +1020,7 @@ fn plausible(
                 .map(|(a, b)| (a - mp) * (b - mo))
                 .sum::<f64>()
                 / spp;
-            if slope.abs() > 0.1 * area {
+            if slope.abs() > 0.1 * area && slope.abs() * span > (0.5 * coulomb).max(1.0) {
                 let fits = area + slope;
                 let bore = if fits > 0.0 {
                     format!(
@@ -1101,4 +1105,35 @@ pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, Ident
         pressure,
         adequacy,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_test_file_is_named_seal_underscore_pressure_bar() {
+        assert_eq!(seal_file_name("circle_3bar.csv"), Some(("circle", 3e5)));
+        assert_eq!(seal_file_name("o_ring_2.5bar.csv"), Some(("o_ring", 2.5e5)));
+        for bad in [
+            "circle_bar.csv",
+            "_3bar.csv",
+            "circle_-1bar.csv",
+            "circle_1e300bar.csv",
+            "circle_inf bar.csv",
+            "circle_1.bar.csv",
+            "circle_3bar.txt",
+            "circle3bar.csv",
+        ] {
+            assert_eq!(seal_file_name(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_glitch_is_found_and_a_spread_of_readings_is_not() {
+        let mut v: Vec<f64> = (0..200).map(|k| 50.0 + (k % 9) as f64).collect();
+        assert_eq!(spike(&v, 1.0), None);
+        v[77] = 2000.0;
+        assert_eq!(spike(&v, 1.0).map(|s| s.0), Some(77));
+    }
 }

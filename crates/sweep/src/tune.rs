@@ -987,3 +987,25 @@ pub fn round4(x: f64) -> f64 {
     }
     format!("{x:.3e}").parse().unwrap_or(x)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_box_beyond_any_setting_is_refused_by_free() {
+        for arg in [
+            "k=[0,1e300]",
+            "k=[-1e300,1e300]",
+            "k=log[1e-3,1e13]",
+            "k=[-2e12,0]",
+        ] {
+            let e = FreeArg::parse(arg).unwrap_err().to_string();
+            assert!(
+                e.contains("--free") && e.contains(arg) && e.contains("1e12"),
+                "{e}"
+            );
+        }
+        assert!(FreeArg::parse("k=[0,1e12]").is_ok());
+    }
+}
