@@ -1,5 +1,5 @@
 //! `pneuflex run <scene.toml>` for a scene with `[[actuators]]` (any URDF, several cylinders): every run
-//! puts its controller on every actuator; traces, summary.json, a force figure per run and the claims go
+//! puts its controller on every actuator; traces, summary.json, a force figure per run (`--format`) and the claims go
 //! into DIR (default `out/<scene name>/`), staged beside it and renamed into place as `run` does. A signal
 //! stops at the next tick and keeps what ran in `DIR.partial`.
 
@@ -19,6 +19,7 @@ pub fn run(
     quiet: bool,
     rerun: Option<&[String]>,
     limits: pneuflex_scene::Limits,
+    figures: pneuflex_viz::Format,
 ) -> anyhow::Result<()> {
     let scene = MechanismScene::load(scene_path)?;
     scene.check_budget(&limits)?;
@@ -98,7 +99,7 @@ pub fn run(
         }
         .into());
     }
-    write_figures(stage.path(), &scene, &runs)?;
+    write_figures(stage.path(), &scene, &runs, figures)?;
     let dest = stage.commit(manifest)?;
     if !quiet {
         print_tables(&summary)?;
@@ -120,7 +121,12 @@ pub fn run(
 }
 
 /// One figure per run: each actuator's contact force against its reference, a panel each.
-fn write_figures(dir: &Path, scene: &MechanismScene, runs: &[MechanismRun]) -> anyhow::Result<()> {
+fn write_figures(
+    dir: &Path,
+    scene: &MechanismScene,
+    runs: &[MechanismRun],
+    format: pneuflex_viz::Format,
+) -> anyhow::Result<()> {
     for r in runs.iter().filter(|r| r.diverged.is_none()) {
         let t = r.column("t").unwrap_or_default();
         let cols: Vec<(String, Vec<f64>, Vec<f64>)> = scene
@@ -154,7 +160,10 @@ fn write_figures(dir: &Path, scene: &MechanismScene, runs: &[MechanismRun]) -> a
                 include_zero: true,
             })
             .collect();
-        pneuflex_plot::overlay::write_overlay(&dir.join(&r.name).join("force.png"), &panels)?;
+        pneuflex_plot::overlay::write_overlay(
+            &dir.join(&r.name).join(format!("force.{}", format.ext())),
+            &panels,
+        )?;
     }
     Ok(())
 }

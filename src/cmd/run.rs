@@ -38,6 +38,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
             args.quiet,
             args.rerun.as_deref(),
             args.limits,
+            args.figures,
         );
     }
     let scene = Scene::load(scene_path)?;

@@ -60,12 +60,23 @@ impl Default for PidParams {
     }
 }
 
+/// Largest proportional gain, 1/m: 1 µm of error saturates the command.
+pub const MAX_KP_PER_M: f64 = 1.0e6;
+/// Largest integral gain, 1/(m s): 1 µm held for 1 ms saturates the command.
+pub const MAX_KI_PER_M_S: f64 = 1.0e9;
+/// Largest derivative gain, s/m: 1 mm/s saturates the command.
+pub const MAX_KD_S_PER_M: f64 = 1.0e3;
+
 impl PidParams {
-    /// Checks gains >= 0, finite limits with u_min < u_max, and a positive tracking time.
+    /// Checks gains in [0, their largest meaningful value], finite limits with u_min < u_max, and a positive
+    /// tracking time.
     pub fn validate(&self) -> Result<(), ParamError> {
-        non_negative("kp_per_m", self.kp_per_m)?;
-        non_negative("ki_per_m_s", self.ki_per_m_s)?;
-        non_negative("kd_s_per_m", self.kd_s_per_m)?;
+        // The command is normalised to [-1, 1]: past these gains a 1 µm position error (the finest position
+        // sensor), 1 µm held for a 1 ms tick, or a 1 mm/s speed alone drives the valve from closed to fully
+        // open, so the loop is an on/off switch, not a gain (the shipped scenes use 10-200 /m).
+        within("kp_per_m", self.kp_per_m, 0.0, MAX_KP_PER_M)?;
+        within("ki_per_m_s", self.ki_per_m_s, 0.0, MAX_KI_PER_M_S)?;
+        within("kd_s_per_m", self.kd_s_per_m, 0.0, MAX_KD_S_PER_M)?;
         non_negative("derivative_filter_s", self.derivative_filter_s)?;
         // The valve command is normalised to [-1, 1] (ValveCommand).
         within("u_min", self.u_min, -1.0, 1.0)?;

@@ -68,3 +68,13 @@ pub enum SceneError {
         os_error: std::io::Error,
     },
 }
+
+/// `v` with `decimals` decimals, or in scientific notation from 1e9 on: a blown-up or absurd value in a
+/// message is a number to read, not 300 digits.
+pub(crate) fn readable(v: f64, decimals: usize) -> String {
+    if v.abs() < 1e9 {
+        format!("{v:.decimals$}")
+    } else {
+        format!("{v:.3e}")
+    }
+}

@@ -208,13 +208,13 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
             out.push(Warning {
                 key: k_max.1,
                 message: format!(
-                    "the contact mode sqrt(k_e/m) = {omega:.3e} rad/s ({:.0} N/m on {m} kg) is faster than the \
-                     integration step h = {h:.3e} s resolves (omega*h = {:.3}; RK4 is unstable beyond 2.83 and \
-                     inaccurate beyond {OSCILLATION_RESOLVED}): use plant.substeps >= {:.0}, or a stiffness \
+                    "the contact mode sqrt(k_e/m) = {omega:.3e} rad/s ({} N/m on {m} kg) is faster than the \
+                     integration step h = {h:.3e} s resolves (omega*h = {}; RK4 is unstable beyond 2.83 and \
+                     inaccurate beyond {OSCILLATION_RESOLVED}): use plant.substeps >= {}, or a stiffness \
                      below {:.3e} N/m",
-                    k_max.0,
-                    omega * h,
-                    (steps_now * omega * h / OSCILLATION_RESOLVED).ceil(),
+                    crate::error::readable(k_max.0, 0),
+                    crate::error::readable(omega * h, 3),
+                    crate::error::readable((steps_now * omega * h / OSCILLATION_RESOLVED).ceil(), 0),
                     m * (OSCILLATION_RESOLVED / h).powi(2)
                 ),
             });

@@ -117,9 +117,18 @@ fn monodromy(
     DMatrix::from_fn(m, m, |r, c| cols[c][r])
 }
 
-/// The eigenvalue of largest modulus: (modulus, angle in rad).
+/// The eigenvalue of largest modulus: (modulus, angle in rad). A map with a non-finite entry (a plant
+/// linearised at an absurd stiffness), or whose Schur iteration does not converge, has no eigenvalues to
+/// trust: it counts as unstable (modulus ∞), so the search ends instead of iterating forever on NaN.
 fn critical(m: &DMatrix<f64>) -> (f64, f64) {
-    m.complex_eigenvalues()
+    if m.iter().any(|v| !v.is_finite()) {
+        return (f64::INFINITY, 0.0);
+    }
+    let Some(schur) = m.clone().try_schur(f64::EPSILON, 10_000) else {
+        return (f64::INFINITY, 0.0);
+    };
+    schur
+        .complex_eigenvalues()
         .iter()
         .map(|l| (l.norm(), l.arg().abs()))
         .max_by(|a, b| a.0.total_cmp(&b.0))

@@ -25,18 +25,47 @@ pub const ACTUATOR_COLUMNS: [(&str, &str, &str); 8] = [
 ];
 
 impl MechanismScene {
+    /// Every inner step of a run: per physics step, the solver's iterations and each actuator's chamber
+    /// substeps, all physics steps of every tick.
+    pub fn inner_steps_per_run(&self) -> u64 {
+        let ticks = self.n_steps() as u64 + 1;
+        let per_physics_step = (self.solver_iterations as u64).saturating_add(
+            u64::from(self.chamber_substeps).saturating_mul(self.actuators.len() as u64),
+        );
+        ticks
+            .saturating_mul(u64::from(self.physics_steps_per_tick))
+            .saturating_mul(per_physics_step)
+    }
+
     /// Refuses a scene whose runs would take more physics steps or trace memory than `limits` allow (the
     /// same limits as a one-actuator scene's, `--max-steps` and `--max-trace-mb`), before anything runs.
     pub fn check_budget(&self, limits: &crate::Limits) -> Result<(), SceneError> {
         let ticks = self.n_steps() as u64 + 1;
-        let steps = ticks.saturating_mul(u64::from(self.physics_steps_per_tick));
+        let steps = self.inner_steps_per_run();
         if steps > limits.max_steps_per_run {
+            // Blame the key that multiplies the cost most (a tick's share of each inner loop).
+            let n = self.actuators.len() as u64;
+            let key = [
+                (
+                    "physics_steps_per_tick",
+                    u64::from(self.physics_steps_per_tick),
+                ),
+                ("solver_iterations", self.solver_iterations as u64),
+                ("chamber_substeps", u64::from(self.chamber_substeps) * n),
+            ]
+            .into_iter()
+            .max_by_key(|&(_, f)| f)
+            .map_or("physics_steps_per_tick", |(k, _)| k);
             return Err(self.invalid(
-                "physics_steps_per_tick",
+                key,
                 format!(
-                    "the scene needs {steps:.3e} physics steps per run (duration_s = {} s, dt_s = {} s, and this \
-                     key), more than the limit of {:.3e}; shorten the run or raise the limit with `--max-steps {steps}`",
-                    self.duration_s, self.dt_s, limits.max_steps_per_run as f64
+                    "the scene needs {steps:.3e} inner steps per run ({ticks} ticks x physics_steps_per_tick = {} x \
+                     (solver_iterations = {} + chamber_substeps = {} x {n} actuator(s))), more than the limit of \
+                     {:.3e}; use fewer, a shorter run, or raise the limit with `--max-steps {steps}`",
+                    self.physics_steps_per_tick,
+                    self.solver_iterations,
+                    self.chamber_substeps,
+                    limits.max_steps_per_run as f64
                 ),
             ));
         }
@@ -98,6 +127,20 @@ pub struct MechanismRun {
     pub rows: Vec<Vec<f64>>,
     /// Why the run stopped early (a NaN, a cylinder pulled past its end stop), if it did.
     pub diverged: Option<String>,
+    /// Whether it reached the scene's duration (false: diverged, or stopped by a signal).
+    pub complete: bool,
+}
+
+impl MechanismRun {
+    /// Its trace file's name, as every scene kind names it: `trace.csv` for a complete run,
+    /// `trace.diverged.csv` or `trace.interrupted.csv` for one cut short (never mistaken for a whole run).
+    pub fn trace_file(&self) -> &'static str {
+        match (&self.diverged, self.complete) {
+            (Some(_), _) => "trace.diverged.csv",
+            (None, false) => "trace.interrupted.csv",
+            (None, true) => "trace.csv",
+        }
+    }
 }
 
 impl MechanismRun {
@@ -423,13 +466,41 @@ pub fn run_all(
             stop,
             observer,
         );
-        let stopped = run.rows.len() < scene.n_steps() + 1 && run.diverged.is_none();
+        let stopped = !run.complete && run.diverged.is_none();
         out.push(run);
         if stopped {
             break;
         }
     }
     Ok(out)
+}
+
+/// Why actuator states at time `t` are a divergence (the first actuator that breaks an invariant, named),
+/// through the checks every scene kind's loop makes: [`crate::schema::DivergenceSpec::exceeded`] and
+/// [`crate::plants::chamber_invariants`]. `row` is the tick's trace row, `sensed` each actuator's columns
+/// of f_e and x in it, `x_r` each controller's reference position.
+fn actuator_invariants(
+    scene: &MechanismScene,
+    b: &Built,
+    sensed: &[(usize, usize)],
+    x_r: &[f64],
+    row: &[f64],
+    t: f64,
+) -> Option<String> {
+    for (i, (a, &(f_e, x))) in scene.actuators.iter().zip(sensed).enumerate() {
+        if let Some(why) = scene.divergence.exceeded(t, row[x], row[f_e], x_r[i]) {
+            return Some(format!("{}: {why}", a.name));
+        }
+        let el = &b.drives[i].element;
+        let stroke = b.mechanism.actuator_stroke(i);
+        let piston = b.mechanism.actuator_state(i).x_m;
+        if let Err(v) =
+            crate::plants::chamber_invariants(&el.chambers, &el.actuator.supply, piston, stroke)
+        {
+            return Some(format!("{}: {v} at t = {t:.4} s", a.name));
+        }
+    }
+    None
 }
 
 fn run_one(
@@ -456,12 +527,24 @@ fn run_one(
     let columns: Vec<String> = std::iter::once("t".to_string())
         .chain(signals.iter().map(|s| format!("{}.{}", s.actuator, s.name)))
         .collect();
+    let column = |a: &str, s: &str| {
+        columns
+            .iter()
+            .position(|c| *c == format!("{a}.{s}"))
+            .expect("every actuator has the loop's columns")
+    };
+    let sensed: Vec<(usize, usize)> = scene
+        .actuators
+        .iter()
+        .map(|a| (column(&a.name, "f_e"), column(&a.name, "x")))
+        .collect();
     observer.begin(name, &b.mechanism, &signals);
     let n = scene.n_steps();
     let dt = scene.dt_s;
     let mut rows = Vec::with_capacity(n + 1);
     let mut diverged = None;
     let mut own = Vec::new();
+    let mut x_r = vec![0.0; scene.actuators.len()];
     for k in 0..=n {
         let t = k as f64 * dt;
         for &(tick, target, params) in &b.events {
@@ -497,6 +580,7 @@ fn run_one(
             };
             let setpoint = b.schedules[i].at(t);
             let cmd = c.update(&sensors, &setpoint, dt);
+            x_r[i] = c.telemetry().x_r;
             b.drives[i].element.set_command(cmd.u);
             row.extend([
                 setpoint.f_ref,
@@ -523,6 +607,14 @@ fn run_one(
             diverged = Some(format!("{why} at t = {t} s"));
             break;
         }
+        // The same invariants as a one-actuator scene's, per actuator: position and force within the
+        // scene's `[divergence]`, chambers within (0, 2 x supply], the piston within its stroke.
+        if let Some(why) =
+            actuator_invariants(scene, &b, &sensed, &x_r, rows.last().expect("pushed"), t)
+        {
+            diverged = Some(why);
+            break;
+        }
         if k == n || stop() {
             break;
         }
@@ -545,6 +637,7 @@ fn run_one(
     observer.end();
     MechanismRun {
         name: name.to_string(),
+        complete: diverged.is_none() && rows.len() == n + 1,
         columns,
         rows,
         diverged,

@@ -52,6 +52,10 @@ pub struct MechanismScene {
     pub events: Vec<ContactEvent>,
     /// The controller runs compared; each run puts its controller on every actuator.
     pub runs: Vec<RunSpec>,
+    /// Thresholds that stop a run as diverged, as a one-actuator scene's `[divergence]` (each actuator's
+    /// position and force).
+    #[serde(default)]
+    pub divergence: crate::schema::DivergenceSpec,
     /// Metric windows.
     #[serde(default)]
     pub metrics: Vec<WindowSpec>,
@@ -381,8 +385,12 @@ impl MechanismScene {
                 ),
             ));
         }
-        if self.solver_iterations == 0 {
-            return Err(self.invalid("solver_iterations", "must be >= 1".into()));
+        // Rapier's solver converges in a few iterations: past 100 each only costs time.
+        if !(1..=100).contains(&self.solver_iterations) {
+            return Err(self.invalid(
+                "solver_iterations",
+                format!("must be within 1..=100, got {}", self.solver_iterations),
+            ));
         }
         if !(1..=1000).contains(&self.physics_steps_per_tick) {
             return Err(self.invalid(
@@ -393,9 +401,23 @@ impl MechanismScene {
                 ),
             ));
         }
-        if self.chamber_substeps == 0 {
-            return Err(self.invalid("chamber_substeps", "must be >= 1".into()));
+        // The chambers' RK4 is stable at ~0.1 ms substeps; 1000 per physics step is 1 µs substeps on a 1 ms one.
+        if !(1..=1000).contains(&self.chamber_substeps) {
+            return Err(self.invalid(
+                "chamber_substeps",
+                format!("must be within 1..=1000, got {}", self.chamber_substeps),
+            ));
         }
+        self.number(
+            "divergence.max_abs_position_m",
+            self.divergence.max_abs_position_m,
+            positive,
+        )?;
+        self.number(
+            "divergence.max_abs_force_n",
+            self.divergence.max_abs_force_n,
+            positive,
+        )?;
         for (i, g) in self.gravity_m_s2.iter().enumerate() {
             self.number(&format!("gravity_m_s2[{i}]"), *g, finite)?;
         }

@@ -187,7 +187,8 @@ fn write_err(path: &Path) -> impl Fn(std::io::Error) -> SceneError + '_ {
     }
 }
 
-/// Writes `<dir>/<run>/trace.csv` for every run and `<dir>/summary.json`.
+/// Writes every run's trace (`<dir>/<run>/trace.csv`, or `trace.diverged.csv` / `trace.interrupted.csv`
+/// for a run cut short) and `<dir>/summary.json`.
 pub fn write(
     dir: &Path,
     summary: &MechanismSummary,
@@ -196,7 +197,7 @@ pub fn write(
     for r in runs {
         let run_dir = dir.join(&r.name);
         std::fs::create_dir_all(&run_dir).map_err(write_err(&run_dir))?;
-        let path = run_dir.join("trace.csv");
+        let path = run_dir.join(r.trace_file());
         let file = std::fs::File::create(&path).map_err(write_err(&path))?;
         let mut w = std::io::BufWriter::new(file);
         writeln!(w, "{}", r.columns.join(",")).map_err(write_err(&path))?;

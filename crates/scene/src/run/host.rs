@@ -183,7 +183,7 @@ impl pneuflex_control::tick::LoopHost for SimulationHost<'_, '_> {
         self.trace.push(row);
         self.observer.row(row, &*self.plant);
         let lim = &self.scene.divergence;
-        if let Some(reason) = divergence(t, row[index::X], row[index::F_E], row[index::X_R], lim) {
+        if let Some(reason) = lim.exceeded(t, row[index::X], row[index::F_E], row[index::X_R]) {
             self.diverged = Some(reason);
             return Ok(Flow::Stop);
         }
@@ -213,40 +213,4 @@ impl pneuflex_control::tick::LoopHost for SimulationHost<'_, '_> {
     fn advance(&mut self, dt: f64) {
         self.plant.advance(dt);
     }
-}
-
-fn divergence(
-    t: f64,
-    x: f64,
-    f_e: f64,
-    x_r: f64,
-    lim: &crate::schema::DivergenceSpec,
-) -> Option<String> {
-    if !x.is_finite() || !f_e.is_finite() || !x_r.is_finite() {
-        return Some(format!(
-            "non-finite state at t = {t:.4} s (x = {x}, f_e = {f_e}, x_r = {x_r})"
-        ));
-    }
-    if x.abs() > lim.max_abs_position_m {
-        return Some(format!(
-            "|x| = {:.4} m exceeds divergence.max_abs_position_m = {} at t = {t:.4} s",
-            x.abs(),
-            lim.max_abs_position_m
-        ));
-    }
-    if x_r.abs() > lim.max_abs_position_m {
-        return Some(format!(
-            "|x_r| = {:.4} m exceeds divergence.max_abs_position_m = {} at t = {t:.4} s",
-            x_r.abs(),
-            lim.max_abs_position_m
-        ));
-    }
-    if f_e.abs() > lim.max_abs_force_n {
-        return Some(format!(
-            "|f_e| = {:.1} N exceeds divergence.max_abs_force_n = {} at t = {t:.4} s",
-            f_e.abs(),
-            lim.max_abs_force_n
-        ));
-    }
-    None
 }
