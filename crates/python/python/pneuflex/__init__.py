@@ -39,7 +39,10 @@ The classes and functions come from the Rust crates through the native module ``
   actuator any MJCF can declare; docs/mujoco-plugin.md), for ``mujoco.mj_loadPluginLibrary``.
 
 SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError`` for unreadable files,
-``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key.
+``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key. An argument of the wrong
+type (a number where a path goes, a number where a list of strings goes) is a ``TypeError`` naming the function and
+the argument, a count or seed out of range a ``ValueError``; nothing is converted with ``str()`` (``run(42)`` is not
+a file named "42"), and one string where a list of them goes is that one entry.
 """
 
 from ._native import *  # noqa: F401,F403
