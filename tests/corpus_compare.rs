@@ -548,6 +548,22 @@ fn what_is_not_a_trace_file_is_refused() {
         &[],
         &["binary.csv", "not a text file"],
     );
+    // Another file of the recording, or a scene given as the log.
+    refused(
+        t,
+        &scene(),
+        &["rec/summary.json"],
+        &[],
+        &["rec/summary.json", "line 1", "is not a trace's header"],
+    );
+    let scene_path = scene();
+    refused(
+        t,
+        &scene(),
+        &[&scene_path],
+        &[],
+        &[&scene_path, "is not a trace's header"],
+    );
     // A recording still being made: its staging folder.
     let log = edited(t, "rec", ".rec2.partial-4194399", |text| {
         text.lines().take(200).collect::<Vec<_>>().join("\n") + "\n"

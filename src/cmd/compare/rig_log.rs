@@ -143,6 +143,10 @@ pub(super) fn check(
             dir.display()
         ),
         Some(_) => {}
+        None if path.with_file_name(MANIFEST).exists() => notes.push(format!(
+            "{shown}: the manifest beside it ({MANIFEST}) cannot be read as one: its provenance is read \
+             from the trace's own lines"
+        )),
         None => notes.push(format!(
             "{shown}: no manifest ({MANIFEST}) beside it: its provenance is read from the trace's own lines"
         )),
@@ -193,6 +197,18 @@ pub(super) fn check(
         .copied()
         .filter(|c| !names.contains(c))
         .collect();
+    let loop_names: Vec<&str> = pneuflex_control::LOOP_SIGNALS
+        .iter()
+        .map(|s| s.name)
+        .collect();
+    if !names.starts_with(&loop_names) {
+        let shown_header: String = header.chars().take(40).collect();
+        bail!(
+            "--rig-log {arg}: line {header_line}: `{shown_header}` is not a trace's header (`{}`, ...): give a \
+             recording's trace.csv",
+            loop_names.join(",")
+        );
+    }
     if missing.len() == RIG_TRACE_COLUMNS.len() {
         bail!(
             "--rig-log {arg}: line {header_line}: none of the rig's columns ({}): a simulation's trace \
