@@ -428,6 +428,23 @@ fn a_recording_that_ended_on_a_fault_is_compared_up_to_the_fault_and_says_so() {
     let md = std::fs::read_to_string(t.join("done/compare.md")).unwrap();
     assert!(md.contains("ended early") && md.contains("supply"), "{md}");
     assert!(out.contains("ended early"), "{out}");
+    // Stopped by a signal (`rig run` commits it as `<out>.partial`): the same, said as such.
+    let text = std::fs::read_to_string(t.join("rec/trace.csv")).unwrap();
+    std::fs::create_dir(t.join("rec.partial")).unwrap();
+    for f in [".pneuflex-output.json", "summary.json"] {
+        std::fs::copy(t.join("rec").join(f), t.join("rec.partial").join(f)).unwrap();
+    }
+    let (text, line) = with_row(&text, 400, |c| c[fault] = "interrupted: SIGINT".into());
+    std::fs::write(t.join("rec.partial/trace.csv"), text).unwrap();
+    let o = compare_with(t, &scene(), &["rec.partial/trace.csv"], &["--out", "done"]);
+    ok(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains(&format!(
+            "was stopped by a signal at t = 0.4 s (line {line}"
+        )),
+        "{e}"
+    );
     // A fault in the second row leaves nothing to compare.
     let log = edited(t, "rec", "at-once", |text| {
         let (text, _) = with_row(text, 1, |c| c[fault] = "limit: made up".into());

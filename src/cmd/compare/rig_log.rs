@@ -331,8 +331,13 @@ pub(super) fn check(
                     k + 1
                 );
             }
+            let how = if why.starts_with("interrupted") {
+                "was stopped by a signal"
+            } else {
+                "ended on a fault"
+            };
             Some(format!(
-                "the recording ended on a fault at t = {} s (line {line}: {why}); compared up to t = {} s",
+                "the recording {how} at t = {} s (line {line}: {why}); compared up to t = {} s",
                 t[k],
                 t[k - 1]
             ))
