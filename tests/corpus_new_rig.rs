@@ -19,7 +19,8 @@ fn pneuflex(args: &[&str], cwd: &Path) -> Output {
 fn rig_args<'a>(extra: &[&'a str]) -> Vec<&'a str> {
     let mut a = vec!["new", "rig", "r"];
     for (k, v) in [("--bore", "25mm"), ("--stroke", "100mm")] {
-        if !extra.contains(&k) && !(k == "--bore" && extra.contains(&"--iso-bore")) {
+        let given = extra.contains(&k) || (k == "--bore" && extra.contains(&"--iso-bore"));
+        if !given {
             a.extend([k, v]);
         }
     }
@@ -500,6 +501,21 @@ fn edge_values_inside_the_ranges_still_make_a_rig_that_loads() {
     for (dir, extra) in [
         // The smallest ISO 6432 size, at its shortest stroke.
         ("small", vec!["--bore", "8mm", "--stroke", "10mm"]),
+        // No Coulomb friction at all: once written with kp = 5.5e-10 /m (a describing-function search at
+        // its floor taken for an onset).
+        (
+            "ideal",
+            vec![
+                "--bore",
+                "25mm",
+                "--stroke",
+                "100mm",
+                "--friction",
+                "0N",
+                "--valve-flow",
+                "300l/min",
+            ],
+        ),
         // A directory whose name is no rig name: the rig is named from its sizes.
         (
             "my rig",
@@ -512,7 +528,14 @@ fn edge_values_inside_the_ranges_still_make_a_rig_that_loads() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{a:?}: {stderr}");
         let scene = std::fs::read_to_string(tmp.path().join(dir).join("scene.toml")).unwrap();
-        assert!(scene.contains("kp_per_m"), "{scene}");
+        // A position loop worth the name: a full-stroke error opens the valve at least 10 %.
+        let kp: f64 = scene
+            .split("kp_per_m = ")
+            .nth(1)
+            .and_then(|t| t.split([',', ' ']).next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("{dir}: no kp in {scene}"));
+        assert!(kp > 1.0, "{dir}: kp = {kp} /m");
     }
     let scene = std::fs::read_to_string(tmp.path().join("my rig/scene.toml")).unwrap();
     assert!(scene.contains("name = \"rig-25x100-pwm\""), "{scene}");

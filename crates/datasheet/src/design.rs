@@ -662,16 +662,29 @@ fn valve_flow(
         None => {
             let b = b_given.unwrap_or(0.3);
             // fill_time is proportional to 1/C: C = t(C = 1) / t.
-            let c =
+            let sized =
                 round2(fill_time(1.0, volume, supply_abs_pa, atmosphere_pa) / DEFAULT_FILL_TIME_S);
+            // Within the valves there are (`--valve-c`'s range): a 320 mm bore over 2 m would need C = 1.7e-5,
+            // which no valve has and the valve sheet refuses.
+            let r = crate::limits::of("--valve-c").expect("--valve-c has a range");
+            let c = sized.clamp(r.lo * r.si_per_unit, r.hi * r.si_per_unit);
+            let fill = if c == sized {
+                format!(
+                    "fills a chamber at mid stroke in {} ms",
+                    DEFAULT_FILL_TIME_S * 1e3
+                )
+            } else {
+                format!(
+                    "the nearest valve there is to one that fills a chamber at mid stroke in {} ms (C = {sized:.2e})",
+                    DEFAULT_FILL_TIME_S * 1e3
+                )
+            };
             assume(
                 assumed,
                 "--valve-flow",
                 format!(
-                    "QN {:.0} l/min (C = {c:.2e} m³/(s Pa), b = {b}): a valve that fills a chamber at mid stroke \
-                     in {} ms",
+                    "QN {:.0} l/min (C = {c:.2e} m³/(s Pa), b = {b}): a valve that {fill}",
                     iso6358::qn_from_c(c, b) * 6e4,
-                    DEFAULT_FILL_TIME_S * 1e3
                 ),
             );
             (c, b, "sized by new rig (no flow given)".into())

@@ -125,6 +125,14 @@ pub fn choose(
     // Below the describing-function onset.
     let scene = load(&write(&g)?)?;
     let (onset, pwm_onset) = onsets(&scene)?;
+    // An onset a millionth of the margin's kp is the describing-function search at its floor (2^-30, seen
+    // with zero Coulomb friction: `--friction 0N --valve-flow 300l/min` on 25 x 100 mm), not a prediction:
+    // following it wrote kp = 5.5e-10 /m. The simulation below decides instead.
+    let onset = if onset < 1e-6 * kp_margin {
+        f64::INFINITY
+    } else {
+        onset
+    };
     if onset.is_finite() && g.kp_per_m > ONSET_FRACTION * onset {
         g = g.with_kp(round2(ONSET_FRACTION * onset));
         note.push_str(&format!(
@@ -163,7 +171,9 @@ pub fn choose(
             .collect::<Vec<_>>()
             .join("; ");
         return Err(DesignError::Gains(format!(
-            "no kp tried settles the experiment in simulation ({tried})"
+            "no kp tried settles the experiment in simulation ({tried}): the rig as given is too slow or too \
+             soft for the experiment; a faster valve (--valve-flow, --response-time, --pwm-frequency), a lighter \
+             --mass, a shorter --stroke or a larger --bore is what changes that"
         )));
     };
     if g.tried.len() > 1 {

@@ -156,7 +156,7 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
             Gains::start(substeps, design.m_d_kg, design.b_d_ns_per_m),
             &mut write,
         )?;
-        // A kp whose full-stroke error opens the valve a tenth is no position loop (the analysis returns
+        // A kp whose full-stroke error opens the valve 1 % is no position loop (the analysis returns
         // such when the valve or the load is too slow for the experiment).
         if gains.kp_per_m * design.stroke_m < MIN_KP_STROKE {
             return Err(DesignError::Gains(format!(
@@ -199,7 +199,7 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
 }
 
 /// The least kp times the stroke: the valve command a full-stroke position error gives.
-pub const MIN_KP_STROKE: f64 = 0.1;
+pub const MIN_KP_STROKE: f64 = 0.01;
 
 /// The most RK4 steps a control tick the generated scene may take: beyond it a run takes minutes, and the
 /// valve is far larger than the chamber it fills.
