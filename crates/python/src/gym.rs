@@ -580,7 +580,8 @@ impl PyForceControlBatch {
         }
         let task = Task::load(&scene_path, action, decision_ticks).map_err(|e| {
             // A scene with [[actuators]] reads as an unknown key of a one-plant scene: say what it is.
-            if pneuflex_scene::mechanism::MechanismScene::load(&scene_path).is_ok() {
+            let text = std::fs::read_to_string(&scene_path).unwrap_or_default();
+            if pneuflex_scene::mechanism::MechanismScene::is_mechanism(&text) {
                 errors::other(format!(
                     "{}: a scene with [[actuators]] (several cylinders): the force-control environments \
                      take a scene with one [plant], pneumatic or multibody",

@@ -16,7 +16,26 @@ use pyo3::types::{PyAny, PyDict};
 use crate::errors;
 
 fn load(path: &Path) -> PyResult<Scene> {
-    Scene::load(path).map_err(errors::scene)
+    Scene::load(path).map_err(|e| {
+        // A scene with [[actuators]] fails here on its first key ("unknown field `actuators`"): its own
+        // loader's error, or where to run it.
+        if !is_mechanism(path) {
+            return errors::scene(e);
+        }
+        match pneuflex_scene::mechanism::MechanismScene::load(path) {
+            Ok(_) => errors::other(format!(
+                "{}: a scene with [[actuators]] (several cylinders): run it with pneuflex.run_mechanism",
+                path.display()
+            )),
+            Err(e) => errors::scene(e),
+        }
+    })
+}
+
+/// Whether the file is a scene with `[[actuators]]` (as `pneuflex run` tells them apart).
+fn is_mechanism(path: &Path) -> bool {
+    std::fs::read_to_string(path)
+        .is_ok_and(|t| pneuflex_scene::mechanism::MechanismScene::is_mechanism(&t))
 }
 
 /// A JSON-serialisable Rust value as Python objects (via the json module).
@@ -358,7 +377,16 @@ pub fn run_mechanism<'py>(
     scene_path: PathBuf,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>, f64)> {
     use pneuflex_scene::mechanism::{self, MechanismScene};
-    let scene = MechanismScene::load(&scene_path).map_err(errors::scene)?;
+    let scene = MechanismScene::load(&scene_path).map_err(|e| {
+        if !is_mechanism(&scene_path) && Scene::load(&scene_path).is_ok() {
+            errors::other(format!(
+                "{}: a scene with one [plant], not [[actuators]]: run it with pneuflex.run",
+                scene_path.display()
+            ))
+        } else {
+            errors::scene(e)
+        }
+    })?;
     let start = Instant::now();
     let runs = py
         .detach(|| mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()))

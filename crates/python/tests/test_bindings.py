@@ -655,9 +655,21 @@ def a_bad_scene_is_refused_naming_the_file_the_line_and_the_key():
         refused(lambda: envs.ForceControl(scene=d), IsADirectoryError, "not a scene file")
     refused(lambda: envs.ForceControl(scene=ROOT / "scenes" / "paper-fig3-ideal.toml"), pneuflex.PneuflexError,
             "paper-fig3-ideal.toml:", "plant.kind", "needs a pneumatic or multibody plant")
-    # A scene of several cylinders was "unknown field `actuators`": it says what the scene is.
-    refused(lambda: envs.ForceControl(scene=ROOT / "scenes" / "gripper.toml"), pneuflex.PneuflexError,
+    # A scene of the other kind was "unknown field `actuators`" (or `environment`): it says what the scene is
+    # and where it runs; a broken scene of several cylinders gets its own loader's file, line and key.
+    gripper = ROOT / "scenes" / "gripper.toml"
+    refused(lambda: envs.ForceControl(scene=gripper), pneuflex.PneuflexError,
             "gripper.toml: a scene with [[actuators]] (several cylinders)", "one [plant]")
+    refused(lambda: pneuflex.run(gripper), pneuflex.PneuflexError,
+            "gripper.toml: a scene with [[actuators]] (several cylinders): run it with pneuflex.run_mechanism")
+    refused(lambda: pneuflex.run_mechanism(SCENE), pneuflex.PneuflexError,
+            "paper-fig3.toml: a scene with one [plant], not [[actuators]]: run it with pneuflex.run")
+    with tempfile.TemporaryDirectory() as d:
+        text = gripper.read_text()
+        broken = Path(d) / "broken.toml"
+        broken.write_text(text.replace("duration_s", "durration_s", 1))
+        line = text[: text.index("duration_s")].count("\n") + 1
+        refused(lambda: pneuflex.run(broken), pneuflex.PneuflexError, f"broken.toml:{line}:", "durration_s")
 
 
 @test
