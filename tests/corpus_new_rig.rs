@@ -110,6 +110,11 @@ fn a_unit_missing_unknown_or_of_the_wrong_kind_is_named_with_the_option() {
             &[&format!("{key} fast: not a number with a unit")],
         );
     }
+    // A decimal comma is said to be one, not an unknown unit `,5mm`.
+    refused(
+        &["--bore", "2,5mm"],
+        &["--bore 2,5mm: a decimal comma", "--bore 2.5mm"],
+    );
     // The proportional valve's option, on the valve it applies to.
     refused(
         &["--valve", "proportional", "--response-time", "5"],
@@ -373,7 +378,25 @@ fn values_that_contradict_the_rest_of_the_rig_name_the_option_to_change() {
         ),
         (
             vec!["--switching-delay", "20ms"],
-            vec!["--pwm-frequency", "would work"],
+            vec!["--pwm-frequency", "would work (--pwm-frequency 12Hz)"],
+        ),
+        // No carrier within --pwm-frequency's range is slow enough: the valve is named, not a carrier
+        // the range refuses.
+        (
+            vec!["--switching-delay", "50ms"],
+            vec!["--switching-delay", "would work (--switching-delay 6.2ms)"],
+        ),
+        // A valve far too small for a large cylinder: the suggestion is a valve there is.
+        (
+            vec![
+                "--bore",
+                "320mm",
+                "--stroke",
+                "2m",
+                "--valve-flow",
+                "100l/min",
+            ],
+            vec!["--valve-flow", "too slow", "(--valve-flow 20000l/min)"],
         ),
         (
             vec![

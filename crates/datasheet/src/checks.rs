@@ -37,6 +37,9 @@ pub const FILL_TIME_ERROR_S: f64 = 1.0;
 /// Slower than this, the valve limits the loop's bandwidth: a warning.
 pub const FILL_TIME_WARNING_S: f64 = 0.2;
 
+/// The largest valve `--valve-flow` takes, l/min: suggestions stay within it.
+const QN_MAX_L_MIN: f64 = 20_000.0;
+
 /// Coulomb friction over this fraction of the force range is refused.
 pub const FRICTION_OF_RANGE: f64 = 0.2;
 /// A contact force under this fraction of the force range is refused.
@@ -103,9 +106,9 @@ fn errors(d: &Design) -> Vec<Finding> {
                  (--valve-flow {:.0}l/min)",
                 (d.area_a() * 0.5 * d.stroke_m + d.dead_volume_a_m3) * 1e6,
                 d.dead_volume_a_m3 * 1e6,
-                qn_for(0.1),
-                100.0,
-                qn_for(0.1).ceil()
+                qn_for(0.1).min(QN_MAX_L_MIN),
+                (0.1 * qn_for(0.1) / QN_MAX_L_MIN).max(0.1) * 1e3,
+                qn_for(0.1).min(QN_MAX_L_MIN).ceil()
             ),
         );
     }
@@ -271,16 +274,31 @@ fn errors(d: &Design) -> Vec<Finding> {
     }
     // An on/off valve must switch well inside its PWM period.
     if d.valve == ValveKind::Pwm && d.switching_delay_s > 0.25 / d.pwm_frequency_hz {
-        err(
-            "--pwm-frequency",
-            format!(
-                "a {:.1} ms switching delay is over a quarter of the {:.1} ms PWM period: the valve cannot follow \
-                 the duty cycle; at most {:.0} Hz would work",
-                d.switching_delay_s * 1e3,
-                1e3 / d.pwm_frequency_hz,
-                (0.25 / d.switching_delay_s).floor()
-            ),
+        let period = format!(
+            "a {:.1} ms switching delay is over a quarter of the {:.1} ms PWM period: the valve cannot follow \
+             the duty cycle",
+            d.switching_delay_s * 1e3,
+            1e3 / d.pwm_frequency_hz,
         );
+        let f_max = (0.25 / d.switching_delay_s).floor();
+        let pwm_lo = crate::limits::of("--pwm-frequency").map_or(10.0, |r| r.lo);
+        if f_max >= pwm_lo {
+            err(
+                "--pwm-frequency",
+                format!(
+                    "{period}; at most {f_max:.0} Hz would work (--pwm-frequency {f_max:.0}Hz)"
+                ),
+            );
+        } else {
+            // No carrier the valve can follow is slow enough: the valve is the one to change.
+            let t = 0.25e3 / d.pwm_frequency_hz;
+            err(
+                "--switching-delay",
+                format!(
+                    "{period}; a valve switching in at most {t:.1} ms would work (--switching-delay {t:.1}ms)"
+                ),
+            );
+        }
     }
     out
 }

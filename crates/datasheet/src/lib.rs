@@ -98,14 +98,13 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
     if std::fs::symlink_metadata(dir).is_ok() {
         return Err(DesignError::Exists(dir.to_path_buf()));
     }
-    let name = dir
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .ok_or_else(|| DesignError::Value {
+    if dir.file_name().is_none() {
+        return Err(DesignError::Value {
             key: "DIR".into(),
             value: dir.display().to_string(),
             why: "name a directory to create, e.g. my-rig".into(),
-        })?;
+        });
+    }
     let parent = match dir.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -123,7 +122,7 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
         what: "create",
         source,
     })?;
-    let (stage, staged) = stage_beside(&parent, &name)?;
+    let (stage, staged) = stage_beside(&parent)?;
     let result = (|| {
         std::fs::create_dir(stage.join("pneumatics")).map_err(|source| DesignError::Io {
             path: stage.clone(),
@@ -231,9 +230,10 @@ fn oversized_valve(d: &Design, substeps: usize) -> Finding {
 }
 
 /// A staging folder beside DIR, made by this call (a name already taken, by anyone, is skipped).
-fn stage_beside(parent: &Path, name: &str) -> Result<(PathBuf, Staged), DesignError> {
+fn stage_beside(parent: &Path) -> Result<(PathBuf, Staged), DesignError> {
     for n in 0..100 {
-        let stage = parent.join(format!(".{name}.partial-{}-{n}", std::process::id()));
+        // Not after DIR's name: a name near the file system's 255 bytes would leave no room for a suffix.
+        let stage = parent.join(format!(".new-rig-{}-{n}.partial", std::process::id()));
         match std::fs::create_dir(&stage) {
             Ok(()) => return Ok((stage.clone(), Staged(stage))),
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,

@@ -134,6 +134,17 @@ pub fn parse(key: &str, text: &str, dimension: Dimension) -> Result<f64, DesignE
             accepted()
         ),
     })?;
+    // A decimal comma (`2,5mm`) reads as the number 2 with the unit `,5mm`: say what it is.
+    if unit.starts_with(',') && unit[1..].starts_with(|c: char| c.is_ascii_digit()) {
+        return Err(DesignError::Value {
+            key: key.into(),
+            value: text.into(),
+            why: format!(
+                "a decimal comma: write the number with a point, e.g. {key} {}",
+                t.replacen(',', ".", 1)
+            ),
+        });
+    }
     if unit.is_empty() {
         return Err(DesignError::Value {
             key: key.into(),
