@@ -576,11 +576,13 @@ fn a_sample_period_no_logger_has_is_refused_at_its_line() {
     let text = std::fs::read_to_string(&l).unwrap();
     std::fs::write(&l, text.lines().take(900).collect::<Vec<_>>().join("\n")).unwrap();
     run(&["leak", "--log", s(&l)], d.path()).refused(&["fast.csv:2", "time_ms", "sample period"]);
-    // Rig logs for identify: a 1 ns period, a 5 s period, one step of 0.1 µs in a 1 ms log.
+    // Rig logs for identify: a 1 ns period, a 5 s and a 1 s period, one step of 0.1 µs in a 1 ms log.
     let actuator = repo().join("pneumatics/paper-actuator.toml");
     for (name, period, uneven, line, word) in [
         ("ns.csv", 1e-9, None, ":3", "median sample period"),
         ("slow.csv", 5.0, None, ":3", "median sample period"),
+        // A 1 kHz log whose ms are read as s.
+        ("ms_as_s.csv", 1.0, None, ":3", "median sample period"),
         ("uneven.csv", 1e-3, Some(50), ":52", "does not tick evenly"),
     ] {
         let mut text = String::from("t,u,x,p_a,p_b,f_e,fault\n");
