@@ -74,9 +74,14 @@ impl PidParams {
         // The command is normalised to [-1, 1]: past these gains a 1 µm position error (the finest position
         // sensor), 1 µm held for a 1 ms tick, or a 1 mm/s speed alone drives the valve from closed to fully
         // open, so the loop is an on/off switch, not a gain (the shipped scenes use 10-200 /m).
-        within("kp_per_m", self.kp_per_m, 0.0, MAX_KP_PER_M)?;
-        within("ki_per_m_s", self.ki_per_m_s, 0.0, MAX_KI_PER_M_S)?;
-        within("kd_s_per_m", self.kd_s_per_m, 0.0, MAX_KD_S_PER_M)?;
+        for (name, gain, max) in [
+            ("kp_per_m", self.kp_per_m, MAX_KP_PER_M),
+            ("ki_per_m_s", self.ki_per_m_s, MAX_KI_PER_M_S),
+            ("kd_s_per_m", self.kd_s_per_m, MAX_KD_S_PER_M),
+        ] {
+            non_negative(name, gain)?;
+            within(name, gain, 0.0, max)?;
+        }
         non_negative("derivative_filter_s", self.derivative_filter_s)?;
         // The valve command is normalised to [-1, 1] (ValveCommand).
         within("u_min", self.u_min, -1.0, 1.0)?;

@@ -285,11 +285,17 @@ pub fn adaptation_verdict(
     })
 }
 
+/// Whether `better` beats `than` (lower is better) by at least `margin_pct` % of the larger magnitude: the
+/// one rule every claim of every scene kind is judged by.
+pub fn beats(better: f64, than: f64, margin_pct: f64) -> bool {
+    better < than && than - better >= 0.01 * margin_pct * better.abs().max(than.abs())
+}
+
 /// Why the claim does not hold for the better run's value `b` and the other's `t` (None: it holds).
 fn verdict(c: &ClaimSpec, b: Option<f64>, t: Option<f64>) -> Option<String> {
     let settling = c.metric == "settling_time_s";
     match (b, t) {
-        (Some(b), Some(t)) if b < t && t - b >= 0.01 * c.margin_pct * b.abs().max(t.abs()) => None,
+        (Some(b), Some(t)) if beats(b, t, c.margin_pct) => None,
         (Some(b), Some(t)) if b < t => Some(format!(
             "too close to call: {} {b:.4} is below {} {t:.4} by {:.2} %, less than the {} % margin",
             c.better,

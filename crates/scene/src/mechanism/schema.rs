@@ -251,6 +251,13 @@ pub struct ClaimSpec {
     /// Only this actuator (all when absent; ignored by `force_imbalance_n`, which spans them).
     #[serde(default)]
     pub actuator: Option<String>,
+    /// Smallest difference that counts, % of the larger value: as a one-actuator scene's claim (default 2).
+    #[serde(default = "two_percent")]
+    pub margin_pct: f64,
+}
+
+fn two_percent() -> f64 {
+    2.0
 }
 
 /// The `force_sensor` of a load cell on the cylinder's rod.
@@ -662,6 +669,11 @@ impl MechanismScene {
             {
                 return Err(self.invalid(&at("actuator"), format!("no actuator named {a:?}")));
             }
+            self.number(
+                &at("margin_pct"),
+                c.margin_pct,
+                pneuflex_files::check::non_negative,
+            )?;
         }
         Ok(())
     }

@@ -56,7 +56,8 @@ pub struct ClaimResult {
     pub better_value: f64,
     /// The other run's value.
     pub than_value: f64,
-    /// Whether the better run's value is lower.
+    /// Whether the better run's value is lower by the claim's margin (the rule of every scene's claims,
+    /// [`crate::analysis::claims::beats`]).
     pub holds: bool,
 }
 
@@ -77,9 +78,13 @@ pub struct MechanismSummary {
 
 fn window_metrics(scene: &MechanismScene, run: &MechanismRun, w: &WindowSpec) -> WindowMetrics {
     let t = run.column("t").unwrap_or_default();
-    let inside: Vec<usize> = (0..t.len())
-        .filter(|&i| t[i] >= w.t0_s - 1e-12 && t[i] <= w.t1_s + 1e-12)
-        .collect();
+    // The one window rule of every scene kind: [t0, t1), the run's last sample included when t1 is its end.
+    let (i0, i1) = if t.is_empty() {
+        (0, 0)
+    } else {
+        crate::analysis::metrics::window_indices(&t, w.t0_s, w.t1_s)
+    };
+    let inside: Vec<usize> = (i0..i1).collect();
     let forces: Vec<Vec<f64>> = scene
         .actuators
         .iter()
@@ -153,7 +158,7 @@ pub fn summarise(scene: &MechanismScene, runs: &[MechanismRun]) -> MechanismSumm
                 metric: c.metric.clone(),
                 better_value: b,
                 than_value: t,
-                holds: b < t,
+                holds: crate::analysis::claims::beats(b, t, c.margin_pct),
             })
         };
         if c.metric == "force_imbalance_n" {
@@ -219,4 +224,92 @@ pub fn write(
     let path = dir.join("summary.json");
     let text = serde_json::to_string_pretty(summary).expect("plain data");
     std::fs::write(&path, text + "\n").map_err(write_err(&path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run of the gripper's two fingers, f_r = 10 N, whose force error is `err(t)` on both fingers.
+    fn run(scene: &MechanismScene, name: &str, err: impl Fn(f64) -> f64) -> MechanismRun {
+        let mut columns = vec!["t".to_string()];
+        for a in &scene.actuators {
+            columns.push(format!("{}.f_r", a.name));
+            columns.push(format!("{}.f_e", a.name));
+        }
+        let rows = (0..=scene.n_steps())
+            .map(|k| {
+                let t = k as f64 * scene.dt_s;
+                let mut row = vec![t];
+                for _ in &scene.actuators {
+                    row.extend([10.0, 10.0 - err(t)]);
+                }
+                row
+            })
+            .collect();
+        MechanismRun {
+            name: name.into(),
+            columns,
+            rows,
+            diverged: None,
+            complete: true,
+        }
+    }
+
+    fn gripper() -> MechanismScene {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gripper.toml");
+        MechanismScene::load(&path).unwrap()
+    }
+
+    #[test]
+    fn a_window_holds_t0_to_t1_without_t1_as_in_every_scene() {
+        let scene = gripper();
+        // 1 N of error from the sine_foam window's end (5 s) on: none of it inside [3, 5).
+        let r = run(
+            &scene,
+            "impedance",
+            |t| if t >= 5.0 - 1e-9 { 1.0 } else { 0.0 },
+        );
+        let s = summarise(&scene, &[r]);
+        let foam = s.runs[0]
+            .windows
+            .iter()
+            .find(|w| w.window == "sine_foam")
+            .unwrap();
+        assert_eq!(foam.actuators[0].1.rms_force_error_n, 0.0);
+        assert_eq!(foam.actuators[0].1.max_abs_force_error_n, 0.0);
+        // The run's last window ends at its end: its last sample counts.
+        let rubber = s.runs[0]
+            .windows
+            .iter()
+            .find(|w| w.window == "sine_rubber")
+            .unwrap();
+        assert_eq!(rubber.actuators[0].1.rms_force_error_n, 1.0);
+    }
+
+    #[test]
+    fn a_claim_holds_only_past_its_margin_as_in_every_scene() {
+        let mut scene = gripper();
+        // adaptive 0.99 N RMS against impedance's 1.00 N: 1 % better.
+        let runs = [
+            run(&scene, "impedance", |_| 1.0),
+            run(&scene, "adaptive", |_| 0.99),
+        ];
+        let holds = |scene: &MechanismScene| {
+            summarise(scene, &runs)
+                .claims
+                .iter()
+                .map(|c| c.holds)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            holds(&scene),
+            [false; 4],
+            "1 % is within the default 2 % margin"
+        );
+        for c in &mut scene.claims {
+            c.margin_pct = 0.5;
+        }
+        assert_eq!(holds(&scene), [true; 4]);
+    }
 }
