@@ -172,6 +172,15 @@ unsafe fn make(api: &Api, m: Model, instance: c_int) -> Result<Instance, String>
             NAME.to_string_lossy()
         ));
     }
+    // A configured cylinder nothing drives is a forgotten `instance=` on the actuator, not a model.
+    if acts.is_empty() {
+        return Err(format!(
+            "{}: {who}: drives no actuator: name it on one, <actuator><plugin joint=\"...\" \
+             plugin=\"{}\" instance=\"NAME\"/></actuator>",
+            NAME.to_string_lossy(),
+            NAME.to_string_lossy()
+        ));
+    }
     let mut actuators = Vec::with_capacity(acts.len());
     for &a in &acts {
         let (cn, on) = unsafe { (m.actuator_ctrlnum(a), m.actuator_outnum(a)) };

@@ -169,6 +169,10 @@ def bad_configuration_is_a_mujoco_error_naming_the_key():
         assert says in e, (cfg, e)
         if "config key" in says:
             assert "pneuflex.cylinder: instance 'cyl'" in e and "init failed" not in e, e
+    # A configured instance no actuator names (a forgotten instance= on the actuator) was a silent no-op.
+    spare = f'<instance name="spare"><config key="sheet" value="{SHEET}"/></instance></plugin>'
+    e = load_error(rig().replace("</instance></plugin>", "</instance>" + spare))
+    assert "pneuflex.cylinder: instance 'spare': drives no actuator" in e, e
     e = load_error(rig(integrator="RK4"))
     assert "integrator=\"RK4\" is not supported" in e and "init failed" not in e, e
     # Each case left MuJoCo working: a good model still loads and steps.
