@@ -645,6 +645,9 @@ fn skip_lines_past_the_end_names_the_option_the_format_file_and_its_line() {
         ("52", vec!["export.csv:53", "columns.t.name", "skip_lines"]),
         // Past the header but not the rows: the first row is taken as the header.
         ("3", vec!["export.csv:4", "columns.t.name", "skip_lines"]),
+        // Not a count of lines.
+        ("-1", vec!["format.toml:3", "skip_lines", "usize"]),
+        ("1e300", vec!["format.toml:3", "skip_lines"]),
     ] {
         let format = d.path().join("format.toml");
         std::fs::write(

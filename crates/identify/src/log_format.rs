@@ -188,7 +188,21 @@ impl LogFormat {
                 .span()
                 .map(|s| format!(":{}", pneuflex_files::line_col(text, s.start)))
                 .unwrap_or_default();
-            IdentifyError::Input(format!("{}{pos}: {}", path.display(), e.message().trim()))
+            // The key whose value is wrong, from the text before the value (`skip_lines = -1`).
+            let key = e
+                .span()
+                .and_then(|s| text.get(..s.start))
+                .and_then(|before| before.rsplit('\n').next())
+                .and_then(|line| line.rsplit_once('='))
+                .map(|(k, _)| k.rsplit([',', '{']).next().unwrap_or(k).trim())
+                .filter(|k| !k.is_empty() && k.chars().all(|c| c.is_alphanumeric() || c == '_'))
+                .map(|k| format!(" {k}:"))
+                .unwrap_or_default();
+            IdentifyError::Input(format!(
+                "{}{pos}:{key} {}",
+                path.display(),
+                e.message().trim()
+            ))
         })?;
         let separator = match f.separator.as_str() {
             "whitespace" => Separator::Whitespace,
