@@ -563,3 +563,53 @@ fn edge_values_inside_the_ranges_still_make_a_rig_that_loads() {
     let scene = std::fs::read_to_string(tmp.path().join("my rig/scene.toml")).unwrap();
     assert!(scene.contains("name = \"rig-25x100-pwm\""), "{scene}");
 }
+
+#[test]
+fn an_interrupt_during_the_gains_search_leaves_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A valve this large on an 8 mm bore takes 55 RK4 steps a tick: seconds of search, time to interrupt.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+        .args([
+            "new",
+            "rig",
+            "a/b/r",
+            "--bore",
+            "8mm",
+            "--stroke",
+            "10mm",
+            "--valve-flow",
+            "20000l/min",
+        ])
+        .current_dir(tmp.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("runs");
+    // Wait for the staging folder: the search has begun.
+    let staged = || {
+        std::fs::read_dir(tmp.path().join("a/b"))
+            .map(|d| d.count() > 0)
+            .unwrap_or(false)
+    };
+    while !staged() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "ended before it staged anything"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(
+        stderr.contains("SIGINT") && stderr.contains("a/b/r: nothing written"),
+        "{stderr}"
+    );
+    let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().collect();
+    assert!(left.is_empty(), "left {left:?}");
+}

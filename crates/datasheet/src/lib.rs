@@ -56,6 +56,8 @@ pub enum DesignError {
     Scene(String),
     #[error("gains: {0}")]
     Gains(String),
+    #[error("interrupted: nothing written")]
+    Interrupted,
 }
 
 /// What `new rig` did.
@@ -75,6 +77,17 @@ pub const DT_S: f64 = 0.001;
 /// Resolves and checks `ds`, chooses gains, and writes the rig directory `dir` whole (staged beside it,
 /// renamed in at the end; nothing is left if anything fails). `command` is the command line, for the report.
 pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, DesignError> {
+    new_rig_until(ds, dir, command, &|| false)
+}
+
+/// [`new_rig`], stopping with [`DesignError::Interrupted`] (and nothing written) at the first simulation
+/// step after `stop` says so: a Ctrl-C during the gains' search leaves no staging folder behind.
+pub fn new_rig_until(
+    ds: &Datasheet,
+    dir: &Path,
+    command: &str,
+    stop: &dyn Fn() -> bool,
+) -> Result<Report, DesignError> {
     // The rig is named after its directory unless a name is given (or the directory's name is no rig name:
     // then from its sizes).
     let named = Datasheet {
@@ -130,6 +143,9 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
             source,
         })?;
         let mut write = |g: &Gains| -> Result<PathBuf, DesignError> {
+            if stop() {
+                return Err(DesignError::Interrupted);
+            }
             for (rel, text) in write::files(&design, g) {
                 let p = stage.join(rel);
                 std::fs::write(&p, text).map_err(|source| DesignError::Io {
@@ -184,6 +200,9 @@ pub fn new_rig(ds: &Datasheet, dir: &Path, command: &str) -> Result<Report, Desi
     })();
     // Nothing is named inside the staging folder, which is gone when the user reads the message.
     let report = result.map_err(|e| unstaged(e, &stage, dir))?;
+    if stop() {
+        return Err(DesignError::Interrupted);
+    }
     if std::fs::symlink_metadata(dir).is_ok() {
         return Err(DesignError::Exists(dir.to_path_buf()));
     }
