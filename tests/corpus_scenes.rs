@@ -287,3 +287,50 @@ fn an_absurd_stiffness_ends_as_a_refusal_or_a_divergence_never_a_hang() {
         r.stderr
     );
 }
+
+#[test]
+fn a_command_that_takes_one_actuator_refuses_a_several_actuator_scene_with_the_reason() {
+    let d = tempfile::tempdir().unwrap();
+    let gripper = repo().join("scenes/gripper.toml");
+    let g = s(&gripper);
+    let log = d.path().join("trace.csv");
+    std::fs::write(&log, "t,f_ref,f_e\n0,0,0\n").unwrap();
+    let out = d.path().join("out");
+    let o = s(&out);
+    for args in [
+        vec![
+            "sweep",
+            g,
+            "--set",
+            "runs[0].inner.kp_per_m=5,10",
+            "--out",
+            o,
+        ],
+        vec![
+            "tune",
+            g,
+            "--free",
+            "runs[0].inner.kp_per_m=[5,20]",
+            "--out",
+            o,
+        ],
+        vec!["tf", "--loop", g],
+        vec!["compare", g, "--rig-log", s(&log), "--out", o],
+        vec!["rig", "pil", "--scene", g, "--out", o],
+        vec![
+            "rig",
+            "run",
+            "--lockstep-truth",
+            "pneumatics/gripper-finger.toml",
+            "--scene",
+            g,
+            "--out",
+            o,
+        ],
+    ] {
+        let r = run(&args, repo());
+        r.refused(&["several actuators", "[[actuators]]", "gripper.toml:"]);
+        assert!(!r.stderr.contains("unknown field"), "{}", r.stderr);
+        assert!(!out.exists(), "`{}` wrote an output", args.join(" "));
+    }
+}

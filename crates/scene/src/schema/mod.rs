@@ -102,6 +102,11 @@ pub enum Integrator {
     Rk4,
 }
 
+/// Why a command that runs one actuator refuses a scene with `[[actuators]]`.
+pub const SEVERAL_ACTUATORS: &str = "a scene with several actuators ([[actuators]]) runs with `pneuflex run` \
+     (Python: `pneuflex.run_mechanism`) so far; this command takes a one-actuator scene, with a [plant] table \
+     (docs/scenes.md)";
+
 impl Scene {
     /// Reads, parses and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -140,7 +145,11 @@ impl Scene {
             let path = e.path().to_string();
             let inner = e.into_inner();
             let path = if path == "." { String::new() } else { path };
-            let message = inner.message().trim().to_string();
+            let mut message = inner.message().trim().to_string();
+            // A several-actuator scene given to a command that takes one actuator: say so, not "unknown field".
+            if message.starts_with("unknown field `actuators`") {
+                message = SEVERAL_ACTUATORS.to_string();
+            }
             let path = locate::blame_inside_tagged(text, &path, &message);
             let at = match inner.span() {
                 // A span on an internally tagged table covers the whole table: the key is more precise.
