@@ -69,7 +69,7 @@ pub struct NewRig {
     #[arg(long, group = "flow", allow_negative_numbers = true)]
     pub valve_kv: Option<f64>,
     /// The valve's Cv, US gal/min of water at 1 psi.
-    #[arg(long, group = "flow", allow_hyphen_values = true)]
+    #[arg(long, group = "flow", allow_negative_numbers = true)]
     pub valve_cv: Option<f64>,
     /// The valve's ISO 6358 critical pressure ratio b, 0.05–0.6 (default 0.3; 0.5 with Kv or Cv).
     #[arg(long, allow_negative_numbers = true)]
