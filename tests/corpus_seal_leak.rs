@@ -569,6 +569,18 @@ fn a_sample_period_no_logger_has_is_refused_at_its_line() {
         "time_ms",
         "sample period",
     ]);
+    // The friction time in s where ms is read: the test spans a thousandth of its minute.
+    let dir = friction_copy(&d.path().join("s"), "circle_3bar.csv", None);
+    edit_rows(&dir.join("circle_2bar.csv"), |_, f| {
+        f[0] = format!("{}", f[0].parse::<f64>().unwrap() * 1e-3);
+    });
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&["circle_2bar.csv:", "time_ms", "spans"]);
+    // A decay's time in s where ms with '.' thousands is read (0.101 s read as 101 µs).
+    let l = leak_copy(d.path(), "seconds.csv", "prusa", |_, f| {
+        let ms: f64 = f[0].replace('.', "").parse::<f64>().unwrap() / 1e3;
+        f[0] = format!("{:.3}", ms / 1e3);
+    });
+    run(&["leak", "--log", s(&l)], d.path()).refused(&["seconds.csv:", "time_ms", "spans"]);
     // A decay logged every µs.
     let l = leak_copy(d.path(), "fast.csv", "prusa", |i, f| {
         f[0] = format!("0.{:03}", i % 1000)

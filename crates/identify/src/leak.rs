@@ -328,6 +328,19 @@ pub fn read_decay_log_with(
             ),
         ));
     }
+    // A decay is logged over seconds at least: less is a time in another unit (s read as ms).
+    let span = log.t_s[log.t_s.len() - 1] - log.t_s[0];
+    if span < crate::seal::MIN_SPAN_S {
+        return Err(log_err(
+            path,
+            lines[lines.len() - 1],
+            "time_ms",
+            format!(
+                "the log spans {span:.3e} s: a leak's decay takes seconds at least (the time is read in ms with \
+                 '.' as the thousands separator, 1.003.000 = 1003 ms; a time in s would span a thousandth)"
+            ),
+        ));
+    }
     if let Some(k) = first.iter().position(|d| *d < 0.01 * period) {
         return Err(log_err(
             path,

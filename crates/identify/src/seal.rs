@@ -325,6 +325,11 @@ pub fn read_seal_test(path: &Path, nominal_pa: f64) -> Result<SealTest, Identify
     read_seal_test_with(path, Some(nominal_pa), &Sensors::default())
 }
 
+/// The shortest test or decay log, s: strokes and decays take seconds.
+pub const MIN_SPAN_S: f64 = 1.0;
+/// The fastest mean speed of a cell, m/s: no seal bench drives a rod faster (a time or position unit slip).
+const MAX_CELL_SPEED_M_PER_S: f64 = 5.0;
+
 /// The sample period's plausible range, s (a time in another unit, a corrupt clock).
 pub const PERIOD_RANGE_S: (f64, f64) = (1e-5, 1.0);
 
@@ -443,6 +448,19 @@ pub fn read_seal_test_with(
             format!(
                 "the median sample period is {period:.3e} s, outside [{lo:e}, {hi}] s: no bench samples at that \
                  rate (the time is read in ms)"
+            ),
+        ));
+    }
+    // A test of strokes lasts seconds: less is a time in another unit (s read as ms).
+    let span = test.t_s[test.t_s.len() - 1] - test.t_s[0];
+    if span < MIN_SPAN_S {
+        return Err(log_err(
+            path,
+            Some(lines[lines.len() - 1]),
+            Some(COLUMNS[0]),
+            format!(
+                "the test spans {span:.3e} s: strokes of a rod take seconds (the time is read in ms; one in s \
+                 would span a thousandth)"
             ),
         ));
     }
@@ -968,6 +986,15 @@ fn plausible(
     );
     for c in cells {
         let t = &tests[c.test];
+        if c.mean_velocity_m_per_s.abs() > MAX_CELL_SPEED_M_PER_S {
+            return Err(IdentifyError::Fit(format!(
+                "{}: the rod moves at {:.3} m/s on average towards {} x, faster than any seal bench drives it \
+                 ({MAX_CELL_SPEED_M_PER_S} m/s): the time is read in ms and the position in mm",
+                t.file.display(),
+                c.mean_velocity_m_per_s,
+                if c.direction > 0.0 { "+" } else { "-" }
+            )));
+        }
         let start = o.skip_rows.min(t.force_n.len());
         let max_f = t.force_n[start..]
             .iter()
