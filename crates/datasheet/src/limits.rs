@@ -312,7 +312,10 @@ impl Range {
                 self.typed(self.typical)
             ));
         }
-        if v < self.lo {
+        // The unit's factor there and back leaves binary noise (1000cm3 reads 1000.0000000000001 cm³): a
+        // bound typed is the bound.
+        let slack = 1e-9 * self.lo.abs().max(self.hi.abs());
+        if v < self.lo - slack {
             return Err(format!(
                 "{shown} is under {}, the least accepted ({span}: {}); {} {} would work",
                 self.typed(self.lo),
@@ -321,7 +324,7 @@ impl Range {
                 self.typed(self.lo)
             ));
         }
-        if v > self.hi {
+        if v > self.hi + slack {
             return Err(format!(
                 "{shown} is over {}, the most accepted ({span}: {}); {} {} would work",
                 self.typed(self.hi),
@@ -331,5 +334,44 @@ impl Range {
             ));
         }
         Ok(si)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_range_takes_its_bounds_and_typical_value_and_refuses_beyond() {
+        for r in &RANGES {
+            assert!(r.lo < r.hi, "{}", r.key);
+            assert!((r.lo..=r.hi).contains(&r.typical), "{}", r.key);
+            for v in [r.lo, r.typical, r.hi] {
+                assert!(r.check(v * r.si_per_unit).is_ok(), "{} {v}", r.key);
+            }
+            let over = r.check(2.0 * r.hi.abs().max(1.0) * r.si_per_unit + r.hi * r.si_per_unit);
+            let over = over.unwrap_err();
+            assert!(
+                over.contains(&format!("{} {} would work", r.key, r.typed(r.hi))),
+                "{over}"
+            );
+            let nan = r.check(f64::NAN).unwrap_err();
+            assert!(nan.contains("not a finite number"), "{nan}");
+            assert!(nan.contains(&format!("e.g. {} {}", r.key, r.typed(r.typical))));
+        }
+    }
+
+    #[test]
+    fn every_option_has_one_range() {
+        for r in &RANGES {
+            assert_eq!(
+                RANGES.iter().filter(|o| o.key == r.key).count(),
+                1,
+                "{}",
+                r.key
+            );
+            assert_eq!(of(r.key), Some(r));
+        }
+        assert!(of("--name").is_none());
     }
 }
