@@ -435,6 +435,16 @@ fn a_column_in_another_unit_is_refused_by_its_consequence() {
         "moving samples",
         "mm",
     ]);
+    // The position in µm where mm is read: beyond any rod's travel, at its first such row.
+    let dir = friction_copy(&d.path().join("um"), "circle_1bar.csv", None);
+    for e in std::fs::read_dir(&dir).unwrap() {
+        edit_rows(&e.unwrap().path(), |_, f| {
+            f[4] = format!("{}", f[4].parse::<f64>().unwrap() * 1e3);
+        });
+    }
+    run(&["seal", "--data", s(&dir)], d.path()).refused(&["circle_1bar.csv", "position_mm", "mm"]);
+    // Neither a folder nor a list.
+    run(&["seal"], d.path()).refused(&["--data", "--test"]);
     // The pressure in MPa where bar is read, listed without pressures (taken from the readings): the offsets
     // grow with the pressure as a piston ten times too small would make them.
     let dir = friction_copy(&d.path().join("mpa"), "circle_1bar.csv", None);

@@ -76,10 +76,11 @@ pub struct Perturb {
 /// Fit friction laws (constant Coulomb, and rising with the pressure) to a seal's bench tests at held
 /// pressures: force, pressure and position logs `<seal>_<P>bar.csv` (docs/identification.md, "Real data").
 #[derive(Args)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["data", "tests"])))]
 pub struct Seal {
     /// Folder of the tests `<seal>_<P>bar.csv` (or its parent with a `friction/` folder), e.g.
     /// data/zillen-2021-printed-cylinder.
-    #[arg(long, required_unless_present = "tests", conflicts_with = "tests")]
+    #[arg(long)]
     pub data: Option<PathBuf>,
     /// Which seal's tests of --data, when the folder holds several (`circle` for circle_<P>bar.csv).
     #[arg(long, value_name = "NAME", requires = "data")]
