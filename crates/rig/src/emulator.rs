@@ -127,6 +127,10 @@ pub struct EmulatorLog {
     pub board_watchdog_trips: u64,
     /// Why the emulator stopped, if it stopped by itself.
     pub ended: Option<String>,
+    /// Runs started: Config frames received (each one restarts the plant, see [`Board::step`]).
+    pub runs: u64,
+    /// Where each run starts in `truth` (the index of its first record), one per run.
+    pub run_starts: Vec<usize>,
 }
 
 /// A running emulator.
@@ -172,6 +176,11 @@ impl Drop for EmulatorHandle {
 struct Noise(u64);
 
 impl Noise {
+    /// The noise of `seed` (xorshift needs an odd, non-zero state).
+    fn seeded(seed: u64) -> Self {
+        Self(seed.wrapping_mul(2).wrapping_add(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+
     fn next(&mut self) -> u64 {
         let mut x = self.0;
         x ^= x >> 12;
@@ -259,13 +268,7 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
     pub fn board(self, log: Arc<Mutex<EmulatorLog>>) -> Board<P, L> {
         let period_s = 1.0 / self.cfg.sample_rate_hz;
         let substeps = (period_s / self.cfg.plant_dt_s).round().max(1.0) as usize;
-        let noise = Noise(
-            self.cfg
-                .seed
-                .wrapping_mul(2)
-                .wrapping_add(0x9E37_79B9_7F4A_7C15)
-                | 1,
-        );
+        let noise = Noise::seeded(self.cfg.seed);
         Board {
             plant: self.plant,
             link: self.link,
@@ -467,6 +470,8 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
             }
             Message::Heartbeat(c) => return Some(Message::Heartbeat(c)),
             Message::Config(c) => {
+                // A host connecting configures the board first (docs/protocol.md, handshake): a new run.
+                self.new_run();
                 self.safe_mode = c.safe_mode;
                 self.board_wd_s = (c.watchdog_ms > 0).then(|| f64::from(c.watchdog_ms) * 1e-3);
             }
@@ -477,6 +482,27 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
             _ => {}
         }
         None
+    }
+
+    /// A new run starts from the scene's initial state, whatever ran before: the plant as it was made (position,
+    /// chambers, supply), experiment time (stiffness change, injected faults) from the next first Run command,
+    /// the valve as at power-up, the sensor noise from its seed. A latched board fault stays until Reset
+    /// (docs/protocol.md); the board's clock runs on.
+    fn new_run(&mut self) {
+        self.plant.restart();
+        self.run_start_s = None;
+        self.supply_lost = false;
+        self.frozen = None;
+        self.delay_line.clear();
+        self.drive_mode = ValveMode::SafeVent;
+        self.duty_q15 = 0;
+        self.last_tick = 0;
+        self.noise = Noise::seeded(self.cfg.seed);
+        if let Ok(mut l) = self.log.lock() {
+            l.runs += 1;
+            let at = l.truth.len();
+            l.run_starts.push(at);
+        }
     }
 
     /// The board's own watchdog: a silent host (or a stalled board, once it wakes) -> safe state, and the

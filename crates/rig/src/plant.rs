@@ -39,6 +39,9 @@ pub trait EmulatedPlant: Send {
     fn sample(&self) -> PlantSample;
     /// Changes the supply pressure (supply loss), Pa absolute.
     fn set_supply_pa(&mut self, p: f64);
+    /// Puts the plant back in the state it was made in (a new run starts from the scene's initial state,
+    /// whatever the last run left: position, chambers, supply).
+    fn restart(&mut self);
 }
 
 /// The pneumatic 1-DOF plant (cylinder thermodynamics, valve flow, eq. (1) mechanics).
@@ -47,6 +50,8 @@ pub struct PneumaticPlant {
     model: OneDofModel,
     state: OneDofState,
     supply_pa: f64,
+    /// The state and supply it was made with, for [`EmulatedPlant::restart`].
+    initial: (OneDofState, f64),
 }
 
 impl PneumaticPlant {
@@ -54,8 +59,10 @@ impl PneumaticPlant {
     pub fn new(mut model: OneDofModel, x0_m: f64, supply_pa: f64) -> Self {
         model.actuator.supply.supply_pressure_pa = supply_pa;
         let p0 = model.actuator.supply.atmosphere_pressure_pa;
+        let state = OneDofState::at_rest(x0_m, ChamberState::new(p0, p0), 0.0);
         Self {
-            state: OneDofState::at_rest(x0_m, ChamberState::new(p0, p0), 0.0),
+            initial: (state, supply_pa),
+            state,
             model,
             supply_pa,
         }
@@ -97,6 +104,13 @@ impl EmulatedPlant for PneumaticPlant {
 
     fn set_supply_pa(&mut self, p: f64) {
         self.supply_pa = p;
+    }
+
+    fn restart(&mut self) {
+        let (state, supply_pa) = &self.initial;
+        self.state = *state;
+        self.supply_pa = *supply_pa;
+        self.model.actuator.supply.supply_pressure_pa = *supply_pa;
     }
 }
 
