@@ -13,6 +13,11 @@
 use crate::IdentifyError;
 use crate::log_rows::Log;
 
+/// The sample periods identification replays, s: a median period outside is no rig's log (a time column in
+/// the wrong unit, a corrupt clock; a 1 kHz log in ms read as s has 1 s); the replay would take a step per row
+/// at that period, and a pneumatic actuator's dynamics (~10 ms) need more than 2 samples a second.
+pub const PERIOD_RANGE_S: (f64, f64) = (1e-5, 0.5);
+
 /// A sample's board time may sit this far off the grid, in sample periods (the board counts whole µs).
 const GRID_TOLERANCE: f64 = 0.1;
 
@@ -210,7 +215,7 @@ fn sample_grid(
     // A low percentile of the steps: a step of two periods or more is a sample missing from the record.
     let period = (steps[steps.len() / 20] * 1e6).round() * 1e-6;
     // A period of 0 (steps below half a µs) would put every sample at one grid row.
-    let (lo, hi) = crate::log::PERIOD_RANGE_S;
+    let (lo, hi) = PERIOD_RANGE_S;
     if !(lo..=hi).contains(&period) {
         return Err(err(
             Some(samples[1].line),

@@ -55,10 +55,7 @@ pub const MAX_GAP_PERIODS: f64 = 50.0;
 /// Gaps shorter than this are accepted whatever the sample period.
 pub const MIN_GAP_S: f64 = 0.05;
 
-/// The sample periods identification replays, s: a median period outside is no rig's log (a time column in
-/// the wrong unit, a corrupt clock; a 1 kHz log in ms read as s has 1 s); the replay would take a step per row
-/// at that period, and a pneumatic actuator's dynamics (~10 ms) need more than 2 samples a second.
-pub const PERIOD_RANGE_S: (f64, f64) = (1e-5, 0.5);
+pub use crate::board_time::PERIOD_RANGE_S;
 /// A step in time shorter than this share of the median period is a clock that does not tick evenly (a
 /// duplicated or corrupt time stamp), refused at its line.
 pub const MIN_PERIOD_SHARE: f64 = 0.01;
