@@ -257,7 +257,14 @@ impl<L: Link> SerialRig<L> {
                                 mode: a.mode,
                             });
                         }
-                        Message::Heartbeat(c) => *heartbeat_echo = Some(c),
+                        Message::Heartbeat(c) => {
+                            // Only the handshake sends one: what came before its echo predates the
+                            // board's Config, i.e. the run (an emulator's last run, a board's idle stream).
+                            *latest = None;
+                            sampled.clear();
+                            applied.clear();
+                            *heartbeat_echo = Some(c);
+                        }
                         Message::Fault { code, detail } => *board_fault = Some((code, detail)),
                         // An I/O board never sends host-to-board or embedded-controller messages; ignore
                         // rather than fail.

@@ -269,3 +269,46 @@ fn two_runs_over_a_pty_each_start_from_the_scenes_initial_state() {
         "pty: RMS of f_e(run 2) - f_e(run 1): {d:.4} N over {n} ticks, {d100:.4} N over the first 100"
     );
 }
+
+/// A sample the board sent before it took the handshake's Config (the last run's end, buffered by the
+/// pty or the serial port while no host listened) is never the new run's first: the host forgets what
+/// came before the handshake's echo. Scripted on an in-memory link, where the new sample is late.
+#[test]
+fn a_sample_from_before_the_handshake_is_not_the_runs_first() {
+    use pneuflex_rig::emulator::MemLink;
+    use pneuflex_rig::protocol::{MAX_FRAME, Message, SamplePayload, encode};
+    use pneuflex_rig::rig::Rig;
+
+    let rig = rig();
+    let (host, mut board) = MemLink::pair();
+    let send = |board: &mut MemLink, seq: u8, msg: Message| {
+        let mut buf = [0u8; MAX_FRAME];
+        let n = encode(seq, &msg, &mut buf);
+        board.write_all_bytes(&buf[..n]).unwrap();
+    };
+    let sample = |position: u16| {
+        Message::Sample(SamplePayload {
+            position,
+            ..SamplePayload::default()
+        })
+    };
+    // Where the last run left the piston, then the echo of the handshake's heartbeat (the board's first
+    // reply after the Config), and no new sample yet.
+    send(&mut board, 0, sample(1500));
+    send(&mut board, 1, Message::Heartbeat(0xC0DE_0001));
+    let mut clock = SimClock::new();
+    let mut serial = serial::connect_link(host, &rig, &mut clock).expect("the handshake succeeds");
+    let first = serial.read(0.0).expect("reads");
+    assert!(
+        first.is_none(),
+        "the stale sample (position 1500 counts) was taken as the run's first: {first:?}"
+    );
+    send(&mut board, 2, sample(7));
+    let first = serial.read(0.001).expect("reads").expect("the new sample");
+    assert_eq!(first.raw.position, 7);
+    assert_eq!(serial.take_sampled().map(|s| s.raw.position), Some(7));
+    assert!(
+        serial.take_sampled().is_none(),
+        "the record starts with the run"
+    );
+}
