@@ -49,15 +49,23 @@ pub fn emulate(
         ),
     }
     let start = Instant::now();
+    let mut runs = 0;
     while !stop.load(Ordering::Relaxed)
         && !handle.is_finished()
         && duration_s.is_none_or(|d| start.elapsed().as_secs_f64() < d)
     {
         std::thread::sleep(Duration::from_millis(20));
+        // Each host connection (its Config) starts a run from the rig file's initial state.
+        let now = handle.runs();
+        if now > runs {
+            runs = now;
+            outln!("run {runs}: a host connected; the plant starts from its initial state");
+        }
     }
     let log = handle.stop();
     outln!(
-        "emulator stopped: {} samples sent, {} valve commands received, {} board-watchdog trips{}",
+        "emulator stopped: {} runs, {} samples sent, {} valve commands received, {} board-watchdog trips{}",
+        log.runs,
         log.samples_sent,
         log.commands.len(),
         log.board_watchdog_trips,

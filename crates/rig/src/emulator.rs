@@ -148,6 +148,11 @@ impl EmulatorHandle {
         self.log.lock().map(|l| l.clone()).unwrap_or_default()
     }
 
+    /// Runs started so far (host connections), without copying the log.
+    pub fn runs(&self) -> u64 {
+        self.log.lock().map_or(0, |l| l.runs)
+    }
+
     /// Whether the emulator thread has finished.
     pub fn is_finished(&self) -> bool {
         self.thread.as_ref().is_none_or(|t| t.is_finished())
