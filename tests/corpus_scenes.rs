@@ -1,82 +1,13 @@
 //! Hostile inputs to `pneuflex run`, one test per class, written from the scene contracts in docs/scenes.md
 //! and docs/multibody.md: a several-actuator scene is held to the one-actuator scene's checks (a blown-up run
-//! stops as diverged, every inner step counts against `--max-steps`, `--format` is obeyed, a signal stops
-//! it), and a controller gain that only makes an on/off switch is refused by file, line and key.
+//! stops as diverged, every inner step counts against `--max-steps`, `--format` is obeyed; the first signal
+//! stopping it is `cli_mechanism.rs`' SIGINT test), a command that takes one actuator refuses such a scene
+//! with the reason, and a controller gain that only makes an on/off switch is refused by file, line and key.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
 
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// What a command did.
-struct Ran {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-impl Ran {
-    /// Asserts a refusal (non-zero exit, no panic) whose message names every one of `words`.
-    fn refused(&self, words: &[&str]) {
-        assert!(
-            self.code.is_some_and(|c| c != 0),
-            "accepted:\n{}\n{}",
-            self.stdout,
-            self.stderr
-        );
-        for w in words {
-            assert!(
-                self.stderr.contains(w),
-                "the message does not name `{w}`:\n{}",
-                self.stderr
-            );
-        }
-    }
-}
-
-/// The deadline of one command: generous, for a loaded machine; a command past it hangs.
-const DEADLINE: Duration = Duration::from_secs(300);
-
-fn finish(mut child: std::process::Child, what: &str) -> Ran {
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > DEADLINE {
-            let _ = child.kill();
-            panic!("HANG: `{what}` still running after {DEADLINE:?}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let o: Output = child.wait_with_output().unwrap();
-    let ran = Ran {
-        code: o.status.code(),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-    };
-    assert!(
-        !ran.stderr.contains("panicked"),
-        "PANIC in `{what}`:\n{}",
-        ran.stderr
-    );
-    ran
-}
-
-fn spawn(args: &[&str], cwd: &Path) -> std::process::Child {
-    Command::new(env!("CARGO_BIN_EXE_pneuflex"))
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("runs")
-}
-
-fn run(args: &[&str], cwd: &Path) -> Ran {
-    finish(spawn(args, cwd), &args.join(" "))
-}
+mod common;
+use common::{repo, run, s};
 
 /// A copy of the shipped scene `name` in `dir` with `edit` applied to its text (each pair replaces the
 /// first occurrence of the left by the right, which must be there), its relative paths pointing back
@@ -96,10 +27,6 @@ fn scene_copy(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     path
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 /// The summary.json of a finished output directory.

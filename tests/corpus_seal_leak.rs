@@ -7,103 +7,12 @@
 //! Every command runs under a generous deadline: past it the test fails as a hang. No test measures time.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
+mod common;
+use common::{Ran, repo, run, s};
 
 fn data(rel: &str) -> PathBuf {
     repo().join("data/zillen-2021-printed-cylinder").join(rel)
-}
-
-/// What a command did; a panic or a hang fails the test here.
-struct Ran {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-impl Ran {
-    /// A refusal: a non-zero exit, nothing on stdout as if done, a message naming every one of `words`.
-    fn refused(&self, words: &[&str]) {
-        assert!(
-            self.code.is_some_and(|c| c != 0),
-            "accepted ({:?}):\n{}\n{}",
-            self.code,
-            self.stdout,
-            self.stderr
-        );
-        assert!(
-            self.stdout.trim().is_empty(),
-            "a refusal printed a result:\n{}",
-            self.stdout
-        );
-        for w in words {
-            assert!(
-                self.stderr.contains(w),
-                "the message does not name `{w}`:\n{}",
-                self.stderr
-            );
-        }
-    }
-
-    fn accepted(&self) {
-        assert_eq!(self.code, Some(0), "{}", self.stderr);
-    }
-}
-
-/// A command past this is a hang (generous, for a loaded machine).
-const DEADLINE: Duration = Duration::from_secs(300);
-
-fn run(args: &[&str], cwd: &Path) -> Ran {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pneuflex"))
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Drain the pipes on threads so that a large output cannot block the child.
-    let mut out = child.stdout.take().unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let o = std::thread::spawn(move || {
-        let mut s = String::new();
-        std::io::Read::read_to_string(&mut out, &mut s).unwrap();
-        s
-    });
-    let e = std::thread::spawn(move || {
-        let mut s = String::new();
-        std::io::Read::read_to_string(&mut err, &mut s).unwrap();
-        s
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > DEADLINE {
-            let _ = child.kill();
-            panic!(
-                "HANG: pneuflex {} still running after {DEADLINE:?}",
-                args.join(" ")
-            );
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let ran = Ran {
-        code: status.code(),
-        stdout: o.join().unwrap(),
-        stderr: e.join().unwrap(),
-    };
-    assert!(!ran.stderr.contains("panicked"), "PANIC: {}", ran.stderr);
-    ran
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 /// A folder with the shipped friction tests, `edit` applied to the whitespace-separated rows of `file`
