@@ -120,7 +120,7 @@ pub fn choose(
         ));
     }
     let mut note = format!(
-        "kp = {kp_margin} /m keeps {TARGET_GAIN_MARGIN_DB} dB of gain margin at every stiffness (`pneuflex tf scene.toml --loop`)"
+        "kp = {kp_margin} /m keeps {TARGET_GAIN_MARGIN_DB} dB of gain margin at every stiffness (`tf --loop` on the scene)"
     );
     // Below the describing-function onset.
     let scene = load(&write(&g)?)?;

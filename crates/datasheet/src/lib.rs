@@ -382,8 +382,11 @@ impl Report {
             s,
             "\n## Next\n\n```sh\npneuflex run {dir}/scene.toml            # the experiment, out/{}/\n\
              pneuflex tf {dir}/scene.toml --loop      # the loop's margins at each stiffness\n\
-             pneuflex rig emulate {dir}/rig.toml      # an emulated rig (blocks: a second terminal for rig run)\n```\n\n\
+             pneuflex rig emulate --rig {dir}/rig.toml    # an emulated rig (blocks: rig run connects from a second terminal)\n\
+             pneuflex rig run --rig {dir}/rig.toml --scene {dir}/scene.toml --lockstep-truth {dir}/pneumatics/actuator.toml\n\
+             # ^ the scene's first run on the emulated rig in lockstep, without a second terminal: out/rig/{}/\n```\n\n\
              docs/your-rig.md walks through the rest (rig run, compare, identify).",
+            d.name,
             d.name
         );
         s

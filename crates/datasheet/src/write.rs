@@ -345,8 +345,11 @@ fn rig(d: &Design) -> String {
         qr = q * 1e-6,
     );
     format!(
-        "# {name}: the rig file for `pneuflex rig run` and `pneuflex rig emulate` (docs/rig.md), written by\n\
-         # `pneuflex new rig`. Calibration: the position sensor's 0-10 V through a 10 V -> 3.2 V divider into a 12-bit\n\
+        "# {name}: the rig file for rig run and rig emulate (docs/rig.md), written by new rig. From this folder:\n\
+         #   `pneuflex rig emulate --rig rig.toml` emulates the rig (blocks: rig run connects from a second terminal);\n\
+         #   `pneuflex rig run --rig rig.toml --scene scene.toml --lockstep-truth pneumatics/actuator.toml` runs the\n\
+         #   scene's first run on it in lockstep, without a second terminal (out/rig/{name}/).\n\
+         # Calibration: the position sensor's 0-10 V through a 10 V -> 3.2 V divider into a 12-bit\n\
          # 3.3 V ADC; 4-20 mA transmitters across 150 Ω shunts; a load cell on a 24-bit bridge ADC. Edit the\n\
          # [link] port and the calibration to your board.\n\
          name = \"{name}\"\n\n\
@@ -396,7 +399,7 @@ fn rig(d: &Design) -> String {
          [valve]\n\
          model = \"{valve}\"\n\
          safe_state = \"vent\"\n\n\
-         # The emulated rig (`pneuflex rig emulate rig.toml`): this actuator pushing the scene's environment.\n\
+         # The emulated rig (`pneuflex rig emulate --rig rig.toml`): this actuator pushing the scene's environment.\n\
          [emulator]\n\
          sample_rate_hz = 1000.0\n\
          plant_dt_s = 0.0001\n\
