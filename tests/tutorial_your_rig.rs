@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{finish, repo, run, spawn, Ran};
+use common::{Ran, finish, repo, run, spawn};
 use std::collections::HashMap;
 use std::io::BufRead;
 use std::path::Path;

@@ -386,8 +386,7 @@ impl Report {
              pneuflex rig run --rig {dir}/rig.toml --scene {dir}/scene.toml --lockstep-truth {dir}/pneumatics/actuator.toml\n\
              # ^ the scene's first run on the emulated rig in lockstep, without a second terminal: out/rig/{}/\n```\n\n\
              docs/your-rig.md walks through the rest (rig run, compare, identify).",
-            d.name,
-            d.name
+            d.name, d.name
         );
         s
     }
