@@ -223,7 +223,8 @@ fn printed_line(expected: &str, printed: &str) -> bool {
 /// A blocking `rig emulate` started in `cwd`, with the pseudo-terminal it serves; its later output is gathered
 /// on a thread.
 struct Emulator {
-    child: Child,
+    /// None once stopped.
+    child: Option<Child>,
     pts: String,
     /// What it printed up to its terminal.
     head: String,
@@ -253,7 +254,7 @@ fn start_emulator(args: &[String], cwd: &Path, what: &str) -> Emulator {
                 .take_while(|c| !c.is_whitespace() && *c != ')')
                 .collect();
             return Emulator {
-                child,
+                child: Some(child),
                 pts,
                 head: seen,
                 lines: rx,
@@ -265,14 +266,27 @@ fn start_emulator(args: &[String], cwd: &Path, what: &str) -> Emulator {
     panic!("{what}: printed no pseudo-terminal:\n{seen}{}", ran.stderr);
 }
 
+/// A test that fails between starting and stopping an emulator leaves none running.
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        if let Some(c) = self.child.as_mut() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
 /// Stops the emulator as Ctrl-C does; its whole output.
-fn stop_emulator(e: Emulator, what: &str) -> String {
+fn stop_emulator(mut e: Emulator, what: &str) -> String {
+    let mut child = e.child.take().unwrap();
     let status = std::process::Command::new("kill")
-        .args(["-INT", &e.child.id().to_string()])
+        .args(["-INT", &child.id().to_string()])
         .status()
         .expect("kill runs");
-    assert!(status.success());
-    let mut child = e.child;
+    if !status.success() {
+        let _ = child.kill();
+        panic!("{what}: kill -INT failed");
+    }
     let mut err = child.stderr.take().unwrap();
     let err = std::thread::spawn(move || {
         let mut s = String::new();
@@ -294,7 +308,7 @@ fn stop_emulator(e: Emulator, what: &str) -> String {
     assert!(!err.contains("panicked"), "PANIC in {what}:\n{err}");
     assert_eq!(status.code(), Some(0), "{what} after Ctrl-C: {err}");
     // The reading thread ends at the pipe's end, after the child.
-    let mut out = e.head;
+    let mut out = std::mem::take(&mut e.head);
     for l in e.lines.iter() {
         out.push_str(&l);
         out.push('\n');
