@@ -211,7 +211,28 @@ pub fn run_scene(
                 }
             }
         };
-        judge_recording(dir, &scene, index, end, pwm_period_s, figures).map_err(|e| e.to_string())
+        let judged = judge_recording(dir, &scene, index, end, pwm_period_s, figures)
+            .map_err(|e| e.to_string())?;
+        // The host's timing, said apart from the plant's verdict (summary.json `rig`).
+        if let Some(rig) = &judged.rig {
+            match &rig.host_stalls {
+                Some(s) if s.count > 0 => errln!(
+                    "host: {} stalls of the loop (a tick starting over half a period late), the longest \
+                     {:.1} ms at t = {:.3} s; {} ticks late",
+                    s.count,
+                    1e3 * s.longest_s,
+                    s.longest.first().map_or(0.0, |l| l.at_s),
+                    s.late_ticks
+                ),
+                Some(_) => errln!("host: no stalls of the loop"),
+                None => {}
+            }
+            errln!("judged on {}", rig.note);
+        }
+        for v in &judged.host_verdicts {
+            errln!("note: {v}");
+        }
+        Ok(())
     };
     if let Some((truth, seed)) = lockstep {
         if rerun.is_some() {

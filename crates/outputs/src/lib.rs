@@ -322,11 +322,23 @@ pub enum RecordingEnd {
     Interrupted(String),
 }
 
+/// What [`judge_recording`] found beside the windows: which record they were judged on, the host's stalls,
+/// and where the host's own columns would have judged the plant otherwise (for the command to say).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RecordingJudged {
+    /// The record and the stalls, as `summary.json` `rig` has them (None: the trace has neither).
+    pub rig: Option<pneuflex_scene::analysis::recorded::RigRecord>,
+    /// Windows the loop's own columns judge otherwise than the board's record, one line each.
+    pub host_verdicts: Vec<String>,
+}
+
 /// A recording of run `index` of `scene` (its `trace.csv` in `dir`, the rig's columns) judged as `run`
 /// judges a simulated run, from the same code: `summary.json` with the windows' metrics, the Lyapunov
 /// check and the warnings (the claims are left out: they compare two runs), and for a complete recording
-/// the figures (in `figures`' format). On an error the files it wrote are removed again, so the recording
-/// stays as it was.
+/// the figures (in `figures`' format). The windows are judged on the board's own record (its samples on
+/// its clock) when the trace has one, so that the host's stalls are not read as the plant's motion; the
+/// stalls are counted in `summary.json` `rig`. On an error the files it wrote are removed again, so the
+/// recording stays as it was.
 pub fn judge_recording(
     dir: &Path,
     scene: &Scene,
@@ -334,9 +346,10 @@ pub fn judge_recording(
     end: RecordingEnd,
     pwm_period_s: Option<f64>,
     figures: pneuflex_viz::Format,
-) -> Result<(), OutputsError> {
+) -> Result<RecordingJudged, OutputsError> {
+    use pneuflex_scene::analysis::recorded::{self, RigRecord};
     let before: Vec<_> = list(dir)?;
-    let written = (|| -> Result<(), OutputsError> {
+    let written = (|| -> Result<RecordingJudged, OutputsError> {
         let path = dir.join("trace.csv");
         let unreadable = |message: String| OutputsError::Recording {
             path: path.clone(),
@@ -347,6 +360,12 @@ pub fn judge_recording(
         let trace =
             pneuflex_scene::Trace::from_csv(&text, &pneuflex_files::output::RIG_TRACE_COLUMNS)
                 .map_err(unreadable)?;
+        let rig_columns = recorded::rig_columns(&text).map_err(unreadable)?;
+        let stalls = rig_columns
+            .wall_time
+            .as_ref()
+            .and_then(|w| recorded::host_stalls(trace.t(), w, scene.dt_s));
+        let on_board = recorded::on_board_grid(&trace, &rig_columns.board, scene.dt_s);
         // N ticks cover N·dt (the last one's time + dt): a full-length recording keeps its last window.
         let one = scene.one_run(index, trace.t().last().map_or(0.0, |t| t + scene.dt_s));
         let (fault, interrupted) = match end {
@@ -366,10 +385,41 @@ pub fn judge_recording(
         if interrupted.is_some() {
             r.interrupted = r.diverged.take();
         }
+        let mut judged = RecordingJudged::default();
+        let has_record = rig_columns.wall_time.is_some() || !rig_columns.board.is_empty();
+        let (judged_on, note) = match on_board {
+            Ok((board, note)) => {
+                // The windows on the board's record; the loop's columns stay the trace (the figures, what
+                // the controller saw). Where the two verdicts differ, the difference is the host's.
+                if r.diverged.is_none() && r.interrupted.is_none() {
+                    let on_board = pneuflex_scene::analysis::windows::compute_windows(
+                        &one,
+                        &board,
+                        pwm_period_s,
+                    );
+                    let on_host = std::mem::replace(&mut r.windows, on_board);
+                    judged.host_verdicts = host_verdicts(&on_host, &r.windows, stalls.as_ref());
+                    r.warnings.extend(judged.host_verdicts.iter().cloned());
+                }
+                ("board", note)
+            }
+            Err(why) => (
+                "host",
+                format!("the loop's columns (the newest sample at each tick): {why}"),
+            ),
+        };
+        if has_record {
+            judged.rig = Some(RigRecord {
+                judged_on,
+                note,
+                host_stalls: stalls,
+            });
+        }
         let results = std::slice::from_ref(&r);
         let mut summary = pneuflex_scene::summary(&one, results);
         // The recording's trace is the rig's own, beside summary.json.
         summary.runs[0].trace = "trace.csv".into();
+        summary.rig = judged.rig.clone();
         let path = dir.join("summary.json");
         let text = serde_json::to_string_pretty(&summary)
             .map_err(|e| write_error(&path, std::io::Error::other(e)))?;
@@ -377,7 +427,7 @@ pub fn judge_recording(
         if r.diverged.is_none() && r.interrupted.is_none() {
             pneuflex_viz::write_figures(dir, &one, results, figures)?;
         }
-        Ok(())
+        Ok(judged)
     })();
     if written.is_err() {
         for name in list(dir)? {
@@ -392,6 +442,48 @@ pub fn judge_recording(
         }
     }
     written
+}
+
+/// One line for each event window whose verdict (settled, oscillating) on the loop's own columns differs from
+/// the board's record's: what the host's columns read, and that it is the host's timing.
+fn host_verdicts(
+    on_host: &[pneuflex_scene::run::result::WindowMetrics],
+    on_board: &[pneuflex_scene::run::result::WindowMetrics],
+    stalls: Option<&pneuflex_scene::analysis::recorded::HostStalls>,
+) -> Vec<String> {
+    let verdict = |e: &pneuflex_scene::analysis::metrics::EventResponse| match (
+        e.settling_time_s,
+        &e.not_settled,
+    ) {
+        (Some(ts), _) => format!("settled in {ts:.3} s"),
+        (None, Some(why)) => format!("not settled: {why}"),
+        (None, None) => "not settled".to_string(),
+    };
+    let why = match stalls {
+        Some(s) if s.count > 0 => format!(
+            "the host loop's {} stalls (the longest {:.1} ms), not the plant",
+            s.count,
+            1e3 * s.longest_s
+        ),
+        _ => "the host's reading of the samples (late, repeated or skipped), not the plant".into(),
+    };
+    on_host
+        .iter()
+        .zip(on_board)
+        .filter_map(|(h, b)| match (&h.event, &b.event) {
+            (Some(he), Some(be)) if he.settled != be.settled
+                || he.oscillation.is_some() != be.oscillation.is_some() => {
+                Some(format!(
+                    "window `{}`: judged on the board's record: {}; the loop's own columns read {}: that is \
+                     {why}",
+                    b.name,
+                    verdict(be),
+                    verdict(he)
+                ))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 fn list(dir: &Path) -> Result<Vec<std::ffi::OsString>, OutputsError> {

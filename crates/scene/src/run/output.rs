@@ -58,6 +58,9 @@ pub struct Summary {
     /// The scene's claims, each with the two values and whether it holds.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub claims: Vec<crate::analysis::claims::ClaimResult>,
+    /// A rig recording's records: which one the windows were judged on, and the host loop's stalls.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rig: Option<crate::analysis::recorded::RigRecord>,
 }
 
 /// One run in summary.json.
@@ -173,6 +176,7 @@ pub fn summary(scene: &Scene, results: &[RunResult]) -> Summary {
             })
             .collect(),
         claims: crate::analysis::claims::check_all(scene, results),
+        rig: None,
     }
 }
 
