@@ -227,7 +227,9 @@ pub fn run_scene(
                 Some(_) => errln!("host: no stalls of the loop"),
                 None => {}
             }
-            errln!("judged on {}", rig.note);
+            if judged.windows_judged {
+                errln!("judged on {}", rig.note);
+            }
         }
         for v in &judged.host_verdicts {
             errln!("note: {v}");

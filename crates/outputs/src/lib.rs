@@ -330,6 +330,8 @@ pub struct RecordingJudged {
     pub rig: Option<pneuflex_scene::analysis::recorded::RigRecord>,
     /// Windows the loop's own columns judge otherwise than the board's record, one line each.
     pub host_verdicts: Vec<String>,
+    /// Whether the windows were judged (not after a fault or a signal).
+    pub windows_judged: bool,
 }
 
 /// A recording of run `index` of `scene` (its `trace.csv` in `dir`, the rig's columns) judged as `run`
@@ -385,13 +387,16 @@ pub fn judge_recording(
         if interrupted.is_some() {
             r.interrupted = r.diverged.take();
         }
-        let mut judged = RecordingJudged::default();
+        let mut judged = RecordingJudged {
+            windows_judged: r.diverged.is_none() && r.interrupted.is_none(),
+            ..RecordingJudged::default()
+        };
         let has_record = rig_columns.wall_time.is_some() || !rig_columns.board.is_empty();
         let (judged_on, note) = match on_board {
             Ok((board, note)) => {
                 // The windows on the board's record; the loop's columns stay the trace (the figures, what
                 // the controller saw). Where the two verdicts differ, the difference is the host's.
-                if r.diverged.is_none() && r.interrupted.is_none() {
+                if judged.windows_judged {
                     let on_board = pneuflex_scene::analysis::windows::compute_windows(
                         &one,
                         &board,

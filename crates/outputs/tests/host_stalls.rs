@@ -213,3 +213,161 @@ fn a_plant_that_oscillates_on_the_boards_record_is_judged_oscillating() {
         judged.host_verdicts
     );
 }
+
+/// Sets the cell of `column` on data row `k` of `dir/trace.csv` to `value`; returns the file's line number.
+fn edit_cell(dir: &Path, k: usize, column: &str, value: &str) -> usize {
+    let path = dir.join("trace.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let j = lines[1].split(',').position(|c| c == column).unwrap();
+    // Line 1 is the comment, line 2 the header: row k is line k + 3, index k + 2.
+    let mut cells: Vec<String> = lines[k + 2].split(',').map(String::from).collect();
+    cells[j] = value.into();
+    lines[k + 2] = cells.join(",");
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    k + 3
+}
+
+#[test]
+fn sample_periods_missing_from_the_boards_record_are_counted_and_bridged() {
+    let scene = scene();
+    let sim = simulated(&scene);
+    let sim_event = sim.windows.iter().find_map(|w| w.event.clone()).unwrap();
+    let mut rec = Recording::clean(&sim);
+    for k in [1500, 7001, 7002, 8500] {
+        rec.board_f_e[k] = None;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    rec.write(&sim, dir.path());
+    let judged = judge(dir.path(), &scene, &sim);
+    assert!(judged.windows_judged);
+    let s = summary(dir.path());
+    assert_eq!(s["rig"]["judged_on"], "board");
+    let note = s["rig"]["note"].as_str().unwrap();
+    assert!(
+        note.contains(&format!("{} sample periods", sim.trace.len()))
+            && note.contains("4 missing from it"),
+        "{note}"
+    );
+    let e = event(&s);
+    assert_eq!(e["settled"], true, "{e}");
+    let ts = e["settling_time_s"].as_f64().unwrap();
+    assert!(
+        (ts - sim_event.settling_time_s.unwrap()).abs() < 0.01,
+        "{ts}"
+    );
+}
+
+#[test]
+fn a_board_record_off_the_loops_grid_is_not_used_and_the_summary_says_why() {
+    let scene = scene();
+    let sim = simulated(&scene);
+    let sim_event = sim.windows.iter().find_map(|w| w.event.clone()).unwrap();
+    // Each spoils the record before it is written, or the file after; returns what the note must say.
+    type Spoil = fn(&mut Recording) -> String;
+    type SpoilFile = fn(&Path) -> String;
+    let cases: [(&str, Option<Spoil>, Option<SpoilFile>); 4] = [
+        (
+            "a clock that goes back",
+            None,
+            Some(|dir| {
+                let line = edit_cell(dir, 5000, "board_t", "0.200000");
+                format!("line {line}: `board_t` 0.2 does not follow")
+            }),
+        ),
+        (
+            "another sample period",
+            Some(|rec| {
+                for (k, t) in rec.board_t.iter_mut().enumerate() {
+                    *t = BOARD_T0 + 2.0 * k as f64 * DT;
+                }
+                "the board samples every 0.002 s and the loop runs every 0.001 s".into()
+            }),
+            None,
+        ),
+        (
+            "a sample between two periods",
+            None,
+            Some(|dir| {
+                // Row 5000's sample at 5000.5 periods.
+                let t = format!("{:.6}", BOARD_T0 + 5.0005);
+                let line = edit_cell(dir, 5000, "board_t", &t);
+                format!(
+                    "line {line}: `board_t` 5.1235 is 0.50 periods off the board's 0.001 s grid"
+                )
+            }),
+        ),
+        (
+            "no record at all",
+            Some(|rec| {
+                rec.board_f_e.iter_mut().for_each(|f| *f = None);
+                "the trace holds no board record".into()
+            }),
+            None,
+        ),
+    ];
+    for (what, spoil, spoil_file) in cases {
+        let mut rec = Recording::clean(&sim);
+        let dir = tempfile::tempdir().unwrap();
+        let mut why = spoil.map(|f| f(&mut rec)).unwrap_or_default();
+        rec.write(&sim, dir.path());
+        if let Some(f) = spoil_file {
+            why = f(dir.path());
+        }
+        judge(dir.path(), &scene, &sim);
+        let s = summary(dir.path());
+        assert_eq!(s["rig"]["judged_on"], "host", "{what}");
+        let note = s["rig"]["note"].as_str().unwrap();
+        assert!(
+            note.starts_with("the loop's columns") && note.contains(&why),
+            "{what}: {note}\nwanted: {why}"
+        );
+        // Judged as before on the loop's columns (here the simulation's own), the stalls still counted.
+        let e = event(&s);
+        assert_eq!(
+            e["settling_time_s"].as_f64(),
+            sim_event.settling_time_s,
+            "{what}"
+        );
+        assert_eq!(s["rig"]["host_stalls"]["count"], 0, "{what}");
+    }
+}
+
+#[test]
+fn a_rig_column_that_is_not_a_number_names_the_line_and_leaves_the_recording_as_it_was() {
+    let scene = scene();
+    let sim = simulated(&scene);
+    for (column, value) in [
+        ("board_t", "12abc"),
+        ("board_f_e", "nan?"),
+        ("wall_time", "yesterday"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        Recording::clean(&sim).write(&sim, dir.path());
+        let line = edit_cell(dir.path(), 4321, column, value);
+        let before = std::fs::read(dir.path().join("trace.csv")).unwrap();
+        let e = judge_recording(
+            dir.path(),
+            &scene,
+            0,
+            RecordingEnd::Complete,
+            sim.pwm_period_s,
+            Format::Png,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("trace.csv")
+                && e.contains(&format!(
+                    "line {line}: column `{column}`: `{value}` is not a number"
+                )),
+            "{e}"
+        );
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, ["trace.csv"], "{column}");
+        assert_eq!(std::fs::read(dir.path().join("trace.csv")).unwrap(), before);
+    }
+}

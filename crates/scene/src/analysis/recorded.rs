@@ -216,6 +216,8 @@ pub fn on_board_grid(
     steps.sort_by(f64::total_cmp);
     let period = steps[steps.len() / 2];
     if (period - dt).abs() > 0.01 * dt {
+        // The board counts whole µs.
+        let period = (period * 1e6).round() / 1e6;
         return Err(format!(
             "the board samples every {period} s and the loop runs every {dt} s: its record is not on the \
              loop's grid"
@@ -231,7 +233,7 @@ pub fn on_board_grid(
                 "line {}: `board_t` {} is {:.2} periods off the board's {dt} s grid",
                 s.line,
                 s.t,
-                j - j.round()
+                (j - j.round()).abs()
             ));
         }
         let j = j.round() as usize;
