@@ -119,6 +119,13 @@ fn the_shipped_measurements_stay_accepted_with_their_figures_by_folder_or_by_lis
         .map(|c| c["chamber"].as_str().unwrap())
         .collect();
     assert_eq!(names, ["aluminium", "prusa", "ultimaker_010"]);
+    // Filled to ~7.3 bar and losing ~1 %: choked throughout, every row fitted, none left out.
+    for c in leak["chambers"].as_array().unwrap() {
+        assert_eq!(c["regime"], "choked", "{c}");
+        assert_eq!(c["fitted"]["first_line"], 1, "{c}");
+        assert_eq!(c["fitted"]["rows"], c["rows"], "{c}");
+        assert!(c["left_out"].is_null() && c["subsonic"].is_null(), "{c}");
+    }
 }
 
 #[test]
@@ -452,18 +459,25 @@ fn leak_conditions_no_bench_has_are_refused_naming_the_option() {
         ("--atmosphere-pa", "1.01325", "absolute"),
         ("--atmosphere-pa", "8e5", "absolute"),
         ("--max-pressure-bar", "-1", "full scale"),
+        ("--critical-pressure-ratio", "0", "(0, 0.528]"),
+        ("--critical-pressure-ratio", "-0.3", "(0, 0.528]"),
+        ("--critical-pressure-ratio", "0.9", "(0, 0.528]"),
+        ("--critical-pressure-ratio", "5e5", "not a pressure"),
+        ("--critical-pressure-ratio", "nan", "(0, 0.528]"),
     ] {
         run(&["leak", "--log", s(&prusa), option, value], d.path()).refused(&[option, word]);
     }
-    // A decay down to where the flow is no longer choked: the choked law does not hold there.
-    let low = leak_copy(d.path(), "low.csv", "prusa", |_, f| {
-        f[2] = format!("{:.3}", f[2].parse::<f64>().unwrap() - 7.3);
-    });
-    run(&["leak", "--log", s(&low)], d.path()).refused(&[
-        "low.csv:1",
-        "pressure_bar",
-        "not choked",
-    ]);
+    // A chamber at atmosphere (or below it) from its first row: no decay of a filled chamber to fit.
+    for (name, bar) in [("open.csv", 0.0), ("vacuum.csv", -0.6)] {
+        let l = leak_copy(d.path(), name, "prusa", |i, f| {
+            f[2] = format!("{:.3}", bar + 0.002 * (i % 2) as f64);
+        });
+        run(&["leak", "--log", s(&l)], d.path()).refused(&[
+            &format!("{name}:1"),
+            "pressure_bar",
+            "reads atmosphere",
+        ]);
+    }
     // A chamber that holds its pressure to the sensor's noise: no leak to rank (its C/V would be noise).
     let flat = leak_copy(d.path(), "flat.csv", "prusa", |i, f| {
         f[2] = if i % 2 == 0 { "7.500" } else { "7.502" }.into();
@@ -635,5 +649,92 @@ fn tune_free_with_an_absurd_box_is_refused_naming_the_option() {
         )
         .refused(&["--free", "runs[adaptive].inner.kp_per_m", "1e12"]);
         assert!(!out.exists(), "a refused tune left {}", out.display());
+    }
+}
+
+/// An isothermal chamber emptying through an ISO 6358 leak of `c_per_v` (1/(s Pa)) and critical ratio
+/// `b` from `p0` Pa abs, integrated by RK4 with the valve's flow law, logged every 0.1 s in the Zillen
+/// format with a reproducible +-`noise` Pa pattern.
+fn emptying_log(path: &Path, c_per_v: f64, b: f64, p0: f64, rows: usize, noise: f64) {
+    let (pa, t, r) = (
+        pneuflex_pneumatics::P_ATM,
+        293.15,
+        pneuflex_pneumatics::R_AIR,
+    );
+    let leak = pneuflex_pneumatics::Orifice {
+        sonic_conductance_m3_per_s_pa: c_per_v,
+        critical_pressure_ratio: b,
+    };
+    // Per unit volume: m' = -q(p), p = m R T.
+    let out = |m: f64| leak.mass_flow(1.0, m * r * t, t, pa, t).0;
+    let (mut m, h) = (p0 / (r * t), 1e-3);
+    let mut text = String::new();
+    for i in 0..rows {
+        let ms = i * 100;
+        let stamp = if ms >= 1000 {
+            format!("{}.{:03}.000", ms / 1000, ms % 1000)
+        } else {
+            format!("{ms}.000")
+        };
+        let n = noise * [0.3, -0.8, 1.0, -0.5, 0.1, -0.1][i % 6];
+        let bar = (m * r * t - pa + n) / 1e5;
+        text += &format!("{stamp};{:.3};{bar:.5}\r\n", bar / 2.0);
+        for _ in 0..100 {
+            let k1 = -out(m);
+            let k2 = -out(m + 0.5 * h * k1);
+            let k3 = -out(m + 0.5 * h * k2);
+            let k4 = -out(m + h * k3);
+            m += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+        }
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn a_chamber_emptying_to_atmosphere_is_fitted_through_both_regimes_and_says_which_rows() {
+    // Issue 44: a chamber that empties to atmosphere was refused (or fitted as choked throughout, the
+    // misfit put down to thermal drift). 8.3 bar abs to atmosphere within 2 minutes, the rest at 0.
+    let d = tempfile::tempdir().unwrap();
+    let (empty, tight) = (d.path().join("empty.csv"), d.path().join("tight.csv"));
+    emptying_log(&empty, 2e-7, 0.528, 8.3e5, 1500, 150.0);
+    emptying_log(&tight, 2e-9, 0.528, 8.3e5, 1500, 150.0);
+    let ran = run(
+        &["leak", "--json", "--log", s(&empty), "--log", s(&tight)],
+        d.path(),
+    );
+    ran.accepted();
+    let v = json(&ran);
+    let chambers = v["chambers"].as_array().unwrap();
+    let (tight, empty) = (&chambers[0], &chambers[1]);
+    for (c, truth) in [(empty, 2e-7), (tight, 2e-9)] {
+        let cv = c["conductance_per_volume"].as_f64().unwrap();
+        assert!((cv / truth - 1.0).abs() < 0.01, "C/V {cv} vs {truth}: {c}");
+        assert_eq!(c["adequate"], true, "{c}");
+    }
+    assert_eq!(tight["regime"], "choked", "{tight}");
+    assert_eq!(empty["regime"], "choked_then_subsonic", "{empty}");
+    let (choked, subsonic, out) = (&empty["choked"], &empty["subsonic"], &empty["left_out"]);
+    assert_eq!(choked["first_line"], 1);
+    assert_eq!(
+        subsonic["first_line"].as_u64().unwrap(),
+        choked["last_line"].as_u64().unwrap() + 1
+    );
+    assert_eq!(
+        out["first_line"].as_u64().unwrap(),
+        subsonic["last_line"].as_u64().unwrap() + 1
+    );
+    assert_eq!(out["last_line"], 1500);
+    let verdict = empty["verdict"].as_str().unwrap();
+    assert!(!verdict.contains("thermal drift"), "{verdict}");
+    // The text says the same: which lines, in which regime, and what was left out and why.
+    let text = run(&["leak", "--log", s(&d.path().join("empty.csv"))], d.path());
+    text.accepted();
+    for w in [
+        "choked, then subsonic",
+        &format!("subsonic lines {}-", subsonic["first_line"]),
+        &format!("left out lines {}-1500", out["first_line"]),
+        "reads atmosphere",
+    ] {
+        assert!(text.stdout.contains(w), "`{w}` not in:\n{}", text.stdout);
     }
 }

@@ -108,8 +108,9 @@ pub struct Seal {
     pub json: bool,
 }
 
-/// Fit a choked ISO 6358 leak, as a conductance per volume, to closed-chamber pressure-decay logs
-/// (';'-separated, time in ms with '.' as the thousands separator) and rank the chambers.
+/// Fit an ISO 6358 leak (choked, and subsonic as the chamber nears atmosphere), as a conductance per
+/// volume, to closed-chamber pressure-decay logs (';'-separated, time in ms with '.' as the thousands
+/// separator) and rank the chambers.
 #[derive(Args)]
 pub struct Leak {
     /// Decay logs; repeat for several chambers.
@@ -129,6 +130,15 @@ pub struct Leak {
         default_value_t = 16.0
     )]
     pub max_pressure_bar: f64,
+    /// The leak's critical pressure ratio b (ISO 6358), in (0, 0.528]: where the flow out turns subsonic
+    /// (p_atm / p above b). Assumed, not identified.
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "B",
+        default_value_t = pneuflex_identify::leak::CHOKED_RATIO_MAX
+    )]
+    pub critical_pressure_ratio: f64,
     /// Print JSON (SI units) instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -193,6 +203,7 @@ impl Leak {
             &pneuflex_identify::leak::LeakOptions {
                 atmosphere_pa: self.atmosphere_pa,
                 temperature_k: self.temperature_k,
+                critical_pressure_ratio: self.critical_pressure_ratio,
                 ..Default::default()
             },
             self.max_pressure_bar,

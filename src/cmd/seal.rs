@@ -229,7 +229,8 @@ fn leak_text(fits: &[LeakFit], steps: &[RankStep]) -> anyhow::Result<String> {
     let mut s = String::new();
     writeln!(
         s,
-        "choked leak p = p0 exp(-k t), C/V = k / (rho0 R sqrt(T T0)), tightest first\n"
+        "ISO 6358 leak, isothermal: p' = -k p phi(p_atm / p), p = p0 exp(-k t) while choked (p_atm / p <= b), \
+         C/V = k / (rho0 R sqrt(T T0)), tightest first\n"
     )?;
     writeln!(
         s,
@@ -253,6 +254,28 @@ fn leak_text(fits: &[LeakFit], steps: &[RankStep]) -> anyhow::Result<String> {
             f.t10_s,
             f.adequate
         )?;
+    }
+    writeln!(s, "\nfitted:")?;
+    for f in fits {
+        write!(
+            s,
+            "  {}: {}, {} (b = {} assumed)",
+            f.chamber,
+            f.fitted.shown(),
+            f.regime.words(),
+            f.critical_pressure_ratio
+        )?;
+        if let (Some(c), Some(u)) = (f.choked, f.subsonic) {
+            write!(s, ": choked {}, subsonic {}", c.shown(), u.shown())?;
+        }
+        if let Some(out) = f.left_out {
+            write!(
+                s,
+                "; left out {} (the chamber reads atmosphere)",
+                out.shown()
+            )?;
+        }
+        writeln!(s)?;
     }
     let names: Vec<&str> = fits.iter().map(|f| f.chamber.as_str()).collect();
     writeln!(s, "\nranking, tightest to leakiest: {}", names.join(" < "))?;

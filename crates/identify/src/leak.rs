@@ -3,23 +3,29 @@
 //! ';'-separated: time in ms with '.' as the thousands separator and three decimals, `1.003.000` = 1003 ms;
 //! pressure V; pressure bar gauge).
 //!
-//! The leak is an ISO 6358 orifice (eq. 11) of conductance C from a chamber of volume V at temperature
-//! T. Choked while `p_atm / p <= b`: `M' = -C rho0 p sqrt(T0/T)` and, isothermal, `V p' = R T M'`, so
+//! The leak is an ISO 6358 orifice (eq. 11, [`Orifice::phi`], the valve's law) of conductance C from a
+//! chamber of volume V at temperature T: `M' = -C rho0 p sqrt(T0/T) phi(p_atm / p)` and, isothermal,
+//! `V p' = R T M'`, so with `k = C rho0 R sqrt(T T0) / V`
 //!
 //! ```text
-//! p(t) = p0 exp(-k t),   k = C rho0 R sqrt(T T0) / V,   C / V = k / (rho0 R sqrt(T T0))   (1/(s Pa))
+//! p' = -k p phi(p_atm / p),   C / V = k / (rho0 R sqrt(T T0))   (1/(s Pa))
+//! p(t) = p0 exp(-k t)         while choked (p_atm / p <= b, phi = 1)
+//! F(p(t)) = F(p0) - k t       through both regimes, F(p) = integral dp / (p phi(p_atm / p))
 //! ```
 //!
-//! (`crates/pneumatics/tests/effects.rs` checks the model against this closed form). The fit is Gauss-Newton
-//! on the gauge readings for (p0, k). Without the chamber's volume the data give C / V, the leak's
-//! conductance per volume, which ranks chambers of any size. b is not identified while the whole log is
-//! choked (`p_atm / p_min` below any plausible b): the report says so. The report also says whether the
-//! decay is a leak at all: the residuals against the sensor's noise (from the sample-to-sample
-//! differences) and the rate of each half of the log against the other.
+//! (`crates/pneumatics/tests/effects.rs` checks the model against the closed form). A chamber that empties
+//! towards atmosphere passes from the choked into the subsonic (elliptic) branch: one k is fitted over the
+//! whole decay with b given (`--critical-pressure-ratio`, not identified), and the report says which rows
+//! were fitted, in which regime, and which were left out (the rows from where the chamber reads atmosphere:
+//! the sensor's zero, not the leak). The fit is Gauss-Newton on the gauge readings for (p0, k). Without the
+//! chamber's volume the data give C / V, the leak's conductance per volume, which ranks chambers of any
+//! size. The report also says whether the decay is a leak at all: the residuals against the sensor's noise
+//! (from the sample-to-sample differences) and the rate of each half of the fitted rows against the other.
 
 use std::path::{Path, PathBuf};
 
-use pneuflex_pneumatics::flow::{ISO_RHO0_KG_M3, ISO_T0_K};
+use pneuflex_pneumatics::Orifice;
+use pneuflex_pneumatics::flow::{ISO_RHO0_KG_M3, ISO_T0_K, LAMINAR_RATIO};
 
 use crate::IdentifyError;
 
@@ -47,6 +53,9 @@ pub struct LeakOptions {
     pub temperature_k: f64,
     /// Specific gas constant, J/(kg K).
     pub gas_constant_j_per_kg_k: f64,
+    /// The leak's critical pressure ratio b (ISO 6358), assumed: it sets where the flow out turns
+    /// subsonic, and is not identified from a decay.
+    pub critical_pressure_ratio: f64,
 }
 
 impl Default for LeakOptions {
@@ -55,6 +64,7 @@ impl Default for LeakOptions {
             atmosphere_pa: pneuflex_pneumatics::P_ATM,
             temperature_k: ISO_T0_K,
             gas_constant_j_per_kg_k: pneuflex_pneumatics::R_AIR,
+            critical_pressure_ratio: CHOKED_RATIO_MAX,
         }
     }
 }
@@ -90,6 +100,17 @@ impl LeakOptions {
                 "must be > 0 J/(kg K)".into(),
             ));
         }
+        let b = self.critical_pressure_ratio;
+        if !(b > 0.0 && b <= CHOKED_RATIO_MAX) {
+            return Err(key(
+                "--critical-pressure-ratio",
+                b,
+                format!(
+                    "the critical pressure ratio b of ISO 6358 is a ratio in (0, {CHOKED_RATIO_MAX}] (the ideal \
+                     gas's {CHOKED_RATIO_MAX} is the largest; not a pressure)"
+                ),
+            ));
+        }
         Ok(())
     }
 }
@@ -98,11 +119,11 @@ impl LeakOptions {
 /// clock (a slow decay may be logged every few minutes).
 pub const PERIOD_RANGE_S: (f64, f64) = (1e-5, 600.0);
 
-/// The ideal gas's critical pressure ratio, the largest b of any orifice: with p_atm / p above it the flow
-/// out is not choked anywhere, and the choked law does not hold.
+/// The ideal gas's critical pressure ratio, the largest b of any orifice, and the b a leak is given unless
+/// told otherwise: with p_atm / p above b the flow out is subsonic.
 pub const CHOKED_RATIO_MAX: f64 = 0.528;
 
-/// The choked decay fitted to a span of a log.
+/// The decay fitted to a span of a log (p0 and k of `p' = -k p phi(p_atm / p)`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Decay {
     /// Initial absolute pressure p0, Pa.
@@ -120,11 +141,24 @@ pub struct Decay {
 pub struct LeakFit {
     /// The chamber.
     pub chamber: String,
-    /// Rows used.
+    /// Rows fitted.
     pub rows: usize,
-    /// Span of the log, s.
+    /// Span of the fitted rows, s.
     pub span_s: f64,
-    /// The whole log's decay.
+    /// The rows fitted, by the file's lines.
+    pub fitted: Rows,
+    /// The rows left out at the log's end, where the chamber reads atmosphere (or below): the sensor's
+    /// zero carries nothing of the leak, and the ISO 6358 law ends at `p_atm / p` = 0.999.
+    pub left_out: Option<Rows>,
+    /// The critical pressure ratio b assumed (not identified).
+    pub critical_pressure_ratio: f64,
+    /// The regime of the fitted decay over the fitted rows.
+    pub regime: Regime,
+    /// The fitted rows where the fitted decay is choked (`p_atm / p <= b`).
+    pub choked: Option<Rows>,
+    /// The fitted rows where the fitted decay is subsonic (`p_atm / p > b`).
+    pub subsonic: Option<Rows>,
+    /// The fitted rows' decay.
     pub decay: Decay,
     /// C / V, 1/(s Pa): the leak's sonic conductance per chamber volume.
     pub conductance_per_volume: f64,
@@ -132,7 +166,7 @@ pub struct LeakFit {
     pub t10_s: f64,
     /// The share of the initial gauge pressure the fitted decay loses over the log, 1.
     pub loss: f64,
-    /// p_atm / p at the lowest reading: the flow is choked for any b above this.
+    /// p_atm / p at the lowest fitted reading: the flow is choked for any b above this.
     pub choked_below_b: f64,
     /// The sensor's noise from the sample-to-sample differences (std / sqrt 2), Pa.
     pub noise_pa: f64,
@@ -141,13 +175,220 @@ pub struct LeakFit {
     /// The change of the gas temperature that moves the pressure by the RMS residual, K (p ~ T at
     /// constant mass and volume).
     pub rms_as_temperature_k: f64,
-    /// The first and the second half of the log fitted alone.
+    /// The first and the second half of the fitted rows fitted alone.
     pub halves: [Decay; 2],
-    /// Whether the choked leak explains the log: residuals within 1.5 times the noise and not wandering
+    /// Whether the leak explains the log: residuals within 1.5 times the noise and not wandering
     /// (lag-1 autocorrelation below 0.5), and the halves' rates within 3 standard errors of each other.
     pub adequate: bool,
     /// What it says, in words.
     pub verdict: String,
+}
+
+/// A run of a log's rows.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Rows {
+    /// The file's line of the first row.
+    pub first_line: usize,
+    /// The file's line of the last row.
+    pub last_line: usize,
+    /// Rows.
+    pub rows: usize,
+    /// Time of the first row, s.
+    pub from_s: f64,
+    /// Time of the last row, s.
+    pub to_s: f64,
+}
+
+impl Rows {
+    fn of(log: &DecayLog, range: std::ops::Range<usize>) -> Option<Self> {
+        let line = |k: usize| log.lines.get(k).copied().unwrap_or(k + 1);
+        (!range.is_empty()).then(|| Self {
+            first_line: line(range.start),
+            last_line: line(range.end - 1),
+            rows: range.len(),
+            from_s: log.t_s[range.start],
+            to_s: log.t_s[range.end - 1],
+        })
+    }
+
+    /// `lines 1-1508 (0.0-151.3 s)`.
+    pub fn shown(&self) -> String {
+        format!(
+            "lines {}-{} ({:.1}-{:.1} s, {} rows)",
+            self.first_line, self.last_line, self.from_s, self.to_s, self.rows
+        )
+    }
+}
+
+/// The flow regime of a fitted decay over the fitted rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Regime {
+    /// `p_atm / p <= b` throughout: `p = p0 exp(-k t)`, and b is not identified.
+    Choked,
+    /// Choked, then subsonic: the chamber empties towards atmosphere.
+    ChokedThenSubsonic,
+    /// Subsonic throughout: the chamber was filled to less than `p_atm / b`.
+    Subsonic,
+}
+
+impl Regime {
+    /// In words.
+    pub fn words(self) -> &'static str {
+        match self {
+            Regime::Choked => "choked throughout",
+            Regime::ChokedThenSubsonic => "choked, then subsonic",
+            Regime::Subsonic => "subsonic throughout",
+        }
+    }
+}
+
+/// The isothermal decay of a closed chamber through an ISO 6358 leak in the time `s = k t`: `p' = -p
+/// phi(p_atm / p)` ([`Orifice::phi`]), as `F(p(s)) = F(p0) - s` with `F(p) = ln p` while choked and `F`
+/// tabulated below the critical pressure `p_atm / b` in `x = ln(p - p_atm)`, where `dF/dx = (p - p_atm) / (p
+/// phi)` is smooth and bounded (the laminar tail makes it constant near atmosphere).
+#[derive(Clone, Debug)]
+pub struct DecayLaw {
+    /// Atmospheric pressure, Pa absolute.
+    pa: f64,
+    orifice: Orifice,
+    /// The critical pressure `p_atm / b`, Pa absolute.
+    p_crit: f64,
+    /// `x` at the critical pressure.
+    x_top: f64,
+    /// `F` and `dF/dx` at `x_top - i STEP`.
+    f: Vec<f64>,
+    g: Vec<f64>,
+}
+
+impl DecayLaw {
+    /// The table's step in `x = ln(p - p_atm)`.
+    const STEP: f64 = 2e-3;
+    /// The table's end: 10 mPa above atmosphere.
+    const X_BOTTOM: f64 = -4.6;
+
+    /// The law of a leak of critical pressure ratio `b` into `atmosphere_pa`.
+    pub fn new(atmosphere_pa: f64, b: f64) -> Self {
+        let orifice = Orifice {
+            sonic_conductance_m3_per_s_pa: 1.0,
+            critical_pressure_ratio: b,
+        };
+        let p_crit = atmosphere_pa / b;
+        let x_top = (p_crit - atmosphere_pa).ln();
+        let slope = |x: f64| {
+            let d = x.exp();
+            let p = atmosphere_pa + d;
+            d / (p * orifice.phi(atmosphere_pa / p))
+        };
+        let n = ((x_top - Self::X_BOTTOM) / Self::STEP).ceil() as usize + 1;
+        let (mut f, mut g) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        f.push(p_crit.ln());
+        g.push(slope(x_top));
+        for i in 1..n {
+            // Simpson over the cell, downwards.
+            let (x0, x1) = (
+                x_top - (i - 1) as f64 * Self::STEP,
+                x_top - i as f64 * Self::STEP,
+            );
+            let g1 = slope(x1);
+            let gm = slope(0.5 * (x0 + x1));
+            f.push(f[i - 1] - Self::STEP / 6.0 * (g[i - 1] + 4.0 * gm + g1));
+            g.push(g1);
+        }
+        Self {
+            pa: atmosphere_pa,
+            orifice,
+            p_crit,
+            x_top,
+            f,
+            g,
+        }
+    }
+
+    /// The critical pressure `p_atm / b`, Pa absolute: the flow is choked above it.
+    pub fn critical_pressure_pa(&self) -> f64 {
+        self.p_crit
+    }
+
+    /// `p phi(p_atm / p)`, Pa: the pressure's rate of fall per unit k.
+    fn p_phi(&self, p: f64) -> f64 {
+        p * self.orifice.phi(self.pa / p)
+    }
+
+    /// The cubic Hermite interpolant of F on cell `i` at `u` in [0, 1] (from node i to i + 1), and dF/du.
+    fn cell(&self, i: usize, u: f64) -> (f64, f64) {
+        let h = -Self::STEP;
+        let (f0, f1, m0, m1) = (self.f[i], self.f[i + 1], self.g[i] * h, self.g[i + 1] * h);
+        let (u2, u3) = (u * u, u * u * u);
+        let v = (2.0 * u3 - 3.0 * u2 + 1.0) * f0
+            + (u3 - 2.0 * u2 + u) * m0
+            + (-2.0 * u3 + 3.0 * u2) * f1
+            + (u3 - u2) * m1;
+        let dv = (6.0 * u2 - 6.0 * u) * f0
+            + (3.0 * u2 - 4.0 * u + 1.0) * m0
+            + (-6.0 * u2 + 6.0 * u) * f1
+            + (3.0 * u2 - 2.0 * u) * m1;
+        (v, dv)
+    }
+
+    /// F(p) for `p > p_atm`.
+    fn big_f(&self, p: f64) -> f64 {
+        if p >= self.p_crit {
+            return p.ln();
+        }
+        let x = (p - self.pa).ln();
+        let last = self.f.len() - 1;
+        let pos = (self.x_top - x) / Self::STEP;
+        if pos >= last as f64 {
+            let x_last = self.x_top - last as f64 * Self::STEP;
+            return self.f[last] - (x_last - x) * self.g[last];
+        }
+        let i = (pos.floor() as usize).min(last - 1);
+        self.cell(i, pos - i as f64).0
+    }
+
+    /// The p of F(p) = `target` (`target < ln p_crit`).
+    fn inverse(&self, target: f64) -> f64 {
+        let last = self.f.len() - 1;
+        if target <= self.f[last] {
+            let x = self.x_top - last as f64 * Self::STEP - (self.f[last] - target) / self.g[last];
+            return self.pa + x.exp();
+        }
+        // F falls with i: the cell whose ends bracket the target.
+        let i = self.f.partition_point(|&v| v > target).clamp(1, last) - 1;
+        let (f0, f1) = (self.f[i], self.f[i + 1]);
+        let mut u = ((f0 - target) / (f0 - f1)).clamp(0.0, 1.0);
+        for _ in 0..4 {
+            let (v, dv) = self.cell(i, u);
+            if dv == 0.0 {
+                break;
+            }
+            u = (u - (v - target) / dv).clamp(0.0, 1.0);
+        }
+        self.pa + (self.x_top - (i as f64 + u) * Self::STEP).exp()
+    }
+
+    /// The pressure at `t` of the decay from `p0` at rate `k`, with its derivatives by p0 and by k.
+    pub fn pressure(&self, p0: f64, k: f64, t: f64) -> (f64, f64, f64) {
+        let e = (-k * t).exp();
+        let p = p0 * e;
+        if p >= self.p_crit {
+            // Choked: the closed form, as it always was.
+            return (p, e, -p0 * t * e);
+        }
+        let p = self.inverse(self.big_f(p0) - k * t);
+        let q = self.p_phi(p);
+        (p, q / self.p_phi(p0), -t * q)
+    }
+
+    /// The time per unit k, `F(p_from) - F(p_to)`, for the pressure to fall from `p_from` to `p_to`.
+    pub fn elapsed(&self, p_from: f64, p_to: f64) -> f64 {
+        if p_to >= self.p_crit {
+            (p_from / p_to).ln()
+        } else {
+            self.big_f(p_from) - self.big_f(p_to)
+        }
+    }
 }
 
 fn log_err(file: &Path, line: usize, column: &str, message: String) -> IdentifyError {
@@ -372,25 +613,40 @@ pub fn read_decay_log_with(
     Ok(log)
 }
 
-/// Gauss-Newton for `p_g = p0 exp(-k t) - p_atm` over the rows `t`, `y` (gauge, Pa).
-fn fit_decay(t: &[f64], y: &[f64], p_atm: f64) -> Result<Decay, IdentifyError> {
+/// Gauss-Newton for `p_g = p(t; p0, k) - p_atm` of `law` over the rows `t`, `y` (gauge, Pa), with the
+/// residuals. A step that raises the squared residuals is halved (a decay into the subsonic branch starts
+/// far from its optimum); a log choked throughout converges on full steps as the closed form always did.
+fn fit_decay(t: &[f64], y: &[f64], law: &DecayLaw) -> Result<(Decay, Vec<f64>), IdentifyError> {
+    let p_atm = law.pa;
     let n = t.len() as f64;
-    // Start: the straight line through the readings, its slope over the mean absolute pressure.
-    let (mt, my) = (t.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let stt: f64 = t.iter().map(|a| (a - mt).powi(2)).sum();
-    let slope = t
-        .iter()
-        .zip(y)
-        .map(|(a, b)| (a - mt) * (b - my))
-        .sum::<f64>()
-        / stt;
-    let (mut p0, mut k) = (my - slope * mt + p_atm, -slope / (my + p_atm));
-    for _ in 0..100 {
+    let (mut p0, mut k) = if y.iter().all(|v| v + p_atm >= law.p_crit) {
+        // Start: the straight line through the readings, its slope over the mean absolute pressure.
+        let (mt, my) = (t.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+        let stt: f64 = t.iter().map(|a| (a - mt).powi(2)).sum();
+        let slope = t
+            .iter()
+            .zip(y)
+            .map(|(a, b)| (a - mt) * (b - my))
+            .sum::<f64>()
+            / stt;
+        (my - slope * mt + p_atm, -slope / (my + p_atm))
+    } else {
+        // Start: the law through the first and the last reading.
+        let (a, z) = (y[0].max(1.0) + p_atm, y[y.len() - 1].max(1.0) + p_atm);
+        (a, law.elapsed(a, z.min(a)) / (t[t.len() - 1] - t[0]))
+    };
+    let sse_of = |p0: f64, k: f64| -> f64 {
+        t.iter()
+            .zip(y)
+            .map(|(&ti, &yi)| (yi - (law.pressure(p0, k, ti).0 - p_atm)).powi(2))
+            .sum()
+    };
+    let mut sse = sse_of(p0, k);
+    for _ in 0..200 {
         let (mut a, mut b, mut c, mut g0, mut g1) = (0.0, 0.0, 0.0, 0.0, 0.0);
         for (&ti, &yi) in t.iter().zip(y) {
-            let e = (-k * ti).exp();
-            let r = yi - (p0 * e - p_atm);
-            let (j0, j1) = (e, -p0 * ti * e);
+            let (p, j0, j1) = law.pressure(p0, k, ti);
+            let r = yi - (p - p_atm);
             (a, b, c) = (a + j0 * j0, b + j0 * j1, c + j1 * j1);
             (g0, g1) = (g0 + j0 * r, g1 + j1 * r);
         }
@@ -401,41 +657,58 @@ fn fit_decay(t: &[f64], y: &[f64], p_atm: f64) -> Result<Decay, IdentifyError> {
             ));
         }
         let (d0, d1) = ((c * g0 - b * g1) / det, (a * g1 - b * g0) / det);
-        p0 += d0;
-        k += d1;
         if d0.abs() <= 1e-13 * p0.abs() && d1.abs() <= 1e-13 * k.abs().max(1e-300) {
+            p0 += d0;
+            k += d1;
             break;
+        }
+        let mut step = 1.0;
+        loop {
+            let (q0, q1) = (p0 + step * d0, k + step * d1);
+            let next = if q0 > p_atm && q1.is_finite() {
+                sse_of(q0, q1)
+            } else {
+                f64::INFINITY
+            };
+            // Rounding may raise a converging step's sum by a few ulps: only a clear rise is refused.
+            if next <= sse * (1.0 + 1e-9) || step < 1e-6 {
+                (p0, k, sse) = (q0, q1, next);
+                break;
+            }
+            step *= 0.5;
+        }
+        if !(p0 > p_atm && k.is_finite()) {
+            return Err(IdentifyError::Fit(
+                "the decay's fit left the chamber at or below atmosphere at t = 0".into(),
+            ));
         }
     }
     let res: Vec<f64> = t
         .iter()
         .zip(y)
-        .map(|(&ti, &yi)| yi - (p0 * (-k * ti).exp() - p_atm))
+        .map(|(&ti, &yi)| yi - (law.pressure(p0, k, ti).0 - p_atm))
         .collect();
     let sse: f64 = res.iter().map(|r| r * r).sum();
     // Formal error: s^2 (J^T J)^-1 at the optimum.
     let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
     for &ti in t {
-        let e = (-k * ti).exp();
-        let (j0, j1) = (e, -p0 * ti * e);
+        let (_, j0, j1) = law.pressure(p0, k, ti);
         (a, b, c) = (a + j0 * j0, b + j0 * j1, c + j1 * j1);
     }
     let s2 = sse / (n - 2.0);
-    Ok(Decay {
-        p0_pa: p0,
-        rate_per_s: k,
-        rate_std_error_per_s: (s2 * a / (a * c - b * b)).sqrt(),
-        rms_pa: (sse / n).sqrt(),
-    })
+    Ok((
+        Decay {
+            p0_pa: p0,
+            rate_per_s: k,
+            rate_std_error_per_s: (s2 * a / (a * c - b * b)).sqrt(),
+            rms_pa: (sse / n).sqrt(),
+        },
+        res,
+    ))
 }
 
-/// Lag-1 autocorrelation of the residuals of `d` against the log.
-fn autocorrelation(t: &[f64], y: &[f64], d: &Decay, p_atm: f64) -> f64 {
-    let r: Vec<f64> = t
-        .iter()
-        .zip(y)
-        .map(|(&ti, &yi)| yi - (d.p0_pa * (-d.rate_per_s * ti).exp() - p_atm))
-        .collect();
+/// Lag-1 autocorrelation of the residuals `r`.
+fn autocorrelation(r: &[f64]) -> f64 {
     let m = r.iter().sum::<f64>() / r.len() as f64;
     let var: f64 = r.iter().map(|v| (v - m).powi(2)).sum();
     let cov: f64 = r.windows(2).map(|w| (w[0] - m) * (w[1] - m)).sum();
@@ -450,26 +723,43 @@ fn noise(y: &[f64]) -> f64 {
     (d.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / 2f64.sqrt()
 }
 
-/// Fits the choked leak to a decay log (module doc).
+/// The gauge pressure below which a chamber reads atmosphere: where the ISO 6358 law ends (`p_atm / p` =
+/// [`LAMINAR_RATIO`]) or within 3 times the sensor's noise of 0, Pa.
+fn atmosphere_reading_pa(p_atm: f64, noise_pa: f64) -> f64 {
+    (p_atm * (1.0 / LAMINAR_RATIO - 1.0)).max(3.0 * noise_pa)
+}
+
+/// Fits the leak to a decay log (module doc): the rows up to where the chamber reads atmosphere, through
+/// the choked and the subsonic branch with one k.
 pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyError> {
     o.check()?;
-    let (t, y) = (&log.t_s, &log.gauge_pa);
-    if let Some(k) =
-        (0..y.len()).find(|&k| o.atmosphere_pa / (y[k] + o.atmosphere_pa) > CHOKED_RATIO_MAX)
-    {
-        return Err(IdentifyError::Fit(format!(
-            "{}:{}: column `pressure_bar`: {:.4} bar gauge, where p_atm / p = {:.3} is above {CHOKED_RATIO_MAX} \
-             (with --atmosphere-pa {}): the flow out is not choked there and the choked leak does not hold; give \
-             the part of the decay above {:.3} bar gauge",
-            log.file.display(),
-            log.lines.get(k).copied().unwrap_or(k + 1),
-            y[k] / 1e5,
-            o.atmosphere_pa / (y[k] + o.atmosphere_pa),
-            o.atmosphere_pa,
-            (o.atmosphere_pa / CHOKED_RATIO_MAX - o.atmosphere_pa) / 1e5
-        )));
+    let law = DecayLaw::new(o.atmosphere_pa, o.critical_pressure_ratio);
+    let noise_all = noise(&log.gauge_pa);
+    let floor = atmosphere_reading_pa(o.atmosphere_pa, noise_all);
+    let line = |k: usize| log.lines.get(k).copied().unwrap_or(k + 1);
+    let end = log
+        .gauge_pa
+        .iter()
+        .position(|&g| g < floor)
+        .unwrap_or(log.gauge_pa.len());
+    if end < 10 {
+        let k = end.min(log.gauge_pa.len() - 1);
+        return Err(log_err(
+            &log.file,
+            line(k),
+            "pressure_bar",
+            format!(
+                "{} bar gauge: the chamber reads atmosphere (or below it) from this row on (below {:.0} Pa \
+                 gauge: 3 times the sensor's {:.0} Pa noise, or where the ISO 6358 law ends), leaving {end} rows \
+                 of decay; a leak needs at least 10 (a log of a closed chamber filled above atmosphere)",
+                crate::seal::shown(log.gauge_pa[k] / 1e5),
+                floor,
+                noise_all
+            ),
+        ));
     }
-    let decay = fit_decay(t, y, o.atmosphere_pa)?;
+    let (t, y) = (&log.t_s[..end], &log.gauge_pa[..end]);
+    let (decay, residuals) = fit_decay(t, y, &law)?;
     if !(decay.rate_per_s.is_finite() && decay.rate_per_s > 0.0) {
         return Err(IdentifyError::Fit(format!(
             "{}: the pressure does not decay (fitted rate {:e} 1/s): no leak to fit",
@@ -489,50 +779,86 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
     }
     let h = t.len() / 2;
     let halves = [
-        fit_decay(&t[..h], &y[..h], o.atmosphere_pa)?,
-        fit_decay(&t[h..], &y[h..], o.atmosphere_pa)?,
+        fit_decay(&t[..h], &y[..h], &law)?.0,
+        fit_decay(&t[h..], &y[h..], &law)?.0,
     ];
-    // eq. (11), choked, isothermal: k = C rho0 R sqrt(T T0) / V.
+    // eq. (11), isothermal: k = C rho0 R sqrt(T T0) / V, in either branch.
     let per_volume = decay.rate_per_s
         / (ISO_RHO0_KG_M3 * o.gas_constant_j_per_kg_k * (o.temperature_k * ISO_T0_K).sqrt());
     let pg0 = decay.p0_pa - o.atmosphere_pa;
     let p_min = y.iter().copied().fold(f64::INFINITY, f64::min) + o.atmosphere_pa;
     let noise_pa = noise(y);
+    let span = t[t.len() - 1] - t[0];
+    // The fitted decay's regime at each row: choked while its pressure is at or above p_atm / b.
+    let choked_rows = t
+        .iter()
+        .take_while(|&&ti| law.pressure(decay.p0_pa, decay.rate_per_s, ti).0 >= law.p_crit)
+        .count();
+    let regime = match choked_rows {
+        c if c == t.len() => Regime::Choked,
+        0 => Regime::Subsonic,
+        _ => Regime::ChokedThenSubsonic,
+    };
     let mut fit = LeakFit {
         chamber: log.chamber.clone(),
         rows: t.len(),
-        span_s: t[t.len() - 1] - t[0],
+        span_s: span,
+        fitted: Rows::of(log, 0..end).expect("at least 10 rows"),
+        left_out: Rows::of(log, end..log.t_s.len()),
+        critical_pressure_ratio: o.critical_pressure_ratio,
+        regime,
+        choked: Rows::of(log, 0..choked_rows),
+        subsonic: Rows::of(log, choked_rows..end),
         decay,
         conductance_per_volume: per_volume,
-        t10_s: (decay.p0_pa / (decay.p0_pa - 0.1 * pg0)).ln() / decay.rate_per_s,
-        loss: 1.0
-            - (decay.p0_pa * (-decay.rate_per_s * (t[t.len() - 1] - t[0])).exp() - o.atmosphere_pa)
-                / pg0,
+        t10_s: law.elapsed(decay.p0_pa, decay.p0_pa - 0.1 * pg0) / decay.rate_per_s,
+        loss: 1.0 - (law.pressure(decay.p0_pa, decay.rate_per_s, span).0 - o.atmosphere_pa) / pg0,
         choked_below_b: o.atmosphere_pa / p_min,
         noise_pa,
-        residual_autocorrelation: autocorrelation(t, y, &decay, o.atmosphere_pa),
+        residual_autocorrelation: autocorrelation(&residuals),
         rms_as_temperature_k: o.temperature_k * decay.rms_pa / decay.p0_pa,
         halves,
         adequate: false,
         verdict: String::new(),
     };
-    verdict(&mut fit);
+    verdict(&mut fit, floor);
     Ok(fit)
 }
 
-/// The adequacy verdict (see [`LeakFit::adequate`]).
-fn verdict(f: &mut LeakFit) {
+/// The adequacy verdict (see [`LeakFit::adequate`]) and which part of the log was fitted, in which regime.
+fn verdict(f: &mut LeakFit, floor_pa: f64) {
     let [a, b] = f.halves;
     let apart = (a.rate_per_s - b.rate_per_s).abs()
         / (a.rate_std_error_per_s.powi(2) + b.rate_std_error_per_s.powi(2)).sqrt();
     let ratio = f.decay.rms_pa / f.noise_pa;
     f.adequate = ratio <= 1.5 && f.residual_autocorrelation < 0.5 && apart <= 3.0;
-    let b_note = format!(
-        "b is not identified: the flow is choked throughout for any b above {:.3}",
-        f.choked_below_b
-    );
-    f.verdict = if f.adequate {
-        format!("a constant choked leak explains the log to the sensor's noise; {b_note}")
+    let b_note = match (f.regime, f.subsonic) {
+        (Regime::Choked, _) => format!(
+            "b is not identified: the flow is choked throughout for any b above {:.3}",
+            f.choked_below_b
+        ),
+        (Regime::ChokedThenSubsonic, Some(sub)) => format!(
+            "the fitted decay is choked to line {} ({:.1} s) and subsonic from line {} ({:.1} s) on: one \
+             conductance over both regimes, with b = {} assumed (--critical-pressure-ratio; not identified)",
+            f.choked.map_or(sub.first_line, |c| c.last_line),
+            f.choked.map_or(sub.from_s, |c| c.to_s),
+            sub.first_line,
+            sub.from_s,
+            f.critical_pressure_ratio
+        ),
+        _ => format!(
+            "the fitted decay is subsonic throughout (p_atm / p above b = {} assumed, --critical-pressure-ratio; \
+             not identified): C/V depends on that b",
+            f.critical_pressure_ratio
+        ),
+    };
+    let mut text = if f.adequate {
+        let law = if f.regime == Regime::Choked {
+            "a constant choked leak"
+        } else {
+            "a constant ISO 6358 leak"
+        };
+        format!("{law} explains the log to the sensor's noise; {b_note}")
     } else {
         format!(
             "a constant leak does not explain the log: residuals {:.0} Pa RMS, {:.1} times the sensor's \
@@ -551,6 +877,15 @@ fn verdict(f: &mut LeakFit) {
             100.0 * f.decay.rate_std_error_per_s / f.decay.rate_per_s
         )
     };
+    if let Some(out) = f.left_out {
+        text += &format!(
+            "; {} left out: the chamber reads atmosphere from there (below {:.0} Pa gauge), the sensor's zero, \
+             not the leak",
+            out.shown(),
+            floor_pa
+        );
+    }
+    f.verdict = text;
 }
 
 /// One step of a ranking: the next chamber leaks more than the previous one.
@@ -594,4 +929,149 @@ pub fn rank(fits: &mut [LeakFit]) -> Vec<RankStep> {
             settled: rate_range(&w[0]).1 < rate_range(&w[1]).0,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed chamber of volume `v` emptying through an ISO 6358 orifice of conductance `c` and critical
+    /// ratio `b`, isothermal, integrated by RK4 on the gas mass with the valve's own flow
+    /// ([`Orifice::mass_flow`]), read every 0.1 s with a deterministic +-`noise` Pa pattern.
+    fn emptying_log(c: f64, v: f64, b: f64, p0: f64, rows: usize, noise: f64) -> DecayLog {
+        let o = LeakOptions::default();
+        let leak = Orifice {
+            sonic_conductance_m3_per_s_pa: c,
+            critical_pressure_ratio: b,
+        };
+        let (t_k, r, pa) = (o.temperature_k, o.gas_constant_j_per_kg_k, o.atmosphere_pa);
+        let out = |m: f64| leak.mass_flow(1.0, m * r * t_k / v, t_k, pa, t_k).0;
+        let mut m = p0 * v / (r * t_k);
+        let (mut t_s, mut gauge_pa) = (Vec::new(), Vec::new());
+        let h = 1e-3;
+        for i in 0..rows {
+            t_s.push(i as f64 * 0.1);
+            // A pattern of zero mean with no trend: the sensor's noise, reproducible.
+            let n = noise * [0.3, -0.8, 1.0, -0.5, 0.1, -0.1][i % 6];
+            gauge_pa.push(m * r * t_k / v - pa + n);
+            for _ in 0..100 {
+                let k1 = -out(m);
+                let k2 = -out(m + 0.5 * h * k1);
+                let k3 = -out(m + 0.5 * h * k2);
+                let k4 = -out(m + h * k3);
+                m += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            }
+        }
+        DecayLog {
+            file: PathBuf::from("synthetic.csv"),
+            chamber: "synthetic".into(),
+            t_s,
+            gauge_pa,
+            lines: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_decay_through_the_choked_and_the_subsonic_branch_gives_its_conductance_back() {
+        // 8.3 bar abs to atmosphere in ~2 min: choked to ~70 s, then subsonic, then at atmosphere.
+        let (c, v) = (3e-11, 1.5e-4);
+        let log = emptying_log(c, v, CHOKED_RATIO_MAX, 8.3e5, 1500, 150.0);
+        let f = fit_leak(&log, &LeakOptions::default()).unwrap();
+        let err = f.conductance_per_volume / (c / v) - 1.0;
+        assert!(
+            err.abs() < 0.01,
+            "C/V {} vs {}: {err:e}",
+            f.conductance_per_volume,
+            c / v
+        );
+        assert_eq!(f.regime, Regime::ChokedThenSubsonic, "{}", f.verdict);
+        let (ch, sub) = (f.choked.unwrap(), f.subsonic.unwrap());
+        assert_eq!(ch.first_line, 1);
+        assert_eq!(sub.first_line, ch.last_line + 1);
+        assert_eq!(sub.last_line, f.fitted.last_line);
+        // The rows at atmosphere are left out, and the verdict says which.
+        let out = f.left_out.expect("rows at atmosphere left out");
+        assert_eq!(out.first_line, f.fitted.last_line + 1);
+        assert_eq!(out.last_line, 1500);
+        assert!(f.verdict.contains("subsonic from line"), "{}", f.verdict);
+        assert!(f.verdict.contains("left out"), "{}", f.verdict);
+        assert!(f.adequate, "{}", f.verdict);
+        assert!(!f.verdict.contains("thermal drift"), "{}", f.verdict);
+    }
+
+    #[test]
+    fn a_decay_choked_throughout_gives_its_conductance_back_by_the_closed_form() {
+        let (c, v) = (3e-13, 1.5e-4);
+        let log = emptying_log(c, v, CHOKED_RATIO_MAX, 8.3e5, 1500, 150.0);
+        let f = fit_leak(&log, &LeakOptions::default()).unwrap();
+        let err = f.conductance_per_volume / (c / v) - 1.0;
+        assert!(
+            err.abs() < 0.01,
+            "C/V {} vs {}: {err:e}",
+            f.conductance_per_volume,
+            c / v
+        );
+        assert_eq!(f.regime, Regime::Choked);
+        assert_eq!((f.subsonic, f.left_out), (None, None));
+        assert_eq!(f.fitted.rows, 1500);
+        assert!(f.verdict.contains("choked throughout"), "{}", f.verdict);
+    }
+
+    #[test]
+    fn a_chamber_filled_below_the_critical_pressure_decays_subsonic_throughout() {
+        let (c, v, b) = (3e-11, 1.5e-4, 0.3);
+        let log = emptying_log(c, v, b, 2.5e5, 600, 50.0);
+        let o = LeakOptions {
+            critical_pressure_ratio: b,
+            ..Default::default()
+        };
+        let f = fit_leak(&log, &o).unwrap();
+        let err = f.conductance_per_volume / (c / v) - 1.0;
+        assert!(
+            err.abs() < 0.01,
+            "C/V {} vs {}: {err:e}",
+            f.conductance_per_volume,
+            c / v
+        );
+        assert_eq!(f.regime, Regime::Subsonic, "{}", f.verdict);
+        assert!(f.verdict.contains("C/V depends on that b"), "{}", f.verdict);
+    }
+
+    #[test]
+    fn the_law_follows_the_valves_flow_function_and_its_derivatives() {
+        let law = DecayLaw::new(101_325.0, 0.4);
+        let (p0, k) = (6e5, 0.05);
+        // p' = -k p phi: a central difference of p(t) against the valve's phi.
+        let o = Orifice {
+            sonic_conductance_m3_per_s_pa: 1.0,
+            critical_pressure_ratio: 0.4,
+        };
+        // Choked to 17 s, subsonic after; near atmosphere (p - p_atm < 1 kPa) the differences are rounding.
+        for t in [1.0, 10.0, 17.0, 18.0, 22.0, 26.0, 30.0, 34.0] {
+            let (p, dp0, dk) = law.pressure(p0, k, t);
+            assert!(p - 101_325.0 > 1e3, "t {t}: {p}");
+            let h = 1e-4;
+            let slope = (law.pressure(p0, k, t + h).0 - law.pressure(p0, k, t - h).0) / (2.0 * h);
+            let want = -k * p * o.phi(101_325.0 / p);
+            assert!(
+                (slope / want - 1.0).abs() < 1e-5,
+                "t {t}: {slope} vs {want}"
+            );
+            let by_p0 = (law.pressure(p0 + 1.0, k, t).0 - law.pressure(p0 - 1.0, k, t).0) / 2.0;
+            let by_k = (law.pressure(p0, k + 1e-7, t).0 - law.pressure(p0, k - 1e-7, t).0) / 2e-7;
+            assert!((by_p0 / dp0 - 1.0).abs() < 1e-4, "t {t}: {by_p0} vs {dp0}");
+            assert!((by_k / dk - 1.0).abs() < 1e-4, "t {t}: {by_k} vs {dk}");
+        }
+    }
+
+    #[test]
+    fn a_log_at_atmosphere_from_its_start_is_refused_at_its_line() {
+        let mut log = emptying_log(3e-11, 1.5e-4, CHOKED_RATIO_MAX, 8.3e5, 200, 150.0);
+        log.gauge_pa.iter_mut().for_each(|g| *g = -0.05e5);
+        let e = fit_leak(&log, &LeakOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("synthetic.csv:1"), "{e}");
+        assert!(e.contains("reads atmosphere"), "{e}");
+    }
 }
