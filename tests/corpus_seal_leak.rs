@@ -738,3 +738,35 @@ fn a_chamber_emptying_to_atmosphere_is_fitted_through_both_regimes_and_says_whic
         assert!(text.stdout.contains(w), "`{w}` not in:\n{}", text.stdout);
     }
 }
+
+#[test]
+fn a_decay_that_rises_again_after_reading_atmosphere_is_refused_at_its_line() {
+    // A refill (or a second test) appended to an emptied chamber's log: not one leak's decay.
+    let d = tempfile::tempdir().unwrap();
+    let empty = d.path().join("empty.csv");
+    emptying_log(&empty, 5e-7, 0.528, 8.3e5, 900, 150.0);
+    let mut text = std::fs::read_to_string(&empty).unwrap();
+    let head: Vec<String> = text.lines().take(50).map(str::to_string).collect();
+    for (i, l) in head.iter().enumerate() {
+        let ms = 90_000 + i * 100;
+        let rest = l.split_once(';').unwrap().1;
+        text += &format!("{}.{:03}.000;{rest}\r\n", ms / 1000, ms % 1000);
+    }
+    let refill = d.path().join("refill.csv");
+    std::fs::write(&refill, text).unwrap();
+    run(&["leak", "--log", s(&refill)], d.path()).refused(&[
+        "refill.csv:901",
+        "pressure_bar",
+        "rises again",
+    ]);
+    // The same chamber without the refill, emptied in ~20 s and at atmosphere for a minute: a decay, not
+    // a log of glitches about a median of 0.
+    let fast = d.path().join("fast.csv");
+    emptying_log(&fast, 5e-7, 0.528, 8.3e5, 900, 150.0);
+    let ran = run(&["leak", "--json", "--log", s(&fast)], d.path());
+    ran.accepted();
+    let c = &json(&ran)["chambers"][0];
+    let cv = c["conductance_per_volume"].as_f64().unwrap();
+    assert!((cv / 5e-7 - 1.0).abs() < 0.01, "{c}");
+    assert_eq!(c["left_out"]["last_line"], 900, "{c}");
+}

@@ -381,6 +381,16 @@ impl DecayLaw {
         (p, q / self.p_phi(p0), -t * q)
     }
 
+    /// The pressure a time `s` per unit k before the pressure is `p`: `F^-1(F(p) + s)`.
+    fn before(&self, p: f64, s: f64) -> f64 {
+        let target = self.big_f(p) + s;
+        if target >= self.p_crit.ln() {
+            target.exp()
+        } else {
+            self.inverse(target)
+        }
+    }
+
     /// The time per unit k, `F(p_from) - F(p_to)`, for the pressure to fall from `p_from` to `p_to`.
     pub fn elapsed(&self, p_from: f64, p_to: f64) -> f64 {
         if p_to >= self.p_crit {
@@ -594,14 +604,14 @@ pub fn read_decay_log_with(
             ),
         ));
     }
-    if let Some((k, m, bound)) = crate::seal::spike(&log.gauge_pa, 0.1e5) {
+    if let Some((k, m, bound)) = glitch(&log.gauge_pa) {
         return Err(log_err(
             path,
             lines[k],
             "pressure_bar",
             format!(
-                "{} bar is {:.3} bar from the log's median {:.3} bar, beyond {:.3} bar (10 times the spread of \
-                 its middle half): a glitch or a corrupt row, not a reading",
+                "{} bar is {:.3} bar from the median {:.3} bar of its neighbours (3 rows either side), beyond \
+                 {:.3} bar (10 times their range + 0.1 bar): a glitch or a corrupt row, not a reading",
                 crate::seal::shown(log.gauge_pa[k] / 1e5),
                 (log.gauge_pa[k] - m).abs() / 1e5,
                 m / 1e5,
@@ -611,6 +621,25 @@ pub fn read_decay_log_with(
     }
     log.lines = lines;
     Ok(log)
+}
+
+/// The first reading further from the median of its neighbours (3 rows either side) than 10 times (their
+/// range + 0.1 bar): its index, that median and the bound. Local, so a chamber that empties in seconds and
+/// then reads atmosphere for minutes is a decay, not a log of glitches around a median of 0.
+fn glitch(y: &[f64]) -> Option<(usize, f64, f64)> {
+    (0..y.len()).find_map(|i| {
+        let mut w: Vec<f64> = (i.saturating_sub(3)..(i + 4).min(y.len()))
+            .filter(|&j| j != i)
+            .map(|j| y[j])
+            .collect();
+        w.sort_by(f64::total_cmp);
+        let (m, range) = (
+            0.5 * (w[(w.len() - 1) / 2] + w[w.len() / 2]),
+            w[w.len() - 1] - w[0],
+        );
+        let bound = 10.0 * (range + 0.1e5);
+        ((y[i] - m).abs() > bound).then_some((i, m, bound))
+    })
 }
 
 /// Gauss-Newton for `p_g = p(t; p0, k) - p_atm` of `law` over the rows `t`, `y` (gauge, Pa), with the
@@ -631,9 +660,10 @@ fn fit_decay(t: &[f64], y: &[f64], law: &DecayLaw) -> Result<(Decay, Vec<f64>), 
             / stt;
         (my - slope * mt + p_atm, -slope / (my + p_atm))
     } else {
-        // Start: the law through the first and the last reading.
+        // Start: the law through the first and the last reading, p0 taken back to t = 0.
         let (a, z) = (y[0].max(1.0) + p_atm, y[y.len() - 1].max(1.0) + p_atm);
-        (a, law.elapsed(a, z.min(a)) / (t[t.len() - 1] - t[0]))
+        let k = law.elapsed(a, z.min(a)) / (t[t.len() - 1] - t[0]);
+        (law.before(a, k * t[0]), k)
     };
     let sse_of = |p0: f64, k: f64| -> f64 {
         t.iter()
@@ -723,7 +753,21 @@ fn noise(y: &[f64]) -> f64 {
     (d.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / 2f64.sqrt()
 }
 
-/// The gauge pressure below which a chamber reads atmosphere: where the ISO 6358 law ends (`p_atm / p` =
+/// The sensor's noise from the second differences' median absolute deviation, Pa: blind to a smooth decay
+/// of any speed and to a few jumps (a refill), as the atmosphere's threshold needs.
+fn robust_noise(y: &[f64]) -> f64 {
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let mut d2: Vec<f64> = y.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
+    let m = median(&mut d2);
+    let mut dev: Vec<f64> = d2.iter().map(|v| (v - m).abs()).collect();
+    // MAD to std (x 1.4826), and a second difference has 6 times the readings' variance.
+    1.4826 * median(&mut dev) / 6f64.sqrt()
+}
+
+/// The gauge pressure below which (the median of five readings from a row) a chamber reads atmosphere: where the ISO 6358 law ends (`p_atm / p` =
 /// [`LAMINAR_RATIO`]) or within 3 times the sensor's noise of 0, Pa.
 fn atmosphere_reading_pa(p_atm: f64, noise_pa: f64) -> f64 {
     (p_atm * (1.0 / LAMINAR_RATIO - 1.0)).max(3.0 * noise_pa)
@@ -734,14 +778,19 @@ fn atmosphere_reading_pa(p_atm: f64, noise_pa: f64) -> f64 {
 pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyError> {
     o.check()?;
     let law = DecayLaw::new(o.atmosphere_pa, o.critical_pressure_ratio);
-    let noise_all = noise(&log.gauge_pa);
+    let noise_all = robust_noise(&log.gauge_pa);
     let floor = atmosphere_reading_pa(o.atmosphere_pa, noise_all);
     let line = |k: usize| log.lines.get(k).copied().unwrap_or(k + 1);
-    let end = log
-        .gauge_pa
-        .iter()
-        .position(|&g| g < floor)
-        .unwrap_or(log.gauge_pa.len());
+    // The first row from which the median of five readings is below the threshold: one reading dipping by
+    // its noise does not end a decay.
+    let y_all = &log.gauge_pa;
+    let end = (0..y_all.len())
+        .find(|&k| {
+            let mut w: Vec<f64> = y_all[k..(k + 5).min(y_all.len())].to_vec();
+            w.sort_by(f64::total_cmp);
+            w[w.len() / 2] < floor
+        })
+        .unwrap_or(y_all.len());
     if end < 10 {
         let k = end.min(log.gauge_pa.len() - 1);
         return Err(log_err(
@@ -749,16 +798,38 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
             line(k),
             "pressure_bar",
             format!(
-                "{} bar gauge: the chamber reads atmosphere (or below it) from this row on (below {:.0} Pa \
-                 gauge: 3 times the sensor's {:.0} Pa noise, or where the ISO 6358 law ends), leaving {end} rows \
-                 of decay; a leak needs at least 10 (a log of a closed chamber filled above atmosphere)",
+                "{} bar gauge: the chamber reads atmosphere (or below it) from this row on (the median of five \
+                 readings below {:.0} Pa gauge: 3 times the sensor's {:.0} Pa noise, or where the ISO 6358 law \
+                 ends), leaving {end} rows of decay; a leak needs at least 10 (a log of a closed chamber filled \
+                 above atmosphere)",
                 crate::seal::shown(log.gauge_pa[k] / 1e5),
                 floor,
                 noise_all
             ),
         ));
     }
-    let (t, y) = (&log.t_s[..end], &log.gauge_pa[..end]);
+    // A reading well above atmosphere after the chamber read atmosphere (beyond 4 times the threshold, 12
+    // times the noise): a refill or a second test.
+    if let Some(k) = (end..log.gauge_pa.len()).find(|&k| log.gauge_pa[k] > 4.0 * floor) {
+        return Err(log_err(
+            &log.file,
+            line(k),
+            "pressure_bar",
+            format!(
+                "{} bar gauge after the chamber read atmosphere from line {} on (the median of five readings \
+                 below {:.0} Pa gauge): the pressure rises again, a refill or a second test in one log; give one \
+                 decay per file",
+                crate::seal::shown(log.gauge_pa[k] / 1e5),
+                line(end),
+                floor
+            ),
+        ));
+    }
+    // Time from the first row: p0 is the pressure there (a logger's clock may not start at 0).
+    let t0 = log.t_s[0];
+    let t_rel: Vec<f64> = log.t_s[..end].iter().map(|ti| ti - t0).collect();
+    let t = &t_rel[..];
+    let y = &log.gauge_pa[..end];
     let (decay, residuals) = fit_decay(t, y, &law)?;
     if !(decay.rate_per_s.is_finite() && decay.rate_per_s > 0.0) {
         return Err(IdentifyError::Fit(format!(
