@@ -770,3 +770,24 @@ fn a_decay_that_rises_again_after_reading_atmosphere_is_refused_at_its_line() {
     assert!((cv / 5e-7 - 1.0).abs() < 0.01, "{c}");
     assert_eq!(c["left_out"]["last_line"], 900, "{c}");
 }
+
+#[test]
+fn a_decay_levelling_off_above_atmosphere_is_not_put_down_to_thermal_drift() {
+    // 7 bar gauge levelling off at 2 bar (a leak into another volume, or a sensor's offset): no leak to
+    // atmosphere follows it, and a 20 K drift of a closed chamber's gas is no explanation.
+    let d = tempfile::tempdir().unwrap();
+    let level = leak_copy(d.path(), "level.csv", "prusa", |i, f| {
+        let t = i as f64 * 0.1;
+        f[2] = format!(
+            "{:.4}",
+            2.0 + 5.0 * (-t / 30.0).exp() + 0.002 * (i % 2) as f64
+        );
+    });
+    let ran = run(&["leak", "--json", "--log", s(&level)], d.path());
+    ran.accepted();
+    let c = &json(&ran)["chambers"][0];
+    assert_eq!(c["adequate"], false, "{c}");
+    let verdict = c["verdict"].as_str().unwrap();
+    assert!(verdict.contains("not one leak to atmosphere"), "{verdict}");
+    assert!(!verdict.contains("thermal drift together"), "{verdict}");
+}

@@ -830,7 +830,11 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
     let t_rel: Vec<f64> = log.t_s[..end].iter().map(|ti| ti - t0).collect();
     let t = &t_rel[..];
     let y = &log.gauge_pa[..end];
-    let (decay, residuals) = fit_decay(t, y, &law)?;
+    let named = |e: IdentifyError| match e {
+        IdentifyError::Fit(m) => IdentifyError::Fit(format!("{}: {m}", log.file.display())),
+        e => e,
+    };
+    let (decay, residuals) = fit_decay(t, y, &law).map_err(named)?;
     if !(decay.rate_per_s.is_finite() && decay.rate_per_s > 0.0) {
         return Err(IdentifyError::Fit(format!(
             "{}: the pressure does not decay (fitted rate {:e} 1/s): no leak to fit",
@@ -850,8 +854,8 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
     }
     let h = t.len() / 2;
     let halves = [
-        fit_decay(&t[..h], &y[..h], &law)?.0,
-        fit_decay(&t[h..], &y[h..], &law)?.0,
+        fit_decay(&t[..h], &y[..h], &law).map_err(named)?.0,
+        fit_decay(&t[h..], &y[h..], &law).map_err(named)?.0,
     ];
     // eq. (11), isothermal: k = C rho0 R sqrt(T T0) / V, in either branch.
     let per_volume = decay.rate_per_s
@@ -896,6 +900,10 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
     Ok(fit)
 }
 
+/// The largest change of a filled, closed chamber's gas temperature a misfit is put down to, K: beyond it
+/// the decay is not a leak with thermal drift (the room moves the gas by tenths of a kelvin).
+pub const DRIFT_MAX_K: f64 = 2.0;
+
 /// The adequacy verdict (see [`LeakFit::adequate`]) and which part of the log was fitted, in which regime.
 fn verdict(f: &mut LeakFit, floor_pa: f64) {
     let [a, b] = f.halves;
@@ -923,7 +931,25 @@ fn verdict(f: &mut LeakFit, floor_pa: f64) {
             f.critical_pressure_ratio
         ),
     };
-    let mut text = if f.adequate {
+    let mut text = if !f.adequate && f.rms_as_temperature_k > DRIFT_MAX_K {
+        format!(
+            "the decay is not one leak to atmosphere: residuals {:.0} Pa RMS, {:.1} times the sensor's {:.0} Pa \
+             noise, lag-1 autocorrelation {:.2}; the halves decay at {:.3e} and {:.3e} 1/s, {:.0} standard \
+             errors apart. The residual would need the gas temperature to change by {:.1} K, beyond what a \
+             filled, closed chamber's gas drifts (tenths of a kelvin with the room): a pressure levelling off \
+             above atmosphere (a leak into another volume, the sensor's offset), a chamber still being filled, \
+             or a valve moved during the log. k and C/V ({:.3e} 1/(s Pa)) are no leak's; {b_note}",
+            f.decay.rms_pa,
+            ratio,
+            f.noise_pa,
+            f.residual_autocorrelation,
+            a.rate_per_s,
+            b.rate_per_s,
+            apart,
+            f.rms_as_temperature_k,
+            f.conductance_per_volume
+        )
+    } else if f.adequate {
         let law = if f.regime == Regime::Choked {
             "a constant choked leak"
         } else {
