@@ -274,6 +274,13 @@ fn a_single_glitch_among_the_readings_is_refused_at_its_line() {
         }
     });
     run(&["leak", "--log", s(&l)], d.path()).refused(&["spike.csv:300", "pressure_bar", "glitch"]);
+    // Three corrupt rows together do not hide each other.
+    let l = leak_copy(d.path(), "spikes.csv", "prusa", |i, f| {
+        if (299..302).contains(&i) {
+            f[2] = "9.5".into();
+        }
+    });
+    run(&["leak", "--log", s(&l)], d.path()).refused(&["spikes.csv:300", "pressure_bar", "glitch"]);
 }
 
 #[test]

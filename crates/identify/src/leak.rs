@@ -610,8 +610,9 @@ pub fn read_decay_log_with(
             lines[k],
             "pressure_bar",
             format!(
-                "{} bar is {:.3} bar from the median {:.3} bar of its neighbours (3 rows either side), beyond \
-                 {:.3} bar (10 times their range + 0.1 bar): a glitch or a corrupt row, not a reading",
+                "{} bar is {:.3} bar from the median {:.3} bar of its neighbours (5 rows either side), beyond \
+                 {:.3} bar (10 times their middle half's spread + 0.1 bar): a glitch or a corrupt row, not a \
+                 reading",
                 crate::seal::shown(log.gauge_pa[k] / 1e5),
                 (log.gauge_pa[k] - m).abs() / 1e5,
                 m / 1e5,
@@ -623,21 +624,20 @@ pub fn read_decay_log_with(
     Ok(log)
 }
 
-/// The first reading further from the median of its neighbours (3 rows either side) than 10 times (their
-/// range + 0.1 bar): its index, that median and the bound. Local, so a chamber that empties in seconds and
-/// then reads atmosphere for minutes is a decay, not a log of glitches around a median of 0.
+/// The first reading further from the median of its neighbours (5 rows either side) than 10 times (the
+/// spread of their middle half + 0.1 bar): its index, that median and the bound. Local, so a chamber that
+/// empties in seconds and then reads atmosphere for minutes is a decay, not a log of glitches around a
+/// median of 0; the middle half, so two or three corrupt rows together do not hide each other.
 fn glitch(y: &[f64]) -> Option<(usize, f64, f64)> {
     (0..y.len()).find_map(|i| {
-        let mut w: Vec<f64> = (i.saturating_sub(3)..(i + 4).min(y.len()))
+        let mut w: Vec<f64> = (i.saturating_sub(5)..(i + 6).min(y.len()))
             .filter(|&j| j != i)
             .map(|j| y[j])
             .collect();
         w.sort_by(f64::total_cmp);
-        let (m, range) = (
-            0.5 * (w[(w.len() - 1) / 2] + w[w.len() / 2]),
-            w[w.len() - 1] - w[0],
-        );
-        let bound = 10.0 * (range + 0.1e5);
+        let n = w.len();
+        let m = 0.5 * (w[(n - 1) / 2] + w[n / 2]);
+        let bound = 10.0 * (w[n - 1 - n / 4] - w[n / 4] + 0.1e5);
         ((y[i] - m).abs() > bound).then_some((i, m, bound))
     })
 }
@@ -781,14 +781,14 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
     let noise_all = robust_noise(&log.gauge_pa);
     let floor = atmosphere_reading_pa(o.atmosphere_pa, noise_all);
     let line = |k: usize| log.lines.get(k).copied().unwrap_or(k + 1);
-    // The first row from which the median of five readings is below the threshold: one reading dipping by
-    // its noise does not end a decay.
+    // The first row below the threshold from which the median of five readings is below it too: one
+    // reading dipping by its noise does not end a decay.
     let y_all = &log.gauge_pa;
     let end = (0..y_all.len())
         .find(|&k| {
             let mut w: Vec<f64> = y_all[k..(k + 5).min(y_all.len())].to_vec();
             w.sort_by(f64::total_cmp);
-            w[w.len() / 2] < floor
+            y_all[k] < floor && w[w.len() / 2] < floor
         })
         .unwrap_or(y_all.len());
     if end < 10 {
@@ -800,8 +800,9 @@ pub fn fit_leak(log: &DecayLog, o: &LeakOptions) -> Result<LeakFit, IdentifyErro
             format!(
                 "{} bar gauge: the chamber reads atmosphere (or below it) from this row on (the median of five \
                  readings below {:.0} Pa gauge: 3 times the sensor's {:.0} Pa noise, or where the ISO 6358 law \
-                 ends), leaving {end} rows of decay; a leak needs at least 10 (a log of a closed chamber filled \
-                 above atmosphere)",
+                 ends), leaving {end} rows of decay; a leak needs at least 10 (a chamber that \
+                 empties in fewer rows needs a faster logger; a log of a closed chamber filled above \
+                 atmosphere)",
                 crate::seal::shown(log.gauge_pa[k] / 1e5),
                 floor,
                 noise_all
