@@ -10,8 +10,6 @@
 pub mod adaptive;
 pub mod controllers;
 pub mod error;
-#[cfg(feature = "serde")]
-pub mod file_forms;
 pub mod impedance;
 pub mod io;
 pub mod lyapunov;

@@ -21,10 +21,7 @@ pub enum AntiWindup {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(
-        from = "crate::file_forms::PidFile",
-        into = "crate::file_forms::PidFile"
-    )
+    serde(from = "crate::pid::PidFile", into = "crate::pid::PidFile")
 )]
 pub struct PidParams {
     /// Proportional gain, 1/m (valve command per metre of position error).
@@ -194,3 +191,86 @@ impl Pid {
         self.saturated = false;
     }
 }
+
+/// `PidParams` as scene files write it (`serde` feature): the anti-windup scheme as an optional
+/// `tracking_time_s` (absent = clamping) and defaults for every key the paper leaves open. Unknown keys are
+/// rejected. Kept here, beside the params, so the file form depends on `PidParams` and not the other way round.
+#[cfg(feature = "serde")]
+mod file_form {
+    use serde::{Deserialize, Serialize};
+
+    use super::{AntiWindup, PidParams};
+
+    fn one() -> f64 {
+        1.0
+    }
+    fn minus_one() -> f64 {
+        -1.0
+    }
+    fn default_derivative_filter() -> f64 {
+        0.002
+    }
+
+    /// `[runs.inner]`: the inner position loop (PID on x_r - x, derivative on the measurement).
+    #[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct PidFile {
+        /// Proportional gain, 1/m.
+        pub kp_per_m: f64,
+        /// Integral gain, 1/(m·s).
+        #[serde(default)]
+        pub ki_per_m_s: f64,
+        /// Derivative gain on the measured position, s/m.
+        #[serde(default)]
+        pub kd_s_per_m: f64,
+        /// Low-pass time constant of the derivative, s (0 = unfiltered).
+        #[serde(default = "default_derivative_filter")]
+        pub derivative_filter_s: f64,
+        /// Lower valve-command limit, in [-1, 1].
+        #[serde(default = "minus_one")]
+        pub u_min: f64,
+        /// Upper valve-command limit, in [-1, 1].
+        #[serde(default = "one")]
+        pub u_max: f64,
+        /// Back-calculation tracking time, s; absent = conditional integration (clamping).
+        #[serde(default)]
+        pub tracking_time_s: Option<f64>,
+    }
+
+    impl From<PidFile> for PidParams {
+        fn from(f: PidFile) -> Self {
+            Self {
+                kp_per_m: f.kp_per_m,
+                ki_per_m_s: f.ki_per_m_s,
+                kd_s_per_m: f.kd_s_per_m,
+                derivative_filter_s: f.derivative_filter_s,
+                u_min: f.u_min,
+                u_max: f.u_max,
+                anti_windup: match f.tracking_time_s {
+                    None => AntiWindup::Clamping,
+                    Some(tracking_time_s) => AntiWindup::BackCalculation { tracking_time_s },
+                },
+            }
+        }
+    }
+
+    impl From<PidParams> for PidFile {
+        fn from(p: PidParams) -> Self {
+            Self {
+                kp_per_m: p.kp_per_m,
+                ki_per_m_s: p.ki_per_m_s,
+                kd_s_per_m: p.kd_s_per_m,
+                derivative_filter_s: p.derivative_filter_s,
+                u_min: p.u_min,
+                u_max: p.u_max,
+                tracking_time_s: match p.anti_windup {
+                    AntiWindup::Clamping => None,
+                    AntiWindup::BackCalculation { tracking_time_s } => Some(tracking_time_s),
+                },
+            }
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+pub use file_form::PidFile;
