@@ -151,18 +151,18 @@ class Sim:
         self.model = mujoco.MjModel.from_xml_string(xml if xml is not None else c.xml)
         self.data = mujoco.MjData(self.model)
         m = self.model
-        self.flange_jnt = m.joint("flange_slide").id
+        self.flange_jnt = m.joint(c.spec.flange_joint).id
         self.flange_qpos = int(m.jnt_qposadr[self.flange_jnt])
         self.flange_dof = int(m.jnt_dofadr[self.flange_jnt])
-        self.flange_geom = m.geom("flange_box").id
+        self.flange_geoms = self._geoms(self.flange_jnt)
         self.faces = {}
         for f in c.spec.faces:
             # A copy: events change a face's stiffness here, not in the coupled scene's spec (a reset model
             # starts from the spec's).
             f = dataclasses.replace(f)
-            j = m.joint(f"{f.name}_mount").id
-            self.faces[f.name] = (f, j, int(m.jnt_qposadr[j]), m.geom(f"{f.name}_box").id)
-        self.face_geoms = {v[3] for v in self.faces.values()}
+            j = m.joint(f.joint).id
+            self.faces[f.name] = (f, j, int(m.jnt_qposadr[j]), self._geoms(j))
+        self.face_geoms = set().union(*(v[3] for v in self.faces.values()))
         self.alpha = c.spec.alpha_rad
         self.time = 0.0
         # Kinematic carriage (multibody rig): transverse offset and retreat along the axis, m.
@@ -177,6 +177,11 @@ class Sim:
         mujoco.mj_forward(self.model, self.data)
         self._cf = np.zeros(6)
 
+    def _geoms(self, joint: int) -> set[int]:
+        """The geoms of the body a joint moves (the link's colliders, `<link>/<i>`)."""
+        body = self.model.jnt_bodyid[joint]
+        return {g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == body}
+
     def x(self) -> tuple[float, float]:
         return float(self.data.qpos[self.flange_qpos]), float(self.data.qvel[self.flange_dof])
 
@@ -187,7 +192,7 @@ class Sim:
         for i in range(d.ncon):
             con = d.contact[i]
             g1, g2 = con.geom1, con.geom2
-            if self.flange_geom not in (g1, g2) or not ({g1, g2} & self.face_geoms):
+            if not ({g1, g2} & self.flange_geoms) or not ({g1, g2} & self.face_geoms):
                 continue
             mujoco.mj_contactForce(self.model, d, i, self._cf)
             # The contact frame's first axis is the normal; force[0] >= 0 is the normal force on geom2.

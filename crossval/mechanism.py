@@ -1,8 +1,9 @@
 """Cross-validation of scenes with [[actuators]] (any URDF, several cylinders; docs/multibody.md) in MuJoCo.
 
-The MJCF is derived from the scene's URDF here (`urdf_to_mjcf`): links become bodies (a fixed joint is a
-jointless child body), prismatic joints slides, revolute hinges, planar two slides in the plane; the URDF's
-inertials, limits and joint damping carry over. A cylinder along a joint is a MuJoCo `motor` on it; a
+The MJCF is derived from the scene's URDF by crossval/mjcf.py's `urdf_to_mjcf` (the one derivation, which
+also gives the paper rig's model): links become bodies (a fixed joint is a jointless child body), prismatic
+joints slides, revolute hinges, planar two slides in the plane; the URDF's inertials, limits and joint
+damping carry over. A cylinder along a joint is a MuJoCo `motor` on it; a
 cylinder between anchors is a spatial tendon between two sites with a `motor` on the tendon, so MuJoCo
 computes its length, rate and line of force itself. The compliant pads are not MuJoCo's contacts (its soft
 contact is not a Kelvin-Voigt pad): MuJoCo's `mj_geomDistance` gives the penetration and the two surface
@@ -20,13 +21,14 @@ from __future__ import annotations
 import math
 import time
 import tomllib
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 import pneuflex
+
+from . import mjcf
 
 
 def is_mechanism(scene: Path) -> bool:
@@ -38,134 +40,30 @@ def is_mechanism(scene: Path) -> bool:
     return "actuators" in doc and "plant" not in doc
 
 
-def _floats(text: str | None, n: int = 3, default: float = 0.0) -> list[float]:
-    if text is None:
-        return [default] * n
-    v = [float(x) for x in text.split()]
-    if len(v) != n:
-        raise ValueError(f"expected {n} numbers, got {text!r}")
-    return v
-
-
-def _rpy_quat(rpy: list[float]) -> list[float]:
-    """URDF fixed-axis roll, pitch, yaw as a MuJoCo quaternion (w, x, y, z): R = Rz(y) Ry(p) Rx(r)."""
-    r, p, y = (0.5 * a for a in rpy)
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return [
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    ]
-
-
-def _origin(el) -> tuple[list[float], list[float]]:
-    o = el.find("origin") if el is not None else None
-    if o is None:
-        return [0.0] * 3, [1.0, 0.0, 0.0, 0.0]
-    return _floats(o.get("xyz")), _rpy_quat(_floats(o.get("rpy")))
-
-
-def _fmt(v) -> str:
-    return " ".join(repr(float(x)) for x in v)
-
-
-def urdf_to_mjcf(urdf: Path, scene: dict, timestep_s: float) -> str:
-    """The MJCF of a mechanism scene: its URDF's tree, sites and tendons for the anchored cylinders, a motor
-    per cylinder. Colliders keep their names (`<link>/<i>`) and touch nothing (contype 0)."""
-    robot = ET.parse(urdf).getroot()
-    links = {l.get("name"): l for l in robot.findall("link")}
-    joints = robot.findall("joint")
-    children: dict[str, list] = {}
-    has_parent = set()
-    for j in joints:
-        children.setdefault(j.find("parent").get("link"), []).append(j)
-        has_parent.add(j.find("child").get("link"))
-    (root,) = [n for n in links if n not in has_parent]
+def mechanism_mjcf(urdf: Path, scene: dict, timestep_s: float) -> str:
+    """The MJCF of a mechanism scene (mjcf.urdf_to_mjcf): its URDF's tree, sites and tendons for the anchored
+    cylinders, a motor per cylinder. Colliders keep their names (`<link>/<i>`) and touch nothing (contype 0):
+    the pads are applied here."""
     sites: dict[str, list[tuple[str, list[float]]]] = {}
+    tendons, motors = [], []
     for a in scene["actuators"]:
         if "anchors" in a:
             an = a["anchors"]
             sites.setdefault(an["link_a"], []).append((f"{a['name']}_a", an["point_a_m"]))
             sites.setdefault(an["link_b"], []).append((f"{a['name']}_b", an["point_b_m"]))
-
-    def link_xml(name: str, depth: int) -> list[str]:
-        pad = "  " * depth
-        l = links[name]
-        out = []
-        inertial = l.find("inertial")
-        if inertial is not None and float(inertial.find("mass").get("value")) > 0.0:
-            xyz, quat = _origin(inertial)
-            if quat != [1.0, 0.0, 0.0, 0.0]:
-                raise NotImplementedError(f"{urdf}: link {name!r}: a rotated <inertial> frame")
-            i = inertial.find("inertia")
-            full = [float(i.get(k)) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
-            out.append(f'{pad}<inertial pos="{_fmt(xyz)}" mass="{float(inertial.find("mass").get("value"))!r}" fullinertia="{_fmt(full)}"/>')
-        for k, c in enumerate(l.findall("collision")):
-            xyz, quat = _origin(c)
-            g = c.find("geometry")[0]
-            if g.tag == "box":
-                size = [0.5 * s for s in _floats(g.get("size"))]
-                shape = f'type="box" size="{_fmt(size)}"'
-            elif g.tag == "sphere":
-                shape = f'type="sphere" size="{float(g.get("radius"))!r}"'
-            elif g.tag == "cylinder":
-                shape = f'type="cylinder" size="{float(g.get("radius"))!r} {0.5 * float(g.get("length"))!r}"'
-            else:
-                raise NotImplementedError(f"{urdf}: link {name!r}: <{g.tag}> collisions have no MuJoCo equivalent here")
-            out.append(f'{pad}<geom name="{name}/{k}" {shape} pos="{_fmt(xyz)}" quat="{_fmt(quat)}" contype="0" conaffinity="0" mass="0"/>')
-        for sname, p in sites.get(name, []):
-            out.append(f'{pad}<site name="{sname}" pos="{_fmt(p)}" size="0.005"/>')
-        for j in children.get(name, []):
-            child = j.find("child").get("link")
-            xyz, quat = _origin(j)
-            out.append(f'{pad}<body name="{child}" pos="{_fmt(xyz)}" quat="{_fmt(quat)}">')
-            kind = j.get("type")
-            axis = _floats(j.find("axis").get("xyz") if j.find("axis") is not None else "1 0 0")
-            dyn = j.find("dynamics")
-            damping = float(dyn.get("damping", 0.0)) if dyn is not None else 0.0
-            lim = j.find("limit")
-            rng = f' range="{float(lim.get("lower"))!r} {float(lim.get("upper"))!r}" limited="true"' if lim is not None and kind in ("prismatic", "revolute") else ""
-            jn = j.get("name")
-            if kind in ("prismatic", "revolute", "continuous"):
-                t = "slide" if kind == "prismatic" else "hinge"
-                out.append(f'{pad}  <joint name="{jn}" type="{t}" axis="{_fmt(axis)}" damping="{damping!r}"{rng}/>')
-            elif kind == "planar":
-                n = np.array(axis) / np.linalg.norm(axis)
-                u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-                u /= np.linalg.norm(u)
-                v = np.cross(n, u)
-                out.append(f'{pad}  <joint name="{jn}_u" type="slide" axis="{_fmt(u)}" damping="{damping!r}"/>')
-                out.append(f'{pad}  <joint name="{jn}_v" type="slide" axis="{_fmt(v)}" damping="{damping!r}"/>')
-            elif kind != "fixed":
-                raise NotImplementedError(f"{urdf}: joint {jn!r}: {kind} joints have no MuJoCo equivalent here")
-            out += link_xml(child, depth + 1)
-            out.append(f"{pad}</body>")
-        return out
-
-    h = timestep_s
-    g = scene.get("gravity_m_s2", [0.0, 0.0, -9.80665])
-    lines = [
-        f'<mujoco model="{scene["name"]}">',
-        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
-        f'  <option timestep="{h!r}" gravity="{_fmt(g)}" integrator="implicitfast"/>',
-        "  <worldbody>",
-    ]
-    lines += link_xml(root, 2)
-    lines.append("  </worldbody>")
-    tendons = [a for a in scene["actuators"] if "anchors" in a]
-    if tendons:
-        lines.append("  <tendon>")
-        for a in tendons:
-            lines.append(f'    <spatial name="{a["name"]}"><site site="{a["name"]}_a"/><site site="{a["name"]}_b"/></spatial>')
-        lines.append("  </tendon>")
-    lines.append("  <actuator>")
-    for a in scene["actuators"]:
-        target = f'tendon="{a["name"]}"' if "anchors" in a else f'joint="{a["joint"]}"'
-        lines.append(f'    <motor name="{a["name"]}" {target} gear="1"/>')
-    lines.append("  </actuator>")
-    lines.append("</mujoco>")
-    return "\n".join(lines) + "\n"
+            tendons.append((a["name"], f"{a['name']}_a", f"{a['name']}_b"))
+            motors.append((a["name"], f'tendon="{a["name"]}"'))
+        else:
+            motors.append((a["name"], f'joint="{a["joint"]}"'))
+    opt = mjcf.Options(
+        name=scene["name"],
+        timestep_s=timestep_s,
+        gravity=tuple(scene.get("gravity_m_s2", [0.0, 0.0, -9.80665])),
+        sites=sites,
+        tendons=tendons,
+        motors=motors,
+    )
+    return mjcf.urdf_to_mjcf(urdf, opt)
 
 
 def _reference(pieces: list[dict], t: float) -> float:
@@ -192,7 +90,7 @@ class MujocoMechanism:
         self.dt = float(scene["dt_s"])
         self.h = self.dt / substeps
         self.substeps = substeps
-        self.xml = urdf_to_mjcf(self.dir / scene["urdf"], scene, self.h)
+        self.xml = mechanism_mjcf(self.dir / scene["urdf"], scene, self.h)
         self.m = mujoco.MjModel.from_xml_string(self.xml)
         self.d = mujoco.MjData(self.m)
         self.acts = []
@@ -367,7 +265,7 @@ def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) 
             def rms(v):
                 return float(np.sqrt(np.mean(v**2)))
 
-            level = rms(rt[f"{name}.f_r"][late])
+            level = rms(rt[f"{name}.f_ref"][late])
             e = {
                 "force_level_n": level,
                 "rms_f_e_diff_whole_run_n": rms(d),

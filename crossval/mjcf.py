@@ -1,11 +1,19 @@
-"""MJCF generation: the MuJoCo model equivalent to a pneuflex scene.
+"""MJCF generation: the MuJoCo model of a pneuflex scene, derived from a URDF in one way (`urdf_to_mjcf`).
 
-Rig frame (as urdf/rig.urdf and crates/multibody): x = actuator axis (flange extension, towards the
-environment), z = platform normal. The incline alpha (actuator axis below the horizontal, gravity aids
-extension by m g sin(alpha)) is applied by turning gravity in the rig frame, exactly as RigWorld does:
-g_rig = g (sin(alpha) x - cos(alpha) z).
+The derivation: links become bodies (a fixed joint is a jointless child body, welded), prismatic joints
+slides, revolute and continuous joints hinges, planar joints two slides in the plane; the URDF's inertials,
+collision geometry (box, sphere, cylinder), limits and joint damping carry over. What a scene adds to the
+URDF is given in `Options`: gravity, step and integrator, per-joint overrides (a compliant mount's stiffness
+and spring reference), which links' geoms touch and how (contype/conaffinity, solref/solimp), links held
+kinematically (mocap bodies), sites, spatial tendons and motors. Every caller goes through it: the scenes
+with [[actuators]] (crossval/mechanism.py) and the paper's rig (`build_mjcf`), whether its rig comes from a
+URDF (`multibody` scenes: urdf/rig.urdf itself) or from a 1-DOF scene's numbers (`rig_urdf` writes that rig
+as a URDF first).
 
-Bodies:
+The paper's rig. Rig frame (as urdf/rig.urdf and crates/multibody): x = actuator axis (flange extension,
+towards the environment), z = platform normal. The incline alpha (actuator axis below the horizontal,
+gravity aids extension by m g sin(alpha)) is applied by turning gravity in the rig frame, exactly as
+RigWorld does: g_rig = g (sin(alpha) x - cos(alpha) z).
 - the cylinder is fixed (welded to the platform), so the actuator force acts on the flange's slide dof;
 - the flange slides along x (range = stroke, damping = K_v of eq. (1)); its collision box's front face
   is `flange_front_m` ahead of its joint origin;
@@ -13,18 +21,223 @@ Bodies:
   stiffness k_e, damping c_e, spring reference chosen so that the face's own weight along the axis is
   absorbed (the unloaded face rests at q = 0 at every incline, so f_e = k_e (x - x_e), eq. (21));
 - only flange-face contacts exist (contype/conaffinity), frictionless normal contacts (condim 1), made
-  near-rigid with solref/solimp so that the compliance lives in the mount, as in the Rapier world.
+  near-rigid with solref/solimp so that the compliance lives in the mount, as in the Rapier world;
+- the carriage carrying the faces (urdf/rig.urdf's planar joint) is a mocap body: it is moved, not pushed.
 """
 
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
+from pathlib import Path
 
 # Near-rigid contact: measured here (issue 6) to give a steady f_e = k_e x within 0.05 N at dt = 1 ms,
 # where MuJoCo's default (solref 0.02 1) sinks 2 mm at 14 N (a ~7e3 N/m series spring).
 CONTACT_SOLREF = "0.002 1"
 CONTACT_SOLIMP = "0.99 0.999 0.0001 0.5 2"
+
+
+# ---------------------------------------------------------------- the one derivation: URDF -> MJCF
+
+
+@dataclass
+class Options:
+    """What a scene adds to its URDF's tree. Attribute values are MJCF text."""
+
+    name: str
+    timestep_s: float
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.80665)
+    integrator: str = "implicitfast"
+    # Attributes every geom starts from (`<default><geom .../>`); a geom touches nothing unless its link is
+    # in `contacts`.
+    geom_defaults: dict[str, str] = field(default_factory=lambda: {"contype": "0", "conaffinity": "0"})
+    # Link name -> attributes of its collision geoms (contype, conaffinity, solref, solimp, rgba).
+    contacts: dict[str, dict[str, str]] = field(default_factory=dict)
+    # Joint name -> attributes set on (or over) the derived joint: stiffness, springref, damping, range, ...
+    joints: dict[str, dict[str, str]] = field(default_factory=dict)
+    # Links held kinematically -> offset of the mocap body from the link's URDF pose (world frame), m. Their
+    # own joint is dropped; the body sits under <worldbody> at its URDF pose plus the offset.
+    mocap: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    # Link name -> sites on it: (site name, position in the link frame).
+    sites: dict[str, list[tuple[str, list[float]]]] = field(default_factory=dict)
+    # Spatial tendons: (name, site a, site b).
+    tendons: list[tuple[str, str, str]] = field(default_factory=list)
+    # Motors: (name, target attribute, e.g. 'joint="j"' or 'tendon="t"').
+    motors: list[tuple[str, str]] = field(default_factory=list)
+
+
+def _floats(text: str | None, n: int = 3, default: float = 0.0) -> list[float]:
+    if text is None:
+        return [default] * n
+    v = [float(x) for x in text.split()]
+    if len(v) != n or not all(math.isfinite(a) for a in v):
+        raise ValueError(f"expected {n} finite numbers, got {text!r}")
+    return v
+
+
+def _rpy_quat(rpy: list[float]) -> list[float]:
+    """URDF fixed-axis roll, pitch, yaw as a MuJoCo quaternion (w, x, y, z): R = Rz(y) Ry(p) Rx(r)."""
+    r, p, y = (0.5 * a for a in rpy)
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return [
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    ]
+
+
+def _quat_mul(a: list[float], b: list[float]) -> list[float]:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return [
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ]
+
+
+def _rotate(q: list[float], v: list[float]) -> list[float]:
+    """v turned by the unit quaternion q: q (0, v) q*."""
+    return _quat_mul(_quat_mul(q, [0.0, *v]), [q[0], -q[1], -q[2], -q[3]])[1:]
+
+
+def _origin(el) -> tuple[list[float], list[float]]:
+    o = el.find("origin") if el is not None else None
+    if o is None:
+        return [0.0] * 3, [1.0, 0.0, 0.0, 0.0]
+    return _floats(o.get("xyz")), _rpy_quat(_floats(o.get("rpy")))
+
+
+def _fmt(v) -> str:
+    return " ".join(repr(float(x)) for x in v)
+
+
+def _attrs(a: dict[str, str]) -> str:
+    return "".join(f' {k}="{v}"' for k, v in a.items())
+
+
+def urdf_to_mjcf(urdf: str | Path, opt: Options) -> str:
+    """The MJCF of a URDF (a path, or the URDF's text when it starts with '<') with what `opt` adds.
+    Collision geoms keep their link's name (`<link>/<i>`)."""
+    text = str(urdf)
+    where = "URDF" if text.lstrip().startswith("<") else text
+    try:
+        robot = ET.fromstring(text) if where == "URDF" else ET.parse(text).getroot()
+    except (OSError, ET.ParseError) as e:
+        raise ValueError(f"{where}: cannot read URDF: {e}") from e
+    links = {l.get("name"): l for l in robot.findall("link")}
+    children: dict[str, list] = {}
+    has_parent = set()
+    for j in robot.findall("joint"):
+        children.setdefault(j.find("parent").get("link"), []).append(j)
+        has_parent.add(j.find("child").get("link"))
+    roots = [n for n in links if n not in has_parent]
+    if len(roots) != 1:
+        raise ValueError(f"{where}: expected one root link, found {roots}")
+    world_level: list[list[str]] = []
+
+    def link_xml(name: str, depth: int, moving: bool) -> list[str]:
+        pad = "  " * depth
+        l = links[name]
+        out = []
+        inertial = l.find("inertial")
+        # A link no joint moves (welded to the world or to a mocap body) carries no dynamics: its inertial is
+        # left out (MuJoCo would still check it; urdf/rig.urdf's carriage misses A + B >= C by 2e-6).
+        if moving and inertial is not None and float(inertial.find("mass").get("value")) > 0.0:
+            xyz, quat = _origin(inertial)
+            if quat != [1.0, 0.0, 0.0, 0.0]:
+                raise NotImplementedError(f"{where}: link {name!r}: a rotated <inertial> frame")
+            i = inertial.find("inertia")
+            full = [float(i.get(k)) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
+            out.append(f'{pad}<inertial pos="{_fmt(xyz)}" mass="{float(inertial.find("mass").get("value"))!r}" fullinertia="{_fmt(full)}"/>')
+        for k, c in enumerate(l.findall("collision")):
+            xyz, quat = _origin(c)
+            g = c.find("geometry")[0]
+            if g.tag == "box":
+                shape = f'type="box" size="{_fmt([0.5 * s for s in _floats(g.get("size"))])}"'
+            elif g.tag == "sphere":
+                shape = f'type="sphere" size="{float(g.get("radius"))!r}"'
+            elif g.tag == "cylinder":
+                shape = f'type="cylinder" size="{float(g.get("radius"))!r} {0.5 * float(g.get("length"))!r}"'
+            else:
+                raise NotImplementedError(f"{where}: link {name!r}: <{g.tag}> collisions have no MuJoCo equivalent here")
+            out.append(f'{pad}<geom name="{name}/{k}" {shape} pos="{_fmt(xyz)}" quat="{_fmt(quat)}" mass="0"{_attrs(opt.contacts.get(name, {}))}/>')
+        for sname, p in opt.sites.get(name, []):
+            out.append(f'{pad}<site name="{sname}" pos="{_fmt(p)}" size="0.005"/>')
+        return out
+
+    def subtree(name: str, depth: int, pose: tuple[list[float], list[float]], moving: bool) -> list[str]:
+        pad = "  " * depth
+        out = link_xml(name, depth, moving)
+        for j in children.get(name, []):
+            child = j.find("child").get("link")
+            xyz, quat = _origin(j)
+            jn, kind = j.get("name"), j.get("type")
+            # The child's pose in the world: the parent's composed with the joint origin.
+            world = ([a + b for a, b in zip(pose[0], _rotate(pose[1], xyz))], _quat_mul(pose[1], quat))
+            if child in opt.mocap:
+                off = opt.mocap[child]
+                body = [f'    <body name="{child}" mocap="true" pos="{_fmt([a + b for a, b in zip(world[0], off)])}" quat="{_fmt(world[1])}">']
+                world_level.append(body + subtree(child, 3, world, False) + ["    </body>"])
+                continue
+            out.append(f'{pad}<body name="{child}" pos="{_fmt(xyz)}" quat="{_fmt(quat)}">')
+            axis = _floats(j.find("axis").get("xyz") if j.find("axis") is not None else "1 0 0")
+            dyn = j.find("dynamics")
+            damping = float(dyn.get("damping", 0.0)) if dyn is not None else 0.0
+            lim = j.find("limit")
+            attrs = {"damping": repr(damping)}
+            if lim is not None and kind in ("prismatic", "revolute"):
+                attrs.update({"range": f"{float(lim.get('lower'))!r} {float(lim.get('upper'))!r}", "limited": "true"})
+            attrs.update(opt.joints.get(jn, {}))
+            if kind in ("prismatic", "revolute", "continuous"):
+                t = "slide" if kind == "prismatic" else "hinge"
+                out.append(f'{pad}  <joint name="{jn}" type="{t}" axis="{_fmt(axis)}"{_attrs(attrs)}/>')
+            elif kind == "planar":
+                norm = math.sqrt(sum(a * a for a in axis))
+                n = [a / norm for a in axis]
+                e = [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]
+                u = [n[1] * e[2] - n[2] * e[1], n[2] * e[0] - n[0] * e[2], n[0] * e[1] - n[1] * e[0]]
+                un = math.sqrt(sum(a * a for a in u))
+                u = [a / un for a in u]
+                v = [n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2], n[0] * u[1] - n[1] * u[0]]
+                d = {"damping": attrs["damping"]}
+                out.append(f'{pad}  <joint name="{jn}_u" type="slide" axis="{_fmt(u)}"{_attrs(d)}/>')
+                out.append(f'{pad}  <joint name="{jn}_v" type="slide" axis="{_fmt(v)}"{_attrs(d)}/>')
+            elif kind != "fixed":
+                raise NotImplementedError(f"{where}: joint {jn!r}: {kind} joints have no MuJoCo equivalent here")
+            out += subtree(child, depth + 1, world, moving or kind != "fixed")
+            out.append(f"{pad}</body>")
+        return out
+
+    lines = [
+        f'<mujoco model="{opt.name}">',
+        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
+        f'  <option timestep="{opt.timestep_s!r}" gravity="{_fmt(opt.gravity)}" integrator="{opt.integrator}"/>',
+        "  <default>",
+        f"    <geom{_attrs(opt.geom_defaults)}/>",
+        "  </default>",
+        "  <worldbody>",
+    ]
+    lines += subtree(roots[0], 2, ([0.0] * 3, [1.0, 0.0, 0.0, 0.0]), False)
+    for body in world_level:
+        lines += body
+    lines.append("  </worldbody>")
+    if opt.tendons:
+        lines.append("  <tendon>")
+        lines += [f'    <spatial name="{n}"><site site="{a}"/><site site="{b}"/></spatial>' for n, a, b in opt.tendons]
+        lines.append("  </tendon>")
+    if opt.motors:
+        lines.append("  <actuator>")
+        lines += [f'    <motor name="{n}" {target} gear="1"/>' for n, target in opt.motors]
+        lines.append("  </actuator>")
+    lines.append("</mujoco>")
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------- the paper's rig as one case of it
 
 
 @dataclass
@@ -40,6 +253,17 @@ class Face:
     x_e_m: float
     # Transverse (y) position of the face on the carriage, m.
     y_m: float = 0.0
+    # The mount's joint and the face's link in the URDF (default: `<name>_mount`, `<name>_face`).
+    mount_joint: str | None = None
+    link: str | None = None
+
+    @property
+    def joint(self) -> str:
+        return self.mount_joint or f"{self.name}_mount"
+
+    @property
+    def body(self) -> str:
+        return self.link or f"{self.name}_face"
 
 
 @dataclass
@@ -60,6 +284,10 @@ class RigSpec:
     axis_z_m: float = 0.04
     # Faces on a kinematic carriage (mocap body) that can swap them; the first face faces the flange at t = 0.
     carriage: bool = False
+    # The rig's URDF (multibody scenes); None: the rig is written from these numbers (`rig_urdf`).
+    urdf: str | None = None
+    flange_link: str = "flange"
+    flange_joint: str = "flange_slide"
 
 
 def gravity_vector(alpha_rad: float, g: float) -> tuple[float, float, float]:
@@ -74,69 +302,79 @@ def spring_ref(face: Face, alpha_rad: float, g: float) -> float:
     return -face.mass_kg * gravity_vector(alpha_rad, g)[0] / face.stiffness_n_per_m
 
 
-def build_mjcf(spec: RigSpec) -> str:
-    """The MJCF text of the rig."""
-    gx, gy, gz = gravity_vector(spec.alpha_rad, spec.gravity_m_s2)
-    z = spec.axis_z_m
-    half = 0.5 * spec.flange_front_m
-    # The flange's inertia is irrelevant on a slide joint; give a plausible box inertia.
-    fm = spec.flange_mass_kg
+def _box_inertia(m: float, ixx: float, iyy: float) -> str:
+    return f'<inertia ixx="{m * ixx!r}" iyy="{m * iyy!r}" izz="{m * iyy!r}" ixy="0" ixz="0" iyz="0"/>'
+
+
+def rig_urdf(spec: RigSpec) -> str:
+    """The rig of a scene without a URDF (a 1-DOF scene) as a URDF: the cylinder fixed to the world, the
+    flange (moving mass, K_v, stroke) on a prismatic joint along x, each face on a prismatic mount whose
+    flange-side surface is x_e ahead of the flange's front face. The flange's and the faces' inertias are
+    plausible boxes (irrelevant on a slide joint)."""
+    z, half, fm = spec.axis_z_m, 0.5 * spec.flange_front_m, spec.flange_mass_kg
     lines = [
-        f'<mujoco model="{spec.name}">',
-        '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{spec.timestep_s!r}" gravity="{gx!r} {gy!r} {gz!r}" integrator="Euler"/>',
-        "  <default>",
-        '    <geom contype="0" conaffinity="0" condim="1"/>',
-        "  </default>",
-        "  <worldbody>",
-        # Cylinder body: welded to the platform (part of the world), visual only.
-        f'    <geom name="cylinder" type="cylinder" size="0.014 0.04" pos="-0.045 0 {z}" zaxis="1 0 0" rgba="0.6 0.6 0.7 1"/>',
-        f'    <body name="flange" pos="0 0 {z}">',
-        f'      <joint name="flange_slide" type="slide" axis="1 0 0" range="0 {spec.stroke_m!r}" damping="{spec.flange_damping_n_s_per_m!r}"'
-        f' solreflimit="{CONTACT_SOLREF}" solimplimit="{CONTACT_SOLIMP}"/>',
-        f'      <inertial pos="{half!r} 0 0" mass="{fm!r}" diaginertia="{fm * 2.7e-4!r} {fm * 1.4e-4!r} {fm * 1.4e-4!r}"/>',
-        f'      <geom name="flange_box" type="box" size="{half!r} 0.02 0.02" pos="{half!r} 0 0" contype="1" conaffinity="2"'
-        f' solref="{CONTACT_SOLREF}" solimp="{CONTACT_SOLIMP}" rgba="0.8 0.8 0.8 1"/>',
-        "    </body>",
+        f'<robot name="{spec.name}">',
+        f'  <link name="base"><collision><origin xyz="-0.045 0 {z!r}" rpy="0 1.5707963267948966 0"/>'
+        '<geometry><cylinder radius="0.014" length="0.08"/></geometry></collision></link>',
+        f'  <link name="{spec.flange_link}"><inertial><origin xyz="{half!r} 0 0"/><mass value="{fm!r}"/>{_box_inertia(fm, 2.7e-4, 1.4e-4)}</inertial>'
+        f'<collision><origin xyz="{half!r} 0 0"/><geometry><box size="{spec.flange_front_m!r} 0.04 0.04"/></geometry></collision></link>',
+        f'  <joint name="{spec.flange_joint}" type="prismatic"><parent link="base"/><child link="{spec.flange_link}"/>'
+        f'<origin xyz="0 0 {z!r}"/><axis xyz="1 0 0"/><limit lower="0" upper="{spec.stroke_m!r}"/>'
+        f'<dynamics damping="{spec.flange_damping_n_s_per_m!r}"/></joint>',
     ]
-    indent = "    "
+    parent = "base"
     if spec.carriage:
-        # The carriage is driven kinematically (a mocap body, as Rapier's kinematic body): its pose is set
-        # every step; the faces ride on it on their compliant mounts. Initially the first face is aligned.
-        y0 = -spec.faces[0].y_m if spec.faces else 0.0
-        lines.append(f'{indent}<body name="carriage" mocap="true" pos="0 {y0!r} 0">')
-        indent += "  "
+        lines.append('  <link name="carriage"/>')
+        lines.append('  <joint name="carriage_slide" type="planar"><parent link="base"/><child link="carriage"/><axis xyz="0 0 1"/></joint>')
+        parent = "carriage"
     for f in spec.faces:
-        t = f.thickness_m
+        t, m = f.thickness_m, f.mass_kg
         # Unloaded face: its flange-side surface at x_e + flange_front (flange front face at x + front).
         x_face = f.x_e_m + spec.flange_front_m + 0.5 * t
-        m = f.mass_kg
-        ref = spring_ref(f, spec.alpha_rad, spec.gravity_m_s2)
         lines += [
-            f'{indent}<body name="{f.name}_face" pos="{x_face!r} {f.y_m!r} {z}">',
-            f'{indent}  <joint name="{f.name}_mount" type="slide" axis="1 0 0" range="-0.01 0.05"'
-            f' stiffness="{f.stiffness_n_per_m!r}" damping="{f.damping_n_s_per_m!r}" springref="{ref!r}"/>',
-            f'{indent}  <inertial pos="0 0 0" mass="{m!r}" diaginertia="{m * 6e-4!r} {m * 3e-4!r} {m * 3e-4!r}"/>',
-            f'{indent}  <geom name="{f.name}_box" type="box" size="{0.5 * t!r} 0.03 0.03" contype="2" conaffinity="1"'
-            f' solref="{CONTACT_SOLREF}" solimp="{CONTACT_SOLIMP}" rgba="0.7 0.5 0.3 1"/>',
-            f"{indent}</body>",
+            f'  <link name="{f.body}"><inertial><mass value="{m!r}"/>{_box_inertia(m, 6e-4, 3e-4)}</inertial>'
+            f'<collision><geometry><box size="{t!r} 0.06 0.06"/></geometry></collision></link>',
+            f'  <joint name="{f.joint}" type="prismatic"><parent link="{parent}"/><child link="{f.body}"/>'
+            f'<origin xyz="{x_face!r} {f.y_m!r} {z!r}"/><axis xyz="1 0 0"/><limit lower="-0.01" upper="0.05"/>'
+            f'<dynamics damping="{f.damping_n_s_per_m!r}"/></joint>',
         ]
-    if spec.carriage:
-        lines.append("    </body>")
-    lines += ["  </worldbody>", "</mujoco>"]
+    lines.append("</robot>")
     return "\n".join(lines) + "\n"
+
+
+def rig_options(spec: RigSpec) -> Options:
+    """What the rig adds to its URDF: the tilted gravity, explicit Euler, near-rigid frictionless contacts
+    between the flange and the faces only, each face mount's k_e, c_e and spring reference, the flange's
+    stroke ends as stiff as the contacts, and the carriage as a mocap body with the first face in front."""
+    flange = {"contype": "1", "conaffinity": "2", "solref": CONTACT_SOLREF, "solimp": CONTACT_SOLIMP, "rgba": "0.8 0.8 0.8 1"}
+    face = {"contype": "2", "conaffinity": "1", "solref": CONTACT_SOLREF, "solimp": CONTACT_SOLIMP, "rgba": "0.7 0.5 0.3 1"}
+    joints = {spec.flange_joint: {"solreflimit": CONTACT_SOLREF, "solimplimit": CONTACT_SOLIMP}}
+    for f in spec.faces:
+        ref = spring_ref(f, spec.alpha_rad, spec.gravity_m_s2)
+        joints[f.joint] = {"stiffness": repr(f.stiffness_n_per_m), "damping": repr(f.damping_n_s_per_m), "springref": repr(ref)}
+    return Options(
+        name=spec.name,
+        timestep_s=spec.timestep_s,
+        gravity=gravity_vector(spec.alpha_rad, spec.gravity_m_s2),
+        integrator="Euler",
+        geom_defaults={"contype": "0", "conaffinity": "0", "condim": "1"},
+        contacts={spec.flange_link: flange, **{f.body: face for f in spec.faces}},
+        joints=joints,
+        mocap={"carriage": (0.0, -spec.faces[0].y_m if spec.faces else 0.0, 0.0)} if spec.carriage else {},
+    )
+
+
+def build_mjcf(spec: RigSpec) -> str:
+    """The MJCF text of the rig: its URDF (or `rig_urdf`'s) through `urdf_to_mjcf` with `rig_options`."""
+    return urdf_to_mjcf(spec.urdf if spec.urdf is not None else rig_urdf(spec), rig_options(spec))
 
 
 # ---------------------------------------------------------------- URDF -> RigSpec (multibody scenes)
 
 
 def _xyz(el, attr="xyz") -> tuple[float, float, float]:
-    if el is None or el.get(attr) is None:
-        return (0.0, 0.0, 0.0)
-    v = [float(s) for s in el.get(attr).split()]
-    if len(v) != 3 or not all(math.isfinite(a) for a in v):
-        raise ValueError(f"bad {attr}={el.get(attr)!r}")
-    return (v[0], v[1], v[2])
+    x, y, z = _floats(el.get(attr) if el is not None else None)
+    return (x, y, z)
 
 
 def spec_from_urdf(
@@ -149,13 +387,12 @@ def spec_from_urdf(
     flange_link: str = "flange",
     flange_joint: str = "flange_slide",
 ) -> RigSpec:
-    """The MuJoCo rig of urdf/rig.urdf (the roles of crates/multibody's MultibodyConfig::paper_rig):
+    """The roles of urdf/rig.urdf's links and joints (as crates/multibody's MultibodyConfig::paper_rig), for
+    the coupling (couple.Sim) and `build_mjcf`, which derives the MJCF from the URDF itself:
     `materials` maps a material name to (mount joint, k N/m, c N s/m). Flange mass, K_v (joint damping),
     stroke, the flange's front face and every face's mass, thickness, transverse position and x_e come from
     the URDF, the same numbers the Rapier builder reads. Assumes the rig's layout: fixed cylinder, boxes,
     axes along +x, no rotations."""
-    import xml.etree.ElementTree as ET
-
     try:
         root = ET.parse(urdf_path).getroot()
     except (OSError, ET.ParseError) as e:
@@ -203,7 +440,7 @@ def spec_from_urdf(
         (fx, _, _), (tx, _, _) = box(face_link)
         face_front = fo[0] + fx - 0.5 * tx  # flange-side surface of the face, carriage frame
         x_e = face_front - (cyl_origin[0] + f_origin[0] + front) - lower
-        faces.append(Face(name, k, c, mass(face_link), tx, x_e, y_m=fo[1]))
+        faces.append(Face(name, k, c, mass(face_link), tx, x_e, y_m=fo[1], mount_joint=mount, link=face_link.get("name")))
     return RigSpec(
         name=root.get("name", "rig"),
         timestep_s=timestep_s,
@@ -217,6 +454,9 @@ def spec_from_urdf(
         faces=faces,
         axis_z_m=cyl_origin[2],
         carriage=True,
+        urdf=urdf_path,
+        flange_link=flange_link,
+        flange_joint=flange_joint,
     )
 
 
