@@ -2,10 +2,11 @@
 
 The derivation: links become bodies (a fixed joint is a jointless child body, welded), prismatic joints
 slides, revolute and continuous joints hinges, planar joints two slides in the plane; the URDF's inertials,
-collision geometry (box, sphere, cylinder), limits and joint damping carry over. What a scene adds to the
-URDF is given in `Options`: gravity, step and integrator, per-joint overrides (a compliant mount's stiffness
-and spring reference), which links' geoms touch and how (contype/conaffinity, solref/solimp), links held
-kinematically (mocap bodies), sites, spatial tendons and motors. Every caller goes through it: the scenes
+collision geometry (box, sphere, cylinder; an STL or OBJ mesh, which MuJoCo collides as its convex hull, as
+Rapier does), limits and joint damping carry over. What a scene adds to the URDF is given in `Options`:
+gravity, step and integrator, per-joint overrides (a compliant mount's stiffness and spring reference), which
+links' geoms touch and how (contype/conaffinity, solref/solimp), links held kinematically (mocap bodies),
+sites, spatial tendons and motors. Every caller goes through it: the scenes
 with [[actuators]] (crossval/mechanism.py) and the paper's rig (`build_mjcf`), whether its rig comes from a
 URDF (`multibody` scenes: urdf/rig.urdf itself) or from a 1-DOF scene's numbers (`rig_urdf` writes that rig
 as a URDF first).
@@ -138,6 +139,22 @@ def urdf_to_mjcf(urdf: str | Path, opt: Options) -> str:
     if len(roots) != 1:
         raise ValueError(f"{where}: expected one root link, found {roots}")
     world_level: list[list[str]] = []
+    meshes: list[str] = []
+
+    def mesh_asset(g) -> str:
+        """A <mesh> asset for a URDF mesh: its file relative to the URDF's folder (or absolute), its scale."""
+        filename = g.get("filename", "")
+        if filename.startswith("package://"):
+            raise NotImplementedError(f"{where}: mesh {filename!r}: package:// paths need a ROS package index")
+        path = Path(filename.removeprefix("file://"))
+        if not path.is_absolute():
+            if where == "URDF":
+                raise ValueError(f"mesh {filename!r}: a relative path needs the URDF's file")
+            path = Path(where).parent / path
+        name = f"mesh{len(meshes)}"
+        scale = f' scale="{_fmt(_floats(g.get("scale"), default=1.0))}"'
+        meshes.append(f'    <mesh name="{name}" file="{path.resolve()}"{scale}/>')
+        return name
 
     def link_xml(name: str, depth: int, moving: bool) -> list[str]:
         pad = "  " * depth
@@ -162,6 +179,9 @@ def urdf_to_mjcf(urdf: str | Path, opt: Options) -> str:
                 shape = f'type="sphere" size="{float(g.get("radius"))!r}"'
             elif g.tag == "cylinder":
                 shape = f'type="cylinder" size="{float(g.get("radius"))!r} {0.5 * float(g.get("length"))!r}"'
+            elif g.tag == "mesh":
+                # MuJoCo collides a mesh as its convex hull, as the Rapier builder does (crates/multibody mesh.rs).
+                shape = f'type="mesh" mesh="{mesh_asset(g)}"'
             else:
                 raise NotImplementedError(f"{where}: link {name!r}: <{g.tag}> collisions have no MuJoCo equivalent here")
             out.append(f'{pad}<geom name="{name}/{k}" {shape} pos="{_fmt(xyz)}" quat="{_fmt(quat)}" mass="0"{_attrs(opt.contacts.get(name, {}))}/>')
@@ -212,6 +232,9 @@ def urdf_to_mjcf(urdf: str | Path, opt: Options) -> str:
             out.append(f"{pad}</body>")
         return out
 
+    body = subtree(roots[0], 2, ([0.0] * 3, [1.0, 0.0, 0.0, 0.0]), False)
+    for b in world_level:
+        body += b
     lines = [
         f'<mujoco model="{opt.name}">',
         '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
@@ -219,12 +242,10 @@ def urdf_to_mjcf(urdf: str | Path, opt: Options) -> str:
         "  <default>",
         f"    <geom{_attrs(opt.geom_defaults)}/>",
         "  </default>",
-        "  <worldbody>",
     ]
-    lines += subtree(roots[0], 2, ([0.0] * 3, [1.0, 0.0, 0.0, 0.0]), False)
-    for body in world_level:
-        lines += body
-    lines.append("  </worldbody>")
+    if meshes:
+        lines += ["  <asset>", *meshes, "  </asset>"]
+    lines += ["  <worldbody>", *body, "  </worldbody>"]
     if opt.tendons:
         lines.append("  <tendon>")
         lines += [f'    <spatial name="{n}"><site site="{a}"/><site site="{b}"/></spatial>' for n, a, b in opt.tendons]
