@@ -138,6 +138,31 @@ impl Friction {
         Some((s0 * z + s1 * dz, dz))
     }
 
+    /// LuGre's bristle deflection after the piston moved `dx` in `dt` at a velocity held, `v = dx / dt`;
+    /// `None` for the other laws. With v held, eq. (2) of Canudas de Wit et al. is linear in z and its
+    /// solution is exact over any step: `dz/dx = sign(v) - sigma0 z / g(v)`, so
+    /// `z = z_ss + (z0 - z_ss) exp(-sigma0 |dx| / g(v))` with `z_ss = sign(v) g(v) / sigma0`. Stable for any
+    /// stiffness: an explicit step of `z' = v - sigma0 |v| z / g` diverges once `sigma0 |v| dt / g` passes
+    /// 2.8 (RK4), i.e. at 0.4 m/s for 4e4 N/m bristles on a 0.6 N seal and a 0.1 ms step.
+    #[inline]
+    pub fn lugre_bristle_after(&self, z0: f64, dx: f64, dt: f64) -> Option<f64> {
+        let Friction::LuGre {
+            bristle_stiffness_n_per_m: s0,
+            ..
+        } = *self
+        else {
+            return None;
+        };
+        if dx == 0.0 || dt <= 0.0 {
+            return Some(z0);
+        }
+        let g = self.stribeck_n(dx / dt).max(f64::MIN_POSITIVE);
+        let z_ss = dx.signum() * g / s0;
+        // 1 - exp(-q) without the cancellation of a small q (a slow creep over one step).
+        let q = s0 * dx.abs() / g;
+        Some(z0 + (z_ss - z0) * -(-q).exp_m1())
+    }
+
     /// Friction force opposing motion (positive along +x resists positive velocity), N, given the
     /// velocity and the net driving force of everything except friction and viscosity. For LuGre, which
     /// needs its bristle state ([`Friction::lugre`]), the steady-sliding force `g(v) sign(v)`.
