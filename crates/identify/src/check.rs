@@ -36,10 +36,13 @@ pub const LAGS: usize = 20;
 pub const MAX_FLOOR_RATIO: f64 = 1.6;
 /// Whiteness fails when the mean |autocorrelation| over lags 1..LAGS exceeds this. Not the +-1.96/sqrt(N)
 /// band alone: with ~10^4 rows it is +-0.02, and the replay's start errors (the restarted velocity's error
-/// decaying over the segment) correlate a matched model's residuals by more than that (measured: mean
-/// |autocorrelation| 0.014-0.126, 5-85 % of the lags outside the band); what a missing effect leaves is
-/// a pattern over tens of ms (measured: 0.23-0.50 on the worst channel).
-pub const MAX_MEAN_ABS_AUTOCORRELATION: f64 = 0.15;
+/// decaying over the segment) correlate a matched model's residuals by more than that. Set from the spread
+/// of matched models (40 truths of the fitted model, seeds 9180-9219, 4 s logs: the worst channel's mean
+/// |autocorrelation| 0.092 +- 0.043, at most 0.179): 0.22 is exceeded by 0.15 % of them under a normal
+/// fit, 3 % under a log-normal one (the design: at most 3 % of matched models fail here; 0.15 failed 8 of
+/// 40, among them issue 44's seed 9173 at 0.1506). An effect this lets through is covered by the widened
+/// intervals ([`widen`]); the hidden effects of the tests leave 0.23-0.50 on their worst channel.
+pub const MAX_MEAN_ABS_AUTOCORRELATION: f64 = 0.22;
 /// Held-out RMS above this many times the fit rows' RMS: the model does not carry to data it was not
 /// fitted to (matched or freed models: 0.93-1.16; the held-out part of one excitation is much like the
 /// fitted part, so this catches a model that drifts or was fitted to one regime, not the tests' effects).
@@ -48,9 +51,19 @@ pub const MAX_VALIDATION_RATIO: f64 = 1.5;
 /// matched model's residuals reach 0.16 with one probe or another by chance (they are noise, and the
 /// probes' patterns are smooth, so few effective samples), a missing effect's best 0.52-0.97.
 pub const MIN_SIGNATURE_CORRELATION: f64 = 0.3;
-/// Effects within this fraction of the best one's score are named too: the patterns overlap, and a close
-/// second is not ruled out.
-pub const SIGNATURE_TIE: f64 = 0.8;
+/// A probe's amount this many standard errors (after [`AMOUNT_SE_FACTOR`]) beyond its absence is a
+/// detection: the residuals carry that effect. One-sided 0.19 % per probe, so with the ten probes at most
+/// 2 % of matched models fail here (the design; measured in docs/identification.md).
+pub const DETECT_Z: f64 = 2.9;
+/// The probes' Newey-West standard errors times this: on matched models (40 truths, seeds 9180-9219,
+/// 399 amounts) amount / standard error had an RMS of 1.38, not 1 (the replay's restarts correlate the
+/// residuals beyond what the lag window holds), so the raw standard error is 1.4 times too small.
+pub const AMOUNT_SE_FACTOR: f64 = 1.4;
+/// An adequate fit's intervals cover every probed effect the residuals allow: amounts up to this many
+/// standard errors above the estimated one (see [`widen`]).
+pub const WIDEN_Z: f64 = 1.96;
+/// Newey-West lag of the probes' amounts, s (as the fit's `FitOptions::hac_lag_s`).
+pub const HAC_LAG_S: f64 = 0.5;
 /// A still window: this many rows, over which the command moves at most [`STILL_COMMAND`] and the
 /// position at most [`STILL_POSITION_QUANTA`] steps of its grid (or [`STILL_POSITION_M`] without a grid).
 pub const STILL_WINDOW: usize = 20;
@@ -110,6 +123,8 @@ pub struct Missing {
     pub evidence: String,
     /// |correlation| of the residuals with the effect's signature.
     pub correlation: f64,
+    /// Standard errors of its best probe's amount beyond the effect's absence (the ranking).
+    pub beyond_absence: f64,
 }
 
 /// The check of one fit.
@@ -141,6 +156,18 @@ pub struct Signature {
     pub probe: &'static str,
     /// |partial correlation| of the fit residuals with its pattern, given the fitted keys'.
     pub correlation: f64,
+    /// Whether the model has the effect with its keys fitted (then the probe is not scored: NaN amount).
+    pub modelled: bool,
+    /// The amount of the effect the residuals carry, in probes (the amount added; regression on the
+    /// pattern and the fitted keys' sensitivities together).
+    pub amount: f64,
+    /// Its standard error (Newey-West over segments).
+    pub amount_se: f64,
+    /// The least amount there can be, in probes (0: the effect's absence).
+    pub least_amount: f64,
+    /// Per fitted key (in `--free`'s order), how far one probe of the effect in the rig would put the
+    /// truth from the fitted value: the keys take up that much of it (physical units).
+    pub shift: Vec<f64>,
 }
 
 /// The thresholds, as in the constants.
@@ -154,6 +181,10 @@ pub struct Thresholds {
     pub max_validation_ratio: f64,
     /// [`MIN_SIGNATURE_CORRELATION`].
     pub min_signature_correlation: f64,
+    /// [`DETECT_Z`].
+    pub detect_z: f64,
+    /// [`WIDEN_Z`].
+    pub widen_z: f64,
 }
 
 impl ModelCheck {
@@ -402,16 +433,14 @@ pub fn check(
             validation_ratio,
         });
     }
-    let adequate = failed.is_empty();
     let floors: [f64; 3] = std::array::from_fn(|i| channels[i].floor.max(f64::MIN_POSITIVE));
-    let sig: Vec<Signature> = signatures(model, off, free, data, opts, floors)
-        .into_iter()
-        .map(|(effect, probe, correlation)| Signature {
-            effect,
-            probe,
-            correlation,
-        })
-        .collect();
+    let sig = signatures(model, off, free, data, opts, floors);
+    for s in &sig {
+        if let Some(f) = detection(s) {
+            failed.push(f);
+        }
+    }
+    let adequate = failed.is_empty();
     let likely_missing = if adequate {
         Vec::new()
     } else {
@@ -429,6 +458,8 @@ pub fn check(
             max_mean_abs_autocorrelation: MAX_MEAN_ABS_AUTOCORRELATION,
             max_validation_ratio: MAX_VALIDATION_RATIO,
             min_signature_correlation: MIN_SIGNATURE_CORRELATION,
+            detect_z: DETECT_Z,
+            widen_z: WIDEN_Z,
         },
     }
 }
@@ -614,9 +645,11 @@ impl Partial {
 /// 50 W/(m^2 K) of wall heat, an exponent 0.1 lower, a seal term of 2e-6 N/Pa, LuGre bristles with a
 /// break-away 50 % above the Coulomb force, 1 ms of spool travel or release delay, 1 cm^3 lines); where
 /// the fitted model has the effect already, 50 % more of it.
-fn probes(m: &OneDofModel) -> Vec<(&'static str, &'static str, OneDofModel)> {
+fn probes(m: &OneDofModel) -> Vec<Probe> {
     use pneuflex_pneumatics::{Friction, Lines, Orifice, ValveKind, WallHeat};
     let mut out = Vec::new();
+    // The amount of an effect the model has already may be less, down to none: -2 probes of 50 % more.
+    let least = |has: bool| if has { -2.0 } else { 0.0 };
     let c_valve = m.actuator.valve.orifice.sonic_conductance_m3_per_s_pa;
     for (i, name) in pneuflex_pneumatics::LEAKS.iter().enumerate() {
         let mut p = *m;
@@ -631,7 +664,13 @@ fn probes(m: &OneDofModel) -> Vec<(&'static str, &'static str, OneDofModel)> {
             },
         };
         p.effects.leaks.set(i, Some(o));
-        out.push(("leakage", *name, p));
+        out.push(Probe {
+            effect: "leakage",
+            probe: name,
+            model: p,
+            keys: &LEAK_KEYS[i],
+            least: least(m.effects.leaks.get(i).is_some()),
+        });
     }
     let mut p = *m;
     p.effects.wall_heat = Some(match m.effects.wall_heat {
@@ -644,11 +683,26 @@ fn probes(m: &OneDofModel) -> Vec<(&'static str, &'static str, OneDofModel)> {
             wall_temperature_k: m.actuator.supply.atmosphere_temperature_k,
         },
     });
-    out.push(("heat_transfer", "wall heat", p));
+    out.push(Probe {
+        effect: "heat_transfer",
+        probe: "wall heat",
+        model: p,
+        keys: &[Key::WallHeat],
+        least: least(m.effects.wall_heat.is_some()),
+    });
     let mut p = *m;
     p.actuator.gas.polytropic_exponent = (m.actuator.gas.polytropic_exponent - 0.1).max(1.0);
     if p.actuator.gas.polytropic_exponent != m.actuator.gas.polytropic_exponent {
-        out.push(("heat_transfer", "polytropic exponent", p));
+        // An exponent above the sheet's (up to the heat-capacity ratio 1.4 of air) is a probe's negative
+        // amount: less heat exchange than modelled.
+        let room = (1.4 - m.actuator.gas.polytropic_exponent).max(0.0) / 0.1;
+        out.push(Probe {
+            effect: "heat_transfer",
+            probe: "polytropic exponent",
+            model: p,
+            keys: &[Key::PolytropicExponent],
+            least: -room,
+        });
     }
     let mut p = *m;
     p.effects.coulomb_pressure_n_per_pa = Some(
@@ -656,7 +710,13 @@ fn probes(m: &OneDofModel) -> Vec<(&'static str, &'static str, OneDofModel)> {
             .coulomb_pressure_n_per_pa
             .map_or(2e-6, |k| 1.5 * k),
     );
-    out.push(("friction", "seal pressure term", p));
+    out.push(Probe {
+        effect: "friction",
+        probe: "seal pressure term",
+        model: p,
+        keys: &[Key::CoulombPressure],
+        least: least(m.effects.coulomb_pressure_n_per_pa.is_some()),
+    });
     let mut p = *m;
     let f_c = m.mechanics.friction.coulomb_n().max(0.1);
     p.mechanics.friction = match m.mechanics.friction {
@@ -681,7 +741,13 @@ fn probes(m: &OneDofModel) -> Vec<(&'static str, &'static str, OneDofModel)> {
             bristle_damping_n_s_per_m: 100.0,
         },
     };
-    out.push(("friction", "stick-slip / LuGre", p));
+    out.push(Probe {
+        effect: "friction",
+        probe: "stick-slip / LuGre",
+        model: p,
+        keys: &[Key::Static, Key::BristleStiffness],
+        least: least(matches!(m.mechanics.friction, Friction::LuGre { .. })),
+    });
     let spool = m.effects.spool.unwrap_or_default();
     match m.actuator.valve.kind {
         ValveKind::OnOffPwm {
@@ -695,19 +761,40 @@ fn probes(m: &OneDofModel) -> Vec<(&'static str, &'static str, OneDofModel)> {
                 1e-3
             };
             p.effects.spool = Some(s);
-            out.push(("valve_dynamics", "spool travel", p));
+            out.push(Probe {
+                effect: "valve_dynamics",
+                probe: "spool travel",
+                model: p,
+                keys: &[Key::SpoolTimeConstant],
+                least: least(spool.spool_time_constant_s > 0.0),
+            });
             let mut p = *m;
             let mut s = spool;
             s.release_delay_s = Some(s.release_delay_s.unwrap_or(switching_delay_s) + 1e-3);
             p.effects.spool = Some(s);
-            out.push(("valve_dynamics", "release delay", p));
+            // A release delay the sheet sets may be shorter, down to none; one it lacks (the switching
+            // delay stands for both edges) is the effect's absence.
+            let least = spool.release_delay_s.map_or(0.0, |d| -d / 1e-3);
+            out.push(Probe {
+                effect: "valve_dynamics",
+                probe: "release delay",
+                model: p,
+                keys: &[Key::ReleaseDelay],
+                least,
+            });
         }
         _ => {
             let mut p = *m;
             let mut s = spool;
             s.dead_time_s += 1e-3;
             p.effects.spool = Some(s);
-            out.push(("valve_dynamics", "dead time", p));
+            out.push(Probe {
+                effect: "valve_dynamics",
+                probe: "dead time",
+                model: p,
+                keys: &[Key::DeadTime],
+                least: -(spool.dead_time_s / 1e-3),
+            });
         }
     }
     let mut p = *m;
@@ -726,44 +813,201 @@ fn probes(m: &OneDofModel) -> Vec<(&'static str, &'static str, OneDofModel)> {
             speed_of_sound_m_per_s: 343.0,
         },
     });
-    out.push(("valve_dynamics", "lines", p));
+    out.push(Probe {
+        effect: "valve_dynamics",
+        probe: "lines",
+        model: p,
+        keys: &[Key::LineVolume, Key::LineConductance, Key::LineLength],
+        least: least(m.effects.lines.is_some()),
+    });
     out
 }
 
-/// The fit rows' residuals of `model` as one vector (p_a, p_b, x per row, each over its floor).
+/// One probe: a little of one effect added to the fitted model (see [`probes`]).
+struct Probe {
+    effect: &'static str,
+    probe: &'static str,
+    model: OneDofModel,
+    /// The keys that model it: when one is fitted, the effect is in the model and the probe says nothing.
+    keys: &'static [Key],
+    /// The least amount of the effect there can be, in probes (0: none; below 0 when the model has some).
+    least: f64,
+}
+
+/// The keys of each leak probe (`pneuflex_pneumatics::LEAKS`).
+const LEAK_KEYS: [[Key; 1]; 3] = [
+    [Key::LeakConductance(0)],
+    [Key::LeakConductance(1)],
+    [Key::LeakConductance(2)],
+];
+
+/// The fit rows' residuals of `model` as one vector (p_a, p_b, x per row, each over its floor), and the
+/// range of each segment's entries in it (the clusters of [`Amounts`]'s covariance, one list per log).
 fn stacked(
     model: &OneDofModel,
     off: &Offsets,
     data: &[Prepared],
     opts: &ReplayOptions,
     floors: [f64; 3],
-) -> Vec<f64> {
+) -> (Vec<f64>, Vec<Vec<std::ops::Range<usize>>>) {
     let mut out = Vec::new();
+    let mut clusters = Vec::new();
     for d in data {
         let p = d.replay(model, off, opts, d.fit_end);
+        let mut segs: Vec<std::ops::Range<usize>> = Vec::new();
+        let mut seg = usize::MAX;
         for &k in &d.compared {
+            let s = d
+                .segments
+                .partition_point(|&(s, _)| s < k)
+                .saturating_sub(1);
+            if s != seg {
+                segs.push(out.len()..out.len());
+                seg = s;
+            }
             out.push((p.p_a[k] - d.log.p_a[k]) / floors[0]);
             out.push((p.p_b[k] - d.log.p_b[k]) / floors[1]);
             out.push((p.x[k] - d.log.x[k]) / floors[2]);
+            if let Some(r) = segs.last_mut() {
+                r.end = out.len();
+            }
+        }
+        clusters.push(segs);
+    }
+    (out, clusters)
+}
+
+/// What one probe's pattern explains of the residuals, as a regression of the residuals' negative on the
+/// fitted keys' sensitivities and the pattern together: `-r = J d + e a` (the truth's readings are the
+/// fitted replay plus the keys' and the effect's changes).
+#[derive(Clone, Debug, Default)]
+struct Amounts {
+    /// |partial correlation| of the residuals with the pattern, given the keys' sensitivities.
+    correlation: f64,
+    /// The amount `a` of the effect the residuals carry, in probes.
+    amount: f64,
+    /// Its standard error: Newey-West over the segments (their rows share a restart error, and the
+    /// velocity and temperatures carry into the next), as the fit's own covariance.
+    amount_se: f64,
+    /// Per fitted key, how far one probe of the effect in the rig moves the truth from the fitted value
+    /// (physical units): the keys absorb what they can of the effect, `d = -(J^T J)^-1 J^T e`.
+    shift: Vec<f64>,
+}
+
+/// The solution of the symmetric system `g x = v` through the pseudo-inverse (eigenvalues below 1e-12 of
+/// the largest dropped: a regressor the others span gets no weight), and that pseudo-inverse.
+fn pinv_of(g: &nalgebra::DMatrix<f64>) -> nalgebra::DMatrix<f64> {
+    let n = g.nrows();
+    let eig = g.clone().symmetric_eigen();
+    let lmax = eig.eigenvalues.iter().cloned().fold(0.0_f64, f64::max);
+    let mut p = nalgebra::DMatrix::<f64>::zeros(n, n);
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > 1e-12 * lmax && l > 0.0 {
+            let v = eig.eigenvectors.column(i);
+            p += (v * v.transpose()) / l;
         }
     }
-    out
+    p
+}
+
+/// [`Amounts`] of the pattern `e` given the keys' sensitivities `jac` (each per `steps[j]` of its key,
+/// physical units) for the stacked residuals `base` in `clusters`; `lag` the Newey-West lag in segments.
+fn amounts(
+    jac: &[Vec<f64>],
+    steps: &[f64],
+    e: &[f64],
+    base: &[f64],
+    clusters: &[Vec<std::ops::Range<usize>>],
+    lag: usize,
+) -> Amounts {
+    use nalgebra::{DMatrix, DVector};
+    let p = jac.len();
+    let n = base.len();
+    let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    if !finite(e) || !finite(base) || jac.iter().any(|c| !finite(c)) || n <= p + 1 {
+        return Amounts {
+            amount: f64::NAN,
+            amount_se: f64::NAN,
+            shift: vec![f64::NAN; p],
+            ..Amounts::default()
+        };
+    }
+    let mut cols: Vec<&[f64]> = jac.iter().map(Vec::as_slice).collect();
+    cols.push(e);
+    // Each column over its norm: the keys' sensitivities and the pattern differ by orders of magnitude.
+    let norms: Vec<f64> = cols
+        .iter()
+        .map(|c| {
+            c.iter()
+                .map(|v| v * v)
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE)
+        })
+        .collect();
+    let x = DMatrix::from_fn(n, p + 1, |i, j| cols[j][i] / norms[j]);
+    let y = DVector::from_iterator(n, base.iter().map(|v| -v));
+    let xtx = x.transpose() * &x;
+    let gi = pinv_of(&xtx);
+    let coef = &gi * (x.transpose() * &y);
+    let u = &y - &x * &coef;
+    // Newey-West over the segments of each log (weights 1 - l/(L+1)), with the fit's small-sample factor.
+    let mut meat = DMatrix::<f64>::zeros(p + 1, p + 1);
+    let mut g = 0usize;
+    for log in clusters {
+        let scores: Vec<DVector<f64>> = log
+            .iter()
+            .map(|r| x.rows(r.start, r.len()).transpose() * u.rows(r.start, r.len()))
+            .collect();
+        g += scores.len();
+        for (c, s_c) in scores.iter().enumerate() {
+            meat += s_c * s_c.transpose();
+            for l in 1..=lag.min(c) {
+                let w = 1.0 - l as f64 / (lag + 1) as f64;
+                let s_l = &scores[c - l];
+                meat += (s_c * s_l.transpose() + s_l * s_c.transpose()) * w;
+            }
+        }
+    }
+    let small = if g > 1 {
+        (g as f64 / (g as f64 - 1.0)) * ((n as f64 - 1.0) / (n - p - 1) as f64)
+    } else {
+        1.0
+    };
+    let cov = &gi * meat * &gi * small;
+    let amount = coef[p] / norms[p];
+    let amount_se = AMOUNT_SE_FACTOR * cov[(p, p)].max(0.0).sqrt() / norms[p];
+    // The keys' share of the pattern: their regression on it alone.
+    let xj = x.columns(0, p).into_owned();
+    let bj = pinv_of(&(xj.transpose() * &xj)) * (xj.transpose() * x.column(p));
+    let shift = (0..p)
+        .map(|j| -bj[j] * norms[p] / norms[j] * steps[j])
+        .collect();
+    let mut part = Partial::new(p + 1);
+    let owned: Vec<Vec<f64>> = cols.iter().map(|c| c.to_vec()).collect();
+    part.add(&owned, base);
+    Amounts {
+        correlation: part.r(p),
+        amount,
+        amount_se,
+        shift,
+    }
 }
 
 /// Which effect's pattern the residuals carry, computed by the replay itself: each probe (see [`probes`])
 /// is replayed, and its change of the residuals is the pattern that effect would leave. The fitted keys
-/// would readjust to an added effect, so their own sensitivities (one replay per key, +0.1 % of its
-/// scale) are projected out of both, and the partial correlation of the residuals with the pattern is
-/// the effect's score; an effect's score is its best probe's.
+/// would readjust to an added effect, so the residuals are regressed on their own sensitivities (one
+/// replay per key, +0.1 % of its scale) and the pattern together ([`amounts`]): the pattern's partial
+/// correlation with the residuals is the effect's score, its coefficient the amount of the effect the
+/// residuals carry (with a standard error robust to the segments' shared errors), and the keys' share of
+/// the pattern how far that amount moves the truth from the fitted values (for [`widen`]).
 ///
 /// Why this and not a rule per effect: the replay restarts every segment, the valve holds the chambers
 /// to its supply and exhaust, and the fitted keys take up part of any missing effect, so what is left of
 /// a leak, a heat exchange or a lag in the residuals has a shape no simple proxy (a drift on held segments,
-/// a correlation with dp/dt) gives reliably; the probes' patterns have it exactly. It remains a
-/// correlation with one amount of each effect near the fit, not a fit of each: effects whose patterns
-/// overlap (heat transfer and valve dynamics both act after fast pressure changes) can score alike, so the
-/// list names every effect within [`SIGNATURE_TIE`] of the best, and "unknown" when none reaches
-/// [`MIN_SIGNATURE_CORRELATION`].
+/// a correlation with dp/dt) gives reliably; the probes' patterns have it exactly. It remains a linear
+/// regression on one amount of each effect near the fit, not a fit of each: effects whose patterns
+/// overlap (heat transfer and valve dynamics both act after fast pressure changes) can score alike.
 fn signatures(
     model: &OneDofModel,
     off: &Offsets,
@@ -771,36 +1015,147 @@ fn signatures(
     data: &[Prepared],
     opts: &ReplayOptions,
     floors: [f64; 3],
-) -> Vec<(&'static str, &'static str, f64)> {
+) -> Vec<Signature> {
     use rayon::prelude::*;
-    let base = stacked(model, off, data, opts, floors);
+    let (base, clusters) = stacked(model, off, data, opts, floors);
     let diff = |m: &OneDofModel, o: &Offsets| -> Vec<f64> {
         stacked(m, o, data, opts, floors)
+            .0
             .iter()
             .zip(&base)
             .map(|(a, b)| a - b)
             .collect()
     };
+    let steps: Vec<f64> = free
+        .iter()
+        .map(|&(k, start)| 1e-3 * k.scale(start))
+        .collect();
     let jac: Vec<Vec<f64>> = free
         .par_iter()
-        .map(|&(k, start)| {
+        .zip(&steps)
+        .map(|(&(k, _), &h)| {
             let (mut m, mut o) = (*model, *off);
             let v = k.get(&m, &o);
-            k.set(&mut m, &mut o, v + 1e-3 * k.scale(start));
+            k.set(&mut m, &mut o, v + h);
             diff(&m, &o)
         })
         .collect();
+    let lag = (HAC_LAG_S / opts.segment_s).ceil().max(0.0) as usize;
     probes(model)
         .par_iter()
-        .map(|(effect, variant, m)| {
-            let e = diff(m, off);
-            let mut cols = jac.clone();
-            cols.push(e);
-            let mut g = Partial::new(cols.len());
-            g.add(&cols, &base);
-            (*effect, *variant, g.r(cols.len() - 1))
+        .map(|pr| {
+            let modelled = pr.keys.iter().any(|k| free.iter().any(|(f, _)| f == k));
+            let a = if modelled {
+                Amounts {
+                    amount: f64::NAN,
+                    amount_se: f64::NAN,
+                    shift: vec![0.0; free.len()],
+                    ..Amounts::default()
+                }
+            } else {
+                amounts(&jac, &steps, &diff(&pr.model, off), &base, &clusters, lag)
+            };
+            Signature {
+                effect: pr.effect,
+                probe: pr.probe,
+                correlation: a.correlation,
+                modelled,
+                amount: a.amount,
+                amount_se: a.amount_se,
+                least_amount: pr.least,
+                shift: a.shift,
+            }
         })
         .collect()
+}
+
+/// The failure a probe's amount makes: significantly more of the effect than its absence (`DETECT_Z`
+/// standard errors), or `None`.
+fn detection(s: &Signature) -> Option<String> {
+    if s.modelled || !(s.amount.is_finite() && s.amount_se.is_finite()) {
+        return None;
+    }
+    // More than the model has, or (of an effect it has) significantly less.
+    let more = s.amount - DETECT_Z * s.amount_se > 0.0;
+    let less = s.least_amount < 0.0 && s.amount + DETECT_Z * s.amount_se < 0.0;
+    (more || less).then(|| {
+        format!(
+            "the residuals carry {} ({}: {:.2} +- {:.2} probes, limit {DETECT_Z} standard errors from none)",
+            s.effect.replace('_', " "),
+            s.probe,
+            s.amount,
+            s.amount_se
+        )
+    })
+}
+
+/// How an interval was widened for an effect the model lacks.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Widening {
+    /// The probe that moved the bound(s) most (e.g. `seal pressure term`).
+    pub probe: String,
+    /// Its effect.
+    pub effect: String,
+    /// The amounts of it the residuals allow, in probes: [least, most].
+    pub amounts: [f64; 2],
+    /// The 95 % interval before (the noise's and the replay's alone).
+    pub noise_ci95: [f64; 2],
+}
+
+/// Widens each estimate's interval to hold the truth under every probed effect the model lacks, in any
+/// amount the residuals allow: one probe of effect e moves the truth from the fitted value by `shift`
+/// (the keys absorb that much of e, [`Amounts`]); the residuals allow amounts in [max(least, a - z se),
+/// max(least, a + z se)] (z = [`WIDEN_Z`]) and always the effect's absence; so the interval is the union of
+/// itself shifted by `shift * amount` over that range and over the probes. Applied on any fit: an adequate
+/// one then never leaves an interval that excludes a truth an unmodelled (probed) effect has biased; on a
+/// fit that is not adequate the intervals are marked not valid anyway. A probe the fitted keys span (the
+/// pattern nearly theirs) has a large standard error: its effect cannot be told from the keys on these
+/// logs, and the interval says so by its width.
+pub fn widen(estimates: &mut [crate::fit::Estimate], mc: &ModelCheck) {
+    for (j, e) in estimates.iter_mut().enumerate() {
+        let noise = e.ci95;
+        let (mut lo, mut hi) = (0.0_f64, 0.0_f64);
+        let mut by: Option<(f64, &Signature, [f64; 2])> = None;
+        for s in &mc.signatures {
+            if s.modelled || !(s.amount.is_finite() && s.amount_se.is_finite()) {
+                continue;
+            }
+            let Some(&d) = s.shift.get(j) else { continue };
+            if !d.is_finite() {
+                continue;
+            }
+            let a = [
+                (s.amount - WIDEN_Z * s.amount_se).max(s.least_amount),
+                (s.amount + WIDEN_Z * s.amount_se).max(s.least_amount),
+            ];
+            let moves = [d * a[0], d * a[1], 0.0];
+            let m_lo = moves.iter().cloned().fold(0.0, f64::min);
+            let m_hi = moves.iter().cloned().fold(0.0, f64::max);
+            lo = lo.min(m_lo);
+            hi = hi.max(m_hi);
+            let reach = m_hi - m_lo;
+            if by.as_ref().is_none_or(|(r, _, _)| reach > *r) {
+                by = Some((reach, s, a));
+            }
+        }
+        // No further than the fit's bounds (the fit takes the truth to be inside them).
+        e.ci95 = [
+            (noise[0] + lo).max(e.bounds[0].min(noise[0])),
+            (noise[1] + hi).min(e.bounds[1].max(noise[1])),
+        ];
+        let half = (e.value - e.ci95[0]).max(e.ci95[1] - e.value);
+        e.rel_half_width = if e.value != 0.0 {
+            half / e.value.abs()
+        } else {
+            f64::INFINITY
+        };
+        e.widened = by.filter(|(r, _, _)| *r > 0.0).map(|(_, s, a)| Widening {
+            probe: s.probe.to_string(),
+            effect: s.effect.to_string(),
+            amounts: a,
+            noise_ci95: noise,
+        });
+    }
 }
 
 /// The keys that model each effect (to add to the sheet and free).
@@ -819,48 +1174,77 @@ fn effect_keys(effect: &str) -> &'static str {
     }
 }
 
+/// How many standard errors a probe's amount lies beyond the effect's absence, in a direction the effect
+/// can take (more of it; less of one the model has): 0 otherwise (an absent effect in a negative amount
+/// is not that effect) or when the probe is not scored.
+pub fn beyond_absence(s: &Signature) -> f64 {
+    if s.modelled || !(s.amount.is_finite() && s.amount_se > 0.0) {
+        return 0.0;
+    }
+    let t = s.amount / s.amount_se;
+    if t > 0.0 {
+        t
+    } else if s.least_amount < 0.0 {
+        -t
+    } else {
+        0.0
+    }
+}
+
+/// The likely missing effects, best first: the probes whose amount lies beyond the effect's absence in a
+/// direction the effect can take, ranked by how many standard errors (a pattern that explains more of the
+/// residuals than the noise allows by chance), each effect by its best probe; named when detected
+/// ([`DETECT_Z`]) or when its pattern's partial correlation reaches [`MIN_SIGNATURE_CORRELATION`].
+/// Ranking by the partial correlation alone, the sign ignored, put a slow spool's and a leak's residuals
+/// on the release delay first (issue 44): a shorter release than the switching delay, which no rig has.
 fn name_missing(sig: &[Signature]) -> Vec<Missing> {
-    let best = sig.iter().map(|s| s.correlation).fold(0.0, f64::max);
-    if best < MIN_SIGNATURE_CORRELATION {
+    let mut ranked: Vec<(&Signature, f64)> = sig
+        .iter()
+        .map(|s| (s, beyond_absence(s)))
+        .filter(|&(s, t)| t > 0.0 && (t >= DETECT_Z || s.correlation >= MIN_SIGNATURE_CORRELATION))
+        .collect();
+    ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut out: Vec<Missing> = Vec::new();
+    for (s, t) in ranked {
+        if out.iter().any(|m| m.effect == s.effect) {
+            continue;
+        }
+        out.push(Missing {
+            effect: s.effect,
+            keys: effect_keys(s.effect),
+            evidence: evidence(s, t),
+            correlation: s.correlation,
+            beyond_absence: t,
+        });
+    }
+    if out.is_empty() {
+        let best = sig.iter().map(|s| s.correlation).fold(0.0, f64::max);
+        let best_t = sig.iter().map(beyond_absence).fold(0.0, f64::max);
         return vec![Missing {
             effect: "unknown",
             keys: "",
             evidence: format!(
-                "no effect's pattern reaches |r| = {MIN_SIGNATURE_CORRELATION} with the residuals (best \
-                 {best:.2}): an effect not among the probes, or several at once"
+                "no effect's pattern reaches |r| = {MIN_SIGNATURE_CORRELATION} with the residuals in a \
+                 direction the effect can take, nor {DETECT_Z} standard errors beyond its absence (best \
+                 |r| {best:.2}, {best_t:.1} standard errors): an effect not among the probes, or several at once"
             ),
             correlation: best,
+            beyond_absence: best_t,
         }];
     }
-    let mut out: Vec<Missing> = Vec::new();
-    for s in sig {
-        if s.correlation < SIGNATURE_TIE * best || s.correlation < MIN_SIGNATURE_CORRELATION {
-            continue;
-        }
-        match out.iter_mut().find(|m| m.effect == s.effect) {
-            Some(m) if m.correlation >= s.correlation => {}
-            Some(m) => {
-                m.correlation = s.correlation;
-                m.evidence = evidence(s);
-            }
-            None => out.push(Missing {
-                effect: s.effect,
-                keys: effect_keys(s.effect),
-                evidence: evidence(s),
-                correlation: s.correlation,
-            }),
-        }
-    }
-    out.sort_by(|a, b| b.correlation.total_cmp(&a.correlation));
     out
 }
 
-fn evidence(s: &Signature) -> String {
+fn evidence(s: &Signature, t: f64) -> String {
     format!(
-        "the residuals follow the pattern of a little {} ({}), |r| = {:.2}",
+        "the residuals follow the pattern of a little {} ({}), |r| = {:.2}; {:.3} +- {:.3} probes, {:.1} \
+         standard errors beyond none",
         s.effect.replace('_', " "),
         s.probe,
-        s.correlation
+        s.correlation,
+        s.amount,
+        s.amount_se,
+        t
     )
 }
 
@@ -991,6 +1375,112 @@ mod tests {
         }
         let s = clipped_scatter(&d);
         assert!((s - 1.0).abs() < 0.1, "{s}");
+    }
+
+    /// A residual made of a known amount of a pattern plus a part the keys explain: the regression gives
+    /// the amount back, and the shift is what the keys take up of the pattern (closed form below).
+    #[test]
+    fn a_probes_amount_and_shift_come_back() {
+        let n = 3000;
+        let e = noise(n, 11);
+        // One key whose sensitivity is half the pattern plus its own part: it takes up 0.5 of the pattern
+        // per step, so one probe moves its truth by -0.5 steps of 1e-3.
+        let own = noise(n, 12);
+        let j: Vec<f64> = (0..n).map(|i| 0.5 * e[i] + own[i]).collect();
+        let white = noise(n, 13);
+        let (alpha, d) = (0.7, 0.2);
+        let base: Vec<f64> = (0..n)
+            .map(|i| -(alpha * e[i] + d * j[i]) + 0.01 * white[i])
+            .collect();
+        let clusters = vec![(0..n / 100).map(|c| 100 * c..100 * (c + 1)).collect()];
+        let a = amounts(&[j], &[1e-3], &e, &base, &clusters, 2);
+        assert!((a.amount - alpha).abs() < 0.01, "{}", a.amount);
+        assert!(a.amount_se > 0.0 && a.amount_se < 0.01, "{}", a.amount_se);
+        // Regression of the pattern on the key alone: b = <j, e> / <j, j> (uniform deviates of variance
+        // 1/12 each: 0.5 / 12 / (0.25 / 12 + 1 / 12) = 0.4).
+        let b = e
+            .iter()
+            .zip(&own)
+            .map(|(x, o)| x * (0.5 * x + o))
+            .sum::<f64>()
+            / e.iter()
+                .zip(&own)
+                .map(|(x, o)| (0.5 * x + o).powi(2))
+                .sum::<f64>();
+        assert!((b - 0.4).abs() < 0.03, "{b}");
+        assert!(
+            (a.shift[0] + b * 1e-3).abs() < 1e-12,
+            "{:?} vs {}",
+            a.shift,
+            -b * 1e-3
+        );
+    }
+
+    /// An interval is widened on the side the effect moves the truth, by the shift times the most the
+    /// residuals allow, a + 1.96 se; an effect in an amount below its absence does not narrow it.
+    #[test]
+    fn widening_covers_the_amounts_the_residuals_allow() {
+        let sig = |amount: f64, shift: f64| Signature {
+            effect: "friction",
+            probe: "seal pressure term",
+            correlation: 0.1,
+            modelled: false,
+            amount,
+            amount_se: 0.5,
+            least_amount: 0.0,
+            shift: vec![shift],
+        };
+        let est = || crate::fit::Estimate {
+            key: "mechanics.coulomb_n".into(),
+            start: 0.6,
+            value: 1.0,
+            bounds: [0.12, 3.0],
+            std_error: 0.1,
+            bias: 0.0,
+            bias_bound: 0.0,
+            ci95: [0.8, 1.2],
+            rel_half_width: 0.2,
+            at_bound: false,
+            interval_valid: true,
+            widened: None,
+        };
+        let mc = |signatures: Vec<Signature>| ModelCheck {
+            adequate: true,
+            failed: vec![],
+            channels: vec![],
+            rows: 0,
+            signatures,
+            likely_missing: vec![],
+            thresholds: Thresholds {
+                max_floor_ratio: MAX_FLOOR_RATIO,
+                max_mean_abs_autocorrelation: MAX_MEAN_ABS_AUTOCORRELATION,
+                max_validation_ratio: MAX_VALIDATION_RATIO,
+                min_signature_correlation: MIN_SIGNATURE_CORRELATION,
+                detect_z: DETECT_Z,
+                widen_z: WIDEN_Z,
+            },
+        };
+        // 0.3 +- 0.5 probes, each moving F_c by -0.2 N: the truth may be up to 0.2 (0.3 + 0.98) N lower.
+        let mut e = [est()];
+        widen(&mut e, &mc(vec![sig(0.3, -0.2)]));
+        assert!(
+            (e[0].ci95[0] - (0.8 - 0.2 * 1.28)).abs() < 1e-12,
+            "{:?}",
+            e[0].ci95
+        );
+        assert_eq!(e[0].ci95[1], 1.2);
+        let w = e[0].widened.as_ref().unwrap();
+        assert_eq!(w.noise_ci95, [0.8, 1.2]);
+        assert!((w.amounts[0] - 0.0).abs() < 1e-12 && (w.amounts[1] - 1.28).abs() < 1e-12);
+        // Far below its absence (-3 +- 0.5): only the absence is allowed, nothing is widened.
+        let mut e = [est()];
+        widen(&mut e, &mc(vec![sig(-3.0, -0.2)]));
+        assert_eq!(e[0].ci95, [0.8, 1.2]);
+        assert!(e[0].widened.is_none());
+        // Never beyond the fit's bounds.
+        let mut e = [est()];
+        widen(&mut e, &mc(vec![sig(10.0, -0.2)]));
+        assert_eq!(e[0].ci95[0], 0.12);
     }
 
     #[test]

@@ -304,6 +304,11 @@ pub struct Estimate {
     /// (`crate::check`): the interval then covers the noise of a model that is not the rig's, not the bias
     /// of the missing effect, and may exclude the truth.
     pub interval_valid: bool,
+    /// Set when `ci95` was widened to hold the truth under an effect the model lacks (the model check's
+    /// probes, `crate::check::widen`): which effect, the amounts the residuals allow, and the interval
+    /// before.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub widened: Option<crate::check::Widening>,
 }
 
 /// What the fit found.
@@ -542,6 +547,7 @@ fn estimates_of(
             at_bound: (v - f.lo).abs() < 1e-3 * range || (f.hi - v).abs() < 1e-3 * range,
             // Set by the model check (`crate::request`), which needs the fitted model's residuals.
             interval_valid: true,
+            widened: None,
         });
     }
     estimates

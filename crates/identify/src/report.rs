@@ -165,7 +165,8 @@ pub fn markdown(r: &Report) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Estimates (95 % intervals: value +- (1.96 std error + replay bias bound){})\n",
+        "\n## Estimates (95 % intervals: value +- (1.96 std error + replay bias bound), widened to hold the \
+         truth under any effect the model lacks in the amounts the residuals allow{})\n",
         if mc.adequate {
             ""
         } else {
@@ -174,13 +175,23 @@ pub fn markdown(r: &Report) -> String {
     );
     let _ = writeln!(
         s,
-        "| key | start | fitted | 95 % interval | +- % | std error | replay bias | bounds |"
+        "| key | start | fitted | 95 % interval | +- % | std error | replay bias | widened for | bounds |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
     for e in &f.estimates {
+        let widened = e.widened.as_ref().map_or("–".to_string(), |w| {
+            format!(
+                "{} ({} to {} probes; before [{}, {}])",
+                w.probe,
+                fixed(w.amounts[0], 2),
+                fixed(w.amounts[1], 2),
+                g(w.noise_ci95[0]),
+                g(w.noise_ci95[1])
+            )
+        });
         let _ = writeln!(
             s,
-            "| `{}` | {} | {} | [{}, {}] | {:.2} | {} | {} | [{}, {}] |",
+            "| `{}` | {} | {} | [{}, {}] | {:.2} | {} | {} | {} | [{}, {}] |",
             e.key,
             g(e.start),
             g(e.value),
@@ -189,6 +200,7 @@ pub fn markdown(r: &Report) -> String {
             100.0 * e.rel_half_width,
             g(e.std_error),
             g(e.bias),
+            widened,
             g(e.bounds[0]),
             g(e.bounds[1])
         );
@@ -307,14 +319,30 @@ fn model_check_section(s: &mut String, mc: &ModelCheck) {
     let _ = writeln!(
         s,
         "\nLimits: RMS / floor <= {}, mean |autocorrelation| <= {}, held-out / fit <= {}. Floor: the larger \
-         of the readings' step / sqrt(12) and their scatter on still stretches ({} rows). Signatures (|r|): {}.",
+         of the readings' step / sqrt(12) and their scatter on still stretches ({} rows). A probe's amount \
+         more than {} standard errors from the effect's absence fails too. Signatures (|r|; amount the \
+         residuals carry, in probes): {}.",
         mc.thresholds.max_floor_ratio,
         mc.thresholds.max_mean_abs_autocorrelation,
         mc.thresholds.max_validation_ratio,
         mc.channels.first().map_or(0, |c| c.still_rows),
+        mc.thresholds.detect_z,
         mc.signatures
             .iter()
-            .map(|g| format!("{} ({}) {:.2}", g.effect, g.probe, g.correlation))
+            .map(|g| {
+                if g.modelled {
+                    format!("{} ({}) modelled and fitted", g.effect, g.probe)
+                } else {
+                    format!(
+                        "{} ({}) {:.2}; {} +- {}",
+                        g.effect,
+                        g.probe,
+                        g.correlation,
+                        fixed(g.amount, 3),
+                        fixed(g.amount_se, 3)
+                    )
+                }
+            })
             .collect::<Vec<_>>()
             .join(", ")
     );

@@ -241,10 +241,11 @@ pub fn identify_stoppable(
     for (k, e) in keys.iter().zip(&result.estimates) {
         k.set(&mut model, &mut offsets, e.value);
     }
-    // Marked, not widened: a model-error term would need the missing effect's size, which the residuals
-    // alone do not give; an interval marked not valid says what is known.
+    // Widened to hold the truth under any probed effect the model lacks in the amounts the residuals allow
+    // (check::widen); marked not valid when the model check fails.
     let fitted: Vec<(Key, f64)> = free.iter().map(|f| (f.key, f.start)).collect();
     let model_check = check(&model, &offsets, &fitted, &data, &options.replay);
+    crate::check::widen(&mut result.estimates, &model_check);
     for e in &mut result.estimates {
         e.interval_valid = model_check.adequate;
     }
