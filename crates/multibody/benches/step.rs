@@ -7,15 +7,15 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use pneuflex_multibody::{AxialActuator, MultibodyConfig, RigWorld, SpringActuator};
+use pneuflex_multibody::{AxialActuator, CarriageRig, RigConfig, SpringActuator};
 use rapier3d_f64::prelude::*;
 
-fn rig(dt: f64, iterations: usize) -> RigWorld {
-    let mut cfg = MultibodyConfig::paper_rig();
+fn rig(dt: f64, iterations: usize) -> CarriageRig {
+    let mut cfg = RigConfig::paper_rig();
     cfg.dt_s = dt;
     cfg.solver_iterations = iterations;
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../urdf/rig.urdf");
-    RigWorld::from_urdf(path, &cfg).expect("rig builds")
+    CarriageRig::from_urdf(path, &cfg).expect("rig builds")
 }
 
 fn spring() -> SpringActuator {

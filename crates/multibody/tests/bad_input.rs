@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pneuflex_multibody::{MultibodyConfig, MultibodyError, RigWorld};
+use pneuflex_multibody::{CarriageRig, MultibodyError, RigConfig};
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -14,8 +14,8 @@ fn rig_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../urdf/rig.urdf")
 }
 
-fn build_err(path: &Path, cfg: &MultibodyConfig) -> (MultibodyError, String) {
-    match RigWorld::from_urdf(path, cfg) {
+fn build_err(path: &Path, cfg: &RigConfig) -> (MultibodyError, String) {
+    match CarriageRig::from_urdf(path, cfg) {
         Ok(_) => panic!("{} should be rejected", path.display()),
         Err(e) => {
             let msg = e.to_string();
@@ -27,7 +27,7 @@ fn build_err(path: &Path, cfg: &MultibodyConfig) -> (MultibodyError, String) {
 #[test]
 fn urdf_that_does_not_parse() {
     let p = fixture("not_xml.urdf");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::Parse { .. }), "{msg}");
     assert!(msg.contains("not_xml.urdf"), "{msg}");
 }
@@ -36,7 +36,7 @@ fn urdf_that_does_not_parse() {
 #[test]
 fn missing_file_is_an_input_error_naming_it() {
     let p = fixture("no_such_file.urdf");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::Input(_)), "{msg}");
     assert!(msg.contains("no_such_file.urdf: cannot read: "), "{msg}");
     assert!(std::error::Error::source(&e).is_none(), "{msg}");
@@ -44,7 +44,7 @@ fn missing_file_is_an_input_error_naming_it() {
 
 #[test]
 fn configured_link_missing_from_urdf() {
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     cfg.flange_link = "piston_rod".into();
     let (e, msg) = build_err(&rig_path(), &cfg);
     assert!(matches!(e, MultibodyError::MissingLink { .. }), "{msg}");
@@ -56,7 +56,7 @@ fn configured_link_missing_from_urdf() {
 
 #[test]
 fn configured_joint_missing_from_urdf() {
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     cfg.materials[1].mount_joint = "steel_mount".into();
     let (e, msg) = build_err(&rig_path(), &cfg);
     assert!(matches!(e, MultibodyError::MissingJoint { .. }), "{msg}");
@@ -69,7 +69,7 @@ fn configured_joint_missing_from_urdf() {
 #[test]
 fn zero_length_joint_axis() {
     let p = fixture("zero_axis.urdf");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::BadJoint { .. }), "{msg}");
     assert!(
         msg.contains("zero_axis.urdf") && msg.contains("flange_slide") && msg.contains("axis"),
@@ -80,7 +80,7 @@ fn zero_length_joint_axis() {
 #[test]
 fn zero_mass_on_a_moving_link() {
     let p = fixture("zero_mass.urdf");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::BadInertial { .. }), "{msg}");
     assert!(
         msg.contains("zero_mass.urdf") && msg.contains("'flange'") && msg.contains("mass"),
@@ -91,7 +91,7 @@ fn zero_mass_on_a_moving_link() {
 #[test]
 fn negative_mass() {
     let p = fixture("negative_mass.urdf");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::BadInertial { .. }), "{msg}");
     assert!(
         msg.contains("negative_mass.urdf") && msg.contains("'flange'") && msg.contains("-0.3"),
@@ -102,7 +102,7 @@ fn negative_mass() {
 #[test]
 fn inertia_not_positive_definite() {
     let p = fixture("bad_inertia.urdf");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::BadInertial { .. }), "{msg}");
     assert!(
         msg.contains("bad_inertia.urdf")
@@ -117,7 +117,7 @@ fn inertia_not_positive_definite() {
 #[test]
 fn a_package_mesh_path_is_refused_with_the_fix() {
     let p = fixture("mesh.urdf");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::BadGeometry { .. }), "{msg}");
     assert!(
         msg.contains("mesh.urdf")
@@ -130,11 +130,11 @@ fn a_package_mesh_path_is_refused_with_the_fix() {
 
 #[test]
 fn non_positive_dt_and_stiffness_are_rejected() {
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     cfg.dt_s = 0.0;
     let (e, _) = build_err(&rig_path(), &cfg);
     assert!(matches!(e, MultibodyError::BadConfig { field: "dt_s", .. }));
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     cfg.materials[0].params.stiffness_n_per_m = f64::NAN;
     let (e, _) = build_err(&rig_path(), &cfg);
     assert!(matches!(
@@ -148,7 +148,7 @@ fn non_positive_dt_and_stiffness_are_rejected() {
 
 #[test]
 fn two_materials_on_one_mount_are_rejected() {
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     let mut soft = cfg.materials[0].clone();
     soft.name = "soft wood".into();
     cfg.materials.push(soft);
@@ -193,7 +193,7 @@ fn line_of(path: &Path, needle: &str) -> usize {
 fn build_err_within_5_s(path: PathBuf) -> (MultibodyError, String) {
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
-        let _ = tx.send(build_err(&path, &MultibodyConfig::paper_rig()));
+        let _ = tx.send(build_err(&path, &RigConfig::paper_rig()));
     });
     rx.recv_timeout(std::time::Duration::from_secs(5))
         .expect("building did not finish within 5 s")
@@ -214,7 +214,7 @@ fn deeply_nested_urdf_is_an_error_not_a_stack_overflow() {
         ),
     );
     let line = line_of(&p, "<deep>");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
     assert!(
         msg.starts_with(&format!(
@@ -231,7 +231,7 @@ fn deeply_nested_urdf_is_an_error_not_a_stack_overflow() {
 fn non_numeric_mass_names_file_line_and_element() {
     let (_scratch, p) = rig_variant("heavy", "<mass value=\"0.60\"/>", "<mass value=\"heavy\"/>");
     let line = line_of(&p, "heavy");
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
     assert_eq!(
         msg,
@@ -267,7 +267,7 @@ fn malformed_vectors_name_file_line_and_element() {
     ] {
         let (_scratch, p) = rig_variant(case, from, to);
         let line = line_of(&p, to);
-        let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+        let (e, msg) = build_err(&p, &RigConfig::paper_rig());
         assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
         assert!(
             msg.starts_with(&format!("{}:{line}: <", p.display())) && msg.contains(what),
@@ -285,7 +285,7 @@ fn inertia_breaking_the_triangle_inequality_names_the_link() {
         "ixx=\"1.6e-04\" ixy=\"0\" ixz=\"0\" iyy=\"8.5e-05\"",
         "ixx=\"1.6e-03\" ixy=\"0\" ixz=\"0\" iyy=\"8.5e-05\"",
     );
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::BadInertial { .. }), "{msg}");
     assert!(
         msg.contains("'flange'") && msg.contains("triangle inequality"),
@@ -342,7 +342,7 @@ fn nesting_at_the_limit_is_accepted() {
             "</ext>".repeat(n)
         ),
     );
-    RigWorld::from_urdf(&p, &MultibodyConfig::paper_rig()).unwrap();
+    CarriageRig::from_urdf(&p, &RigConfig::paper_rig()).unwrap();
     let (_scratch, p) = rig_variant(
         "over-limit",
         "<link name=\"flange\">",
@@ -352,6 +352,6 @@ fn nesting_at_the_limit_is_accepted() {
             "</ext>".repeat(n + 1)
         ),
     );
-    let (e, msg) = build_err(&p, &MultibodyConfig::paper_rig());
+    let (e, msg) = build_err(&p, &RigConfig::paper_rig());
     assert!(matches!(e, MultibodyError::Element { .. }), "{msg}");
 }

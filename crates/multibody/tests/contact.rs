@@ -1,6 +1,6 @@
 //! Contact stiffness: under a constant push the load cell and the deflection obey f = k (x - x_e), eq. (21).
 
-use pneuflex_multibody::{ConstantForce, MultibodyConfig, RigWorld, STANDARD_GRAVITY};
+use pneuflex_multibody::{CarriageRig, ConstantForce, RigConfig, STANDARD_GRAVITY};
 
 fn rig_path() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../urdf/rig.urdf")
@@ -18,12 +18,12 @@ fn steady_push(
     dt: f64,
     iters: usize,
 ) -> (f64, f64, f64) {
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     cfg.initial_material = material.into();
     cfg.alpha_rad = alpha_deg.to_radians();
     cfg.dt_s = dt;
     cfg.solver_iterations = iters;
-    let mut w = RigWorld::from_urdf(rig_path(), &cfg).expect("rig builds");
+    let mut w = CarriageRig::from_urdf(rig_path(), &cfg).expect("rig builds");
     let mut act = ConstantForce { force_n: push_n };
     let steps = (3.0 / dt).round() as usize;
     for _ in 0..steps {
@@ -63,10 +63,10 @@ fn contact_force_obeys_spring_law_for_each_material_and_incline() {
 fn free_flight_matches_eq1_closed_form() {
     const K_V: f64 = 20.0; // urdf/rig.urdf flange_slide damping, N s/m
     for alpha_deg in [0.0_f64, 30.0] {
-        let mut cfg = MultibodyConfig::paper_rig();
+        let mut cfg = RigConfig::paper_rig();
         cfg.dt_s = 1e-4;
         cfg.alpha_rad = alpha_deg.to_radians();
-        let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+        let mut w = CarriageRig::from_urdf(rig_path(), &cfg).unwrap();
         let push = 1.0;
         let f_tot = push + FLANGE_MASS_KG * STANDARD_GRAVITY * cfg.alpha_rad.sin();
         let tau = FLANGE_MASS_KG / K_V;
@@ -96,8 +96,8 @@ fn free_flight_matches_eq1_closed_form() {
 /// state obeys the iron spring.
 #[test]
 fn swap_wood_to_iron_loses_and_regains_contact() {
-    let cfg = MultibodyConfig::paper_rig();
-    let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+    let cfg = RigConfig::paper_rig();
+    let mut w = CarriageRig::from_urdf(rig_path(), &cfg).unwrap();
     let push = 10.0;
     let mut act = ConstantForce { force_n: push };
     for _ in 0..1000 {
@@ -136,8 +136,8 @@ fn swap_wood_to_iron_loses_and_regains_contact() {
 /// A run-time stiffness change moves the steady state to the new spring.
 #[test]
 fn stiffness_change_at_run_time() {
-    let cfg = MultibodyConfig::paper_rig();
-    let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+    let cfg = RigConfig::paper_rig();
+    let mut w = CarriageRig::from_urdf(rig_path(), &cfg).unwrap();
     let mut act = ConstantForce { force_n: 10.0 };
     for _ in 0..1000 {
         w.step(&mut act);
@@ -160,8 +160,8 @@ fn stiffness_change_at_run_time() {
 /// Changing alpha at run time adds m g sin(alpha) to the steady contact force (eq. (1)'s G_alpha).
 #[test]
 fn incline_change_at_run_time() {
-    let cfg = MultibodyConfig::paper_rig();
-    let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+    let cfg = RigConfig::paper_rig();
+    let mut w = CarriageRig::from_urdf(rig_path(), &cfg).unwrap();
     let mut act = ConstantForce { force_n: 10.0 };
     for _ in 0..1000 {
         w.step(&mut act);
@@ -204,17 +204,17 @@ fn coarse_step_keeps_steady_force_within_one_percent() {
 /// The realistic variant (wood 2e5 N/m, iron 2e7 N/m) at the finer steps docs/multibody.md prescribes.
 #[test]
 fn realistic_materials_obey_spring_law_at_fine_steps() {
-    use pneuflex_multibody::MaterialParams;
+    use pneuflex_multibody::ContactParams;
     for (material, dt) in [("wood", 1e-3), ("iron", 1e-4)] {
-        let mut cfg = MultibodyConfig::paper_rig();
-        cfg.materials[0].params = MaterialParams::REALISTIC_WOOD;
-        cfg.materials[1].params = MaterialParams::REALISTIC_IRON;
+        let mut cfg = RigConfig::paper_rig();
+        cfg.materials[0].params = ContactParams::REALISTIC_WOOD;
+        cfg.materials[1].params = ContactParams::REALISTIC_IRON;
         cfg.initial_material = material.into();
         cfg.dt_s = dt;
         cfg.alpha_rad = 30f64.to_radians();
         // Start just short of the face so the short run reaches steady state.
         cfg.initial_x_m = 0.0195;
-        let mut w = RigWorld::from_urdf(rig_path(), &cfg).unwrap();
+        let mut w = CarriageRig::from_urdf(rig_path(), &cfg).unwrap();
         let mut act = ConstantForce { force_n: 10.0 };
         for _ in 0..(0.5 / dt) as usize {
             w.step(&mut act);
@@ -236,7 +236,7 @@ fn realistic_materials_obey_spring_law_at_fine_steps() {
 }
 
 /// Dynamic bodies Rapier simulates now.
-fn simulated_dynamic_bodies(w: &RigWorld) -> usize {
+fn simulated_dynamic_bodies(w: &CarriageRig) -> usize {
     w.physics()
         .bodies
         .iter()
@@ -248,7 +248,7 @@ fn simulated_dynamic_bodies(w: &RigWorld) -> usize {
 /// rides a carriage move, and the other faces leave the simulation after it.
 #[test]
 fn faces_out_of_reach_leave_the_simulation_while_the_carriage_rests() {
-    let mut w = RigWorld::from_urdf(rig_path(), &MultibodyConfig::paper_rig()).unwrap();
+    let mut w = CarriageRig::from_urdf(rig_path(), &RigConfig::paper_rig()).unwrap();
     let mut act = ConstantForce { force_n: 10.0 };
     w.step(&mut act);
     assert_eq!(simulated_dynamic_bodies(&w), 2, "flange and wood face");
@@ -268,7 +268,7 @@ fn faces_out_of_reach_leave_the_simulation_while_the_carriage_rests() {
 fn a_face_within_the_flanges_reach_stays_simulated() {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/close_faces.urdf");
-    let mut w = RigWorld::from_urdf(path, &MultibodyConfig::paper_rig()).unwrap();
+    let mut w = CarriageRig::from_urdf(path, &RigConfig::paper_rig()).unwrap();
     let mut act = ConstantForce { force_n: 10.0 };
     for _ in 0..1000 {
         w.step(&mut act);
@@ -302,11 +302,11 @@ impl pneuflex_multibody::AxialActuator for RipplingPush {
 /// (RMS of f_e about its mean over the last second of 2 s of rippling push on `material`, the closed form
 /// for flange and face moving together: f_e = (k + jωc - m ω²) X, X = F / (k + k_a - M ω² + jω(c + K_v))).
 fn ripple_rms(material: &str, face_mass_kg: f64, dt: f64, iters: usize) -> (f64, f64) {
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     cfg.initial_material = material.into();
     cfg.dt_s = dt;
     cfg.solver_iterations = iters;
-    let mut w = RigWorld::from_urdf(rig_path(), &cfg).expect("rig builds");
+    let mut w = CarriageRig::from_urdf(rig_path(), &cfg).expect("rig builds");
     let p = w.material_params(material).unwrap();
     let (k, c) = (p.stiffness_n_per_m, p.damping_n_s_per_m);
     let mass = FLANGE_MASS_KG + face_mass_kg;
@@ -331,7 +331,7 @@ fn ripple_rms(material: &str, face_mass_kg: f64, dt: f64, iters: usize) -> (f64,
     (rms, f_amp / std::f64::consts::SQRT_2)
 }
 
-/// The mount's damping is the material's whatever the solver substep (world.rs `update_mount`: Rapier's
+/// The mount's damping is the material's whatever the solver substep (`Mechanism::set_spring`: Rapier's
 /// implicit motor alone damps with c + k h): the 40 Hz ripple of the contact force matches the closed form
 /// within 7 % at a 1 ms substep (the shipped Fig. 7 step, 2 ms / 2 iterations; measured wood -5.7 %, iron
 /// +4.5 %) and 4 % at 0.125 ms (1 ms / 8; +1.0 %, +2.9 %). Without the correction: +26 % and +52 % at 1 ms,

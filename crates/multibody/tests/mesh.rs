@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pneuflex_multibody::{LinkShape, MultibodyConfig, RigWorld, Vector};
+use pneuflex_multibody::{CarriageRig, LinkShape, RigConfig, Vector};
 
 fn rig_text() -> String {
     std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../urdf/rig.urdf"))
@@ -85,7 +85,7 @@ fn write_obj(path: &Path, v: &[[f64; 3]], faces: &[[usize; 3]]) {
 /// form 0.01 x 0.04 x 0.04 m^3).
 fn check_flange(urdf: &Path, vertices: &[[f64; 3]], scale: [f64; 3]) {
     let rig =
-        RigWorld::from_urdf(urdf, &MultibodyConfig::paper_rig()).unwrap_or_else(|e| panic!("{e}"));
+        CarriageRig::from_urdf(urdf, &RigConfig::paper_rig()).unwrap_or_else(|e| panic!("{e}"));
     let flange = rig
         .link_views()
         .find(|l| l.name == "flange")
@@ -212,7 +212,7 @@ fn bad_meshes_are_refused_naming_the_link_and_the_file() {
         ("<mesh filename=\"ok.stl\" scale=\"1 0 1\"/>", "scale"),
     ] {
         let urdf = rig_with_flange_mesh(dir.path(), mesh);
-        let msg = match RigWorld::from_urdf(&urdf, &MultibodyConfig::paper_rig()) {
+        let msg = match CarriageRig::from_urdf(&urdf, &RigConfig::paper_rig()) {
             Ok(_) => panic!("{mesh} accepted"),
             Err(e) => e.to_string(),
         };
@@ -250,7 +250,7 @@ fn a_visual_mesh_is_kept_whole_for_viewers_and_a_bad_one_is_refused() {
         "<mesh filename=\"flange.obj\" scale=\"0.001 0.001 0.001\"/>",
     );
     let rig =
-        RigWorld::from_urdf(&urdf, &MultibodyConfig::paper_rig()).unwrap_or_else(|e| panic!("{e}"));
+        CarriageRig::from_urdf(&urdf, &RigConfig::paper_rig()).unwrap_or_else(|e| panic!("{e}"));
     let flange = rig.link_views().find(|l| l.name == "flange").unwrap();
     assert_eq!(flange.visual_meshes.len(), 1);
     let (origin, mesh) = &flange.visual_meshes[0];
@@ -278,7 +278,7 @@ fn a_visual_mesh_is_kept_whole_for_viewers_and_a_bad_one_is_refused() {
     );
     // A visual mesh that cannot be read is refused, naming the URDF, the link, <visual> and the file.
     let urdf = rig_with_flange_visual(dir.path(), "<mesh filename=\"nowhere.stl\"/>");
-    let e = RigWorld::from_urdf(&urdf, &MultibodyConfig::paper_rig())
+    let e = CarriageRig::from_urdf(&urdf, &RigConfig::paper_rig())
         .err()
         .expect("refused")
         .to_string();

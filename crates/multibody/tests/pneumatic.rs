@@ -2,7 +2,7 @@
 //! (p V^n = const, eqs. (5)-(6)), so the flange must come to rest where the piston force equals the
 //! environment spring, F_gas(x) = k (x - x_e) (eqs. (1) and (21) in steady state, alpha = 0).
 
-use pneuflex_multibody::{MultibodyConfig, PneumaticForceElement, RigWorld};
+use pneuflex_multibody::{CarriageRig, PneumaticForceElement, RigConfig};
 use pneuflex_pneumatics::{Actuator, ChamberState, P_ATM};
 
 mod common;
@@ -17,9 +17,9 @@ fn closed_valve_gas_spring_balances_environment_spring() {
     let act = actuator();
     let x0 = 0.018;
     let (pa0, pb0) = (4.0e5, 2.5e5);
-    let mut cfg = MultibodyConfig::paper_rig();
+    let mut cfg = RigConfig::paper_rig();
     cfg.initial_x_m = x0;
-    let mut w = RigWorld::from_urdf(
+    let mut w = CarriageRig::from_urdf(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../urdf/rig.urdf"),
         &cfg,
     )

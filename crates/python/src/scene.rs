@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use numpy::{IntoPyArray, PyReadonlyArray1};
-use pneuflex_multibody::{MultibodyConfig, RigWorld};
+use pneuflex_multibody::{CarriageRig, RigConfig};
 use pneuflex_scene::analysis::{adaptation::lyapunov_summary, windows::compute_windows};
 use pneuflex_scene::schema::ControllerKind;
 use pneuflex_scene::{RunResult, Scene, Trace, build_plant, run_scene, summary};
@@ -310,13 +310,13 @@ pub fn bench_rapier<'py>(
     alpha_deg: f64,
     solver_iterations: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let config = MultibodyConfig {
+    let config = RigConfig {
         dt_s,
         alpha_rad: alpha_deg.to_radians(),
         solver_iterations,
-        ..MultibodyConfig::paper_rig()
+        ..RigConfig::paper_rig()
     };
-    let mut world = RigWorld::from_urdf(&urdf_path, &config).map_err(errors::other)?;
+    let mut world = CarriageRig::from_urdf(&urdf_path, &config).map_err(errors::other)?;
     let t0 = Instant::now();
     let mut m = world.measurements();
     for _ in 0..n_steps {

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use pneuflex_multibody::{MultibodyConfig, RigWorld};
+use pneuflex_multibody::{CarriageRig, RigConfig};
 use pneuflex_scene::plants::{VisualRole, VisualShape, drawn_links, drawn_poses};
 
 #[test]
@@ -26,7 +26,7 @@ fn a_visual_mesh_is_drawn_whole_at_its_link_pose_times_its_origin() {
     .replace("filename=\"../", &format!("filename=\"{}/", root.display()));
     let path = dir.path().join("rig.urdf");
     std::fs::write(&path, urdf).unwrap();
-    let rig = RigWorld::from_urdf(&path, &MultibodyConfig::paper_rig()).unwrap();
+    let rig = CarriageRig::from_urdf(&path, &RigConfig::paper_rig()).unwrap();
 
     let drawn = drawn_links(rig.link_views(), |_| VisualRole::Other);
     let i = drawn

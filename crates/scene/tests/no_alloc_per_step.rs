@@ -201,7 +201,7 @@ fn the_pneumatic_plant_allocates_nothing_per_step() {
 }
 
 /// The multibody plant: nothing of ours allocates, but Rapier 0.36's step does, inside
-/// `RigWorld::step_with_force`, and it cannot be configured away: in a release build 7.1 allocator calls
+/// `CarriageRig::step_with_force`, and it cannot be configured away: in a release build 7.1 allocator calls
 /// (alloc or free) per tick on these scenes: 1 from `RigidBodySet::index_mut` (it pushes the handle onto
 /// the modified-bodies list, which the pipeline takes and drops each step), 2 in parry's cuboid-cuboid
 /// contact manifold, 2 in `PhysicsPipeline::step_inner`, 2 in the staged island solver's

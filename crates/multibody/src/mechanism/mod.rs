@@ -2,12 +2,16 @@
 //! between two anchor points (a lever), compliant Kelvin–Voigt contacts between named links, and the
 //! sensors a controller closes its loop on (a contact force, a joint position, a cylinder's stroke).
 //!
-//! The paper's rig keeps its own world ([`crate::RigWorld`]: the carriage that swaps materials, the
-//! incline); this one is the general engine the gripper, lever and antagonist scenes run on.
+//! Besides pads, a contact can be rigid (Rapier's own solver, for a face on a compliant mount: `rigid`),
+//! a held link can move along scripted waypoints and gravity can turn (`scripted`): the paper's rig, with
+//! its carriage that swaps the wood for the iron and its incline, is one mechanism among the others.
 
 mod config;
 mod contact;
 mod mount;
+mod rig;
+mod rigid;
+mod scripted;
 
 use std::path::Path;
 
@@ -18,6 +22,8 @@ use contact::BuiltContact;
 pub use contact::{ContactParams, ContactReading};
 use mount::BuiltMount;
 pub use mount::MountState;
+pub use rig::{CarriageRig, MaterialConfig, Measurements, RigConfig};
+pub use rigid::RigidContactConfig;
 
 use crate::actuator::AxialActuator;
 use crate::error::MultibodyError;
@@ -65,6 +71,10 @@ pub struct Mechanism {
     forces: Vec<f64>,
     /// Each contact over the last step.
     readings: Vec<ContactReading>,
+    /// Rigid contacts (Rapier's solver) and their readings.
+    rigid: rigid::RigidContacts,
+    /// Held links moving along scripted waypoints.
+    motions: Vec<scripted::HeldMotion>,
 }
 
 impl Mechanism {
@@ -193,6 +203,8 @@ impl Mechanism {
             loaded,
             time_s: 0.0,
             states,
+            rigid: rigid::RigidContacts::default(),
+            motions: Vec::new(),
         })
     }
 
@@ -387,8 +399,20 @@ impl Mechanism {
         for (c, r) in self.contacts.iter().zip(self.readings.iter_mut()) {
             *r = c.built.apply(&mut world.bodies, &world.colliders);
         }
+        if !self.rigid.built.is_empty() {
+            // Recycled contact points are stale after a held link's slide: only while nothing moves.
+            world.integration_parameters.contact_recycling = self.motions.is_empty();
+        }
+        scripted::advance(
+            world,
+            &mut self.motions,
+            self.time_s + world.integration_parameters.dt,
+        );
         world.step();
         self.time_s += world.integration_parameters.dt;
+        if !self.rigid.built.is_empty() {
+            self.rigid.read(world);
+        }
         for (a, s) in self.actuators.iter().zip(self.states.iter_mut()) {
             *s = a.mount.state(&world.bodies);
         }

@@ -225,8 +225,9 @@ pub fn warnings(scene: &Scene) -> Vec<Warning> {
 
 /// Where a material's mount cannot have its own damping at the scene's solver substep h = physics_dt_s /
 /// solver_iterations: Rapier's implicit motor damps with c + k h, and pneuflex-multibody gives the motor
-/// c - k h but never less than c / 10 (`RigWorld::update_mount`), so a mount with k h > 0.9 c is damped with
-/// more than its material's c (by k h - 0.9 c): its impacts and ripple then depend on the step.
+/// c - k h but never less than c / 10 (`pneuflex_multibody::spring::set_joint_spring`), so a mount with
+/// k h > 0.9 c is damped with more than its material's c (by k h - 0.9 c): its impacts and ripple then
+/// depend on the step.
 pub fn mount_damping_warnings(scene: &Scene, mb: &crate::schema::MultibodySpec) -> Vec<Warning> {
     let h = mb.physics_dt_s / mb.solver_iterations.max(1) as f64;
     let mut mounts: Vec<(String, f64, f64)> = mb

@@ -24,8 +24,8 @@ use serde::{Deserialize, Serialize};
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
 use pneuflex_multibody::{
-    AxialActuator, MaterialConfig, MaterialParams, Measurements, MultibodyConfig, MultibodyError,
-    PneumaticForceElement, RigWorld,
+    AxialActuator, CarriageRig, ContactParams, MaterialConfig, Measurements, MultibodyError,
+    PneumaticForceElement, RigConfig,
 };
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState, Friction};
 
@@ -59,8 +59,8 @@ pub struct MultibodyPlant {
     scene_file: PathBuf,
     urdf_file: PathBuf,
     robot: urdf_rs::Robot,
-    config: MultibodyConfig,
-    world: RigWorld,
+    config: RigConfig,
+    world: CarriageRig,
     drive0: FlangeDrive,
     drive: FlangeDrive,
     steps_per_tick: u32,
@@ -117,7 +117,7 @@ impl MultibodyPlant {
         let mut config = config_of(mb, &sheet);
         let mb_err = |field: &str, e: MultibodyError| origin.invalid(field, e.to_string());
         // Build once at x = 0 to learn the initial material's contact position.
-        let probe = RigWorld::from_robot(&urdf_file, &robot, &config)
+        let probe = CarriageRig::from_robot(&urdf_file, &robot, &config)
             .map_err(|e| mb_err(&multibody_field(mb, &e), e))?;
         let init = config.initial_material.clone();
         let x_e = probe
@@ -149,7 +149,7 @@ impl MultibodyPlant {
             ));
         }
         config.initial_x_m = x0;
-        let world = RigWorld::from_robot(&urdf_file, &robot, &config)
+        let world = CarriageRig::from_robot(&urdf_file, &robot, &config)
             .map_err(|e| mb_err(&multibody_field(mb, &e), e))?;
         let flange_mass_kg = robot
             .links
@@ -199,7 +199,7 @@ impl MultibodyPlant {
     }
 
     /// The Rapier rig world.
-    pub fn world(&self) -> &RigWorld {
+    pub fn world(&self) -> &CarriageRig {
         &self.world
     }
 
@@ -209,7 +209,7 @@ impl MultibodyPlant {
     }
 
     /// The world configuration the plant was built with.
-    pub fn config(&self) -> &MultibodyConfig {
+    pub fn config(&self) -> &RigConfig {
         &self.config
     }
 
@@ -291,8 +291,8 @@ impl MultibodyPlant {
 
 /// The world configuration of a multibody scene: the link and joint roles the scene names (the paper rig's
 /// names where it names none), its materials, step, iterations and incline.
-fn config_of(mb: &MultibodySpec, sheet: &ActuatorSheet) -> MultibodyConfig {
-    let mut c = MultibodyConfig::paper_rig();
+fn config_of(mb: &MultibodySpec, sheet: &ActuatorSheet) -> RigConfig {
+    let mut c = RigConfig::paper_rig();
     for (name, role) in [
         (&mb.flange_link, &mut c.flange_link),
         (&mb.flange_joint, &mut c.flange_joint),
@@ -309,7 +309,7 @@ fn config_of(mb: &MultibodySpec, sheet: &ActuatorSheet) -> MultibodyConfig {
         .map(|m| MaterialConfig {
             name: m.name.clone(),
             mount_joint: m.mount_joint.clone(),
-            params: MaterialParams {
+            params: ContactParams {
                 stiffness_n_per_m: m.stiffness_n_per_m,
                 damping_n_s_per_m: m.damping_n_s_per_m,
             },
@@ -435,7 +435,7 @@ impl Plant for MultibodyPlant {
                     .world
                     .material_params(&name)
                     .map_err(|e| self.event_error(e))?;
-                let params = MaterialParams {
+                let params = ContactParams {
                     stiffness_n_per_m: *stiffness_n_per_m,
                     damping_n_s_per_m: damping_n_s_per_m.unwrap_or(old.damping_n_s_per_m),
                 };
@@ -489,8 +489,8 @@ impl Plant for MultibodyPlant {
     }
 
     fn reset(&mut self) {
-        // RigWorld has no reset: rebuild it from the parsed URDF (it was built from the same inputs).
-        match RigWorld::from_robot(&self.urdf_file, &self.robot, &self.config) {
+        // CarriageRig has no reset: rebuild it from the parsed URDF (it was built from the same inputs).
+        match CarriageRig::from_robot(&self.urdf_file, &self.robot, &self.config) {
             Ok(w) => {
                 self.last = w.measurements();
                 self.sensed = self.last;
