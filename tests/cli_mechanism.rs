@@ -27,7 +27,7 @@ fn a_gripper_run_writes_prefixed_traces_a_summary_with_claims_and_a_figure_per_r
         let trace = std::fs::read_to_string(out.join(run).join("trace.csv")).unwrap();
         let header = trace.lines().next().unwrap();
         assert!(
-            header.starts_with("t,left.f_r,left.f_e,left.x,"),
+            header.starts_with("t,left.f_ref,left.f_e,left.x,left.x_r,left.p_a,left.p_b,left.u,"),
             "{header}"
         );
         assert!(header.contains(",right.f_e,"), "{header}");

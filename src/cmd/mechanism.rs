@@ -8,7 +8,8 @@ use std::sync::atomic::Ordering;
 
 use pneuflex_files::output::{Manifest, Partial, Writer};
 use pneuflex_files::{InputDigest, OutputDir};
-use pneuflex_scene::mechanism::{self, MechanismRun, MechanismScene, MechanismSummary};
+use pneuflex_scene::RunResult;
+use pneuflex_scene::mechanism::{self, MechanismScene, MechanismSummary};
 
 use super::Exit;
 
@@ -46,16 +47,15 @@ pub fn run(
     // Staged before anything runs: a bad --out fails at once.
     let stage = OutputDir::create(&dest, &protect, Writer::simulation("run"))?;
     let stop = super::stop_flag()?;
-    let stopped = || stop.load(Ordering::Relaxed) != 0;
     let bar = super::progress::Progress::new(quiet, format!("simulating {}", scene.name));
     let started = std::time::Instant::now();
     #[cfg(feature = "rerun")]
     let runs = match viewer.as_mut() {
-        Some(v) => mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped, v)?,
-        None => mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped, &mut ())?,
+        Some(v) => mechanism::run_all(&scene, &mut |f| bar.set(f), Some(&stop), v)?,
+        None => mechanism::run_all(&scene, &mut |f| bar.set(f), Some(&stop), &mut ())?,
     };
     #[cfg(not(feature = "rerun"))]
-    let runs = mechanism::run_all(&scene, &mut |f| bar.set(f), &stopped, &mut ())?;
+    let runs = mechanism::run_all(&scene, &mut |f| bar.set(f), Some(&stop), &mut ())?;
     bar.finish();
     #[cfg(feature = "rerun")]
     if let Some(v) = viewer {
@@ -77,8 +77,8 @@ pub fn run(
     if signal != 0 {
         let time_reached_s = runs
             .last()
-            .and_then(|r| r.rows.last())
-            .map_or(0.0, |row| row[0]);
+            .and_then(|r| r.trace.t().last().copied())
+            .unwrap_or(0.0);
         let reason = pneuflex_scene::signal_name(signal);
         let to = stage.commit_partial(
             manifest,
@@ -124,19 +124,20 @@ pub fn run(
 fn write_figures(
     dir: &Path,
     scene: &MechanismScene,
-    runs: &[MechanismRun],
+    runs: &[RunResult],
     format: pneuflex_viz::Format,
 ) -> anyhow::Result<()> {
     for r in runs.iter().filter(|r| r.diverged.is_none()) {
-        let t = r.column("t").unwrap_or_default();
-        let cols: Vec<(String, Vec<f64>, Vec<f64>)> = scene
+        let column = |name: &str| r.trace.column(name).unwrap_or_default();
+        let t = column("t");
+        let cols: Vec<(String, &[f64], &[f64])> = scene
             .actuators
             .iter()
             .map(|a| {
                 (
                     a.name.clone(),
-                    r.column(&format!("{}.f_r", a.name)).unwrap_or_default(),
-                    r.column(&format!("{}.f_e", a.name)).unwrap_or_default(),
+                    column(&format!("{}.f_ref", a.name)),
+                    column(&format!("{}.f_e", a.name)),
                 )
             })
             .collect();
@@ -147,13 +148,13 @@ fn write_figures(
                 y_desc: "force [N]".into(),
                 series: vec![
                     pneuflex_plot::overlay::Series {
-                        label: "f_r".into(),
-                        t: &t,
+                        label: "f_ref".into(),
+                        t,
                         y: f_r,
                     },
                     pneuflex_plot::overlay::Series {
                         label: "f_e".into(),
-                        t: &t,
+                        t,
                         y: f_e,
                     },
                 ],

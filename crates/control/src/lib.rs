@@ -31,4 +31,4 @@ pub use pid::{AntiWindup, Pid, PidParams};
 pub use reference::{Reference, SCHEDULE_CAPACITY, Schedule, SetpointSchedule};
 pub use setup::{ControllerSetup, SetUpController, SetupError};
 pub use signal::{LOOP_SIGNALS, Signal, Sink};
-pub use tick::{control_tick, write_loop_row};
+pub use tick::{control_tick, run_loops, write_loop_row};

@@ -389,16 +389,15 @@ pub fn run_mechanism<'py>(
     })?;
     let start = Instant::now();
     let runs = py
-        .detach(|| mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()))
+        .detach(|| mechanism::run_all(&scene, &mut |_| {}, None, &mut ()))
         .map_err(errors::scene)?;
     let wall = start.elapsed().as_secs_f64();
     let s = to_py(py, &mechanism::summarise(&scene, &runs))?;
     let out = PyDict::new(py);
     for r in runs {
         let d = PyDict::new(py);
-        for (i, c) in r.columns.iter().enumerate() {
-            let v: Vec<f64> = r.rows.iter().map(|row| row[i]).collect();
-            d.set_item(c, v.into_pyarray(py))?;
+        for (c, v) in r.trace.into_columns() {
+            d.set_item(c.name, v.into_pyarray(py))?;
         }
         out.set_item(r.name.clone(), d)?;
     }

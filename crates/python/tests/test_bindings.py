@@ -1220,7 +1220,7 @@ def run_mechanism_gives_each_actuator_its_prefixed_columns_and_the_summary():
     assert set(traces) == {"impedance", "adaptive"}, list(traces)
     tr = traces["adaptive"]
     for side in ("left", "right"):
-        for c in ("f_r", "f_e", "x", "u", "p_a", "p_b", "force", "p"):
+        for c in ("f_ref", "f_e", "x", "x_r", "u", "p_a", "p_b", "x_dot", "force", "p"):
             assert f"{side}.{c}" in tr, (side, c, list(tr))
     t = tr["t"]
     assert len(t) == 8001 and abs(t[-1] - 8.0) < 1e-9

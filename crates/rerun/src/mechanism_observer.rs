@@ -1,15 +1,18 @@
 //! Rerun recording of a scene with several actuators (docs/multibody.md): every link's collision shapes
-//! with their poses over time, and each actuator's signals under its own name
-//! (`signals/<group>/<actuator>/<name>`, e.g. `signals/force/left/f_e`), one recording per run.
+//! with their poses over time, each actuator's signals under its own name
+//! (`signals/<group>/<actuator>/<name>`, e.g. `signals/force/left/f_e`), the scene's events at their time
+//! and why a run ended early, one recording per run. It is a `Sink` of the one loop, as every viewer is.
 
 use std::time::{Duration, Instant};
 
-use pneuflex_scene::mechanism::{ColumnSignal, Mechanism, MechanismObserver, MechanismScene, draw};
+use pneuflex_control::Signal;
+use pneuflex_scene::Plant;
+use pneuflex_scene::mechanism::MechanismScene;
 
 use crate::error::RerunError;
 use crate::layout::Layout;
 use crate::paths;
-use crate::recorder::{LinkShape, RecorderOptions, RunRecorder};
+use crate::recorder::{EventLevel, LinkShape, RecorderOptions, RunRecorder};
 use crate::scene_observer::{role_colour, sink_for_run};
 use crate::sink::Sink;
 
@@ -18,6 +21,8 @@ pub struct MechanismRecorder {
     sink: Sink,
     scene_name: String,
     n_runs: usize,
+    /// The scene's events as sentences, by time.
+    events: Vec<(f64, String)>,
     current: Option<Current>,
     error: Option<RerunError>,
     cost: Duration,
@@ -26,8 +31,12 @@ pub struct MechanismRecorder {
 /// The run being recorded.
 struct Current {
     rec: RunRecorder,
-    /// Entity path of each drawn shape, in [`draw::visuals`] order.
+    /// Entity path of each drawn shape, in the plant's `visuals` order.
     entities: Vec<String>,
+    /// The next of the scene's events to log.
+    next_event: usize,
+    /// The last row's time, s (where a run cut short says why).
+    last_t: f64,
     /// Entity path of each column after `t`, and the factor to its display unit (m to mm, Pa to kPa:
     /// the units the layout's titles name, [`crate::units`]).
     paths: Vec<(String, f64)>,
@@ -42,10 +51,34 @@ impl MechanismRecorder {
                 crate::sink::check_save_path(&p)?;
             }
         }
+        let mut events: Vec<(f64, String)> = scene
+            .events
+            .iter()
+            .map(|e| {
+                let (what, name) = match (&e.contact, &e.spring) {
+                    (Some(c), _) => ("contact", c.as_str()),
+                    (None, Some(s)) => ("spring", s.as_str()),
+                    (None, None) => ("contact", ""),
+                };
+                let damping = e
+                    .damping_n_s_per_m
+                    .map(|c| format!(", damping {c} N s/m"))
+                    .unwrap_or_default();
+                (
+                    e.t_s,
+                    format!(
+                        "{what} '{name}' stiffens to {} N/m{damping}",
+                        e.stiffness_n_per_m
+                    ),
+                )
+            })
+            .collect();
+        events.sort_by(|a, b| a.0.total_cmp(&b.0));
         Ok(Self {
             sink,
             scene_name: scene.name.clone(),
             n_runs: scene.runs.len(),
+            events,
             current: None,
             error: None,
             cost: Duration::ZERO,
@@ -65,16 +98,18 @@ impl MechanismRecorder {
         self.error.map_or(Ok(()), Err)
     }
 
+    /// A run's recording: its links, and a series per column after `t` (`left.f_e` under
+    /// `signals/force/left/f_e`).
     fn open(
         &mut self,
         run: &str,
-        m: &Mechanism,
-        columns: &[ColumnSignal],
+        plant: &dyn Plant,
+        columns: &[Signal],
     ) -> Result<Current, RerunError> {
-        let signal_name = |c: &ColumnSignal| format!("{}/{}", c.actuator, c.name);
-        let names: Vec<String> = columns.iter().map(signal_name).collect();
+        let signals = columns.get(1..).unwrap_or_default();
+        let names: Vec<String> = signals.iter().map(|c| c.name.replace('.', "/")).collect();
         let layout = Layout::for_signals(
-            columns
+            signals
                 .iter()
                 .zip(&names)
                 .map(|(c, n)| (n.as_str(), c.unit, c.group)),
@@ -90,7 +125,7 @@ impl MechanismRecorder {
             &sink,
             options,
         )?;
-        let visuals = draw::visuals(m);
+        let visuals = plant.visuals();
         let mut entities = Vec::with_capacity(visuals.len());
         for v in &visuals {
             let entity = paths::link(&v.name);
@@ -101,7 +136,7 @@ impl MechanismRecorder {
             })?;
             entities.push(entity);
         }
-        let paths = columns
+        let paths = signals
             .iter()
             .zip(&names)
             .map(|(c, n)| {
@@ -114,17 +149,27 @@ impl MechanismRecorder {
         Ok(Current {
             rec,
             entities,
+            next_event: 0,
+            last_t: 0.0,
             paths,
         })
     }
 
-    fn log(&mut self, m: &Mechanism, row: &[f64]) -> Result<(), RerunError> {
+    fn log(&mut self, plant: &dyn Plant, row: &[f64]) -> Result<(), RerunError> {
         let Some(c) = self.current.as_mut() else {
             return Ok(());
         };
         let t = row[0];
+        c.last_t = t;
+        // The events due by this tick, as the loop applied them (half a tick of rounding).
+        while let Some((t_e, text)) = self.events.get(c.next_event)
+            && *t_e <= t + 1e-9
+        {
+            c.rec.log_event(*t_e, EventLevel::Info, text)?;
+            c.next_event += 1;
+        }
         let mut failed = None;
-        draw::visual_poses(m, &mut |i, p| {
+        plant.visual_poses(&mut |i, p| {
             if failed.is_none()
                 && let Err(e) =
                     c.rec
@@ -149,32 +194,36 @@ impl MechanismRecorder {
     }
 }
 
-impl MechanismObserver for MechanismRecorder {
-    fn begin(&mut self, run: &str, m: &Mechanism, columns: &[ColumnSignal]) {
+impl<'p> pneuflex_control::Sink<dyn Plant + 'p> for MechanismRecorder {
+    fn begin(&mut self, run: &str, columns: &[Signal], plant: &(dyn Plant + 'p)) {
         let start = Instant::now();
         if let Some(c) = self.current.take() {
             let r = c.rec.finish();
             self.keep(r);
         }
-        match self.open(run, m, columns) {
+        match self.open(run, plant, columns) {
             Ok(c) => self.current = Some(c),
             Err(e) => self.keep(Err(e)),
         }
         self.cost += start.elapsed();
     }
 
-    fn tick(&mut self, m: &Mechanism, row: &[f64]) {
+    fn row(&mut self, values: &[f64], plant: &(dyn Plant + 'p)) {
         if self.error.is_some() {
             return;
         }
         let start = Instant::now();
-        let r = self.log(m, row);
+        let r = self.log(plant, values);
         self.keep(r);
         self.cost += start.elapsed();
     }
 
-    fn end(&mut self) {
-        if let Some(c) = self.current.take() {
+    fn end(&mut self, why: Option<&str>) {
+        if let Some(mut c) = self.current.take() {
+            if let Some(why) = why {
+                let r = c.rec.log_event(c.last_t, EventLevel::Error, why);
+                self.keep(r);
+            }
             let r = c.rec.finish();
             self.keep(r);
         }

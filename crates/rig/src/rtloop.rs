@@ -333,7 +333,8 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
         Ok(Flow::Continue)
     }
 
-    fn sense(&mut self, k: u64, _t: f64) -> Option<Sensors> {
+    // One actuator on the rig (issue 43 brings several): `_actuator` is 0.
+    fn sense(&mut self, k: u64, _t: f64, _actuator: usize) -> Option<Sensors> {
         match self.sup.sense(k, self.now_s) {
             Some(s) => self.last = Some(s),
             None => self.report.ticks_without_sample += 1,
@@ -360,6 +361,7 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
         &mut self,
         k: u64,
         _t: f64,
+        _actuator: usize,
         update: &mut dyn FnMut() -> (ValveCommand, Telemetry),
     ) -> Option<(ValveCommand, Telemetry)> {
         let out = match catch_unwind(AssertUnwindSafe(update)) {
@@ -388,7 +390,14 @@ impl<R: Rig<Sample = SiSample>, W: TraceSink, K: Clock + ?Sized> pneuflex_contro
         out
     }
 
-    fn actuate(&mut self, k: u64, _t: f64, command: &ValveCommand, _tel: &Telemetry) -> f64 {
+    fn actuate(
+        &mut self,
+        k: u64,
+        _t: f64,
+        _actuator: usize,
+        command: &ValveCommand,
+        _tel: &Telemetry,
+    ) -> f64 {
         let applied = self.sup.actuate(k, self.now_s, *command);
         let t_done = self.host_time();
         self.io_t

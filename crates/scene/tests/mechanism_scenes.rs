@@ -4,7 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use pneuflex_multibody::STANDARD_GRAVITY;
-use pneuflex_scene::mechanism::{self, MechanismRun, MechanismScene};
+use pneuflex_scene::RunResult;
+use pneuflex_scene::mechanism::{self, MechanismScene};
 
 fn scene_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -12,22 +13,23 @@ fn scene_path(name: &str) -> PathBuf {
         .join(name)
 }
 
-fn run(name: &str) -> (MechanismScene, Vec<MechanismRun>) {
+fn run(name: &str) -> (MechanismScene, Vec<RunResult>) {
     let scene = MechanismScene::load(&scene_path(name)).unwrap();
-    let runs = mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()).unwrap();
+    let runs = mechanism::run_all(&scene, &mut |_| {}, None, &mut ()).unwrap();
     (scene, runs)
 }
 
-fn run_column(r: &MechanismRun, c: &str) -> Vec<f64> {
-    r.column(c).unwrap_or_else(|| panic!("no column {c}"))
+fn run_column(r: &RunResult, c: &str) -> Vec<f64> {
+    r.trace
+        .column(c)
+        .unwrap_or_else(|| panic!("no column {c}"))
+        .to_vec()
 }
 
 /// Mean of `column` over t in [t0, t1].
-fn mean(run: &MechanismRun, column: &str, t0: f64, t1: f64) -> f64 {
-    let t = run.column("t").unwrap();
-    let y = run
-        .column(column)
-        .unwrap_or_else(|| panic!("no column {column}"));
+fn mean(run: &RunResult, column: &str, t0: f64, t1: f64) -> f64 {
+    let t = run_column(run, "t");
+    let y = run_column(run, column);
     let v: Vec<f64> = t
         .iter()
         .zip(&y)
@@ -164,7 +166,7 @@ fn error_of(edit: impl Fn(String) -> String) -> String {
     std::fs::write(&file, text).unwrap();
     let err = match MechanismScene::load(&file) {
         Err(e) => e,
-        Ok(scene) => match mechanism::run::build(&scene) {
+        Ok(scene) => match mechanism::build::build(&scene) {
             Err(e) => e,
             Ok(_) => panic!("accepted"),
         },
@@ -358,7 +360,7 @@ fn a_loop_closed_on_a_joint_angle_reads_that_angle() {
     let file = dir.path().join("lever.toml");
     std::fs::write(&file, &text).unwrap();
     let scene = MechanismScene::load(&file).unwrap();
-    let runs = mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()).unwrap();
+    let runs = mechanism::run_all(&scene, &mut |_| {}, None, &mut ()).unwrap();
     let angle = mean(&runs[0], "elbow_cylinder.x", 2.5, 3.0);
     let touch = std::f64::consts::FRAC_PI_6;
     assert!((touch..0.54).contains(&angle), "elbow at {angle} rad");
@@ -366,7 +368,7 @@ fn a_loop_closed_on_a_joint_angle_reads_that_angle() {
     assert!((f - 10.0).abs() < 1.0, "press {f} N");
     std::fs::write(&file, text.replace("\"elbow\"", "\"knee\"")).unwrap();
     let scene = MechanismScene::load(&file).unwrap();
-    let e = mechanism::run::build(&scene)
+    let e = mechanism::build::build(&scene)
         .err()
         .expect("refused")
         .to_string();
@@ -387,7 +389,7 @@ fn an_actuator_with_its_own_gains_runs_them_and_bad_ones_are_named() {
         .replace("t0_s = 4.0", "t0_s = 0.5")
         .replace("t0_s = 2.0\nt1_s = 3.0", "t0_s = 0.2\nt1_s = 0.5");
     let dir = tempfile::tempdir().unwrap();
-    let run_with = |gains: &str| -> Result<Vec<MechanismRun>, String> {
+    let run_with = |gains: &str| -> Result<Vec<RunResult>, String> {
         let text = base.replacen(
             "force_sensor = \"wall\"",
             &format!("force_sensor = \"wall\"\n{gains}"),
@@ -396,20 +398,20 @@ fn an_actuator_with_its_own_gains_runs_them_and_bad_ones_are_named() {
         let file = dir.path().join("x.toml");
         std::fs::write(&file, text).unwrap();
         let scene = MechanismScene::load(&file).map_err(|e| e.to_string())?;
-        mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut ()).map_err(|e| e.to_string())
+        mechanism::run_all(&scene, &mut |_| {}, None, &mut ()).map_err(|e| e.to_string())
     };
     let plain = run_with("").unwrap();
     // The run's own gains written as the actuator's: the same run, bit for bit.
     let same =
         run_with("gains = { inner = { kp_per_m = 10.0, ki_per_m_s = 20.0, kd_s_per_m = 0.0 } }")
             .unwrap();
-    assert_eq!(plain[0].rows, same[0].rows);
+    assert_eq!(plain[0].trace, same[0].trace);
     // Softer gains on the push cylinder only: its loop changes, the press's command differs through the
     // block they share, and the columns are those of the same actuators.
     let soft =
         run_with("gains = { inner = { kp_per_m = 3.0, ki_per_m_s = 6.0, kd_s_per_m = 0.0 } }")
             .unwrap();
-    assert_eq!(plain[0].columns, soft[0].columns);
+    assert_eq!(plain[0].trace.columns(), soft[0].trace.columns());
     assert_ne!(
         run_column(&plain[0], "push.u"),
         run_column(&soft[0], "push.u")

@@ -1,13 +1,12 @@
 //! A mechanism scene's metrics per run, window and actuator, its claims, and the files they are written to.
 
-use std::io::Write as _;
 use std::path::Path;
 
 use serde::Serialize;
 
-use super::run::MechanismRun;
 use super::schema::{MechanismScene, WindowSpec};
 use crate::error::SceneError;
+use crate::run::RunResult;
 
 /// One actuator's force tracking in a window.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -76,23 +75,24 @@ pub struct MechanismSummary {
     pub claims: Vec<ClaimResult>,
 }
 
-fn window_metrics(scene: &MechanismScene, run: &MechanismRun, w: &WindowSpec) -> WindowMetrics {
-    let t = run.column("t").unwrap_or_default();
+fn window_metrics(scene: &MechanismScene, run: &RunResult, w: &WindowSpec) -> WindowMetrics {
+    let column = |name: &str| run.trace.column(name).unwrap_or_default();
+    let t = column("t");
     // The one window rule of every scene kind: [t0, t1), the run's last sample included when t1 is its end.
     let (i0, i1) = if t.is_empty() {
         (0, 0)
     } else {
-        crate::analysis::metrics::window_indices(&t, w.t0_s, w.t1_s)
+        crate::analysis::metrics::window_indices(t, w.t0_s, w.t1_s)
     };
     let inside: Vec<usize> = (i0..i1).collect();
-    let forces: Vec<Vec<f64>> = scene
+    let forces: Vec<&[f64]> = scene
         .actuators
         .iter()
-        .map(|a| run.column(&format!("{}.f_e", a.name)).unwrap_or_default())
+        .map(|a| column(&format!("{}.f_e", a.name)))
         .collect();
     let mut actuators = Vec::new();
     for (a, f_e) in scene.actuators.iter().zip(&forces) {
-        let f_r = run.column(&format!("{}.f_r", a.name)).unwrap_or_default();
+        let f_r = column(&format!("{}.f_ref", a.name));
         // No sample in the window (a run stopped before it): NaN, written as null.
         let n = inside.len() as f64;
         let err = |i: usize| f_r[i] - f_e[i];
@@ -126,7 +126,7 @@ fn window_metrics(scene: &MechanismScene, run: &MechanismRun, w: &WindowSpec) ->
 }
 
 /// The summary of `runs` (those that ran).
-pub fn summarise(scene: &MechanismScene, runs: &[MechanismRun]) -> MechanismSummary {
+pub fn summarise(scene: &MechanismScene, runs: &[RunResult]) -> MechanismSummary {
     let summaries: Vec<RunSummary> = runs
         .iter()
         .map(|r| RunSummary {
@@ -194,32 +194,10 @@ fn write_err(path: &Path) -> impl Fn(std::io::Error) -> SceneError + '_ {
 
 /// Writes every run's trace (`<dir>/<run>/trace.csv`, or `trace.diverged.csv` / `trace.interrupted.csv`
 /// for a run cut short) and `<dir>/summary.json`.
-pub fn write(
-    dir: &Path,
-    summary: &MechanismSummary,
-    runs: &[MechanismRun],
-) -> Result<(), SceneError> {
+pub fn write(dir: &Path, summary: &MechanismSummary, runs: &[RunResult]) -> Result<(), SceneError> {
     for r in runs {
-        let run_dir = dir.join(&r.name);
-        std::fs::create_dir_all(&run_dir).map_err(write_err(&run_dir))?;
-        let path = run_dir.join(r.trace_file());
-        let file = std::fs::File::create(&path).map_err(write_err(&path))?;
-        let mut w = std::io::BufWriter::new(file);
-        writeln!(w, "{}", r.columns.join(",")).map_err(write_err(&path))?;
-        let (mut line, mut digits) = (Vec::new(), zmij::Buffer::new());
-        for row in &r.rows {
-            line.clear();
-            for (i, v) in row.iter().enumerate() {
-                if i > 0 {
-                    line.push(b',');
-                }
-                // The one number format of every pneuflex trace.
-                crate::run::trace::push_f64(&mut line, &mut digits, *v);
-            }
-            line.push(b'\n');
-            w.write_all(&line).map_err(write_err(&path))?;
-        }
-        w.flush().map_err(write_err(&path))?;
+        // The one trace writer and file name of every scene kind.
+        crate::run::output::write_trace(dir, r)?;
     }
     let path = dir.join("summary.json");
     let text = serde_json::to_string_pretty(summary).expect("plain data");
@@ -230,29 +208,38 @@ pub fn write(
 mod tests {
     use super::*;
 
-    /// A run of the gripper's two fingers, f_r = 10 N, whose force error is `err(t)` on both fingers.
-    fn run(scene: &MechanismScene, name: &str, err: impl Fn(f64) -> f64) -> MechanismRun {
-        let mut columns = vec!["t".to_string()];
+    /// A run of the gripper's two fingers, f_ref = 10 N, whose force error is `err(t)` on both fingers.
+    fn run(scene: &MechanismScene, name: &str, err: impl Fn(f64) -> f64) -> RunResult {
+        use crate::run::trace::{Column, Trace};
+        let column = |n: String| Column {
+            name: n,
+            unit: "N".into(),
+            group: "force".into(),
+        };
+        let mut columns = vec![column("t".into())];
         for a in &scene.actuators {
-            columns.push(format!("{}.f_r", a.name));
-            columns.push(format!("{}.f_e", a.name));
+            columns.push(column(format!("{}.f_ref", a.name)));
+            columns.push(column(format!("{}.f_e", a.name)));
         }
-        let rows = (0..=scene.n_steps())
-            .map(|k| {
-                let t = k as f64 * scene.dt_s;
-                let mut row = vec![t];
-                for _ in &scene.actuators {
-                    row.extend([10.0, 10.0 - err(t)]);
-                }
-                row
-            })
-            .collect();
-        MechanismRun {
+        let mut trace = Trace::with_capacity(scene.n_steps() + 1, columns);
+        for k in 0..=scene.n_steps() {
+            let t = k as f64 * scene.dt_s;
+            let mut row = vec![t];
+            for _ in &scene.actuators {
+                row.extend([10.0, 10.0 - err(t)]);
+            }
+            trace.push(&row);
+        }
+        RunResult {
             name: name.into(),
-            columns,
-            rows,
+            controller: crate::schema::ControllerKind::Impedance,
+            trace,
+            windows: Vec::new(),
+            lyapunov: None,
             diverged: None,
-            complete: true,
+            interrupted: None,
+            warnings: Vec::new(),
+            pwm_period_s: None,
         }
     }
 

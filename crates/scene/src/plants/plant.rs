@@ -15,6 +15,20 @@ pub trait Plant {
     fn actuate(&mut self, command: ValveCommand, telemetry: &Telemetry);
     /// Integrates the plant over `dt` seconds with the last command held (zero-order hold).
     fn advance(&mut self, dt: f64);
+    /// The names of the plant's actuators when it has several, each the prefix of its columns
+    /// (`left.f_e`) and driven by a controller of its own; empty for a plant of one actuator (its columns
+    /// are the loop's, unprefixed).
+    fn actuator_names(&self) -> &[String] {
+        &[]
+    }
+    /// Actuator `i`'s sensors ([`Plant::sense`] for a plant of one actuator).
+    fn sense_actuator(&self, _i: usize) -> Sensors {
+        self.sense()
+    }
+    /// Applies actuator `i`'s command ([`Plant::actuate`] for a plant of one actuator).
+    fn actuate_actuator(&mut self, _i: usize, command: ValveCommand, telemetry: &Telemetry) {
+        self.actuate(command, telemetry);
+    }
     /// Applies a scene event; Err explains why this plant cannot.
     fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError>;
     /// Back to the initial state and initial environment.

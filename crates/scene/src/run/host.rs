@@ -61,31 +61,148 @@ pub fn simulate_stoppable<'p>(
     stop: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<RunResult, SceneError> {
     let run = &scene.runs[index];
+    let invalid = |key: &str, message: String| scene.invalid(key, message);
+    let plan = RunPlan {
+        name: &run.name,
+        controller: run.controller,
+        dt_s: scene.dt_s,
+        n_steps: scene.n_steps(),
+        events: &scene.events,
+        divergence: &scene.divergence,
+        invalid: &invalid,
+    };
+    simulate_run(
+        &plan,
+        plant,
+        &mut [controller],
+        &mut |_, t| setpoints.at(t),
+        progress,
+        observer,
+        stop,
+    )
+}
+
+/// What a run of the one loop takes from its scene, whatever the scene's kind (one actuator, or a
+/// mechanism of several).
+pub struct RunPlan<'a> {
+    /// The run's name.
+    pub name: &'a str,
+    /// Its controller's kind (every actuator's).
+    pub controller: crate::schema::ControllerKind,
+    /// The control period, s.
+    pub dt_s: f64,
+    /// Ticks of the run (its trace has one more row).
+    pub n_steps: usize,
+    /// The events the plant applies, each at the first tick at or after its time.
+    pub events: &'a [crate::schema::EventSpec],
+    /// Each actuator's position and force limits.
+    pub divergence: &'a crate::schema::DivergenceSpec,
+    /// An error placed at a key of the scene file (`events[2]`).
+    pub invalid: &'a dyn Fn(&str, String) -> SceneError,
+}
+
+/// A declared name that lives as long as the program: the prefixed column names of a plant of several
+/// actuators (`left.f_e`), which the sinks receive as [`pneuflex_control::Signal`]s. Each distinct name is
+/// kept once, so a sweep of many runs does not grow memory.
+pub(crate) fn interned(name: String) -> &'static str {
+    use std::collections::HashSet;
+    use std::sync::{Mutex, OnceLock};
+    static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
+    let mut names = NAMES
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    if let Some(&n) = names.get(name.as_str()) {
+        return n;
+    }
+    let n: &'static str = Box::leak(name.into_boxed_str());
+    names.insert(n);
+    n
+}
+
+/// [`interned`] for a whole declaration list (a plant's signals), kept once per distinct list of names.
+pub(crate) fn interned_signals(
+    signals: Vec<pneuflex_control::Signal>,
+) -> &'static [pneuflex_control::Signal] {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    type Lists = HashMap<Vec<&'static str>, &'static [pneuflex_control::Signal]>;
+    static LISTS: OnceLock<Mutex<Lists>> = OnceLock::new();
+    let key: Vec<&'static str> = signals.iter().map(|s| s.name).collect();
+    let mut lists = LISTS
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    lists
+        .entry(key)
+        .or_insert_with(|| Box::leak(signals.into_boxed_slice()))
+}
+
+/// One run of the one loop: `controllers[i]` drives the plant's actuator `i` toward `reference(i, t)`.
+/// The row is `t`, then each actuator's block (the loop's signals but `t`, then its controller's own; named
+/// `<actuator>.<signal>` when the plant has several), then the plant's own signals.
+pub fn simulate_run<'p>(
+    plan: &RunPlan<'_>,
+    plant: &mut (dyn Plant + 'p),
+    controllers: &mut [&mut dyn Controller],
+    reference: &mut dyn FnMut(usize, f64) -> Setpoint,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn Sink<dyn Plant + 'p>,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
+) -> Result<RunResult, SceneError> {
+    use pneuflex_control::signal::index;
+    use pneuflex_control::{LOOP_SIGNALS, Signal};
     let pwm_period_s = plant.pwm_period_s();
-    let dt = scene.dt_s;
-    let n = scene.n_steps();
+    let dt = plan.dt_s;
+    let n = plan.n_steps;
+    let names: Vec<String> = plant.actuator_names().to_vec();
+    assert!(
+        names.is_empty() && controllers.len() == 1 || names.len() == controllers.len(),
+        "a controller per actuator"
+    );
     // Event order by time, keeping each event's index in the file for messages.
     let mut events: Vec<(usize, &crate::schema::EventSpec)> =
-        scene.events.iter().enumerate().collect();
+        plan.events.iter().enumerate().collect();
     events.sort_by(|a, b| a.1.t_s().total_cmp(&b.1.t_s()));
-    // The row: the loop's signals, then the controller's and the plant's, as each declares them.
-    let (c_sig, p_sig) = (controller.signals(), plant.signals());
-    let columns = Trace::loop_columns(&[c_sig, p_sig]);
-    let declared: Vec<pneuflex_control::Signal> = pneuflex_control::LOOP_SIGNALS
-        .iter()
-        .chain(c_sig)
-        .chain(p_sig)
-        .copied()
-        .collect();
-    observer.begin(&run.name, &declared, &*plant);
+    // The row: t, each actuator's block, the plant's signals, as each declares them.
+    let prefixed = |i: usize, s: &Signal| -> Signal {
+        match names.get(i) {
+            Some(a) => Signal {
+                name: interned(format!("{a}.{}", s.name)),
+                ..*s
+            },
+            None => *s,
+        }
+    };
+    let mut declared: Vec<Signal> = vec![LOOP_SIGNALS[index::T]];
+    let mut limits = Vec::with_capacity(controllers.len());
+    for (i, c) in controllers.iter().enumerate() {
+        let at = declared.len() - 1;
+        limits.push(ActuatorColumns {
+            name: names.get(i).cloned(),
+            x: at + index::X,
+            f_e: at + index::F_E,
+            x_r: at + index::X_R,
+        });
+        declared.extend(
+            LOOP_SIGNALS[1..]
+                .iter()
+                .chain(c.signals())
+                .map(|s| prefixed(i, s)),
+        );
+    }
+    declared.extend(plant.signals().iter().copied());
+    let columns: Vec<super::trace::Column> = declared.iter().map(Into::into).collect();
+    observer.begin(plan.name, &declared, &*plant);
     let mut values = vec![0.0; columns.len()];
     let mut host = SimulationHost {
-        scene,
+        plan,
         plant,
         events,
         next_event: 0,
         trace: Trace::with_capacity(n + 1, columns),
         observer,
+        actuators: limits,
         last_step: n as u64,
         report_every: (n / 200).max(1) as u64,
         progress,
@@ -93,8 +210,7 @@ pub fn simulate_stoppable<'p>(
         diverged: None,
         interrupted: None,
     };
-    let mut reference = |t: f64| -> Setpoint { setpoints.at(t) };
-    pneuflex_control::tick::run_loop(&mut host, controller, &mut reference, dt, &mut values)?;
+    pneuflex_control::tick::run_loops(&mut host, controllers, reference, dt, &mut values)?;
     let SimulationHost {
         trace,
         diverged,
@@ -104,8 +220,8 @@ pub fn simulate_stoppable<'p>(
     } = host;
     progress(1.0);
     Ok(RunResult {
-        name: run.name.clone(),
-        controller: run.controller,
+        name: plan.name.to_string(),
+        controller: plan.controller,
         trace,
         windows: Vec::new(),
         lyapunov: None,
@@ -116,16 +232,27 @@ pub fn simulate_stoppable<'p>(
     })
 }
 
+/// Where an actuator's position, force and reference position sit in the row, and its name when the
+/// plant has several (a divergence names it).
+struct ActuatorColumns {
+    name: Option<String>,
+    x: usize,
+    f_e: usize,
+    x_r: usize,
+}
+
 /// A simulated plant around the controller: events at their tick, the trace and the observers at every
 /// tick, the divergence and invariant checks, the integration ([`pneuflex_control::tick::run_loop`]).
 struct SimulationHost<'a, 'p> {
-    scene: &'a Scene,
+    plan: &'a RunPlan<'a>,
     plant: &'a mut (dyn Plant + 'p),
     /// The scene's events by time, each with its index in the file (for messages).
     events: Vec<(usize, &'a crate::schema::EventSpec)>,
     next_event: usize,
     trace: Trace,
     observer: &'a mut dyn Sink<dyn Plant + 'p>,
+    /// Each actuator's columns the divergence checks read.
+    actuators: Vec<ActuatorColumns>,
     /// The tick at the run's end (the trace has `last_step + 1` rows).
     last_step: u64,
     report_every: u64,
@@ -140,21 +267,20 @@ impl pneuflex_control::tick::LoopHost for SimulationHost<'_, '_> {
 
     fn begin_tick(&mut self, _k: u64, t: f64) -> Result<pneuflex_control::tick::Flow, SceneError> {
         // Events apply at the first tick at or after their time (half a tick of tolerance for rounding).
-        let half = 0.5 * self.scene.dt_s;
+        let half = 0.5 * self.plan.dt_s;
         while let Some(&(index, ev)) = self.events.get(self.next_event)
             && ev.t_s() <= t + half
         {
-            self.plant.apply(ev).map_err(|m| {
-                self.scene
-                    .invalid(&format!("events[{index}]"), m.to_string())
-            })?;
+            self.plant
+                .apply(ev)
+                .map_err(|m| (self.plan.invalid)(&format!("events[{index}]"), m.to_string()))?;
             self.next_event += 1;
         }
         Ok(pneuflex_control::tick::Flow::Continue)
     }
 
-    fn sense(&mut self, _k: u64, _t: f64) -> Option<control::Sensors> {
-        Some(self.plant.sense())
+    fn sense(&mut self, _k: u64, _t: f64, actuator: usize) -> Option<control::Sensors> {
+        Some(self.plant.sense_actuator(actuator))
     }
 
     fn record(&mut self, row: &mut [f64]) {
@@ -165,10 +291,11 @@ impl pneuflex_control::tick::LoopHost for SimulationHost<'_, '_> {
         &mut self,
         _k: u64,
         _t: f64,
+        actuator: usize,
         command: &control::ValveCommand,
         telemetry: &control::Telemetry,
     ) -> f64 {
-        self.plant.actuate(*command, telemetry);
+        self.plant.actuate_actuator(actuator, *command, telemetry);
         command.u
     }
 
@@ -178,14 +305,18 @@ impl pneuflex_control::tick::LoopHost for SimulationHost<'_, '_> {
         t: f64,
         row: &mut [f64],
     ) -> Result<pneuflex_control::tick::Flow, SceneError> {
-        use pneuflex_control::signal::index;
         use pneuflex_control::tick::Flow;
         self.trace.push(row);
         self.observer.row(row, &*self.plant);
-        let lim = &self.scene.divergence;
-        if let Some(reason) = lim.exceeded(t, row[index::X], row[index::F_E], row[index::X_R]) {
-            self.diverged = Some(reason);
-            return Ok(Flow::Stop);
+        let lim = self.plan.divergence;
+        for a in &self.actuators {
+            if let Some(reason) = lim.exceeded(t, row[a.x], row[a.f_e], row[a.x_r]) {
+                self.diverged = Some(match &a.name {
+                    Some(name) => format!("{name}: {reason}"),
+                    None => reason,
+                });
+                return Ok(Flow::Stop);
+            }
         }
         // Physical invariants (chamber pressures, temperatures, the stroke): a finite but impossible
         // state is a divergence too.
