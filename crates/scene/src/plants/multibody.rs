@@ -1,5 +1,7 @@
-//! The multibody plant: the rig of `pneuflex-multibody` (URDF -> Rapier world, compliant wood and iron
-//! faces on a kinematic carriage) driven by the pneumatic force element of the actuator sheet.
+//! The multibody plant: the paper's rig on the general engine of `pneuflex-multibody` (`CarriageRig`: the
+//! URDF as a `Mechanism` with one actuator, compliant wood and iron faces on spring mounts, rigid flange-face
+//! contacts, a held carriage that a swap moves along scripted waypoints) driven by the pneumatic force
+//! element of the actuator sheet.
 //!
 //! Either one control tick of `dt_s` is a whole number of Rapier steps of `physics_dt_s`, or one Rapier
 //! step spans a whole number n of control ticks (`physics_dt_s = n dt_s`). The valve command is held over
@@ -198,7 +200,7 @@ impl MultibodyPlant {
         })
     }
 
-    /// The Rapier rig world.
+    /// The rig on the general engine.
     pub fn world(&self) -> &CarriageRig {
         &self.world
     }
@@ -489,7 +491,7 @@ impl Plant for MultibodyPlant {
     }
 
     fn reset(&mut self) {
-        // CarriageRig has no reset: rebuild it from the parsed URDF (it was built from the same inputs).
+        // The rig has no reset: rebuild it from the parsed URDF (it was built from the same inputs).
         match CarriageRig::from_robot(&self.urdf_file, &self.robot, &self.config) {
             Ok(w) => {
                 self.last = w.measurements();
