@@ -284,7 +284,7 @@ def crossval_scene(scene: Path, args) -> dict:
             speed["rig_step_s"] = h_rig
             speed["rig_mujoco_mj_step_per_s"] = mj_rig["c_loop"]
             speed["rig_rapier_step_per_s"] = rb["steps_per_s"]
-            speed["rig_note"] = "urdf/rig.urdf in MuJoCo (generated MJCF, C loop) and in Rapier (RigWorld), constant 10 N push, same step"
+            speed["rig_note"] = "urdf/rig.urdf in MuJoCo (generated MJCF, C loop) and in Rapier (CarriageRig), constant 10 N push, same step"
         except Exception as e:  # the rig probe is informative, not part of the verdict
             speed["rig_error"] = str(e)
     figures = []

@@ -213,7 +213,7 @@ class Sim:
 
     def swap(self, to: str, duration_s: float) -> None:
         """Event: move the carriage so that face `to` faces the flange over `duration_s` from now (retreat
-        beyond the flange's reach, slide across, come back: RigWorld::swap_environment)."""
+        beyond the flange's reach, slide across, come back: CarriageRig::swap_environment)."""
         if self.mocap is None:
             raise NotImplementedError("this model has no carriage to swap the environment with")
         if to not in self.faces:
@@ -431,7 +431,7 @@ def bench_model(model, x0_m: float, n_steps: int, force_n: float) -> dict:
 
 def carriage_offset(t_s: float, t0_s: float, duration_s: float, from_m: float, to_m: float, retreat_m: float) -> tuple[float, float]:
     """(transverse offset, retreat along the axis) of the carriage during an environment swap, m: the same
-    three legs as RigWorld::advance_carriage (retreat, slide across, come back; each a third of the duration
+    three legs as CarriageRig::swap_environment (retreat, slide across, come back; each a third of the duration
     with a smoothstep profile)."""
     s = min(max((t_s - t0_s) / duration_s, 0.0), 1.0)
 

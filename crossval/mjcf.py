@@ -14,7 +14,7 @@ as a URDF first).
 The paper's rig. Rig frame (as urdf/rig.urdf and crates/multibody): x = actuator axis (flange extension,
 towards the environment), z = platform normal. The incline alpha (actuator axis below the horizontal,
 gravity aids extension by m g sin(alpha)) is applied by turning gravity in the rig frame, exactly as
-RigWorld does: g_rig = g (sin(alpha) x - cos(alpha) z).
+CarriageRig does: g_rig = g (sin(alpha) x - cos(alpha) z).
 - the cylinder is fixed (welded to the platform), so the actuator force acts on the flange's slide dof;
 - the flange slides along x (range = stroke, damping = K_v of eq. (1)); its collision box's front face
   is `flange_front_m` ahead of its joint origin;
@@ -408,7 +408,7 @@ def spec_from_urdf(
     flange_link: str = "flange",
     flange_joint: str = "flange_slide",
 ) -> RigSpec:
-    """The roles of urdf/rig.urdf's links and joints (as crates/multibody's MultibodyConfig::paper_rig), for
+    """The roles of urdf/rig.urdf's links and joints (as crates/multibody's RigConfig::paper_rig), for
     the coupling (couple.Sim) and `build_mjcf`, which derives the MJCF from the URDF itself:
     `materials` maps a material name to (mount joint, k N/m, c N s/m). Flange mass, K_v (joint damping),
     stroke, the flange's front face and every face's mass, thickness, transverse position and x_e come from
