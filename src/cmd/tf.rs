@@ -110,8 +110,8 @@ pub fn loop_margins(
     json: bool,
     bode: Option<&Path>,
 ) -> anyhow::Result<String> {
-    use pneuflex_scene::analysis::loop_margins::{analyse, onset_at};
-    use pneuflex_scene::analysis::pwm_onset::pwm_onset_at;
+    use pneuflex_scene::analysis::loop_margins::{analyse, stiffnesses};
+    use pneuflex_scene::analysis::run_onset::{RunOnset, run_onset};
     anyhow::ensure!(
         margin_db.is_finite() && (0.0..=60.0).contains(&margin_db),
         "--margin-db: a gain margin in [0, 60] dB, got {margin_db}"
@@ -133,16 +133,68 @@ pub fn loop_margins(
     let mut analyses = Vec::new();
     let mut out = Vec::new();
     let mut s = String::new();
+    let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
     for i in 0..scene.runs.len() {
-        if let Some(f) = &scene.runs[i].frozen {
+        let run = &scene.runs[i];
+        // Each run's own onset at each stiffness: the whole loop, the adaptive law's p and d where an
+        // oscillation drives them (docs/scenes.md "The whole loop's onset").
+        let mut onsets = Vec::new();
+        for k in stiffnesses(&scene) {
+            onsets.push(run_onset(&scene, i, k)?);
+        }
+        let onset_text = |o: &Option<RunOnset>| -> String {
+            let Some(o) = o else { return String::new() };
+            if let Some(why) = &o.not_predicted {
+                return format!("; limit cycle: not predicted ({why})");
+            }
+            let Some(k) = o.kp_per_m else {
+                return "; limit cycle: none within 1000x of the run's kp".into();
+            };
+            let amp = o
+                .amplitude_m
+                .map_or(String::new(), |a| format!(", {:.1} mm", a * 1e3));
+            format!(
+                "; limit cycle predicted from kp = {k:.2} /m at {} Hz ({}{amp})",
+                f(o.frequency_hz, 1),
+                o.method
+            )
+        };
+        let held_text = onsets
+            .iter()
+            .flatten()
+            .find_map(|o| {
+                o.held
+                    .as_ref()
+                    .filter(|h| h.g_adapts || h.p_m_per_n != 0.0 || h.d_s != 0.0)
+            })
+            .map(|h| {
+                format!(
+                    "  onset with the adaptive law in the loop: p = {} m/N, d = {} s ({})",
+                    h.p_m_per_n, h.d_s, h.source
+                )
+            });
+        if let Some(fr) = &run.frozen {
             writeln!(
                 s,
-                "run `{}`: the controller of `{}` with g, p, d held at its {}: the same inner loop as `{}`",
-                scene.runs[i].name,
-                f.run,
-                f.at.name(),
-                f.run
+                "run `{}`: the controller of `{}` with g, p, d held at its {}",
+                run.name,
+                fr.run,
+                fr.at.name(),
             )?;
+            if let Some(h) = &held_text {
+                writeln!(s, "{h}")?;
+            }
+            for o in onsets.iter().flatten() {
+                writeln!(
+                    s,
+                    "  k_e = {:>8} N/m{}",
+                    o.stiffness_n_per_m,
+                    onset_text(&Some(o.clone()))
+                )?;
+            }
+            out.push(
+                serde_json::json!({"run": run.name, "frozen": fr, "limit_cycle_onsets": onsets}),
+            );
             continue;
         }
         let a = analyse(&scene, i, margin_db)?;
@@ -151,7 +203,6 @@ pub fn loop_margins(
             "run `{}` (kp = {} /m): inner position loop, broken at the valve command; valve: {}",
             a.run, a.kp_per_m, a.valve_model
         )?;
-        let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
         if a.valve_model.contains("averaged") {
             writeln!(
                 s,
@@ -160,15 +211,15 @@ pub fn loop_margins(
                  docs/scenes.md \"The PWM valve's onset\")"
             )?;
         }
-        let mut onsets = Vec::new();
+        if let Some(h) = &held_text {
+            writeln!(s, "{h}")?;
+        }
         for m in &a.margins {
-            // On a switching valve the sampled-data onset replaces the describing functions' (which
-            // linearise the period average).
-            let pwm = pwm_onset_at(&scene, i, m.stiffness_n_per_m)?;
-            let onset = match pwm {
-                Some(p) => Some((p.kp_per_m, p.frequency_hz, f64::NAN)),
-                None => onset_at(&scene, i, m.stiffness_n_per_m)?,
-            };
+            let onset = onsets
+                .iter()
+                .flatten()
+                .find(|o| o.stiffness_n_per_m == m.stiffness_n_per_m)
+                .cloned();
             writeln!(
                 s,
                 "  k_e = {:>8} N/m: crossover {} Hz, phase margin {} deg; phase crossover {} Hz, gain margin {} dB; kp for {margin_db} dB: {} /m{}",
@@ -178,14 +229,7 @@ pub fn loop_margins(
                 f(m.phase_crossover_hz, 2),
                 f(m.gain_margin_db, 1),
                 f(m.kp_max_per_m, 2),
-                onset.map_or(String::new(), |(k, hz, a)| if a.is_nan() {
-                    format!("; limit cycle predicted from kp = {k:.2} /m at {hz:.1} Hz (sampled-data PWM)")
-                } else {
-                    format!(
-                        "; limit cycle predicted from kp = {k:.2} /m at {hz:.1} Hz ({:.1} mm)",
-                        a * 1e3
-                    )
-                })
+                onset_text(&onset)
             )?;
             let o = &m.outer;
             writeln!(
@@ -197,13 +241,6 @@ pub fn loop_margins(
                 f(o.phase_crossover_hz, 2),
                 f(o.gain_margin_db, 1),
             )?;
-            onsets.push(match pwm {
-                Some(p) => serde_json::json!({"method": "sampled-data PWM", "kp_per_m": p.kp_per_m,
-                    "frequency_hz": p.frequency_hz, "pwm_period_s": p.pwm_period_s,
-                    "switching_delay_s": p.switching_delay_s}),
-                None => onset.map_or(serde_json::Value::Null, |(k, hz, a)| serde_json::json!({
-                    "method": "describing functions", "kp_per_m": k, "frequency_hz": hz, "amplitude_m": a})),
-            });
         }
         out.push(serde_json::json!({"analysis": a, "limit_cycle_onsets": onsets}));
         analyses.push(a);

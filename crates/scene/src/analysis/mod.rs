@@ -7,6 +7,8 @@ pub mod claims;
 pub mod comparison;
 pub mod loop_margins;
 pub mod metrics;
+pub mod outer_law;
 pub mod pwm_onset;
 pub mod recorded;
+pub mod run_onset;
 pub mod windows;

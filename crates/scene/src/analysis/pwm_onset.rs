@@ -17,6 +17,7 @@
 use nalgebra::DMatrix;
 
 use super::loop_margins::{linearise_secant, settle};
+use super::outer_law::{OuterLaw, Outputs};
 use crate::SceneError;
 use crate::plants::Linearisable;
 use crate::schema::plant::linearisable_at;
@@ -62,22 +63,32 @@ fn latch_pattern(dt: f64, period: f64, delay: f64) -> Vec<(bool, bool)> {
         .collect()
 }
 
-/// The monodromy of the inner loop over one latch window, for `pid` on the tick linearisation (Φ, Γ).
-fn monodromy(
+/// The monodromy of the inner loop over one latch window, for `pid` on the tick linearisation (Φ, Γ);
+/// with `outer` the loop also holds the controller around the PID (the impedance filter and the adaptive
+/// law, [`OuterLaw`]): its x_r replaces the constant reference and its states follow the PWM's.
+pub(crate) fn monodromy(
     phi: &[Vec<f64>],
     gamma: &[f64],
     pid: &pneuflex_control::PidParams,
     dt: f64,
     pattern: &[(bool, bool)],
+    outer: Option<(&OuterLaw, &Outputs)>,
 ) -> DMatrix<f64> {
     let n = gamma.len();
-    let (i_i, i_d, i_x, i_prev, i_held) = (n, n + 1, n + 2, n + 3, n + 4);
-    let m = n + 5;
+    let (i_i, i_d, i_x, i_prev, i_held, i_o) = (n, n + 1, n + 2, n + 3, n + 4, n + 5);
+    let m = n + 5 + if outer.is_some() { OuterLaw::STATES } else { 0 };
     let alpha = dt / (pid.derivative_filter_s + dt);
     let tick = |z: &[f64], latch: bool, in_delay: bool| -> Vec<f64> {
         let x = z[0];
         let d = (1.0 - alpha) * z[i_d] + alpha * (x - z[i_x]) / dt;
-        let u = -pid.kp_per_m * x + z[i_i] - pid.kd_s_per_m * d;
+        let (x_r, o_next) = match outer {
+            Some((o, out)) => {
+                let (x_r, next) = o.tick(&z[i_o..], &z[..n], out);
+                (x_r, Some(next))
+            }
+            None => (0.0, None),
+        };
+        let u = pid.kp_per_m * (x_r - x) + z[i_i] - pid.kd_s_per_m * d;
         let (prev, held) = if latch {
             (z[i_held], u)
         } else {
@@ -93,12 +104,15 @@ fn monodromy(
         out[i_i] = if pid.ki_per_m_s == 0.0 {
             0.0
         } else {
-            z[i_i] - pid.ki_per_m_s * dt * x
+            z[i_i] + pid.ki_per_m_s * dt * (x_r - x)
         };
         out[i_d] = d;
         out[i_x] = x;
         out[i_prev] = prev;
         out[i_held] = held;
+        if let Some(next) = o_next {
+            out[i_o..].copy_from_slice(&next);
+        }
         out
     };
     // The map is linear: its columns are the images of the unit vectors, tick after tick.
@@ -120,7 +134,7 @@ fn monodromy(
 /// The eigenvalue of largest modulus: (modulus, angle in rad). A map with a non-finite entry (a plant
 /// linearised at an absurd stiffness), or whose Schur iteration does not converge, has no eigenvalues to
 /// trust: it counts as unstable (modulus ∞), so the search ends instead of iterating forever on NaN.
-fn critical(m: &DMatrix<f64>) -> (f64, f64) {
+pub(crate) fn critical(m: &DMatrix<f64>) -> (f64, f64) {
     if m.iter().any(|v| !v.is_finite()) {
         return (f64::INFINITY, 0.0);
     }
@@ -143,12 +157,17 @@ pub fn pwm_onset<P: Linearisable + ?Sized>(
     scene: &Scene,
     run: &RunSpec,
     k_e: f64,
+    outer: Option<&OuterLaw>,
 ) -> Option<PwmOnset> {
     let dt = scene.dt_s;
     let (period, delay) = plant.hold_switching()?;
     plant.without_coulomb_friction();
     let u_op = settle(plant, scene, &run.inner, k_e);
     let (phi, gamma) = linearise_secant(plant, u_op, 1e-4, dt);
+    let outputs = Outputs::of(plant);
+    let outer = outer
+        .filter(|_| !outputs.no_contact())
+        .map(|o| (o, &outputs));
     let pattern = latch_pattern(dt, period, delay);
     let window_s = pattern.len() as f64 * dt;
     let at = |kp: f64| {
@@ -156,12 +175,25 @@ pub fn pwm_onset<P: Linearisable + ?Sized>(
             kp_per_m: kp,
             ..run.inner
         };
-        critical(&monodromy(&phi, &gamma, &pid, dt, &pattern))
+        critical(&monodromy(&phi, &gamma, &pid, dt, &pattern, outer))
     };
     // The stable band of kp (ki, kd as in the scene) around the run's own kp, and its upper edge: below
     // it a fixed ki dominates and the loop can be unstable too, so the scan starts at the run's kp — up
     // while stable, or down to the band when the run's kp is already past the edge.
     let kp0 = run.inner.kp_per_m.max(1e-6);
+    let (hi, angle) = stability_edge(&at, kp0)?;
+    Some(PwmOnset {
+        kp_per_m: hi,
+        frequency_hz: angle / (std::f64::consts::TAU * window_s),
+        pwm_period_s: period,
+        switching_delay_s: delay,
+    })
+}
+
+/// The upper edge of the band of stable kp that holds (or is nearest below) `kp0`, for `at` giving the
+/// spectral radius and the critical eigenvalue's angle at a kp: (kp, angle there). None when no edge lies
+/// within 1000× of `kp0` either way.
+pub(crate) fn stability_edge(at: &dyn Fn(f64) -> (f64, f64), kp0: f64) -> Option<(f64, f64)> {
     let stable = |kp: f64| at(kp).0 < 1.0;
     let (mut lo, mut hi) = if stable(kp0) {
         let mut k = kp0;
@@ -186,20 +218,14 @@ pub fn pwm_onset<P: Linearisable + ?Sized>(
         let mid = 0.5 * (lo + hi);
         if stable(mid) { lo = mid } else { hi = mid }
     }
-    let (_, angle) = at(hi);
-    Some(PwmOnset {
-        kp_per_m: hi,
-        frequency_hz: angle / (std::f64::consts::TAU * window_s),
-        pwm_period_s: period,
-        switching_delay_s: delay,
-    })
+    Some((hi, at(hi).1))
 }
 
 /// [`pwm_onset`] of run `index` at stiffness `k_e` on the scene's plant; None for a plant whose valve
 /// does not switch (a proportional valve, the linear and ideal plants; the multibody rig is not analysed).
 pub fn pwm_onset_at(scene: &Scene, index: usize, k_e: f64) -> Result<Option<PwmOnset>, SceneError> {
     Ok(linearisable_at(scene, k_e)?
-        .and_then(|mut p| pwm_onset(&mut *p, scene, &scene.runs[index], k_e)))
+        .and_then(|mut p| pwm_onset(&mut *p, scene, &scene.runs[index], k_e, None)))
 }
 
 #[cfg(test)]
@@ -238,7 +264,15 @@ mod tests {
                 kp_per_m: kp,
                 ..pid
             };
-            critical(&monodromy(&[vec![1.0]], &[k * dt], &pid, dt, &pattern)).0
+            critical(&monodromy(
+                &[vec![1.0]],
+                &[k * dt],
+                &pid,
+                dt,
+                &pattern,
+                None,
+            ))
+            .0
         };
         let onset = 2.0 / (k * n as f64 * dt);
         assert!(radius(0.99 * onset) < 1.0 && radius(1.01 * onset) > 1.0);
@@ -260,7 +294,15 @@ mod tests {
                 kp_per_m: kp,
                 ..pid
             };
-            critical(&monodromy(&[vec![1.0]], &[k * dt], &pid, dt, &delayed)).0
+            critical(&monodromy(
+                &[vec![1.0]],
+                &[k * dt],
+                &pid,
+                dt,
+                &delayed,
+                None,
+            ))
+            .0
         };
         for a in [0.5_f64, 0.99, 1.01, 1.5] {
             let want = a.sqrt().max(filter);
