@@ -90,11 +90,16 @@ fn the_jaw_gripper_recording_holds_each_jaw_pad_mesh_as_the_file_gives_it() {
     let dir = temp_dir("mesh-scene");
     let sink = Sink::Save(dir.path().join("jaw-gripper.rrd"));
     let mut rec = MechanismRecorder::new(sink.clone(), &scene).unwrap();
-    let runs = mechanism::run_all(&scene, &mut |_| {}, &|| false, &mut rec).unwrap();
+    let runs = mechanism::run_all(&scene, &mut |_| {}, None, &mut rec).unwrap();
     rec.finish().unwrap();
     assert_eq!(runs.len(), 1);
     let run = &runs[0];
-    assert!(run.complete && run.diverged.is_none(), "{:?}", run.diverged);
+    assert!(
+        run.diverged.is_none() && run.interrupted.is_none(),
+        "{:?} {:?}",
+        run.diverged,
+        run.interrupted
+    );
     let Sink::Save(file) = sink_for_run(&sink, &run.name, 1) else {
         unreachable!()
     };
