@@ -379,6 +379,56 @@ impl PadSolver {
         self.active.clear();
         self.active.resize(n, true);
         for _ in 0..=n {
+            if n <= 2 {
+                self.solve_small();
+            } else {
+                self.solve_cholesky();
+            }
+            let mut dropped = false;
+            for (p, on) in self.pushes.iter().zip(self.active.iter_mut()) {
+                if *on && p.force_n < 0.0 {
+                    *on = false;
+                    dropped = true;
+                }
+            }
+            if !dropped {
+                break;
+            }
+        }
+        for p in &mut self.pushes {
+            p.force_n = p.force_n.max(0.0);
+        }
+    }
+
+    /// One or two pads, by Cramer's rule: symmetric in the two, so two mirrored fingers on one object
+    /// get bitwise equal forces (a Cholesky's rounding would seed the object's sideways drift).
+    fn solve_small(&mut self) {
+        let n = self.pushes.len();
+        let a = |i: usize, j: usize| self.matrix[i * n + j];
+        match (n, self.active.first().copied(), self.active.get(1).copied()) {
+            (2, Some(true), Some(true)) => {
+                let (b0, b1) = (self.pushes[0].rhs, self.pushes[1].rhs);
+                let det = a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0);
+                let f0 = (b0 * a(1, 1) - a(0, 1) * b1) / det;
+                let f1 = (a(0, 0) * b1 - a(1, 0) * b0) / det;
+                self.pushes[0].force_n = f0;
+                self.pushes[1].force_n = f1;
+            }
+            _ => {
+                for i in 0..n {
+                    self.pushes[i].force_n = if self.active[i] {
+                        self.pushes[i].rhs / a(i, i)
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        }
+    }
+
+    fn solve_cholesky(&mut self) {
+        let n = self.pushes.len();
+        {
             // Cholesky of the active block, in place of the inactive rows an identity.
             self.factor.clear();
             self.factor.resize(n * n, 0.0);
@@ -421,19 +471,6 @@ impl PadSolver {
                 }
                 self.pushes[i].force_n = sum / self.factor[i * n + i];
             }
-            let mut dropped = false;
-            for (p, on) in self.pushes.iter().zip(self.active.iter_mut()) {
-                if *on && p.force_n < 0.0 {
-                    *on = false;
-                    dropped = true;
-                }
-            }
-            if !dropped {
-                break;
-            }
-        }
-        for p in &mut self.pushes {
-            p.force_n = p.force_n.max(0.0);
         }
     }
 }
