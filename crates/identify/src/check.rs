@@ -51,9 +51,8 @@ pub const MAX_VALIDATION_RATIO: f64 = 1.5;
 /// matched model's residuals reach 0.16 with one probe or another by chance (they are noise, and the
 /// probes' patterns are smooth, so few effective samples), a missing effect's best 0.52-0.97.
 pub const MIN_SIGNATURE_CORRELATION: f64 = 0.3;
-/// A probe's amount this many standard errors (after [`AMOUNT_SE_FACTOR`]) beyond its absence is a
-/// detection: the residuals carry that effect. One-sided 0.19 % per probe, so with the ten probes at most
-/// 2 % of matched models fail here (the design; measured in docs/identification.md).
+/// A probe's amount this many standard errors (after [`AMOUNT_SE_FACTOR`]) beyond its absence names its
+/// effect in `likely_missing` whatever its pattern's score (one-sided 0.19 % per probe).
 pub const DETECT_Z: f64 = 2.9;
 /// The probes' Newey-West standard errors times this: on matched models (40 truths, seeds 9180-9219,
 /// 399 amounts) amount / standard error had an RMS of 1.38, not 1 (the replay's restarts correlate the
@@ -434,12 +433,11 @@ pub fn check(
         });
     }
     let floors: [f64; 3] = std::array::from_fn(|i| channels[i].floor.max(f64::MIN_POSITIVE));
+    // The probes' amounts name the missing effect and widen the intervals (`widen`); they do not judge
+    // adequacy: on 40 matched truths of held-out seeds (9300-9339) an amount 2.9 standard errors beyond
+    // absence came in 4 (max 4.2), and a freed LuGre fit's residuals carry 6 standard errors of the seal
+    // term's pattern; an effect the figures let through is covered by the widening instead.
     let sig = signatures(model, off, free, data, opts, floors);
-    for s in &sig {
-        if let Some(f) = detection(s) {
-            failed.push(f);
-        }
-    }
     let adequate = failed.is_empty();
     let likely_missing = if adequate {
         Vec::new()
@@ -1067,26 +1065,6 @@ fn signatures(
             }
         })
         .collect()
-}
-
-/// The failure a probe's amount makes: significantly more of the effect than its absence (`DETECT_Z`
-/// standard errors), or `None`.
-fn detection(s: &Signature) -> Option<String> {
-    if s.modelled || !(s.amount.is_finite() && s.amount_se.is_finite()) {
-        return None;
-    }
-    // More than the model has, or (of an effect it has) significantly less.
-    let more = s.amount - DETECT_Z * s.amount_se > 0.0;
-    let less = s.least_amount < 0.0 && s.amount + DETECT_Z * s.amount_se < 0.0;
-    (more || less).then(|| {
-        format!(
-            "the residuals carry {} ({}: {:.2} +- {:.2} probes, limit {DETECT_Z} standard errors from none)",
-            s.effect.replace('_', " "),
-            s.probe,
-            s.amount,
-            s.amount_se
-        )
-    })
 }
 
 /// How an interval was widened for an effect the model lacks.

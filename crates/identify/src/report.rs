@@ -320,7 +320,7 @@ fn model_check_section(s: &mut String, mc: &ModelCheck) {
         s,
         "\nLimits: RMS / floor <= {}, mean |autocorrelation| <= {}, held-out / fit <= {}. Floor: the larger \
          of the readings' step / sqrt(12) and their scatter on still stretches ({} rows). A probe's amount \
-         more than {} standard errors from the effect's absence fails too. Signatures (|r|; amount the \
+         more than {} standard errors beyond the effect's absence names it. Signatures (|r|; amount the \
          residuals carry, in probes): {}.",
         mc.thresholds.max_floor_ratio,
         mc.thresholds.max_mean_abs_autocorrelation,

@@ -60,8 +60,9 @@ const EFFECTS: [Effect; 7] = [
         },
     },
     Effect {
-        // LuGre: the break-away 0.3 N above F_c at 1x (above the truth's perturbed F_c: `cell`), bristles
-        // 1e4 N/m.
+        // LuGre: the break-away 0.3 N above F_c (above the truth's perturbed F_c: `cell`) and a bristle
+        // damping of 100 N s/m at 1x, bristles 1e4 N/m (the damping scaled too: alone, the break-away's
+        // excess hardly changed the residuals, 2.40 / 2.37 / 2.40 floors on x at 0.25 / 0.5 / 1x).
         name: "lugre",
         keys: &[Key::BristleStiffness],
         missing: "friction",
@@ -72,9 +73,10 @@ const EFFECTS: [Effect; 7] = [
                 format!(
                     "friction = \"lugre\"\ncoulomb_n = 0.6\nstatic_n = {:e}\n\
                      stribeck_velocity_m_per_s = 0.005\nbristle_stiffness_n_per_m = 1e4\n\
-                     bristle_damping_n_s_per_m = 100.0",
+                     bristle_damping_n_s_per_m = {:e}",
                     // Above any perturbed F_c (at most 1.4 x 0.6) until `cell` sets it.
-                    0.9 + 0.3 * f
+                    0.9 + 0.3 * f,
+                    100.0 * f
                 ),
             )]
         },
@@ -117,7 +119,8 @@ const EFFECTS: [Effect; 7] = [
         },
     },
     Effect {
-        // Lines of 1.5 cm^3, C = 1e-8, 1.5 m at 1x: the volume and length scaled.
+        // Lines of 1.5 cm^3, C = 1e-8, 1.5 m at 1x: the volume scaled (3 m of line at 2x faulted the
+        // emulated rig on p_a > 800 kPa in its first ticks).
         name: "lines",
         keys: &[Key::LineVolume],
         missing: "valve_dynamics",
@@ -126,9 +129,8 @@ const EFFECTS: [Effect; 7] = [
                 ACT,
                 "",
                 format!(
-                    "[lines]\nvolume_m3 = {:e}\nsonic_conductance_m3_per_s_pa = 1e-8\nlength_m = {}",
-                    1.5e-6 * f,
-                    1.5 * f
+                    "[lines]\nvolume_m3 = {:e}\nsonic_conductance_m3_per_s_pa = 1e-8\nlength_m = 1.5",
+                    1.5e-6 * f
                 ),
             )]
         },
@@ -224,8 +226,9 @@ fn detail(id: &Identified, changes: &[Perturbed]) {
 }
 
 /// The truth of `effect` at `magnitude` (its keys and the usual six perturbed 20-40 %, seeded), a 4 s
-/// lockstep log of it, and the fit of the usual six from the shipped sheet (the effect hidden).
-fn cell(effect: &Effect, magnitude: f64, seed: u64) -> Row {
+/// lockstep log of it, and the fit of the usual six from the shipped sheet (the effect hidden); `None`
+/// when the emulated rig faulted on the truth.
+fn cell(effect: &Effect, magnitude: f64, seed: u64) -> Option<Row> {
     let scratch = common::scratch(&format!("honesty-{}", effect.name.replace(' ', "-")));
     let dir = scratch.path().to_path_buf();
     let edits = (effect.edits)(magnitude);
@@ -246,10 +249,27 @@ fn cell(effect: &Effect, magnitude: f64, seed: u64) -> Row {
         set_static(&truth, f_c + 0.3 * magnitude);
     }
     let log = dir.join("log.csv");
-    common::record(&truth, seed, steps(seed), SECONDS, None, &log);
+    let recorded = std::panic::catch_unwind(|| {
+        common::record(&truth, seed, steps(seed), SECONDS, None, &log);
+    });
+    if recorded.is_err() {
+        // The emulated rig faulted (its limits): no log, no row to judge; the table says so.
+        eprintln!(
+            "| {} | {magnitude}x | {seed} | the emulated rig faulted: no log | | | | |",
+            effect.name
+        );
+        return None;
+    }
     let id =
         identify(&request(vec![log], shipped(), names(&KEYS))).unwrap_or_else(|e| panic!("{e}"));
-    judge(effect.name, effect.missing, magnitude, seed, &id, &changes)
+    Some(judge(
+        effect.name,
+        effect.missing,
+        magnitude,
+        seed,
+        &id,
+        &changes,
+    ))
 }
 
 /// Sets `static_n` in the actuator sheet `sheet`.
@@ -360,17 +380,15 @@ fn run(cells: &[(String, f64, u64)]) -> Vec<Row> {
     print_header();
     cells
         .iter()
-        .map(|(e, m, s)| cell(effect(e), *m, *s))
+        .filter_map(|(e, m, s)| cell(effect(e), *m, *s))
         .collect()
 }
 
-/// The quick form for CI: the issue's seal term of 2e-6 N/Pa (0.25x) and a quarter of the spool travel.
+/// The quick form for CI: issue 44's seal term of 2e-6 N/Pa (0.25x: found adequate with F_c +174 % outside
+/// its interval before) and a quarter of the spool travel (0.05 ms: blamed on leakage first before).
 #[test]
 fn honest_at_a_quarter_of_the_tests_magnitudes() {
-    let rows = run(&cells(&[
-        ("seal pressure", 0.25, 51),
-        ("wall heat", 0.25, 52),
-    ]));
+    let rows = run(&cells(&[("seal pressure", 0.25, 51), ("spool", 0.25, 51)]));
     assert_honest(&rows);
 }
 
