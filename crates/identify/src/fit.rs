@@ -301,8 +301,9 @@ pub struct Estimate {
     /// Whether the fitted value sits on a bound (within 0.1 % of the range).
     pub at_bound: bool,
     /// Whether `ci95` can be trusted: false when the model check finds the model not adequate
-    /// (`crate::check`): the interval then covers the noise of a model that is not the rig's, not the bias
-    /// of the missing effect, and may exclude the truth.
+    /// (`crate::check`): the interval then covers the noise of a model that is not the rig's and the
+    /// probed effects' linear share, not the whole bias of a missing effect that large, and may exclude
+    /// the truth.
     pub interval_valid: bool,
     /// Set when `ci95` was widened to hold the truth under an effect the model lacks (the model check's
     /// probes, `crate::check::widen`): which effect, the amounts the residuals allow, and the interval
