@@ -125,7 +125,7 @@ pub struct Missing {
     pub evidence: String,
     /// |correlation| of the residuals with the effect's signature.
     pub correlation: f64,
-    /// Standard errors of its best probe's amount beyond the effect's absence (the ranking).
+    /// Standard errors of its best probe's amount beyond the effect's absence.
     pub beyond_absence: f64,
 }
 
@@ -1173,18 +1173,21 @@ pub fn beyond_absence(s: &Signature) -> f64 {
 }
 
 /// The likely missing effects, best first: the probes whose amount lies beyond the effect's absence in a
-/// direction the effect can take, ranked by how many standard errors (a pattern that explains more of the
-/// residuals than the noise allows by chance), each effect by its best probe; named when detected
-/// ([`DETECT_Z`]) or when its pattern's partial correlation reaches [`MIN_SIGNATURE_CORRELATION`].
-/// Ranking by the partial correlation alone, the sign ignored, put a slow spool's and a leak's residuals
-/// on the release delay first (issue 44): a shorter release than the switching delay, which no rig has.
+/// direction the effect can take, named when detected ([`DETECT_Z`] standard errors) or when their
+/// pattern's partial correlation reaches [`MIN_SIGNATURE_CORRELATION`], ranked by that correlation (the
+/// share of the residuals the pattern explains), each effect by its best probe. The sign matters: ranked
+/// by the correlation alone, sign ignored, a hidden leak was put on the release delay first (issue 44; a
+/// release shorter than the switching delay, which no rig has).
 fn name_missing(sig: &[Signature]) -> Vec<Missing> {
     let mut ranked: Vec<(&Signature, f64)> = sig
         .iter()
         .map(|s| (s, beyond_absence(s)))
         .filter(|&(s, t)| t > 0.0 && (t >= DETECT_Z || s.correlation >= MIN_SIGNATURE_CORRELATION))
         .collect();
-    ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+    // By score: on the honesty grid (docs/identification.md) the standard errors ranked a seal term second
+    // to spool travel (5.3 against 7.0, scores 0.41 against 0.24) and wall heat at 2x second; the score
+    // put the planted effect first in every cell.
+    ranked.sort_by(|a, b| b.0.correlation.total_cmp(&a.0.correlation));
     let mut out: Vec<Missing> = Vec::new();
     for (s, t) in ranked {
         if out.iter().any(|m| m.effect == s.effect) {
