@@ -183,17 +183,80 @@ fn seal_text(r: &SealReport) -> anyhow::Result<String> {
             b.rms_samples_n
         )?;
     }
-    let p = &r.pressure;
+    let d = &r.direction;
     writeln!(
         s,
-        "\nfitted law: f = s ({:.4} N + {:.4e} N/Pa |p_a - p_b|) (sheet: coulomb_n = {:.4}, coulomb_pressure_n_per_pa = {:.4e}); Coulomb {:.2} N at 1 bar, {:.2} N at 7 bar",
-        p.coulomb_n,
-        p.coulomb_pressure_n_per_pa,
-        p.coulomb_n,
-        p.coulomb_pressure_n_per_pa,
-        p.coulomb_at(1e5),
-        p.coulomb_at(7e5)
+        "\nper direction, each test's zero its rest reading: f - r_i = F_c+ + k_p p (+), -(F_c- + k_p p) (-)\n"
     )?;
+    writeln!(
+        s,
+        "| law | F_c+ [N] | F_c- [N] | k_p [N/bar] | RMS cell means [N] |"
+    )?;
+    writeln!(s, "|---|---|---|---|---|")?;
+    writeln!(
+        s,
+        "| symmetric | {:.4} | {:.4} | {:.4} | {:.4} |",
+        d.symmetric[0],
+        d.symmetric[0],
+        d.symmetric[1] * 1e5,
+        d.rms_cell_means_symmetric_n
+    )?;
+    writeln!(
+        s,
+        "| per direction | {:.4} | {:.4} | {:.4} | {:.4} |",
+        d.coulomb_positive_n,
+        d.coulomb_negative_n,
+        d.coulomb_pressure_n_per_pa * 1e5,
+        d.rms_cell_means_n
+    )?;
+    let per_test: Vec<String> = d
+        .asymmetry_per_test_n
+        .iter()
+        .map(|a| format!("{a:+.2}"))
+        .collect();
+    writeln!(
+        s,
+        "asymmetry F_c+ - F_c- = {:+.3} N +- {:.3} N (standard error over {} tests: {}); {}",
+        d.asymmetry_n,
+        d.asymmetry_standard_error_n,
+        per_test.len(),
+        per_test.join(", "),
+        if d.shown {
+            format!(
+                "shown (|mean| > {:.3} standard errors, Student's t at 95 %): the sheet gets both directions",
+                d.t_quantile
+            )
+        } else {
+            format!(
+                "not shown (|mean| <= {:.3} standard errors, Student's t at 95 %): the sheet stays symmetric",
+                d.t_quantile
+            )
+        }
+    )?;
+    let p = &r.pressure;
+    if d.shown {
+        writeln!(
+            s,
+            "\nfitted law: f = {:.4} N (+) / -{:.4} N (-) + s {:.4e} N/Pa |p_a - p_b| (sheet: coulomb_n = {:.4}, coulomb_negative_n = {:.4}, coulomb_pressure_n_per_pa = {:.4e})",
+            d.coulomb_positive_n,
+            d.coulomb_negative_n,
+            d.coulomb_pressure_n_per_pa,
+            d.coulomb_positive_n,
+            d.coulomb_negative_n,
+            d.coulomb_pressure_n_per_pa,
+        )?;
+    } else {
+        writeln!(
+            s,
+            "\nfitted law: f = s ({:.4} N + {:.4e} N/Pa |p_a - p_b|) (sheet: coulomb_n = {:.4}, coulomb_pressure_n_per_pa = {:.4e}); Coulomb {:.2} N at 1 bar, {:.2} N at 7 bar",
+            p.coulomb_n,
+            p.coulomb_pressure_n_per_pa,
+            p.coulomb_n,
+            p.coulomb_pressure_n_per_pa,
+            p.coulomb_at(1e5),
+            p.coulomb_at(7e5)
+        )?;
+    }
     write!(
         s,
         "adequate: {} - {}",

@@ -255,6 +255,121 @@ pub struct SealReport {
     /// two directions' means, N. Near 0: the asymmetry between the directions is a zero offset of the
     /// reading, which the per-test offsets take up.
     pub rest_minus_midline_n: Vec<f64>,
+    /// Per-direction Coulomb friction, each test's zero taken from its rest reading ([`DirectionFit`]).
+    pub direction: DirectionFit,
+}
+
+/// Per-direction Coulomb friction: `f - r_i = F_c+ + k_p p` moving towards +x, `-(F_c- + k_p p)` towards
+/// -x, with `r_i` test i's rest reading of `F - p A` (its first row, before any motion) as its zero. The
+/// per-test offsets of the other laws absorb any difference between the directions (an asymmetry common
+/// to the tests is one more offset): the rest readings are what tells a seal's asymmetry from a zero
+/// offset. Each test's own asymmetry is `a_i = (f+ - r_i) + (f- - r_i)` (its two cells); the asymmetry
+/// `F_c+ - F_c-` is shown when their mean is outside its 95 % interval about 0 (Student's t over the
+/// tests, the tests' scatter as the error: a paired comparison, since drift and session move both cells of
+/// a test together).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct DirectionFit {
+    /// F_c+ at zero gauge pressure, N (motion towards +x).
+    pub coulomb_positive_n: f64,
+    /// F_c- at zero gauge pressure, N (motion towards -x).
+    pub coulomb_negative_n: f64,
+    /// k_p, N/Pa, one for both directions.
+    pub coulomb_pressure_n_per_pa: f64,
+    /// Per test: `a_i`, N.
+    pub asymmetry_per_test_n: Vec<f64>,
+    /// F_c+ - F_c-: the mean of `a_i`, N.
+    pub asymmetry_n: f64,
+    /// Its standard error (the tests' scatter / sqrt(tests)), N.
+    pub asymmetry_standard_error_n: f64,
+    /// The 95 % two-sided Student t quantile the asymmetry is judged against (tests - 1 degrees of freedom).
+    pub t_quantile: f64,
+    /// Whether the data show the asymmetry: |mean| > t_quantile x its standard error.
+    pub shown: bool,
+    /// RMS on the cell means (zeros from the rest readings) of the per-direction law, N.
+    pub rms_cell_means_n: f64,
+    /// The same of the symmetric law `s (F_c0 + k_p p)` with the same zeros, N.
+    pub rms_cell_means_symmetric_n: f64,
+    /// Symmetric F_c0 and k_p with those zeros (N, N/Pa).
+    pub symmetric: [f64; 2],
+    /// Per cell (+ first per test): cell mean minus its zero minus the per-direction law, N.
+    pub residuals_n: Vec<f64>,
+    /// The same for the symmetric law, N.
+    pub residuals_symmetric_n: Vec<f64>,
+}
+
+/// The two-sided 95 % quantile of Student's t with `dof` degrees of freedom: the table's up to 10, then the
+/// Cornish-Fisher expansion about the normal's 1.96 (2.2010 at 11, 2.0423 at 30: within 0.05 % there).
+fn t_975(dof: usize) -> f64 {
+    const TABLE: [f64; 10] = [
+        12.7062, 4.3027, 3.1824, 2.7764, 2.5706, 2.4469, 2.3646, 2.3060, 2.2622, 2.2281,
+    ];
+    if (1..=10).contains(&dof) {
+        return TABLE[dof - 1];
+    }
+    let z = 1.959_963_984_540_054f64;
+    let n = dof.max(1) as f64;
+    z + (z.powi(3) + z) / (4.0 * n)
+        + (5.0 * z.powi(5) + 16.0 * z.powi(3) + 3.0 * z) / (96.0 * n * n)
+        + (3.0 * z.powi(7) + 19.0 * z.powi(5) + 17.0 * z.powi(3) - 15.0 * z) / (384.0 * n.powi(3))
+}
+
+/// The per-direction fit ([`DirectionFit`]) of the cells (+ then - per test), zeros `rest` per test.
+fn fit_directions(cells: &[Cell], rest: &[f64]) -> Result<DirectionFit, IdentifyError> {
+    let y = DVector::from_iterator(
+        cells.len(),
+        cells.iter().map(|c| c.mean_friction_n - rest[c.test]),
+    );
+    let rows = |c: &Cell| -> Vec<f64> {
+        if c.direction > 0.0 {
+            vec![1.0, 0.0, c.mean_gauge_pa]
+        } else {
+            vec![0.0, -1.0, -c.mean_gauge_pa]
+        }
+    };
+    let x = DMatrix::from_fn(cells.len(), 3, |i, j| rows(&cells[i])[j]);
+    let names = ["F_c+".to_string(), "F_c-".into(), "k_p p".into()];
+    let b = least_squares(&x, &y, &names)?;
+    let xs = DMatrix::from_fn(cells.len(), 2, |i, j| {
+        let c = &cells[i];
+        [c.direction, c.direction * c.mean_gauge_pa][j]
+    });
+    let bs = least_squares(&xs, &y, &names[..2])?;
+    let residuals_n: Vec<f64> = (&y - &x * &b).iter().copied().collect();
+    let residuals_symmetric_n: Vec<f64> = (&y - &xs * &bs).iter().copied().collect();
+    let rms = |r: &[f64]| (r.iter().map(|e| e * e).sum::<f64>() / r.len().max(1) as f64).sqrt();
+    let tests = rest.len();
+    let asymmetry_per_test_n: Vec<f64> = (0..tests)
+        .map(|i| {
+            cells
+                .iter()
+                .filter(|c| c.test == i)
+                .map(|c| c.mean_friction_n - rest[i])
+                .sum()
+        })
+        .collect();
+    let mean = asymmetry_per_test_n.iter().sum::<f64>() / tests as f64;
+    let var = asymmetry_per_test_n
+        .iter()
+        .map(|a| (a - mean).powi(2))
+        .sum::<f64>()
+        / (tests.max(2) - 1) as f64;
+    let se = (var / tests as f64).sqrt();
+    let t_quantile = t_975(tests.saturating_sub(1));
+    Ok(DirectionFit {
+        coulomb_positive_n: b[0],
+        coulomb_negative_n: b[1],
+        coulomb_pressure_n_per_pa: b[2],
+        asymmetry_n: mean,
+        asymmetry_standard_error_n: se,
+        t_quantile,
+        shown: tests >= 2 && mean.abs() > t_quantile * se,
+        asymmetry_per_test_n,
+        rms_cell_means_n: rms(&residuals_n),
+        rms_cell_means_symmetric_n: rms(&residuals_symmetric_n),
+        symmetric: [bs[0], bs[1]],
+        residuals_n,
+        residuals_symmetric_n,
+    })
 }
 
 fn log_err(
@@ -1111,16 +1226,19 @@ pub fn fit_seal(tests: &[SealTest], o: &SealOptions) -> Result<SealReport, Ident
     let pressure = fit_law(true, Offsets::PerTest, n, &cells, &samples)?;
     plausible(tests, &cells, &pressure, o)?;
     let adequacy = adequacy(&pressure, &cells, &samples);
-    let rest_minus_midline_n = tests
+    let rest: Vec<f64> = tests
         .iter()
-        .enumerate()
-        .map(|(i, t)| {
+        .map(|t| t.force_n[0] - t.gauge_pa[0] * o.area_m2())
+        .collect();
+    let rest_minus_midline_n = (0..n)
+        .map(|i| {
             let mid = 0.5 * (cells[2 * i].mean_friction_n + cells[2 * i + 1].mean_friction_n);
-            t.force_n[0] - t.gauge_pa[0] * o.area_m2() - mid
+            rest[i] - mid
         })
         .collect();
     Ok(SealReport {
         rest_minus_midline_n,
+        direction: fit_directions(&cells, &rest)?,
         area_m2: o.area_m2(),
         moving_samples: samples.len(),
         constant_no_offset: fit_law(false, Offsets::None, n, &cells, &samples)?,
@@ -1153,6 +1271,60 @@ mod tests {
             "circle3bar.csv",
         ] {
             assert_eq!(seal_file_name(bad), None, "{bad}");
+        }
+    }
+
+    /// The t quantile against the table (two-sided 95 %).
+    #[test]
+    fn t_quantiles_match_the_table() {
+        for (dof, table) in [
+            (3, 3.1824),
+            (6, 2.4469),
+            (11, 2.2010),
+            (15, 2.1314),
+            (30, 2.0423),
+        ] {
+            assert!(
+                (t_975(dof) / table - 1.0).abs() < 3e-3,
+                "{dof}: {}",
+                t_975(dof)
+            );
+        }
+    }
+
+    /// A planted asymmetry is found and recovered, and a symmetric seal's is not shown: cells of a law
+    /// `F_c+- = F_c0 (+- d) + k_p p` at five pressures, zeros of +-2 N per test, 0.05 N of scatter.
+    #[test]
+    fn a_planted_asymmetry_is_recovered_and_none_is_not_shown() {
+        for delta in [0.0, 0.8] {
+            let rest = [1.5, -2.0, 0.3, 2.0, -0.7];
+            let mut cells = Vec::new();
+            for (i, &r) in rest.iter().enumerate() {
+                let p = (i + 1) as f64 * 1e5;
+                for (k, d) in [1.0, -1.0].into_iter().enumerate() {
+                    let fc = 3.0 + 0.5 * delta * d + 8e-6 * p;
+                    let scatter =
+                        0.05 * [0.3, -0.8, 1.0, -0.4, 0.6, -1.0, 0.2, 0.9, -0.5, -0.3][2 * i + k];
+                    cells.push(Cell {
+                        test: i,
+                        file: format!("t{i}"),
+                        nominal_pa: p,
+                        direction: d,
+                        samples: 100,
+                        mean_friction_n: r + d * fc + scatter,
+                        std_friction_n: 0.1,
+                        mean_gauge_pa: p,
+                        mean_velocity_m_per_s: 0.01 * d,
+                        drift_n_per_s: 0.0,
+                        effective_samples: 100.0,
+                    });
+                }
+            }
+            let f = fit_directions(&cells, &rest).unwrap();
+            assert_eq!(f.shown, delta > 0.0, "{f:?}");
+            assert!((f.asymmetry_n - delta).abs() < 0.1, "{f:?}");
+            assert!(((f.coulomb_positive_n - f.coulomb_negative_n) - delta).abs() < 0.1);
+            assert!((f.coulomb_pressure_n_per_pa / 8e-6 - 1.0).abs() < 0.05);
         }
     }
 

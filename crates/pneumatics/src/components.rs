@@ -1000,6 +1000,7 @@ struct MechanicsSection {
     bristle_stiffness_n_per_m: Option<f64>,
     bristle_damping_n_s_per_m: Option<f64>,
     coulomb_pressure_n_per_pa: Option<f64>,
+    coulomb_negative_n: Option<f64>,
     alpha_deg: f64,
     gravity_m_per_s2: Option<f64>,
 }
@@ -1358,6 +1359,17 @@ fn effects(
         .coulomb_pressure_n_per_pa
         .map(|k| c.bounded("mechanics.coulomb_pressure_n_per_pa", k, COULOMB_PRESSURE))
         .transpose()?;
+    let coulomb_negative_n = f
+        .mechanics
+        .coulomb_negative_n
+        .map(|v| c.bounded("mechanics.coulomb_negative_n", v, FRICTION_FORCE))
+        .transpose()?;
+    if coulomb_negative_n == Some(0.0) && f.mechanics.friction == FrictionName::Lugre {
+        return Err(c.err(
+            "mechanics.coulomb_negative_n",
+            "must be > 0 for friction = \"lugre\" (the bristles relax towards F_c / sigma0)".into(),
+        ));
+    }
     Ok(Effects {
         wall_heat: cylinder.wall_heat_transfer_w_per_m2_k.map(|h| WallHeat {
             coefficient_w_per_m2_k: h,
@@ -1369,6 +1381,7 @@ fn effects(
         lines,
         spool: valve.spool,
         coulomb_pressure_n_per_pa,
+        coulomb_negative_n,
     })
 }
 

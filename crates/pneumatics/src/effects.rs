@@ -102,6 +102,10 @@ pub struct Effects {
     /// Rise of the Coulomb (and break-away) friction with the pressure difference across the piston,
     /// `F_c = F_c0 + k_p |p_a - p_b|`, N/Pa (actuator sheet).
     pub coulomb_pressure_n_per_pa: Option<f64>,
+    /// The Coulomb force for motion towards -x, F_c-, N, when it differs from the law's F_c (then F_c+):
+    /// a seal that rubs harder one way (its lips, the rod's side load); the break-away force moves by as
+    /// much in that direction (actuator sheet, `mechanics.coulomb_negative_n`).
+    pub coulomb_negative_n: Option<f64>,
 }
 
 impl Effects {
@@ -112,6 +116,7 @@ impl Effects {
             && self.lines.is_none()
             && self.spool.is_none()
             && self.coulomb_pressure_n_per_pa.is_none()
+            && self.coulomb_negative_n.is_none()
     }
 
     /// The sheet tables or keys of the effects given, for messages (`cylinder.wall_heat_transfer_w_per_m2_k`, ...).
@@ -147,6 +152,9 @@ impl Effects {
         }
         if self.coulomb_pressure_n_per_pa.is_some() {
             out.push("mechanics.coulomb_pressure_n_per_pa".into());
+        }
+        if self.coulomb_negative_n.is_some() {
+            out.push("mechanics.coulomb_negative_n".into());
         }
         out
     }

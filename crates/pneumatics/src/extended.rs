@@ -72,6 +72,8 @@ struct Fixed {
     line: Option<(Restriction, f64)>,
     /// k_p, N/Pa (0 without the pressure term).
     k_p: f64,
+    /// F_c- - F_c, N: what the Coulomb and break-away forces gain for motion towards -x (0: symmetric).
+    negative_shift: f64,
     /// G_alpha + f_ext, N.
     f_load: f64,
     /// 1 / m, 1/kg.
@@ -107,6 +109,9 @@ impl Fixed {
                 .lines
                 .map(|l| (restriction(&l.orifice), 1.0 / l.volume_m3)),
             k_p: e.coulomb_pressure_n_per_pa.unwrap_or(0.0),
+            negative_shift: e
+                .coulomb_negative_n
+                .map_or(0.0, |n| n - m.mechanics.friction.coulomb_n()),
             f_load,
             inv_mass: 1.0 / m.mechanics.moving_mass_kg,
         }
@@ -223,20 +228,28 @@ fn node(
     (dp, dt)
 }
 
-/// The friction law at chambers `c`: the sheet's, its forces raised by the pressure term `k_p |p_a - p_b|`.
+/// The friction law at chambers `c` for motion towards -x (`negative`) or +x: the sheet's, its forces
+/// raised by the pressure term `k_p |p_a - p_b|` and, towards -x, by `F_c- - F_c`.
 #[inline(always)]
-fn law_at(f: &Friction, k_p: f64, c: &ChamberState) -> Friction {
-    if k_p > 0.0 {
-        f.with_normal_force(k_p * (c.p_a - c.p_b).abs())
+fn law_at(f: &Friction, fx: &Fixed, c: &ChamberState, negative: bool) -> Friction {
+    let extra = if fx.k_p > 0.0 {
+        fx.k_p * (c.p_a - c.p_b).abs()
+    } else {
+        0.0
+    } + if negative { fx.negative_shift } else { 0.0 };
+    if extra != 0.0 {
+        f.with_normal_force(extra)
     } else {
         *f
     }
 }
 
-/// Friction force and bristle rate at velocity `v`, drive `drive`, chambers `c` and deflection `z`.
+/// Friction force and bristle rate at velocity `v`, drive `drive`, chambers `c` and deflection `z`. The
+/// direction is the velocity's (the drive's at rest, where Karnopp's sticking force balances it).
 #[inline(always)]
-fn friction(f: &Friction, k_p: f64, c: &ChamberState, v: f64, drive: f64, z: f64) -> (f64, f64) {
-    let law = law_at(f, k_p, c);
+fn friction(f: &Friction, fx: &Fixed, c: &ChamberState, v: f64, drive: f64, z: f64) -> (f64, f64) {
+    let negative = if v != 0.0 { v < 0.0 } else { drive < 0.0 };
+    let law = law_at(f, fx, c, negative);
     law.lugre(v, z)
         .unwrap_or_else(|| (law.force(v, drive), 0.0))
 }
@@ -285,7 +298,7 @@ fn rates(m: &OneDofModel, f: &Fixed, cs: &ChamberStep, s: &Full) -> Full {
     // eq. (1): m x'' = F_1 - F_2 + G_alpha - f - K_v x'.
     let mech = &m.mechanics;
     let drive = cs.piston_force(&s.c) + f.f_load;
-    let (fr, dz) = friction(&mech.friction, f.k_p, &s.c, s.v, drive, s.z);
+    let (fr, dz) = friction(&mech.friction, f, &s.c, s.v, drive, s.z);
     Full {
         x: s.v,
         v: (drive - fr - mech.viscous_n_s_per_m * s.v) * f.inv_mass,
@@ -307,10 +320,15 @@ fn rates(m: &OneDofModel, f: &Fixed, cs: &ChamberStep, s: &Full) -> Full {
 /// (sigma0 |v| / g up to 1e5 1/s at 1.6e5 N/m) then cannot make the step diverge.
 fn rk4(m: &OneDofModel, f: &Fixed, sp: &PieceSpool, t: f64, s0: Full, dt: f64) -> Full {
     let h = 0.5 * dt;
-    let lugre = matches!(m.mechanics.friction, Friction::LuGre { .. })
-        .then(|| law_at(&m.mechanics.friction, f.k_p, &s0.c));
+    let lugre = matches!(m.mechanics.friction, Friction::LuGre { .. }).then(|| {
+        (
+            law_at(&m.mechanics.friction, f, &s0.c, false),
+            law_at(&m.mechanics.friction, f, &s0.c, true),
+        )
+    });
     let bristle = |dx: f64, tau: f64| {
-        lugre.map_or(s0.z, |law| {
+        lugre.map_or(s0.z, |(up, down)| {
+            let law = if dx < 0.0 { down } else { up };
             law.lugre_bristle_after(s0.z, dx, tau).unwrap_or(s0.z)
         })
     };
@@ -461,10 +479,15 @@ fn step_with(
         ..
     } = model.mechanics.friction
     {
-        let break_away = static_n + fixed.k_p * (s.c.p_a - s.c.p_b).abs();
-        if s.v.abs() < stick_velocity_m_per_s
-            && (model.actuator.piston_force(&s.c) + fixed.f_load).abs() <= break_away
-        {
+        let drive = model.actuator.piston_force(&s.c) + fixed.f_load;
+        let break_away = static_n
+            + fixed.k_p * (s.c.p_a - s.c.p_b).abs()
+            + if drive < 0.0 {
+                fixed.negative_shift
+            } else {
+                0.0
+            };
+        if s.v.abs() < stick_velocity_m_per_s && drive.abs() <= break_away {
             s.v = 0.0;
         }
     }
@@ -630,5 +653,70 @@ mod tests {
                 );
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod direction_tests {
+    use super::*;
+    use crate::{ActuatorSheet, ValveKind};
+
+    /// Per-direction Coulomb friction: under a constant drive of +-5 N, with chambers too large for the
+    /// motion to change their pressure, the piston slides at the velocity where eq. (1) balances,
+    /// `5 = F_c(direction) + K_v |v|`: F_c+ = 2 N towards +x, F_c- = 3 N towards -x (K_v = 50 N s/m).
+    #[test]
+    fn each_direction_slides_against_its_own_coulomb_force() {
+        let sheet = ActuatorSheet::load(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../pneumatics/paper-actuator.toml"),
+        )
+        .unwrap();
+        let mut m = sheet.model();
+        m.mechanics.friction = Friction::Smooth {
+            coulomb_n: 2.0,
+            smooth_velocity_m_per_s: 1e-4,
+        };
+        m.mechanics.viscous_n_s_per_m = 50.0;
+        m.effects.coulomb_negative_n = Some(3.0);
+        m.actuator.valve.kind = ValveKind::Proportional {
+            response_time_s: 0.0,
+        };
+        m.actuator.valve.underlap = 0.0;
+        m.actuator.cylinder.dead_volume_a_m3 = 1.0;
+        m.actuator.cylinder.dead_volume_b_m3 = 1.0;
+        let c = ChamberState::new(2.0e5, 2.0e5);
+        let f_p = m.actuator.piston_force(&c) + m.mechanics.gravity_force();
+        for (drive, v) in [(5.0, 0.06), (-5.0, -0.04)] {
+            let mut st = OneDofState::at_rest(0.025, c, 0.0);
+            for _ in 0..1000 {
+                step(
+                    &m,
+                    &mut st,
+                    0.0,
+                    drive - f_p,
+                    m.mechanics.gravity_force(),
+                    1e-4,
+                );
+            }
+            assert!(
+                (st.x_dot / v - 1.0).abs() < 1e-3,
+                "drive {drive}: {} vs {v}",
+                st.x_dot
+            );
+        }
+        // Symmetric without the key: -5 N slides at -0.06 m/s.
+        m.effects.coulomb_negative_n = None;
+        let mut st = OneDofState::at_rest(0.025, c, 0.0);
+        for _ in 0..1000 {
+            step(
+                &m,
+                &mut st,
+                0.0,
+                -5.0 - f_p,
+                m.mechanics.gravity_force(),
+                1e-4,
+            );
+        }
+        assert!((st.x_dot / -0.06 - 1.0).abs() < 1e-3, "{}", st.x_dot);
     }
 }
