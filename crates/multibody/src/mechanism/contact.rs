@@ -105,9 +105,9 @@ pub struct ContactReading {
 
 /// The step the pads are integrated over: h and Rapier's substeps s.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct PadStep {
-    pub(super) dt_s: f64,
-    pub(super) substeps: usize,
+struct PadStep {
+    dt_s: f64,
+    substeps: usize,
 }
 
 /// One touching collider pair this step: where, how deep, how fast, and its force once solved.
@@ -313,11 +313,14 @@ impl PadSolver {
         contacts: &mut [C],
         built: impl Fn(&mut C) -> &mut BuiltContact,
         readings: &mut [ContactReading],
-        bodies: &mut RigidBodySet,
-        colliders: &ColliderSet,
-        joints: &ImpulseJointSet,
-        step: PadStep,
+        world: &mut PhysicsWorld,
     ) {
+        let step = PadStep {
+            dt_s: world.integration_parameters.dt,
+            substeps: world.integration_parameters.num_solver_iterations,
+        };
+        let (bodies, colliders, joints) =
+            (&mut world.bodies, &world.colliders, &world.impulse_joints);
         self.pushes.clear();
         for (ci, (c, r)) in contacts.iter_mut().zip(readings.iter_mut()).enumerate() {
             let c = built(c);

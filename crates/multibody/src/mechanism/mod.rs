@@ -399,18 +399,11 @@ impl Mechanism {
         for ((a, s), &f) in self.actuators.iter().zip(&self.states).zip(forces_n) {
             a.mount.apply(&mut world.bodies, s, f);
         }
-        let pad_step = contact::PadStep {
-            dt_s: world.integration_parameters.dt,
-            substeps: world.integration_parameters.num_solver_iterations,
-        };
         self.pads.apply(
             &mut self.contacts,
             |c| &mut c.built,
             &mut self.readings,
-            &mut world.bodies,
-            &world.colliders,
-            &world.impulse_joints,
-            pad_step,
+            world,
         );
         if !self.rigid.built.is_empty() {
             // Recycled contact points are stale after a held link's slide: only while nothing moves.
