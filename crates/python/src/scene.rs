@@ -24,8 +24,9 @@ fn load(path: &Path) -> PyResult<Scene> {
         }
         match pneuflex_scene::mechanism::MechanismScene::load(path) {
             Ok(_) => errors::other(format!(
-                "{}: a scene with [[actuators]] (several cylinders): run it with pneuflex.run_mechanism",
-                path.display()
+                "{}: {}",
+                path.display(),
+                pneuflex_scene::schema::SEVERAL_ACTUATORS
             )),
             Err(e) => errors::scene(e),
         }
@@ -147,6 +148,10 @@ pub fn run_with_summary<'py>(
     py: Python<'py>,
     scene_path: PathBuf,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>, f64)> {
+    // Every scene kind: one with [[actuators]] runs through the same loop, its summary per actuator.
+    if is_mechanism(&scene_path) {
+        return run_mechanism(py, scene_path);
+    }
     let scene = load(&scene_path)?;
     let (results, wall) = run_all(py, &scene)?;
     let s = to_py(py, &summary(&scene, &results))?;

@@ -1229,6 +1229,19 @@ def run_mechanism_gives_each_actuator_its_prefixed_columns_and_the_summary():
         assert abs(float(np.mean(tr[f"{side}.f_e"][squeeze])) - 10.0) < 0.1
     assert summary["actuators"] == ["left", "right"] and len(summary["claims"]) == 4
     assert wall_s > 0.0
+    # pneuflex.run takes every scene kind: the same runs as Results, metrics per actuator, the claims.
+    res = pneuflex.run(str(ROOT / "scenes" / "gripper.toml"))
+    assert isinstance(res, pneuflex.Results) and set(res) == {"impedance", "adaptive"}
+    assert np.array_equal(res["adaptive"]["left.f_e"], tr["left.f_e"]), "the one loop is deterministic"
+    assert res.summary["runs"][1]["controller"] == "adaptive" and len(res.claims) == 4
+    try:
+        import pandas  # noqa: F401
+    except ImportError:
+        pass
+    else:
+        m = res.metrics
+        assert list(m.index.names) == ["run", "window", "actuator"], m.index.names
+        assert m.loc[("adaptive", "sine_rubber", "right"), "rms_force_error_n"] > 0.0
     try:
         pneuflex.run_mechanism(str(ROOT / "scenes" / "no-such.toml"))
     except FileNotFoundError as e:

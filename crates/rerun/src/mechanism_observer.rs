@@ -10,7 +10,7 @@ use pneuflex_scene::Plant;
 use pneuflex_scene::mechanism::MechanismScene;
 
 use crate::error::RerunError;
-use crate::layout::Layout;
+use crate::layout::{Eye, Layout};
 use crate::paths;
 use crate::recorder::{EventLevel, LinkShape, RecorderOptions, RunRecorder};
 use crate::scene_observer::{role_colour, sink_for_run};
@@ -114,6 +114,9 @@ impl MechanismRecorder {
                 .zip(&names)
                 .map(|(c, n)| (n.as_str(), c.unit, c.group)),
         );
+        let visuals = plant.visuals();
+        let mut layout = layout;
+        layout.eye = framing_eye(plant, &visuals);
         let options = RecorderOptions {
             layout,
             ..RecorderOptions::default()
@@ -125,7 +128,6 @@ impl MechanismRecorder {
             &sink,
             options,
         )?;
-        let visuals = plant.visuals();
         let mut entities = Vec::with_capacity(visuals.len());
         for v in &visuals {
             let entity = paths::link(&v.name);
@@ -192,6 +194,50 @@ impl MechanismRecorder {
             self.error = Some(e);
         }
     }
+}
+
+/// The radius of a sphere about a shape's origin that holds it, m.
+fn bounding_radius(shape: &pneuflex_scene::plants::VisualShape) -> f64 {
+    use pneuflex_scene::plants::VisualShape;
+    let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    match shape {
+        VisualShape::Box { half_extents_m } => norm(*half_extents_m),
+        VisualShape::Cylinder {
+            radius_m,
+            half_length_m,
+        } => radius_m.hypot(*half_length_m),
+        VisualShape::Sphere { radius_m } => *radius_m,
+        VisualShape::Mesh { vertices_m, .. } => {
+            vertices_m.iter().map(|v| norm(*v)).fold(0.0, f64::max)
+        }
+    }
+}
+
+/// A camera that frames the whole mechanism at t = 0: it looks at the middle of the box that holds every
+/// drawn shape, from the front (−y), a little to the side and above, far enough that the box's diagonal
+/// fills about half the view. None for a plant that draws nothing.
+fn framing_eye(plant: &dyn Plant, visuals: &[pneuflex_scene::Visual]) -> Option<Eye> {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    plant.visual_poses(&mut |i, p| {
+        let r = visuals.get(i).map_or(0.0, |v| bounding_radius(&v.shape));
+        for k in 0..3 {
+            lo[k] = lo[k].min(p.translation_m[k] - r);
+            hi[k] = hi[k].max(p.translation_m[k] + r);
+        }
+    });
+    if !lo.iter().chain(&hi).all(|v| v.is_finite()) {
+        return None;
+    }
+    let look_at_m: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+    let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+    // From the front-right and above: a unit direction (0.35, −0.85, 0.4) at 1.6 diagonals.
+    let dir = [0.35, -0.85, 0.4];
+    let n: f64 = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
+    let d = 1.6 * diagonal.max(1e-3) / n.sqrt();
+    Some(Eye {
+        position_m: std::array::from_fn(|k| look_at_m[k] + d * dir[k]),
+        look_at_m,
+    })
 }
 
 impl<'p> pneuflex_control::Sink<dyn Plant + 'p> for MechanismRecorder {

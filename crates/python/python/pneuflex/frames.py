@@ -53,9 +53,21 @@ class Results(dict):
     @property
     def metrics(self):
         """One row per run and metric window, indexed by (run, window): the window's metrics as summary.json
-        gives them, an event window's response flattened into its columns (``settling_time_s``, ...)."""
+        gives them, an event window's response flattened into its columns (``settling_time_s``, ...). A scene
+        with several actuators has a row per run, window and actuator, indexed by (run, window, actuator), with
+        the window's ``force_imbalance_n`` on each."""
         pd = _pandas()
         rows = []
+        if "actuators" in self.summary:
+            for r in self.summary["runs"]:
+                for w in r.get("windows", []):
+                    for actuator, m in w["actuators"]:
+                        row = {"run": r["name"], "controller": r["controller"], "window": w["window"]}
+                        row["actuator"] = actuator
+                        row.update(m)
+                        row["force_imbalance_n"] = w["force_imbalance_n"]
+                        rows.append(row)
+            return pd.DataFrame(rows).set_index(["run", "window", "actuator"]) if rows else pd.DataFrame()
         for r in self.summary["runs"]:
             for w in r.get("windows", []):
                 row = {"run": r["name"], "controller": r["controller"]}

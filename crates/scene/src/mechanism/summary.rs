@@ -36,8 +36,13 @@ pub struct WindowMetrics {
 pub struct RunSummary {
     /// Run name.
     pub name: String,
+    /// Its controller's kind (on every actuator).
+    pub controller: crate::schema::ControllerKind,
     /// Why it stopped early, if it did.
     pub diverged: Option<String>,
+    /// Why a signal cut it short, if one did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interrupted: Option<String>,
     /// Its windows.
     pub windows: Vec<WindowMetrics>,
 }
@@ -131,7 +136,9 @@ pub fn summarise(scene: &MechanismScene, runs: &[RunResult]) -> MechanismSummary
         .iter()
         .map(|r| RunSummary {
             name: r.name.clone(),
+            controller: r.controller,
             diverged: r.diverged.clone(),
+            interrupted: r.interrupted.clone(),
             windows: scene
                 .metrics
                 .iter()
