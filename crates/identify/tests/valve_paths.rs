@@ -42,11 +42,15 @@ fn recovers_c_and_b_per_path() {
         common::show_estimate("", c, e);
         common::assert_inside("", c, e);
         assert!(err.abs() <= 0.10, "{} off by {:.2} %", e.key, 100.0 * err);
+        // The noise's interval within 5 %; the interval widened for the effects the model lacks
+        // (issue 44, check::widen) stays under the 10 % of "poorly identified" (asserted below).
+        let noise = e.widened.as_ref().map_or(e.ci95, |w| w.noise_ci95);
+        let noise_half = (e.value - noise[0]).max(noise[1] - e.value) / e.value.abs();
         assert!(
-            e.rel_half_width < 0.05,
-            "{}: +-{:.2} %",
+            noise_half < 0.05,
+            "{}: +-{:.2} % (noise alone)",
             e.key,
-            100.0 * e.rel_half_width
+            100.0 * noise_half
         );
     }
     assert!(
