@@ -1070,19 +1070,6 @@ fn signatures(
         .collect()
 }
 
-/// How an interval was widened for an effect the model lacks.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct Widening {
-    /// The probe that moved the bound(s) most (e.g. `seal pressure term`).
-    pub probe: String,
-    /// Its effect.
-    pub effect: String,
-    /// The amounts of it the residuals allow, in probes: [least, most].
-    pub amounts: [f64; 2],
-    /// The 95 % interval before (the noise's and the replay's alone).
-    pub noise_ci95: [f64; 2],
-}
-
 /// Widens each estimate's interval to hold the truth under every probed effect the model lacks, in any
 /// amount the residuals allow: one probe of effect e moves the truth from the fitted value by `shift`
 /// (the keys absorb that much of e, [`Amounts`]); the residuals allow amounts in [max(least, a - z se),
@@ -1130,12 +1117,14 @@ pub fn widen(estimates: &mut [crate::fit::Estimate], mc: &ModelCheck) {
         } else {
             f64::INFINITY
         };
-        e.widened = by.filter(|(r, _, _)| *r > 0.0).map(|(_, s, a)| Widening {
-            probe: s.probe.to_string(),
-            effect: s.effect.to_string(),
-            amounts: a,
-            noise_ci95: noise,
-        });
+        e.widened = by
+            .filter(|(r, _, _)| *r > 0.0)
+            .map(|(_, s, a)| crate::fit::Widening {
+                probe: s.probe.to_string(),
+                effect: s.effect.to_string(),
+                amounts: a,
+                noise_ci95: noise,
+            });
     }
 }
 

@@ -309,7 +309,7 @@ pub struct Estimate {
     /// probes, `crate::check::widen`): which effect, the amounts the residuals allow, and the interval
     /// before.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub widened: Option<crate::check::Widening>,
+    pub widened: Option<Widening>,
 }
 
 /// What the fit found.
@@ -891,6 +891,20 @@ impl Gauss {
         self.spare = Some(r * a.sin());
         r * a.cos()
     }
+}
+
+/// How an interval was widened for an effect the model lacks ([`crate::check`]'s widening, kept beside the
+/// estimate it widens).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Widening {
+    /// The probe that moved the bound(s) most (e.g. `seal pressure term`).
+    pub probe: String,
+    /// Its effect.
+    pub effect: String,
+    /// The amounts of it the residuals allow, in probes: [least, most].
+    pub amounts: [f64; 2],
+    /// The 95 % interval before (the noise's and the replay's alone).
+    pub noise_ci95: [f64; 2],
 }
 
 #[cfg(test)]
