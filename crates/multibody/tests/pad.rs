@@ -61,6 +61,12 @@ impl Pad {
     /// Pushes the block into the wall with `f0` for `steps` steps of `dt_s`: each step's sensor reading
     /// and the block's velocity after it.
     fn run(&self, f0: f64, dt_s: f64, steps: usize) -> (Vec<f64>, Vec<f64>) {
+        let (forces, speeds, _) = self.run_read(f0, dt_s, steps);
+        (forces, speeds)
+    }
+
+    /// [`Pad::run`] with each step's ω h as the reading gives it.
+    fn run_read(&self, f0: f64, dt_s: f64, steps: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let mut config = MechanismConfig::new(
             vec![ActuatorConfig {
                 name: "push".into(),
@@ -83,13 +89,14 @@ impl Pad {
         let mut m = Mechanism::from_urdf(&path, &config).unwrap();
         std::fs::remove_file(path).ok();
         let pad = m.contact_index("pad").unwrap();
-        let (mut forces, mut speeds) = (Vec::new(), Vec::new());
+        let (mut forces, mut speeds, mut omega_h) = (Vec::new(), Vec::new(), Vec::new());
         for _ in 0..steps {
             m.step_with_forces(&[f0]);
             forces.push(m.contact(pad).force_n);
             speeds.push(m.joint_position("slide").unwrap().1);
+            omega_h.push(m.contact(pad).omega_h);
         }
-        (forces, speeds)
+        (forces, speeds, omega_h)
     }
 }
 
@@ -161,5 +168,34 @@ fn a_stiff_pad_on_a_light_body_is_stable_at_the_control_step_and_reads_the_force
             "step {n}: momentum {} N s, impulse of the forces read {impulse} N s",
             pad.mass_kg * v
         );
+    }
+}
+
+#[test]
+fn a_touching_pad_reads_its_natural_frequency_times_the_step() {
+    // The block on its slide against the fixed wall: W = 1/m, so ω h = h √(k/m) while it touches, 0 apart.
+    // The plant stops a run whose pad is far beyond 1 (crates/scene, MAX_PAD_OMEGA_H).
+    for (k, h) in [(2.0e4, 1.0e-3), (1.0e12, 5.0e-4)] {
+        let pad = Pad {
+            mass_kg: 0.1,
+            k,
+            c: 0.0,
+        };
+        let (forces, _, omega_h) = pad.run_read(10.0, h, 40);
+        let expected = h * (k / pad.mass_kg).sqrt();
+        let touching: Vec<f64> = forces
+            .iter()
+            .zip(&omega_h)
+            .filter(|(f, _)| **f > 0.0)
+            .map(|(_, w)| *w)
+            .collect();
+        assert!(!touching.is_empty(), "k = {k}: the block never touched");
+        for w in touching {
+            assert!(
+                (w - expected).abs() <= 1e-9 * expected,
+                "k = {k}, h = {h}: ω h read {w}, h √(k/m) = {expected}"
+            );
+        }
+        assert_eq!(omega_h[0], 0.0, "apart at the first step: 0");
     }
 }

@@ -101,6 +101,10 @@ pub struct ContactReading {
     pub force_n: f64,
     /// Deepest penetration, m (0 apart).
     pub penetration_m: f64,
+    /// The stiffest touching pair's natural frequency times the physics step, ω h = h √(k W_ii) with
+    /// W_ii its mobility of (P3) (0 apart): a pad rings faster than its step can follow when this is
+    /// well above 1, and its force then depends on the step (the pad is unresolved).
+    pub omega_h: f64,
 }
 
 /// The step the pads are integrated over: h and Rapier's substeps s.
@@ -339,6 +343,13 @@ impl PadSolver {
                     let w = mobility(bodies, joints, &self.pushes[i], &self.pushes[j]);
                     self.matrix.push(w);
                 }
+            }
+            for i in 0..n {
+                let p = &self.pushes[i];
+                let k = built(&mut contacts[p.contact]).params.stiffness_n_per_m;
+                let omega_h = step.dt_s * (k * self.matrix[i * n + i]).max(0.0).sqrt();
+                let r = &mut readings[p.contact];
+                r.omega_h = r.omega_h.max(omega_h);
             }
             // The right side: E⁻¹ r + W F⁻, with F⁻ the last force of each pad touching now.
             for i in 0..n {
