@@ -660,8 +660,9 @@ def a_bad_scene_is_refused_naming_the_file_the_line_and_the_key():
     gripper = ROOT / "scenes" / "gripper.toml"
     refused(lambda: envs.ForceControl(scene=gripper), pneuflex.PneuflexError,
             "gripper.toml: a scene with [[actuators]] (several cylinders)", "one [plant]")
-    refused(lambda: pneuflex.run(gripper), pneuflex.PneuflexError,
-            "gripper.toml: a scene with [[actuators]] (several cylinders): run it with pneuflex.run_mechanism")
+    # pneuflex.run takes it (run_mechanism_gives_each_actuator_...); what takes one actuator says so.
+    refused(lambda: pneuflex.summarize(gripper, {}), pneuflex.PneuflexError,
+            "gripper.toml: a scene with several actuators ([[actuators]])", "pneuflex.run")
     refused(lambda: pneuflex.run_mechanism(SCENE), pneuflex.PneuflexError,
             "paper-fig3.toml: a scene with one [plant], not [[actuators]]: run it with pneuflex.run")
     with tempfile.TemporaryDirectory() as d:
