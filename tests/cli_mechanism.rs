@@ -163,8 +163,8 @@ fn a_mechanism_run_beyond_the_step_or_trace_limits_is_refused_before_it_starts()
     assert!(
         stderr.contains("gripper.toml:")
             && stderr.contains("chamber_substeps")
-            // 8001 ticks x 2 physics steps x (2 solver iterations + 10 chamber substeps x 2 actuators).
-            && stderr.contains("--max-steps 352044"),
+            // 8001 ticks x 8 physics steps x (2 solver iterations + 10 chamber substeps x 2 actuators).
+            && stderr.contains("--max-steps 1408176"),
         "{stderr}"
     );
     let o = pneuflex(&[

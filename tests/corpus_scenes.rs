@@ -36,8 +36,7 @@ fn summary(dir: &Path) -> serde_json::Value {
 
 #[test]
 fn a_blown_up_several_actuator_run_stops_as_diverged_and_fails() {
-    // A 1e12 N/m pad on the lever: the implicit pad stays bounded but rings 400 times faster than its
-    // physics step can follow (its metrics moved 239 / 10 / 597 N as the step halved): stopped as diverged.
+    // A 1e12 N/m pad on the lever: the explicit pad blows the mechanism up within a few ticks.
     let d = tempfile::tempdir().unwrap();
     let scene = scene_copy(
         d.path(),
@@ -52,9 +51,10 @@ fn a_blown_up_several_actuator_run_stops_as_diverged_and_fails() {
         .as_str()
         .unwrap_or_else(|| panic!("not marked diverged: {sum}"));
     assert!(
-        why.contains("contact 'press'")
-            && why.contains("not resolved")
-            && why.contains("physics_steps_per_tick"),
+        why.contains("elbow_cylinder")
+            && (why.contains("chamber pressure")
+                || why.contains("|f_e|")
+                || why.contains("non-finite")),
         "{why}"
     );
     // The trace ends at the divergence: no row holds a chamber above twice the supply (0.6 MPa here).

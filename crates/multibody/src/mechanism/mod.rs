@@ -71,8 +71,6 @@ pub struct Mechanism {
     forces: Vec<f64>,
     /// Each contact over the last step.
     readings: Vec<ContactReading>,
-    /// The pads' implicit solve (contact.rs (P3)) and its scratch.
-    pads: contact::PadSolver,
     /// Rigid contacts (Rapier's solver) and their readings.
     rigid: rigid::RigidContacts,
     /// Held links moving along scripted waypoints.
@@ -198,7 +196,6 @@ impl Mechanism {
         Ok(Self {
             forces: vec![0.0; actuators.len()],
             readings: vec![ContactReading::default(); contacts.len()],
-            pads: contact::PadSolver::default(),
             rig,
             actuators,
             contacts,
@@ -399,12 +396,9 @@ impl Mechanism {
         for ((a, s), &f) in self.actuators.iter().zip(&self.states).zip(forces_n) {
             a.mount.apply(&mut world.bodies, s, f);
         }
-        self.pads.apply(
-            &mut self.contacts,
-            |c| &mut c.built,
-            &mut self.readings,
-            world,
-        );
+        for (c, r) in self.contacts.iter().zip(self.readings.iter_mut()) {
+            *r = c.built.apply(&mut world.bodies, &world.colliders);
+        }
         if !self.rigid.built.is_empty() {
             // Recycled contact points are stale after a held link's slide: only while nothing moves.
             world.integration_parameters.contact_recycling = self.motions.is_empty();
@@ -787,13 +781,12 @@ fn build_contact(rig: &BuiltRig, c: &ContactConfig) -> Result<BuiltContact, Mult
         .iter()
         .flat_map(|&a| rig.links[lb].colliders.iter().map(move |&b| (a, b)))
         .collect();
-    Ok(BuiltContact::new(
-        &rig.world,
-        rig.links[la].body,
-        rig.links[lb].body,
+    Ok(BuiltContact {
+        body_a: rig.links[la].body,
+        body_b: rig.links[lb].body,
         pairs,
         params,
-    ))
+    })
 }
 
 fn build_spring(

@@ -26,13 +26,6 @@ const ACTUATOR_SIGNALS: [Signal; 2] = [
     ),
 ];
 
-/// The largest ω h a touching pad may have (its natural frequency √(k W) on the bodies it pushes, times the
-/// physics step): beyond it the pad rings faster than the step can follow, its force depends on the step
-/// (the lever with a 1e12 N/m stop read 239, 10 and 597 N RMS at 0.5, 0.25 and 0.125 ms), and the run is
-/// stopped as diverged rather than reported. The shipped pads are under 1 (the gripper's rubber, 2e4 N/m
-/// between a 0.1 kg finger and the 0.05 kg object, √(2e4 × 30) × 1 ms = 0.77).
-pub const MAX_PAD_OMEGA_H: f64 = 10.0;
-
 /// The mechanism of a scene with several actuators, as the loop drives it.
 pub struct MechanismPlant {
     scene: MechanismScene,
@@ -187,24 +180,6 @@ impl Plant for MechanismPlant {
             return Err(PlantError::invariant(why.clone()));
         }
         let b = &self.built;
-        let h = self.scene.dt_s / f64::from(self.physics_steps_per_tick);
-        for (i, c) in self.scene.contacts.iter().enumerate() {
-            let omega_h = b.mechanism.contact(i).omega_h;
-            if omega_h > MAX_PAD_OMEGA_H {
-                return Err(PlantError::invariant(format!(
-                    "contact '{}': its pad ({} N/m) rings at {:.3e} rad/s on the bodies it pushes, ω h = \
-                     {omega_h:.3e} at the {h:.3e} s physics step, above {MAX_PAD_OMEGA_H}: its force is not \
-                     resolved; use a stiffness under {} N/m or more physics_steps_per_tick",
-                    c.name,
-                    crate::error::readable(c.stiffness_n_per_m, 4),
-                    omega_h / h,
-                    format_args!(
-                        "{:.2e}",
-                        c.stiffness_n_per_m * (MAX_PAD_OMEGA_H / omega_h).powi(2)
-                    ),
-                )));
-            }
-        }
         for (i, name) in self.names.iter().enumerate() {
             let el = &b.drives[i].element;
             let stroke = b.mechanism.actuator_stroke(i);
