@@ -193,7 +193,7 @@ const END_EFFECT: Bound = Bound {
     min: 1.0,
     max: 10.0,
     unit: "",
-    why: "k = 1 is the ideal cylinder; the caps only shorten the stroke (Tondu & Lopez: ~1.0 to 1.5)",
+    why: "k = 1 is the ideal cylinder, the end caps only shorten the stroke",
 };
 const GAS_CONSTANT: Bound = Bound {
     min: 100.0,
