@@ -83,14 +83,14 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     let scene = &sweep.base_scene;
     let dest = out
         .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new("out").join(format!("{}-sweep", scene.name)));
-    let inputs = pneuflex_outputs::input_files(scene, scene_path);
+        .unwrap_or_else(|| Path::new("out").join(format!("{}-sweep", scene.name())));
+    let inputs = scene.input_files(scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let stage = OutputDir::create(&dest, &protect, Writer::simulation("sweep"))?;
     let traces = args.traces.then(|| stage.path().join("points"));
 
     let n = sweep.len();
-    let bar = bar(n as u64, &format!("sweeping {}", scene.name), args.quiet);
+    let bar = bar(n as u64, &format!("sweeping {}", scene.name()), args.quiet);
     let start = Instant::now();
     let indices: Vec<usize> = (0..n).collect();
     // Rows go to sweep.csv chunk by chunk; only a heatmap's metrics are kept (memory does not grow with
@@ -144,7 +144,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     let manifest = Manifest::new(
         "sweep",
         env!("CARGO_PKG_VERSION"),
-        pneuflex_scene::scene_inputs(scene),
+        scene.input_digests(),
     );
     if let Some(signal) = signal {
         return interrupted(stage, manifest, &sweep, signal, done, &dest);
@@ -160,9 +160,9 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
         outln!(
             "{}: {n} point(s) x {} run(s) on {threads} thread(s) in {run_s:.2} s ({:.1} scene-runs/s; points checked in {checked_s:.2} s): \
              {} ok, {} not settled, {} diverged, {} error; table in {}",
-            scene.name,
-            scene.runs.len(),
-            (n * scene.runs.len()) as f64 / run_s.max(1e-9),
+            scene.name(),
+            scene.runs().len(),
+            (n * scene.runs().len()) as f64 / run_s.max(1e-9),
             counts[0],
             counts[1],
             counts[2],
@@ -279,9 +279,9 @@ fn metrics_of(sweep: &Sweep, args: &SweepArgs) -> anyhow::Result<Vec<String>> {
                 "--traces: {} points x {} run(s) of {} s at dt {} s would write about {:.1} GiB, more than \
                  the limit of {} MiB; sweep fewer points, or raise --max-output-mb",
                 sweep.len(),
-                sweep.base_scene.runs.len(),
-                sweep.base_scene.duration_s,
-                sweep.base_scene.dt_s,
+                sweep.base_scene.runs().len(),
+                sweep.base_scene.duration_s(),
+                sweep.base_scene.dt_s(),
                 bytes as f64 / (1u64 << 30) as f64,
                 args.max_output_mb
             );

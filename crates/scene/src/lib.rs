@@ -10,6 +10,7 @@
 //! ```
 
 pub mod analysis;
+pub mod any_scene;
 pub mod error;
 pub mod mechanism;
 pub mod origin;
@@ -17,6 +18,7 @@ pub mod plants;
 pub mod run;
 pub mod schema;
 
+pub use any_scene::AnyScene;
 pub use error::SceneError;
 pub use plants::{
     IdealLoop, LinearSpring, MultibodyPlant, OneDofPneumatic, Plant, Visual, VisualPose,

@@ -33,16 +33,17 @@ fn main() {
     let (mut build, mut plants, mut sim, mut rows) = (vec![], vec![], vec![], vec![]);
     for i in 0..n {
         let t0 = Instant::now();
-        let scene = sweep.scene_at(i).unwrap();
+        let any = sweep.scene_at(i).unwrap();
+        let scene = any.one().expect("a one-actuator scene");
         let t1 = Instant::now();
         // The plants' construction is inside run_scene (one per run): timed apart and counted as loading.
         for _ in &scene.runs {
-            let _ = pneuflex_scene::build_plant(&scene).unwrap();
+            let _ = pneuflex_scene::build_plant(scene).unwrap();
         }
         let t2 = Instant::now();
-        let results = pneuflex_scene::run_scene(&scene, &mut |_| {}).unwrap();
+        let results = pneuflex_scene::run_scene(scene, &mut |_| {}).unwrap();
         let t3 = Instant::now();
-        let r: Vec<_> = results.iter().map(|r| sweep.row_of(r)).collect();
+        let r: Vec<_> = results.iter().map(|r| sweep.row_of(&any, r)).collect();
         let text = sweep.rows(&pneuflex_sweep::PointResult { index: i, runs: r });
         let t4 = Instant::now();
         std::hint::black_box(text);
@@ -64,7 +65,7 @@ fn main() {
         "{{\"scene\": \"{scene}\", \"points\": {n}, \"runs\": {}, \"check_all_s\": {check_s:.6}, \
          \"scene_build_s\": {b:.6}, \"plant_build_s\": {p:.6}, \"simulate_s\": {s:.6}, \"row_s\": {r:.6}, \
          \"overhead_pct\": {:.3}}}",
-        sweep.base_scene.runs.len(),
+        sweep.base_scene.runs().len(),
         100.0 * overhead / s
     );
 }

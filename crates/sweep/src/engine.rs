@@ -5,7 +5,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use pneuflex_scene::{Limits, RunResult, Scene, SceneError, WindowKind, WindowMetrics};
+pub use pneuflex_scene::any_scene::{MetricColumn, metric_of, window_metrics};
+use pneuflex_scene::{AnyScene, Limits, RunResult, SceneError, WindowKind};
 use rayon::prelude::*;
 
 use crate::key::{Base, KeyError, KeyPath, Value};
@@ -163,60 +164,6 @@ impl PointResult {
     }
 }
 
-/// A metric column: window, metric name.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct MetricColumn {
-    /// Window name.
-    pub window: String,
-    /// Metric (summary.json's name).
-    pub metric: &'static str,
-}
-
-impl MetricColumn {
-    /// `window.metric`, as the table's header writes it.
-    pub fn name(&self) -> String {
-        format!("{}.{}", self.window, self.metric)
-    }
-}
-
-/// The metrics each window kind has, in column order.
-pub fn window_metrics(kind: WindowKind) -> &'static [&'static str] {
-    match kind {
-        WindowKind::Sine => &["rms_force_error_n", "phase_lag_deg", "amplitude_ratio"],
-        WindowKind::Step => &["rms_force_error_n", "steady_state_error_n"],
-        WindowKind::Event => &[
-            "rms_force_error_n",
-            "peak_force_n",
-            "jump_n",
-            "recovery_overshoot_n",
-            "recovery_overshoot_pct",
-            "settling_time_s",
-            "settling_fragile",
-            "tracking_error_n",
-        ],
-    }
-}
-
-/// A metric of a window's results; a settling time of a run that did not settle is infinite.
-pub fn metric_of(w: &WindowMetrics, metric: &str) -> Option<f64> {
-    let ev = w.event.as_ref();
-    match metric {
-        "rms_force_error_n" => Some(w.rms_force_error_n),
-        "phase_lag_deg" => w.phase_lag_deg,
-        "amplitude_ratio" => w.amplitude_ratio,
-        "steady_state_error_n" => w.steady_state_error_n,
-        "peak_force_n" => ev.map(|e| e.peak_force_n),
-        "jump_n" => ev.map(|e| e.jump_n),
-        "recovery_overshoot_n" => ev.map(|e| e.recovery_overshoot_n),
-        "recovery_overshoot_pct" => ev.map(|e| e.recovery_overshoot_pct),
-        "settling_time_s" => ev.map(|e| e.settling_time_s.unwrap_or(f64::INFINITY)),
-        // 1 when the settling time hangs on where the band is drawn (docs/scenes.md), else 0.
-        "settling_fragile" => ev.map(|e| f64::from(u8::from(e.settling_fragile))),
-        "tracking_error_n" => ev.map(|e| e.tracking_error_n),
-        _ => None,
-    }
-}
-
 /// How [`Sweep::new_checked`] reports while it checks every point: a stop flag (a signal's number; the check
 /// ends early with [`SweepError::Interrupted`]) and a tick after every point checked (a progress bar).
 pub struct Checking<'a> {
@@ -229,8 +176,8 @@ pub struct Checking<'a> {
 pub struct Sweep {
     /// The scene file.
     pub scene_path: PathBuf,
-    /// The scene as the file has it (validated).
-    pub base_scene: Scene,
+    /// The scene as the file has it (validated), of either kind.
+    pub base_scene: AnyScene,
     /// The points.
     pub points: Points,
     /// The metric columns (from the scene's windows).
@@ -326,22 +273,13 @@ impl Sweep {
         seed: u64,
         max_points: u64,
     ) -> Result<Sweep, SweepError> {
-        let base_scene = Scene::load(scene_path)?;
+        let base_scene = AnyScene::load(scene_path)?;
         let base = Base::load(scene_path).map_err(|e| SweepError::Other(e.to_string()))?;
         let keys: Vec<(&str, &KeyPath)> = sets.iter().map(|s| ("--set", &s.key)).collect();
         base.check_distinct(&keys)
             .map_err(|e| SweepError::key(&base, "--set", e))?;
         let points = crate::points::points(sets, samples, seed, max_points, "--max-points")?;
-        let columns = base_scene
-            .metrics
-            .iter()
-            .flat_map(|w| {
-                window_metrics(w.kind).iter().map(|m| MetricColumn {
-                    window: w.name.clone(),
-                    metric: m,
-                })
-            })
-            .collect();
+        let columns = base_scene.metric_columns();
         let sweep = Sweep {
             scene_path: scene_path.to_path_buf(),
             base_scene,
@@ -372,9 +310,14 @@ impl Sweep {
     /// about 14 bytes a value) and a summary, from the scene's duration and step.
     pub fn traces_bytes(&self) -> u64 {
         let s = &self.base_scene;
-        let rows = (s.duration_s / s.dt_s).ceil().max(1.0) + 1.0;
-        let columns = 14.0; // the loop's 8 signals, a controller's 3 and the plant's few
-        let per_point = s.runs.len() as f64 * rows * columns * 14.0 + 16_384.0;
+        let rows = (s.duration_s() / s.dt_s()).ceil().max(1.0) + 1.0;
+        // Per actuator the loop's 8 signals, a controller's 3 and the plant's few.
+        let actuators = match s {
+            AnyScene::One(_) => 1.0,
+            AnyScene::Mechanism(m) => m.actuators.len() as f64,
+        };
+        let columns = 14.0 * actuators;
+        let per_point = s.runs().len() as f64 * rows * columns * 14.0 + 16_384.0;
         (per_point * self.len() as f64).min(u64::MAX as f64) as u64
     }
 
@@ -392,7 +335,7 @@ impl Sweep {
 
     /// The scene of point `i`, parsed and validated by the scene's own code, with the sheet's edited
     /// files as its overlay (and the sheet loaded once, to check it).
-    pub fn scene_at(&self, i: usize) -> Result<Scene, SweepError> {
+    pub fn scene_at(&self, i: usize) -> Result<AnyScene, SweepError> {
         let row = self.points.row(i);
         let edits: Vec<(&crate::key::KeyPath, &Value)> =
             self.points.keys.iter().zip(&row).collect();
@@ -430,22 +373,31 @@ impl Sweep {
             }
         };
         let mut scene =
-            Scene::from_toml_str(&edited.scene_text, &self.scene_path, &self.base.base_dir)
+            AnyScene::from_toml_str(&edited.scene_text, &self.scene_path, &self.base.base_dir)
                 .map_err(located)?;
         // Errors and summaries point at the file as written.
-        scene.text = self.base.scene.text.clone();
-        scene.overlay = edited.overlay;
-        if !scene.overlay.is_empty() {
-            let Some(sheet) = scene.actuator_sheet_path() else {
-                return Err(SweepError::Other(format!(
-                    "sweep point {}: the plant of this scene has no actuator sheet",
-                    self.describe(i)
-                )));
-            };
-            scene.load_sheet(&sheet).map_err(|e| SweepError::Sheet {
-                point: self.describe(i),
-                error: Box::new(e),
-            })?;
+        scene.set_text(self.base.scene.text.clone());
+        if !edited.overlay.is_empty() {
+            match &mut scene {
+                AnyScene::One(scene) => {
+                    scene.overlay = edited.overlay;
+                    let Some(sheet) = scene.actuator_sheet_path() else {
+                        return Err(SweepError::Other(format!(
+                            "sweep point {}: the plant of this scene has no actuator sheet",
+                            self.describe(i)
+                        )));
+                    };
+                    scene.load_sheet(&sheet).map_err(|e| SweepError::Sheet {
+                        point: self.describe(i),
+                        error: Box::new(e),
+                    })?;
+                }
+                // Each actuator's sheet is read through the overlay when the mechanism is built.
+                AnyScene::Mechanism(m) => {
+                    m.overlay = edited.overlay;
+                    m.check_sheets().map_err(located)?;
+                }
+            }
         }
         scene.check_budget(&self.limits).map_err(located)?;
         Ok(scene)
@@ -458,7 +410,7 @@ impl Sweep {
             index: i,
             runs: self
                 .base_scene
-                .runs
+                .runs()
                 .iter()
                 .map(|r| RunRow {
                     run: r.name.clone(),
@@ -473,7 +425,7 @@ impl Sweep {
             Ok(s) => s,
             Err(e) => return fail(e.to_string()),
         };
-        let results = match pneuflex_scene::run_scene(&scene, &mut |_| {}) {
+        let results = match scene.run(&mut |_| {}) {
             Ok(r) => r,
             Err(e) => return fail(e.to_string()),
         };
@@ -481,50 +433,26 @@ impl Sweep {
             let d = dir.join(format!("point-{i:0w$}", w = digits(self.len())));
             if let Err(e) = std::fs::create_dir_all(&d)
                 .map_err(|e| e.to_string())
-                .and_then(|()| {
-                    pneuflex_scene::write_results(&d, &scene, &results).map_err(|e| e.to_string())
-                })
+                .and_then(|()| scene.write_results(&d, &results).map_err(|e| e.to_string()))
             {
                 return fail(format!("writing traces: {e}"));
             }
         }
         PointResult {
             index: i,
-            runs: results.iter().map(|r| self.row_of(r)).collect(),
+            runs: results.iter().map(|r| self.row_of(&scene, r)).collect(),
         }
     }
 
-    /// The table row of one run's result (status, reason, every metric column).
-    pub fn row_of(&self, r: &RunResult) -> RunRow {
-        let unsettled: Vec<String> = r
-            .windows
-            .iter()
-            .filter_map(|w| {
-                let e = w.event.as_ref()?;
-                (!e.settled).then(|| {
-                    format!(
-                        "{}: {}",
-                        w.name,
-                        e.not_settled.as_deref().unwrap_or("not settled")
-                    )
-                })
-            })
-            .collect();
+    /// The table row of one run's result of the point's `scene` (status, reason, every metric column).
+    pub fn row_of(&self, scene: &AnyScene, r: &RunResult) -> RunRow {
+        let unsettled = scene.unsettled(r);
         let (status, reason) = match (&r.diverged, unsettled.is_empty()) {
             (Some(why), _) => (Status::Diverged, why.clone()),
             (None, false) => (Status::NotSettled, unsettled.join("; ")),
             (None, true) => (Status::Ok, String::new()),
         };
-        let metrics = self
-            .columns
-            .iter()
-            .map(|c| {
-                if r.diverged.is_some() {
-                    return None;
-                }
-                r.window(&c.window).and_then(|w| metric_of(w, c.metric))
-            })
-            .collect();
+        let metrics = scene.values(r, &self.columns);
         RunRow {
             run: r.name.clone(),
             controller: r.controller.name().into(),
@@ -673,12 +601,12 @@ impl Sweep {
 
     /// The default heatmap metric: the first sine window's RMS error, else the first column.
     pub fn default_metric(&self) -> Option<String> {
-        let sine = self
-            .base_scene
-            .metrics
-            .iter()
-            .find(|w| w.kind == WindowKind::Sine)
-            .map(|w| format!("{}.rms_force_error_n", w.name));
+        let sine = self.base_scene.one().and_then(|s| {
+            s.metrics
+                .iter()
+                .find(|w| w.kind == WindowKind::Sine)
+                .map(|w| format!("{}.rms_force_error_n", w.name))
+        });
         sine.or_else(|| self.columns.first().map(MetricColumn::name))
     }
 }

@@ -186,13 +186,20 @@ impl KeyPath {
         if kp.parts.len() > 1 {
             // Only the actuator sheet is read through the scene's overlay (Scene::load_sheet), and the
             // component files it names through the sheet.
+            // A mechanism's actuator by name or position: `actuators[left].sheet:KEY` (a sheet that
+            // several actuators share changes for every one of them: the edit is the file's).
             let sheet = [Seg::Key("plant".into()), Seg::Key("actuator".into())];
-            if kp.parts[0] != sheet {
+            let one_of_several = matches!(
+                kp.parts[0].as_slice(),
+                [Seg::Key(a), Seg::Name(_) | Seg::Index(_), Seg::Key(s)] if a == "actuators" && s == "sheet"
+            );
+            if kp.parts[0] != sheet && !one_of_several {
                 return Err(KeyError {
                     key: kp.text.clone(),
                     message: format!(
-                        "`{}:` — only the actuator sheet's values can be reached through a file key: \
-                         `plant.actuator:KEY`, or `plant.actuator:components.NAME:KEY` for a component sheet",
+                        "`{}:` — only an actuator sheet's values can be reached through a file key: \
+                         `plant.actuator:KEY` (or `actuators[NAME].sheet:KEY` in a scene with several \
+                         actuators), or `plant.actuator:components.NAME:KEY` for a component sheet",
                         join(&kp.parts[0])
                     ),
                 });
@@ -268,14 +275,10 @@ impl EditableFile {
 
     /// The string value at `segs` (a key naming another file), if there is one.
     fn string_at(&self, segs: &[Seg]) -> Option<String> {
-        let mut item = self.doc.as_item();
-        for seg in segs {
-            item = match seg {
-                Seg::Key(k) => item.as_table_like()?.get(k)?,
-                _ => return None,
-            };
-        }
-        item.as_str().map(str::to_string)
+        // `plant.actuator`, or an element's key as in `actuators[left].sheet`.
+        get_in_item(self.doc.as_item(), segs)?
+            .as_str()
+            .map(str::to_string)
     }
 
     /// The file the string at `segs` names (relative to `dir`, the folder of this file `path`); `key` is the

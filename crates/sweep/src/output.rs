@@ -93,9 +93,9 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize, ext: &st
         m
     };
     let mut out = Vec::new();
-    let scene = &sweep.base_scene.name;
+    let scene = &sweep.base_scene.name();
     let what = with_unit(&name);
-    for (k, run) in sweep.base_scene.runs.iter().enumerate() {
+    for (k, run) in sweep.base_scene.runs().iter().enumerate() {
         out.push(Map {
             file: format!("heatmap-{}-{name}.{ext}", run.name),
             title: format!(
@@ -112,14 +112,14 @@ fn heatmap_cells(sweep: &Sweep, results: &[PointResult], metric: usize, ext: &st
     let find = |kind: &str| {
         sweep
             .base_scene
-            .runs
+            .runs()
             .iter()
             .position(|r| r.controller.name() == kind)
     };
     if let (Some(a), Some(i)) = (find("adaptive"), find("impedance")) {
         let (an, inn) = (
-            &sweep.base_scene.runs[a].name,
-            &sweep.base_scene.runs[i].name,
+            &sweep.base_scene.runs()[a].name,
+            &sweep.base_scene.runs()[i].name,
         );
         out.push(Map {
             file: format!("heatmap-{an}-minus-{inn}-{name}.{ext}"),
@@ -358,7 +358,7 @@ pub fn write_record(
         points: sweep.len(),
         runs: sweep
             .base_scene
-            .runs
+            .runs()
             .iter()
             .map(|r| r.name.as_str())
             .collect(),

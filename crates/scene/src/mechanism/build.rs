@@ -128,13 +128,20 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
     })
 }
 
+impl MechanismScene {
+    /// Reads every actuator's sheet (through the overlay) and refuses one the mechanism cannot model.
+    pub fn check_sheets(&self) -> Result<(), SceneError> {
+        actuator_sheets(self).map(drop)
+    }
+}
+
 /// Each actuator's sheet, refused when it models more than a mechanism's cylinders do.
 fn actuator_sheets(scene: &MechanismScene) -> Result<Vec<ActuatorSheet>, SceneError> {
     let mut sheets = Vec::with_capacity(scene.actuators.len());
     for (i, a) in scene.actuators.iter().enumerate() {
         let path = scene.resolve(&a.sheet);
         let key = format!("actuators[{i}].sheet");
-        let sheet = pneuflex_pneumatics::ActuatorSheet::load_overlaid(&path, &Default::default())
+        let sheet = pneuflex_pneumatics::ActuatorSheet::load_overlaid(&path, &scene.overlay)
             .map_err(|e| scene.invalid(&key, e.to_string()))?;
         let beyond = sheet.effects_beyond_paper();
         if !beyond.is_empty() {

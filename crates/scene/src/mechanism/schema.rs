@@ -68,6 +68,9 @@ pub struct MechanismScene {
     /// Its text (for the lines of keys in errors).
     #[serde(skip)]
     pub text: String,
+    /// Edited copies of the sheets it names, read in place of the files (a sweep's point).
+    #[serde(skip)]
+    pub overlay: pneuflex_pneumatics::FileOverlay,
 }
 
 fn default_physics_steps() -> u32 {
@@ -281,12 +284,19 @@ impl MechanismScene {
     /// Reads, parses and checks a mechanism scene.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
         let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Scene)?;
-        let de = toml::Deserializer::parse(&text).map_err(|e| SceneError::Parse {
+        Self::from_toml_str(&text, path)
+    }
+
+    /// Parses and checks mechanism scene text; `path` names it in errors and its folder resolves the files
+    /// it names (a sweep's edited copy of a scene is read this way).
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Self, SceneError> {
+        let de = toml::Deserializer::parse(text).map_err(|e| SceneError::Parse {
             file: path.to_path_buf(),
-            at: e.span().map(|s| pneuflex_files::line_col(&text, s.start)),
+            at: e.span().map(|s| pneuflex_files::line_col(text, s.start)),
             key: String::new(),
             message: e.message().trim().to_string(),
         })?;
+        let text = text.to_string();
         let mut scene: Self = serde_path_to_error::deserialize(de).map_err(|e| {
             let key = e.path().to_string();
             let key = if key == "." { String::new() } else { key };

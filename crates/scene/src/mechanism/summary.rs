@@ -80,7 +80,8 @@ pub struct MechanismSummary {
     pub claims: Vec<ClaimResult>,
 }
 
-fn window_metrics(scene: &MechanismScene, run: &RunResult, w: &WindowSpec) -> WindowMetrics {
+/// One window's metrics of a run: per actuator, and the spread between them.
+pub fn window_metrics(scene: &MechanismScene, run: &RunResult, w: &WindowSpec) -> WindowMetrics {
     let column = |name: &str| run.trace.column(name).unwrap_or_default();
     let t = column("t");
     // The one window rule of every scene kind: [t0, t1), the run's last sample included when t1 is its end.
