@@ -43,12 +43,7 @@ pub enum Feed {
     /// A closed muscle (no valve).
     Closed,
     /// A 3/2 valve (see [`Port::Valve`]); the command is the valve command u in [-1, 1], +1 filling.
-    Valve {
-        /// The valve.
-        valve: ValveModel,
-        /// Its spool and PWM state.
-        state: ValveState,
-    },
+    Valve(ValveModel),
     /// A pressure regulator (see [`Port::Regulator`]); the command is the set pressure, Pa absolute.
     Regulator {
         /// Time constant of the regulated pressure, s (> 0).
@@ -92,17 +87,20 @@ pub struct MusclePlant {
     pub load: Load,
     /// Valve, regulator or nothing.
     pub feed: Feed,
+    /// The valve's spool and PWM state (unused without a valve).
+    pub valve_state: ValveState,
     /// The plant's clock, s (drives a PWM valve's periods).
     pub time_s: f64,
 }
 
 impl MusclePlant {
-    /// A plant at time 0.
+    /// A plant at time 0, a valve's spool at rest at 0.
     pub fn new(chamber: MuscleChamber, load: Load, feed: Feed) -> Self {
         Self {
             chamber,
             load,
             feed,
+            valve_state: ValveState::default(),
             time_s: 0.0,
         }
     }
@@ -164,10 +162,10 @@ impl MusclePlant {
                 },
                 dt,
             ),
-            Feed::Valve { valve, mut state } => {
+            Feed::Valve(valve) => {
                 let (mut t, t_end) = (self.time_s, self.time_s + dt);
                 loop {
-                    let (spool, edge) = valve.segment(&mut state, command, t, t_end - t);
+                    let (spool, edge) = valve.segment(&mut self.valve_state, command, t, t_end - t);
                     let end = edge.unwrap_or(t_end);
                     self.rk4(x, &Port::Valve { valve, spool }, end - t);
                     if end >= t_end {
@@ -175,7 +173,6 @@ impl MusclePlant {
                     }
                     t = end;
                 }
-                self.feed = Feed::Valve { valve, state };
             }
         }
         self.time_s += dt;

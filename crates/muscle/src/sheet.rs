@@ -118,7 +118,7 @@ struct RegulatorSection {
 #[derive(Clone, Debug, PartialEq)]
 pub enum FeedSheet {
     /// A 3/2 valve: the valve sheet named by `components.valve` (its supply_a and a_exhaust paths).
-    Valve(ValveSheet),
+    Valve(Box<ValveSheet>),
     /// A pressure regulator, `[regulator] time_constant_s`.
     Regulator {
         /// Time constant of the regulated pressure, s.
@@ -433,7 +433,7 @@ impl MuscleSheet {
                         ),
                     ));
                 }
-                FeedSheet::Valve(valve)
+                FeedSheet::Valve(Box::new(valve))
             }
             (None, Some(r)) => FeedSheet::Regulator {
                 time_constant_s: c.bounded(
@@ -472,10 +472,7 @@ impl MuscleSheet {
     /// The feed as the plant runs it (a valve at rest at spool 0).
     pub fn plant_feed(&self) -> Feed {
         match &self.feed {
-            FeedSheet::Valve(v) => Feed::Valve {
-                valve: v.valve,
-                state: Default::default(),
-            },
+            FeedSheet::Valve(v) => Feed::Valve(v.valve),
             FeedSheet::Regulator { time_constant_s } => Feed::Regulator {
                 time_constant_s: *time_constant_s,
             },

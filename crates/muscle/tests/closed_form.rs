@@ -8,7 +8,7 @@ use pneuflex_muscle::{
     Braid, BraidFriction, ChamberState, Feed, Load, Muscle, MuscleChamber, MusclePlant,
     NEUTRAL_BRAID_ANGLE_RAD, PlantState, Port,
 };
-use pneuflex_pneumatics::{Gas, Orifice, P_ATM, Supply, ValveKind, ValveModel, ValveState};
+use pneuflex_pneumatics::{Gas, Orifice, P_ATM, Supply, ValveKind, ValveModel};
 
 /// The test muscle: D_rest = 10 mm (r0 = 5 mm), L0 = 200 mm, alpha0 = 30 deg, k = 1.25. With alpha0 = 30 deg
 /// Tondu & Lopez's coefficients are round: a = 3 / tan^2(30) = 3 / (1/3) = 9, b = 1 / sin^2(30) = 4.
@@ -318,25 +318,19 @@ fn valve_fed_chamber_conserves_mass() {
     let feeds = [
         (
             "proportional",
-            Feed::Valve {
-                valve: valve(ValveKind::Proportional {
-                    response_time_s: 0.005,
-                }),
-                state: ValveState::default(),
-            },
+            Feed::Valve(valve(ValveKind::Proportional {
+                response_time_s: 0.005,
+            })),
         ),
         (
             "pwm",
-            Feed::Valve {
-                valve: ValveModel {
-                    underlap: 0.0,
-                    ..valve(ValveKind::OnOffPwm {
-                        pwm_frequency_hz: 50.0,
-                        switching_delay_s: 0.002,
-                    })
-                },
-                state: ValveState::default(),
-            },
+            Feed::Valve(ValveModel {
+                underlap: 0.0,
+                ..valve(ValveKind::OnOffPwm {
+                    pwm_frequency_hz: 50.0,
+                    switching_delay_s: 0.002,
+                })
+            }),
         ),
         (
             "regulator",
@@ -422,12 +416,9 @@ fn plant_settles_at_static_equilibrium() {
     };
     let cases = [
         (
-            Feed::Valve {
-                valve: valve(ValveKind::Proportional {
-                    response_time_s: 0.005,
-                }),
-                state: ValveState::default(),
-            },
+            Feed::Valve(valve(ValveKind::Proportional {
+                response_time_s: 0.005,
+            })),
             1.0,
             6.0e5,
         ),
