@@ -1,8 +1,6 @@
 //! The controllers of `pneuflex-control` in Python, built from parameter dicts (the scene file's keys) or
 //! from a scene file's run entry, and the scene's setpoint schedule.
 
-use std::path::PathBuf;
-
 use pneuflex_control::{Controller, Sensors, Setpoint, SetpointSchedule};
 use pneuflex_scene::Scene;
 use pneuflex_scene::schema::{ControllerKind, RunSpec};
@@ -76,7 +74,7 @@ impl PyController {
 
     /// The controller of run `run` (name or index) of the scene file at `scene_path`.
     #[staticmethod]
-    fn from_scene(scene_path: PathBuf, run: &Bound<'_, PyAny>) -> PyResult<Self> {
+    fn from_scene(scene_path: crate::shipped::ScenePath, run: &Bound<'_, PyAny>) -> PyResult<Self> {
         let scene = Scene::load(&scene_path).map_err(errors::scene)?;
         let i = run_index(&scene, run)?;
         let what = format!("{}: runs[{i}]", scene_path.display());
@@ -204,7 +202,7 @@ pub struct PySetpoints {
 impl PySetpoints {
     /// The schedule of the scene file at `scene_path`.
     #[new]
-    fn new(scene_path: PathBuf) -> PyResult<Self> {
+    fn new(scene_path: crate::shipped::ScenePath) -> PyResult<Self> {
         let scene = Scene::load(&scene_path).map_err(errors::scene)?;
         Ok(Self {
             schedule: scene.setpoints().map_err(errors::scene)?,

@@ -110,6 +110,9 @@ struct Task {
     duration: f64,
     x_e: f64,
     stroke: f64,
+    /// Gymnasium's `max_episode_steps`: an episode is truncated at that many steps (None: the scene's
+    /// duration only).
+    max_steps: Option<u64>,
 }
 
 impl Task {
@@ -188,6 +191,7 @@ impl Task {
             duration: scene.duration_s,
             x_e: env.x_e_m,
             stroke: f64::INFINITY,
+            max_steps: None,
             scene,
         };
         let plant = task.build()?;
@@ -241,15 +245,6 @@ impl Task {
         }
     }
 
-    /// The reward of the ticks after `t` to the episode's end with no contact force, -Σ (f_ref / 10 N)^2:
-    /// what an episode that ends at an end stop forfeits, so that ending early never pays.
-    fn forfeit(&self, t: f64) -> f64 {
-        let ticks = ((self.duration - t) / self.dt).round().max(0.0) as u64;
-        -(1..=ticks)
-            .map(|k| (self.setpoints.at(t + k as f64 * self.dt).f_ref / SCALES[0]).powi(2))
-            .sum::<f64>()
-    }
-
     /// The scene's events, with its first stiffness change (or one added) at the draw's time and value.
     fn events(&self, draw: &Draw) -> Vec<EventSpec> {
         let mut events = self.events.clone();
@@ -290,14 +285,23 @@ struct Episode {
     next: usize,
     t: f64,
     draw: Draw,
-    /// The episode's own generator: its next reset draws from it.
-    rng: StdRng,
+    /// The episode's stream: its k-th episode since the last reset draws from `restart_rng(stream, k)`.
+    stream: u64,
+    /// Episodes started on this stream since the last reset (the first is 0).
+    k: u64,
+    /// Whether this episode's draw was randomised.
+    randomized: bool,
+    /// The actions taken since this episode started, flat: with (stream, k, randomized) they are its whole
+    /// state (a pickled batch replays them; the plant is deterministic).
+    actions: Vec<f64>,
+    /// Steps taken since this episode started.
+    steps: u64,
     /// Terminated or truncated at the last step: the next step resets it (Gymnasium's next-step autoreset).
     ended: bool,
 }
 
 impl Episode {
-    fn new(task: &Task, rng: StdRng) -> Result<Self, SceneError> {
+    fn new(task: &Task, stream: u64) -> Result<Self, SceneError> {
         let mut e = Self {
             plant: task.build()?,
             controller: None,
@@ -305,16 +309,29 @@ impl Episode {
             next: 0,
             t: 0.0,
             draw: task.own,
-            rng,
+            stream,
+            k: 0,
+            randomized: false,
+            actions: Vec::new(),
+            steps: 0,
             ended: false,
         };
         e.restart(task, false);
         Ok(e)
     }
 
-    /// Starts a new episode with a new draw (the scene's own values unless `randomize`).
+    /// Starts the next episode of the stream (an autoreset) with a new draw.
+    fn next_episode(&mut self, task: &Task, randomize: bool) {
+        self.k += 1;
+        self.restart(task, randomize);
+    }
+
+    /// Starts episode `k` of the stream afresh with its draw (the scene's own values unless `randomize`).
     fn restart(&mut self, task: &Task, randomize: bool) {
-        let draw = task.draw(&mut self.rng, randomize);
+        let draw = task.draw(&mut restart_rng(self.stream, self.k), randomize);
+        self.randomized = randomize;
+        self.actions.clear();
+        self.steps = 0;
         match &task.one_dof {
             Some(p) => {
                 let mut model = *p.model();
@@ -382,6 +399,20 @@ impl Episode {
     /// One action: a control tick under a valve command, or a retune of the impedance controller and
     /// its ticks; the rewards summed over the ticks.
     fn step(&mut self, task: &Task, action: &[f64]) -> Outcome {
+        self.actions.extend_from_slice(action);
+        self.steps += 1;
+        let out = self.act(task, action);
+        // Gymnasium's max_episode_steps: truncated at that many steps (unless the episode ended anyway).
+        match task.max_steps {
+            Some(m) if self.steps >= m && !out.terminated => Outcome {
+                truncated: true,
+                ..out
+            },
+            _ => out,
+        }
+    }
+
+    fn act(&mut self, task: &Task, action: &[f64]) -> Outcome {
         let clamp = |a: f64| {
             if a.is_finite() {
                 a.clamp(-1.0, 1.0)
@@ -441,14 +472,10 @@ impl Episode {
         self.apply_due();
         let s = self.plant.sense();
         let f_ref = task.setpoints.at(self.t).f_ref;
-        // The squared force error the paper's RMS metric sums, in (10 N)^2.
-        let reward = -((f_ref - s.f_e) / SCALES[0]).powi(2);
+        let reward = tick_reward(f_ref, s.f_e);
         let terminated = s.x <= 0.0 || s.x >= task.stroke || !s.x.is_finite();
         let truncated = self.t >= task.duration - 0.5 * task.dt;
-        if terminated && !truncated {
-            return (reward + task.forfeit(self.t), true, false);
-        }
-        (reward, terminated, truncated)
+        (reward, terminated, truncated && !terminated)
     }
 }
 
@@ -463,12 +490,59 @@ struct Outcome {
 /// A batch of force-control episodes on a 1-DOF pneumatic scene (the Rust side of `pneuflex.envs`).
 #[pyclass(name = "ForceControlBatch", module = "pneuflex")]
 pub struct PyForceControlBatch {
+    /// The constructor's arguments (a pickle rebuilds the batch from them, then replays its state).
+    args: Args,
     task: Task,
     episodes: Vec<Episode>,
     randomize: bool,
     /// Whether an ended episode is reset by the next step (a vector environment) or stays ended.
     autoreset: bool,
 }
+
+/// What `ForceControlBatch(...)` was given.
+#[derive(Clone, Debug)]
+struct Args {
+    scene_path: PathBuf,
+    num_envs: usize,
+    randomize: bool,
+    action: String,
+    decision_ticks: u32,
+    max_episode_steps: Option<u64>,
+}
+
+/// The batch's thread pool, one per process: a pool made before a `fork` has no threads in the child (a
+/// parallel step there would wait for them forever), so a process whose id is not the pool's makes its own.
+mod pool {
+    use std::sync::{Arc, Mutex};
+
+    static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+
+    /// This process's pool (made on first use; `RAYON_NUM_THREADS` or one thread per core).
+    pub fn this_process() -> Arc<rayon::ThreadPool> {
+        let pid = std::process::id();
+        let mut held = POOL.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((owner, pool)) = held.as_ref()
+            && *owner == pid
+        {
+            return pool.clone();
+        }
+        // The parent's pool: its threads are not in this process, and dropping it would signal them.
+        if let Some(old) = held.take() {
+            std::mem::forget(old);
+        }
+        let pool = Arc::new(
+            rayon::ThreadPoolBuilder::new()
+                .thread_name(|i| format!("pneuflex-gym-{i}"))
+                .build()
+                .expect("a thread pool for the batch"),
+        );
+        *held = Some((pid, pool.clone()));
+        pool
+    }
+}
+
+/// One episode's state in a pickle: (stream, k, randomized, the actions since its start as float64 bytes).
+type EpisodeState = (u64, u64, bool, Vec<u8>);
 
 /// The actions of a step: a 1-D float64 numpy array (contiguous or not); anything else is a TypeError
 /// saying what is expected.
@@ -544,9 +618,23 @@ impl Seeds {
     }
 }
 
-fn seeded(seed: u64, i: usize) -> StdRng {
-    // Each episode its own stream: the seed and the index mixed (SplitMix64's increment).
-    StdRng::seed_from_u64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+/// Episode `i`'s stream of a batch reset with `seed`: the seed and the index mixed (SplitMix64's increment).
+fn stream(seed: u64, i: usize) -> u64 {
+    seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// The generator of the `k`-th episode of a stream (0: the one a reset starts; k > 0: the autoresets after
+/// it), so that an episode's draw follows from (stream, k) alone.
+fn restart_rng(stream: u64, k: u64) -> StdRng {
+    StdRng::seed_from_u64(stream.wrapping_add(k.wrapping_mul(0xD1B5_4A32_D192_ED03)))
+}
+
+/// The reward of one control tick: 1 - min(((f_ref - f_e) / 10 N)^2, 1), in [0, 1]. The squared force error
+/// the paper's RMS metric sums, in (10 N)^2, subtracted from 1 and clipped at an error of 10 N (the size of the
+/// paper's reference: pressing nothing). Never negative, so an episode that ends at an end stop earns nothing
+/// for the ticks it no longer lives: ending early never pays, without a terminal penalty.
+fn tick_reward(f_ref: f64, f_e: f64) -> f64 {
+    1.0 - ((f_ref - f_e) / SCALES[0]).powi(2).min(1.0)
 }
 
 #[pymethods]
@@ -560,15 +648,21 @@ impl PyForceControlBatch {
     /// per step) or "impedance" (a_m, a_b retune the scene's impedance run: m_d = m_d0 4^a_m,
     /// b_d = b_d0 4^a_b, then `decision_ticks` ticks of that controller per step, the rewards summed).
     #[new]
-    #[pyo3(signature = (scene_path, num_envs = 1, randomize = true, autoreset = false, action = "valve", decision_ticks = 10))]
+    #[pyo3(signature = (scene_path, num_envs = 1, randomize = true, autoreset = false, action = "valve", decision_ticks = 10, max_episode_steps = None))]
     fn new(
-        scene_path: PathBuf,
+        scene_path: crate::shipped::ScenePath,
         num_envs: usize,
         randomize: bool,
         autoreset: bool,
         action: &str,
         decision_ticks: u32,
+        max_episode_steps: Option<u64>,
     ) -> PyResult<Self> {
+        if max_episode_steps == Some(0) {
+            return Err(PyValueError::new_err(
+                "max_episode_steps must be at least 1 (or None: the scene's duration)",
+            ));
+        }
         if num_envs == 0 {
             return Err(PyValueError::new_err("num_envs must be at least 1"));
         }
@@ -578,7 +672,7 @@ impl PyForceControlBatch {
                 "decision_ticks must be at least 1 (control ticks per impedance action)",
             ));
         }
-        let task = Task::load(&scene_path, action, decision_ticks).map_err(|e| {
+        let mut task = Task::load(&scene_path, action, decision_ticks).map_err(|e| {
             // A scene with [[actuators]] reads as an unknown key of a one-plant scene: say what it is.
             let text = std::fs::read_to_string(&scene_path).unwrap_or_default();
             if pneuflex_scene::mechanism::MechanismScene::is_mechanism(&text) {
@@ -591,16 +685,100 @@ impl PyForceControlBatch {
                 errors::scene(e)
             }
         })?;
+        task.max_steps = max_episode_steps;
         let episodes = (0..num_envs)
-            .map(|i| Episode::new(&task, seeded(0, i)))
+            .map(|i| Episode::new(&task, stream(0, i)))
             .collect::<Result<_, _>>()
             .map_err(errors::scene)?;
         Ok(Self {
+            args: Args {
+                scene_path: scene_path.to_path_buf(),
+                num_envs,
+                randomize,
+                action: action.to_string(),
+                decision_ticks,
+                max_episode_steps,
+            },
             task,
             episodes,
             randomize,
             autoreset,
         })
+    }
+
+    /// The constructor's arguments, for pickle (with `__getstate__`, what rebuilds this batch).
+    #[allow(clippy::type_complexity)]
+    fn __getnewargs__(&self) -> (PathBuf, usize, bool, bool, String, u32, Option<u64>) {
+        let a = &self.args;
+        (
+            a.scene_path.clone(),
+            a.num_envs,
+            a.randomize,
+            self.autoreset,
+            a.action.clone(),
+            a.decision_ticks,
+            a.max_episode_steps,
+        )
+    }
+
+    /// The batch's state: (randomize, [(stream, k, randomized, actions since the episode's start)]). The
+    /// plants are deterministic, so an episode is its draw's seed and its actions: `__setstate__` replays
+    /// them (a pickle's size grows with the steps since each episode's start, 8 bytes per action value).
+    fn __getstate__(&self) -> (bool, Vec<EpisodeState>) {
+        let episodes = self
+            .episodes
+            .iter()
+            .map(|e| {
+                let bytes = e.actions.iter().flat_map(|v| v.to_le_bytes()).collect();
+                (e.stream, e.k, e.randomized, bytes)
+            })
+            .collect();
+        (self.randomize, episodes)
+    }
+
+    /// Restores `__getstate__`'s state: each episode restarted from its draw and its actions replayed.
+    fn __setstate__(&mut self, py: Python<'_>, state: (bool, Vec<EpisodeState>)) -> PyResult<()> {
+        let (randomize, saved) = state;
+        let width = self.task.action.width();
+        if saved.len() != self.episodes.len() {
+            return Err(PyValueError::new_err(format!(
+                "state: {} episodes for a batch of {}",
+                saved.len(),
+                self.episodes.len()
+            )));
+        }
+        if let Some((i, _)) = saved
+            .iter()
+            .enumerate()
+            .find(|(_, s)| s.3.len() % (8 * width) != 0)
+        {
+            return Err(PyValueError::new_err(format!(
+                "state: episode {i}'s actions are not whole actions of {width} float64 values"
+            )));
+        }
+        self.randomize = randomize;
+        let task = &self.task;
+        let episodes = &mut self.episodes;
+        let pool = pool::this_process();
+        py.detach(|| {
+            pool.install(|| {
+                episodes.par_iter_mut().zip(saved.par_iter()).for_each(
+                    |(e, (stream, k, randomized, bytes))| {
+                        (e.stream, e.k) = (*stream, *k);
+                        e.restart(task, *randomized);
+                        let actions: Vec<f64> = bytes
+                            .chunks_exact(8)
+                            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+                            .collect();
+                        for a in actions.chunks(width) {
+                            let out = e.step(task, a);
+                            e.ended = out.terminated || out.truncated;
+                        }
+                    },
+                );
+            })
+        });
+        Ok(())
     }
 
     /// Starts every episode afresh: episode i's generator from (`seed`, i), or from (`seed[i]`, 0) when
@@ -630,10 +808,11 @@ impl PyForceControlBatch {
         let task = &self.task;
         let randomize = self.randomize;
         for (i, e) in self.episodes.iter_mut().enumerate() {
-            e.rng = match &seed {
-                Seeds::One(s) => seeded(*s, i),
-                Seeds::Each(s) => seeded(s[i], 0),
+            e.stream = match &seed {
+                Seeds::One(s) => stream(*s, i),
+                Seeds::Each(s) => stream(s[i], 0),
             };
+            e.k = 0;
             e.restart(task, randomize);
         }
         Ok(self.observations(py))
@@ -677,30 +856,33 @@ impl PyForceControlBatch {
         let mut out = vec![Outcome::default(); n];
         let (task, randomize, autoreset) = (&self.task, self.randomize, self.autoreset);
         let episodes = &mut self.episodes;
+        let pool = pool::this_process();
         py.detach(|| {
-            // Chunks of episodes to the cores: an episode's tick is about a microsecond.
-            let chunk = n.div_ceil(4 * rayon::current_num_threads()).max(16);
-            episodes
-                .par_chunks_mut(chunk)
-                .zip(obs.par_chunks_mut(chunk * OBS))
-                .zip(out.par_chunks_mut(chunk))
-                .zip(u.par_chunks(chunk * width))
-                .for_each(|(((eps, obs), out), u)| {
-                    for (((e, o), r), u) in eps
-                        .iter_mut()
-                        .zip(obs.chunks_mut(OBS))
-                        .zip(out.iter_mut())
-                        .zip(u.chunks(width))
-                    {
-                        if e.ended && autoreset {
-                            e.restart(task, randomize);
-                        } else {
-                            *r = e.step(task, u);
-                            e.ended = r.terminated || r.truncated;
+            pool.install(|| {
+                // Chunks of episodes to the cores: an episode's tick is about a microsecond.
+                let chunk = n.div_ceil(4 * rayon::current_num_threads()).max(16);
+                episodes
+                    .par_chunks_mut(chunk)
+                    .zip(obs.par_chunks_mut(chunk * OBS))
+                    .zip(out.par_chunks_mut(chunk))
+                    .zip(u.par_chunks(chunk * width))
+                    .for_each(|(((eps, obs), out), u)| {
+                        for (((e, o), r), u) in eps
+                            .iter_mut()
+                            .zip(obs.chunks_mut(OBS))
+                            .zip(out.iter_mut())
+                            .zip(u.chunks(width))
+                        {
+                            if e.ended && autoreset {
+                                e.next_episode(task, randomize);
+                            } else {
+                                *r = e.step(task, u);
+                                e.ended = r.terminated || r.truncated;
+                            }
+                            e.observe(task, o);
                         }
-                        e.observe(task, o);
-                    }
-                });
+                    });
+            });
         });
         let obs = obs.into_pyarray(py).reshape([n, OBS])?;
         let rewards = out.iter().map(|o| o.reward).collect::<Vec<_>>();

@@ -14,6 +14,7 @@ mod identify;
 mod model;
 mod plant;
 mod scene;
+mod shipped;
 mod sweep;
 
 use pyo3::prelude::*;

@@ -68,7 +68,7 @@ impl PyActuator {
 
     /// The actuator of a pneumatic scene's plant (sheet path resolved against the scene, scene's alpha).
     #[staticmethod]
-    fn from_scene(scene_path: PathBuf) -> PyResult<Self> {
+    fn from_scene(scene_path: crate::shipped::ScenePath) -> PyResult<Self> {
         let scene = Scene::load(&scene_path).map_err(errors::scene)?;
         let Some((actuator, alpha_deg)) = scene.plant.force_element() else {
             return Err(errors::other(format!(

@@ -18,7 +18,6 @@
 //! `reset` is raised as it is. `KeyboardInterrupt` and `SystemExit` (not `Exception`s) are re-raised as they are.
 
 use std::cell::RefCell;
-use std::path::PathBuf;
 use std::time::Instant;
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
@@ -254,7 +253,7 @@ impl Plant for PyPlant<'_> {
 #[pyfunction]
 pub fn run_plant<'py>(
     py: Python<'py>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     run: &Bound<'py, PyAny>,
     plant: Bound<'py, PyAny>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>, f64)> {

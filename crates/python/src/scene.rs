@@ -51,7 +51,10 @@ pub(crate) fn to_py<'py, T: serde::Serialize>(
 /// The scene file at `path`, parsed and validated, as a dict of its keys (defaults filled in), plus
 /// `source` (the file), `base_dir` (where relative paths resolve) and `n_steps` (control ticks).
 #[pyfunction]
-pub fn load_scene<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+pub fn load_scene<'py>(
+    py: Python<'py>,
+    path: crate::shipped::ScenePath,
+) -> PyResult<Bound<'py, PyAny>> {
     let scene = load(&path)?;
     let d = to_py(py, &scene)?;
     d.set_item("source", scene.source.display().to_string())?;
@@ -131,7 +134,10 @@ fn run_all(py: Python<'_>, scene: &Scene) -> PyResult<(Vec<RunResult>, f64)> {
 /// {run name: {column: numpy array}} with the trace.csv columns (t, f_ref, f_e, x, x_r, p_a, p_b, u and,
 /// for adaptive runs, g, p, d). A diverged run's arrays stop where it diverged.
 #[pyfunction]
-pub fn run<'py>(py: Python<'py>, scene_path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+pub fn run<'py>(
+    py: Python<'py>,
+    scene_path: crate::shipped::ScenePath,
+) -> PyResult<Bound<'py, PyDict>> {
     let scene = load(&scene_path)?;
     let (results, _) = run_all(py, &scene)?;
     let out = PyDict::new(py);
@@ -146,7 +152,7 @@ pub fn run<'py>(py: Python<'py>, scene_path: PathBuf) -> PyResult<Bound<'py, PyD
 #[pyfunction]
 pub fn run_with_summary<'py>(
     py: Python<'py>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>, f64)> {
     // Every scene kind: one with [[actuators]] runs through the same loop, its summary per actuator.
     if is_mechanism(&scene_path) {
@@ -169,7 +175,7 @@ pub fn run_with_summary<'py>(
 #[pyo3(signature = (scene_path, traces, diverged = None))]
 pub fn summarize<'py>(
     py: Python<'py>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     traces: &Bound<'py, PyDict>,
     diverged: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
@@ -216,7 +222,11 @@ pub fn summarize<'py>(
 /// writes (each run's trace, summary.json, the figures, the manifest), through the same pipeline
 /// (pneuflex-outputs); returns the directory. A directory pneuflex did not write is never replaced.
 #[pyfunction]
-pub fn run_to(py: Python<'_>, scene_path: PathBuf, out_dir: PathBuf) -> PyResult<String> {
+pub fn run_to(
+    py: Python<'_>,
+    scene_path: crate::shipped::ScenePath,
+    out_dir: PathBuf,
+) -> PyResult<String> {
     use pneuflex_outputs::{Outcome, Outputs, Simulate, simulate_into};
     let scene = load(&scene_path)?;
     let outputs =
@@ -238,7 +248,7 @@ pub fn run_to(py: Python<'_>, scene_path: PathBuf, out_dir: PathBuf) -> PyResult
 #[pyo3(signature = (scene_path, out_dir, runs, fmt = "png"))]
 pub fn write_figures<'py>(
     py: Python<'py>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     out_dir: PathBuf,
     runs: &Bound<'py, PyDict>,
     fmt: &str,
@@ -288,7 +298,10 @@ pub fn write_figures<'py>(
 /// The plant's initial sensor reading for the scene (x m, x_dot m/s, f_e N, p_a and p_b Pa absolute), the
 /// state every run starts from.
 #[pyfunction]
-pub fn initial_state<'py>(py: Python<'py>, scene_path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+pub fn initial_state<'py>(
+    py: Python<'py>,
+    scene_path: crate::shipped::ScenePath,
+) -> PyResult<Bound<'py, PyDict>> {
     let scene = load(&scene_path)?;
     let plant = build_plant(&scene).map_err(errors::scene)?;
     let s = plant.sense();
@@ -344,7 +357,7 @@ pub fn bench_rapier<'py>(
 #[pyo3(signature = (scene_path, run, ticks = 10000, settle_s = 1.0))]
 pub fn bench_scene_ticks<'py>(
     py: Python<'py>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     run: &Bound<'py, PyAny>,
     ticks: usize,
     settle_s: f64,
@@ -379,7 +392,7 @@ pub(crate) fn scene_pwm_period(scene: &pneuflex_scene::Scene) -> Option<f64> {
 #[pyfunction]
 pub fn run_mechanism<'py>(
     py: Python<'py>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>, f64)> {
     use pneuflex_scene::mechanism::{self, MechanismScene};
     let scene = MechanismScene::load(&scene_path).map_err(|e| {

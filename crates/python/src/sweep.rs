@@ -34,7 +34,7 @@ fn sets(specs: &[String]) -> PyResult<Vec<SetArg>> {
 #[pyo3(signature = (scene_path, sets, samples=None, seed=0))]
 pub fn sweep_plan(
     py: Python<'_>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     sets: Vec<String>,
     samples: Option<usize>,
     seed: u64,
@@ -52,7 +52,7 @@ pub fn sweep_plan(
 #[pyo3(signature = (scene_path, sets, indices, samples=None, seed=0, threads=0))]
 pub fn sweep_rows(
     py: Python<'_>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     sets: Vec<String>,
     indices: Vec<usize>,
     samples: Option<usize>,
@@ -101,7 +101,7 @@ fn tuner(
 #[pyo3(signature = (scene_path, free, over, x, run=None, terms=Vec::new()))]
 pub fn tune_evaluate(
     py: Python<'_>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     free: Vec<String>,
     over: Vec<String>,
     x: Vec<f64>,
@@ -132,7 +132,7 @@ pub fn tune_evaluate(
 #[allow(clippy::too_many_arguments)]
 pub fn tune_run(
     py: Python<'_>,
-    scene_path: PathBuf,
+    scene_path: crate::shipped::ScenePath,
     free: Vec<String>,
     over: Vec<String>,
     out: PathBuf,
@@ -152,7 +152,7 @@ pub fn tune_run(
     // Staged as `pneuflex tune --out` stages, before the search: a folder pneuflex did not write (or one
     // holding an input) is refused, not written into; the files appear there only when complete.
     let scene = &t.base_scene;
-    let mut inputs = vec![scene_path.clone()];
+    let mut inputs = vec![scene_path.to_path_buf()];
     inputs.extend(scene.input_files().into_iter().skip(1).map(|(_, p)| p));
     let protect: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
     let stage =

@@ -309,11 +309,13 @@ def several_actuators_share_an_instance_each_with_its_state():
 
 @test
 def the_documented_mjcf_loads_and_pushes():
-    """docs/mujoco-plugin.md's complete MJCF, as written (its relative sheet from the repository root): it loads,
-    starts from its inline chamber B pressure, and under u = 0.5 the rod extends onto the wall and presses it."""
+    """docs/mujoco-plugin.md's complete MJCF, as written (its relative sheet from the repository root), is the
+    package's pneuflex/mjcf/cylinder.xml: it loads, starts from its inline chamber B pressure, and under u = 0.5
+    the rod extends onto the wall and presses it."""
     load_plugin()
     text = (ROOT / "docs" / "mujoco-plugin.md").read_text()
     xml = text.split("## A complete MJCF", 1)[1].split("```xml\n", 1)[1].split("```", 1)[0]
+    assert xml == (Path(pneuflex.__file__).parent / "mjcf" / "cylinder.xml").read_text()
     cwd = os.getcwd()
     try:
         os.chdir(ROOT)
@@ -327,6 +329,49 @@ def the_documented_mjcf_loads_and_pushes():
     rod, wall = m.joint("extension").qposadr[0], m.joint("mount").qposadr[0]
     assert d.qpos[rod] > 0.02 and d.qpos[wall] > 1e-4, (d.qpos[rod], d.qpos[wall])
     assert d.sensor("cylinder_force").data[0] > 1.0, d.sensor("cylinder_force").data
+
+
+@test
+def a_shipped_mjcf_keeps_its_stroke():
+    """pneuflex.mjcf("cylinder") (the package's MJCF, its sheet inside the package) loads from any directory; full
+    supply both ways (1.5 s at u = +1, then -1, with and without the wall) keeps the piston within the sheet's
+    stroke [0, 50 mm] (hard end stops: a limited joint, stiff solreflimit, 0.3 mm margin); the same model without
+    the margin passes the stroke (0.2 mm), so the check can fail."""
+    load_plugin()
+    stroke = pneuflex.Actuator(SHEET).params()["stroke_m"]
+    assert stroke == 0.05, stroke
+
+    def extremes(xml: str, wall: bool) -> tuple[float, float]:
+        if not wall:
+            xml = xml.replace('stiffness="700"', 'stiffness="0"').replace('pos="0.04 0 0"', 'pos="0.5 0 0"')
+        m = mujoco.MjModel.from_xml_string(xml)
+        d = mujoco.MjData(m)
+        x = []
+        for u in (1.0, -1.0):
+            d.ctrl[0] = u
+            for _ in range(15000):
+                mujoco.mj_step(m, d)
+                x.append(d.qpos[m.joint("extension").qposadr[0]])
+        return min(x), max(x)
+
+    cwd = os.getcwd()
+    with tempfile.TemporaryDirectory() as tmp:
+        os.chdir(tmp)
+        try:
+            xml = pneuflex.mjcf("cylinder")
+            for wall in (True, False):
+                lo, hi = extremes(xml, wall)
+                assert 0 <= lo and hi <= stroke and hi > stroke - 1e-3, (wall, lo, hi)
+            lo, hi = extremes(xml.replace(' margin="0.0003"', ""), wall=False)
+            assert hi > stroke, hi
+        finally:
+            os.chdir(cwd)
+    try:
+        pneuflex.mjcf("cylinders")
+    except FileNotFoundError as e:
+        assert "no shipped MJCF 'cylinders'; the shipped ones are cylinder" in str(e), e
+    else:
+        raise AssertionError("an unknown MJCF name was accepted")
 
 
 @test

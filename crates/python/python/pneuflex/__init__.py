@@ -36,7 +36,13 @@ The classes and functions come from the Rust crates through the native module ``
   measured and model signals, NaN where not compared); writes the CLI's outputs into ``out`` when given.
 
 - ``mujoco_plugin_path() -> str``: the MuJoCo plugin library ``libpneuflex_mujoco.so`` (``pneuflex.cylinder``, an
-  actuator any MJCF can declare; docs/mujoco-plugin.md), for ``mujoco.mj_loadPluginLibrary``.
+  actuator any MJCF can declare; docs/mujoco-plugin.md), for ``mujoco.mj_loadPluginLibrary``: the one inside the
+  installed package. ``mjcf(name)``: a shipped MJCF using it (``"cylinder"``), as text for
+  ``mujoco.MjModel.from_xml_string``, its sheets' paths inside the package.
+
+- ``scenes() -> list[str]``: the scenes shipped inside the package (the repository's ``scenes/``, with the sheets,
+  URDFs and meshes they name). Wherever a scene is taken, a path or a shipped name (``"paper-fig3"``) will do: a
+  name without a folder or ``.toml`` that is no file in the working directory is the shipped scene's file.
 
 SI units everywhere, pressures absolute. Errors: ``FileNotFoundError``/``OSError`` for unreadable files,
 ``PneuflexError`` (a ``ValueError``) for bad content; messages name the file and the key. An argument of the wrong
@@ -48,6 +54,7 @@ a file named "42"), and one string where a list of them goes is that one entry.
 from ._native import *  # noqa: F401,F403
 from ._native import PneuflexError, __version__  # noqa: F401
 from . import _native
+from ._data import scenes  # noqa: F401
 from .frames import Results, SweepTable  # noqa: F401
 from .sweeps import LocalExecutor, RayExecutor, sweep, tune  # noqa: F401,E402
 
@@ -68,8 +75,8 @@ MUJOCO_PLUGIN_FILE = "libpneuflex_mujoco.so"
 def mujoco_plugin_path() -> str:
     """The path of the MuJoCo plugin library (``pneuflex.cylinder``), for ``mujoco.mj_loadPluginLibrary``.
 
-    Looked up, first found: ``$PNEUFLEX_MUJOCO_PLUGIN``; ``libpneuflex_mujoco.so`` inside this package (a wheel
-    that bundles it); the cargo target directory of the workspace these bindings were built in
+    Looked up, first found: ``$PNEUFLEX_MUJOCO_PLUGIN``; ``libpneuflex_mujoco.so`` inside this package (every wheel
+    and ``scripts/build_python`` put it there: ``scripts/stage_python_data``); the cargo target directory of the workspace these bindings were built in
     (``$CARGO_TARGET_DIR`` or ``target/``), release before debug. Raises FileNotFoundError naming the places
     and the build command (``cargo build --release -p pneuflex-mujoco``) when there is none.
     """
@@ -142,3 +149,32 @@ def identify(logs, actuator, free, bounds=(), validation=0.2, segment=0.1, settl
             for d in raw["validation"]
         ],
     }
+
+
+def mjcf(name: str = "cylinder") -> str:
+    """The shipped MJCF ``pneuflex/mjcf/<name>.xml`` as text, each relative ``sheet`` of the ``pneuflex.cylinder``
+    plugin made absolute inside the package's data (MuJoCo gives a plugin no model folder: a relative sheet
+    would be read from the working directory). For ``mujoco.MjModel.from_xml_string`` after
+    ``mujoco.mj_loadPluginLibrary(mujoco_plugin_path())``. ``"cylinder"``: the paper's cylinder pushing a
+    compliant wall, its stroke held by hard end stops (docs/mujoco-plugin.md)."""
+    import os
+    import xml.etree.ElementTree as ET
+    from pathlib import Path
+
+    from . import _checks, _data
+
+    name = _checks.optional_string(name, "name", "pneuflex.mjcf")
+    shipped = sorted(p.stem for p in (_data.PACKAGE / "mjcf").glob("*.xml"))
+    path = _data.PACKAGE / "mjcf" / f"{name}.xml"
+    if name not in shipped:
+        raise FileNotFoundError(f"pneuflex.mjcf: no shipped MJCF {name!r}; the shipped ones are {', '.join(shipped)}")
+    root = ET.parse(path).getroot()
+    for config in root.iter("config"):
+        value = config.get("value", "")
+        if config.get("key") == "sheet" and not os.path.isabs(value):
+            sheet = _data.DATA / value
+            if not sheet.is_file():
+                raise FileNotFoundError(f"{path}: sheet {value!r}: {sheet} is missing (a build of the package without "
+                                        "scripts/stage_python_data)")
+            config.set("value", str(sheet))
+    return ET.tostring(root, encoding="unicode")

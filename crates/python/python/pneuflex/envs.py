@@ -1,7 +1,7 @@
 """Gymnasium environments on pneuflex's plants (``pip install gymnasium``; importing this module registers them).
 
 ``pneuflex/ForceControl-v0`` (:class:`ForceControl`) is the paper's force-control task on the 1-DOF pneumatic
-plant of a scene (default ``scenes/paper-fig3.toml``): the flange starts touching a spring environment and must
+plant of a scene (default the shipped ``paper-fig3``): the flange starts touching a spring environment and must
 follow the scene's force reference while the environment's stiffness changes under it.
 
 - **Action**: the valve command u in [-1, 1] (``Box(1)``), held over one control tick of the scene's ``dt_s``.
@@ -14,13 +14,22 @@ follow the scene's force reference while the environment's stiffness changes und
   which then runs ``decision_ticks`` control ticks (default 10); the reward is the sum over them.
 - **Observation** (``Box(6)``, float32, scaled to order one): contact force f_e / 10 N, reference f_ref / 10 N,
   (x - x_e) / 10 mm, velocity / (0.1 m/s), p_a / 1 bar, p_b / 1 bar (absolute).
-- **Reward**: -((f_ref - f_e) / 10 N)^2 per tick: the squared force error the paper's RMS metric sums. An
-  episode that ends at an end stop is also charged, on its last step, every remaining tick as if the force
-  were zero (-Σ (f_ref / 10 N)^2 to the scene's end), so ending early never pays.
-- **Plant**: ``pneuflex/MultibodyForceControl-v0`` is the same task on ``scenes/paper-fig3-multibody.toml``'s
-  Rapier rig (its mass and friction not drawn); any pneumatic or multibody scene with ``scene=PATH``.
+- **Reward**: 1 - min(((f_ref - f_e) / 10 N)^2, 1) per tick, in [0, 1]: the squared force error the paper's
+  RMS metric sums, subtracted from 1 and clipped at a 10 N error (the paper's reference: pressing nothing). An
+  impedance action's step sums its ticks, in [0, decision_ticks]. Never negative, so an episode that ends at
+  an end stop forgoes the ticks it no longer lives: ending early never pays, with no terminal penalty.
+- **Plant**: ``pneuflex/MultibodyForceControl-v0`` is the same task on the shipped ``paper-fig3-multibody``
+  Rapier rig (its mass and friction not drawn); any pneumatic or multibody scene with ``scene=PATH`` or a
+  shipped scene's name (``pneuflex.scenes()``).
 - **Episode**: the scene's duration (10 s = 10,000 ticks for fig3), then truncated; terminated early if the
-  flange reaches either end of the stroke.
+  flange reaches either end of the stroke; ``max_episode_steps`` (``gymnasium.make``/``make_vec``) truncates
+  it sooner.
+- **Render**: ``render_mode="rgb_array"``: ``render()`` is a (320, 480, 3) uint8 frame of the episode's force
+  (f_ref grey, f_e blue) and position (x - x_e, green) traces; the vector environment's is a tuple of one frame
+  per episode, over its last ``RENDER_STEPS`` steps.
+- **Pickling and copies**: an environment pickles and deep-copies (rebuilt from its constructor's arguments,
+  then each episode's draw and its actions since it started replayed: the plants are deterministic).
+- **Processes**: the batch's threads are a pool per process, made again in a child after ``fork``.
 - **Domain randomisation** (on by default, off with ``reset(options={"randomize": False})``, which gives the
   scene's own values): the stiffness before and after the change, each log-uniform in 350-2800 N/m; the time
   of the change, uniform in 4-8 s; the moving mass, the seal friction (Coulomb and break-away forces) and an
@@ -43,9 +52,12 @@ import numpy as np
 import pneuflex
 
 from . import _checks as c
+from . import _data, _frame
 
-_SCENES = Path(__file__).resolve().parents[4] / "scenes"
-_DEFAULT_SCENE = _SCENES / "paper-fig3.toml"
+#: The default scene: the shipped paper-fig3 (``pneuflex.scenes()``).
+DEFAULT_SCENE = "paper-fig3"
+#: Steps a vector environment's frames show (a ring of the last observations, kept only when rendering).
+RENDER_STEPS = 2000
 
 #: Observation scales: f_e and f_ref in 10 N, x - x_e in 10 mm, velocity in 0.1 m/s, pressures in bar.
 SCALES = np.array([10.0, 10.0, 0.01, 0.1, 1e5, 1e5])  # the batch's `scales`
@@ -56,7 +68,8 @@ PARAMS = ("stiffness_n_per_m", "stiffness_after_n_per_m", "t_change_s", "mass_sc
 
 
 def _scene(scene, where: str) -> str:
-    scene = Path(c.path(scene, "scene", where)) if scene is not None else _DEFAULT_SCENE
+    """A path, or a shipped scene's name (FileNotFoundError listing them when it is neither)."""
+    scene = Path(_data.resolve(c.path(scene, "scene", where) if scene is not None else DEFAULT_SCENE))
     if not scene.exists():
         raise FileNotFoundError(f"{scene}: no such scene (pass scene=PATH to a pneumatic or multibody scene)")
     if not scene.is_file():
@@ -122,6 +135,18 @@ def _spaces(width: int):
     return action, observation
 
 
+def _render_mode(mode, where: str):
+    if mode is not None and mode != "rgb_array":
+        raise ValueError(f'{where}: render_mode must be None or "rgb_array", got {c.kind(mode)}')
+    return mode
+
+
+def _frame_of(rows) -> np.ndarray:
+    """The frame of observations ``rows`` (n, 6): force and position traces in N and mm."""
+    rows = np.asarray(rows, dtype=float).reshape(-1, 6)
+    return _frame.traces(rows[:, 1] * SCALES[1], rows[:, 0] * SCALES[0], rows[:, 2] * SCALES[2] * 1e3)
+
+
 def _base_seed(rng: np.random.Generator) -> int:
     """A seed for the Rust batch's generators, drawn from the environment's own generator."""
     return int(rng.integers(0, 2**63))
@@ -130,11 +155,12 @@ def _base_seed(rng: np.random.Generator) -> int:
 class ForceControl(gymnasium.Env):
     """The paper's force-control task on the 1-DOF pneumatic plant (see the module doc): a batch of one."""
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
 
     def __init__(self, scene: str | Path | None = None, randomize: bool = True, action: str = "valve",
-                 decision_ticks: int = 10):
+                 decision_ticks: int = 10, render_mode: str | None = None):
         at = "ForceControl"
+        self.render_mode = _render_mode(render_mode, at)
         self.scene_path = _scene(scene, at)
         randomize, action = c.flag(randomize, "randomize", at), _action_kind(action, at)
         self.batch = pneuflex.ForceControlBatch(self.scene_path, 1, randomize=randomize, action=action,
@@ -145,6 +171,24 @@ class ForceControl(gymnasium.Env):
         self.action_space, self.observation_space = _spaces(self.batch.action_width)
         # Not reset yet, or the last step ended the episode: a step is refused until reset().
         self._ended = "call reset() before step()"
+        # The episode's observations, kept for render() only.
+        self._seen: list = []
+
+    def __getstate__(self):
+        # The batch pickles itself (its arguments, each episode's seed and actions); the schedule is rebuilt.
+        state = dict(self.__dict__)
+        del state["setpoints"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.setpoints = pneuflex.Setpoints(self.scene_path)
+
+    def render(self):
+        """``render_mode="rgb_array"``: the episode's force and position traces, (320, 480, 3) uint8; else None."""
+        if self.render_mode != "rgb_array":
+            return None
+        return _frame_of(self._seen)
 
     @property
     def t(self) -> float:
@@ -160,6 +204,8 @@ class ForceControl(gymnasium.Env):
         super().reset(seed=seed)
         obs = self.batch.reset(_base_seed(self.np_random), randomize=randomize)
         self._ended = None
+        if self.render_mode is not None:
+            self._seen = [obs[0]]
         info = {k: float(v[0]) for k, v in self.batch.params().items()}
         return obs[0], info
 
@@ -170,6 +216,8 @@ class ForceControl(gymnasium.Env):
         obs, reward, terminated, truncated = _step(self.batch, _actions(action, self.action_space.shape, at), at)
         t, _, _, f_e, _, _ = self.batch.sensors(0)
         terminated, truncated = bool(terminated[0]), bool(truncated[0])
+        if self.render_mode is not None:
+            self._seen.append(obs[0])
         if terminated or truncated:
             why = "terminated (an end of the stroke)" if terminated else "truncated (the scene's duration)"
             self._ended = f"the episode ended at t = {t:.6g} s, {why}: call reset() before step()"
@@ -185,23 +233,43 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
     ``gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=N, vectorization_mode="vector_entry_point")``
     builds one."""
 
-    metadata = {"render_modes": [], "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30,
+                "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 64, scene: str | Path | None = None, randomize: bool = True,
-                 action: str = "valve", decision_ticks: int = 10):
+                 action: str = "valve", decision_ticks: int = 10, max_episode_steps: int | None = None,
+                 render_mode: str | None = None):
         at = "ForceControlVector"
+        self.render_mode = _render_mode(render_mode, at)
         self.scene_path = _scene(scene, at)
         num_envs = c.integer(num_envs, "num_envs", at, 1)
         randomize, action = c.flag(randomize, "randomize", at), _action_kind(action, at)
+        self.max_episode_steps = c.optional_integer(max_episode_steps, "max_episode_steps", at, 1)
         self.batch = pneuflex.ForceControlBatch(self.scene_path, num_envs, randomize=randomize, autoreset=True,
                                                 action=action,
-                                                decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1))
+                                                decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1),
+                                                max_episode_steps=self.max_episode_steps)
         self.num_envs = num_envs
         self.single_action_space, self.single_observation_space = _spaces(self.batch.action_width)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, num_envs)
         self.randomize = randomize
         self._started = False
+        # The last RENDER_STEPS observations (steps, num_envs, 6), kept for render() only.
+        self._seen: list = []
+
+    def render(self):
+        """``render_mode="rgb_array"``: a tuple of one (320, 480, 3) uint8 frame per episode, its force and
+        position over the last ``RENDER_STEPS`` steps (across its autoresets); else None."""
+        if self.render_mode != "rgb_array":
+            return None
+        seen = np.asarray(self._seen, dtype=float).reshape(-1, self.num_envs, 6)
+        return tuple(_frame_of(seen[:, i]) for i in range(self.num_envs))
+
+    def _remember(self, obs) -> None:
+        if self.render_mode is not None:
+            self._seen.append(np.array(obs))
+            del self._seen[:-RENDER_STEPS]
 
     def reset(self, *, seed=None, options=None):
         """``seed``: None, an int (the batch's draws from it), or a list of one int per episode (episode i then
@@ -221,6 +289,8 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
         else:
             raise TypeError(f"{at}: seed must be None, an int or a list of ints, got {c.kind(seed)}")
         self._started = True
+        self._seen = []
+        self._remember(obs)
         return obs, dict(self.batch.params())
 
     def step(self, actions):
@@ -228,6 +298,7 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
             raise RuntimeError("ForceControlVector.step: call reset() before step()")
         at = "ForceControlVector.step"
         obs, rewards, terminated, truncated = _step(self.batch, _actions(actions, self.action_space.shape, at), at)
+        self._remember(obs)
         return obs, rewards, terminated, truncated, {}
 
 
@@ -277,5 +348,5 @@ gymnasium.register(
     id="pneuflex/MultibodyForceControl-v0",
     entry_point="pneuflex.envs:ForceControl",
     vector_entry_point="pneuflex.envs:ForceControlVector",
-    kwargs={"scene": str(_SCENES / "paper-fig3-multibody.toml")},
+    kwargs={"scene": "paper-fig3-multibody"},
 )
