@@ -260,6 +260,97 @@ fn closed_chamber_stretched_follows_polytropic_law() {
     }
 }
 
+/// Behind the regulator the pressure follows p_set + (p0 - p_set) exp(-t / tau) (M11) while the muscle
+/// moves, and the gas that came in is the gas mass's change.
+#[test]
+fn regulated_chamber_follows_first_order_lag() {
+    let c = chamber(1.25, BraidFriction::NONE, 1.4);
+    let (l1, l2) = (0.2 * (1.0 - 0.02), 0.2 * (1.0 - 0.18));
+    let s0 = ChamberState {
+        pressure_pa: P_ATM,
+        temperature_k: 293.15,
+    };
+    let (tau, p_set, t_end) = (0.02, P_ATM + 4.0e5, 0.05);
+    let port = Port::Regulator {
+        time_constant_s: tau,
+        set_pressure_pa: p_set,
+    };
+    let s = move_chamber(&c, s0, &port, (l1, l2, t_end), 1000);
+    // 101325 + 4e5 (1 - exp(-2.5)) = 101325 + 4e5 x 0.917915 = 468491.0 Pa
+    let want = p_set + (P_ATM - p_set) * (-t_end / tau).exp();
+    assert!((want - 468_491.0).abs() < 0.1, "{want}");
+    assert!(
+        rel(s.pressure_pa, want) < 1e-9,
+        "{} vs {want} Pa",
+        s.pressure_pa
+    );
+    // A set pressure above the supply is the supply's.
+    let high = Port::Regulator {
+        time_constant_s: tau,
+        set_pressure_pa: 2.0e6,
+    };
+    let r = c.rates(&s0, l1, 0.0, &high);
+    let want = (c.supply.supply_pressure_pa - P_ATM) / tau;
+    assert!(rel(r.pressure_pa_per_s, want) < 1e-12);
+}
+
+/// The first instant of filling through the valve, muscle held: the flow is choked (p / p_s = 0.144 < b =
+/// 0.3), q = C rho0 p_s sqrt(T0 / T_s) = 5e-9 x 1.185 x 701325 x 1 = 4.15535e-3 kg/s, and
+/// dp/dt = n R T_s q / V (M9) with V = 3e-6 + pi r0^2 L0 = 1.870796e-5 m^3 at rest.
+#[test]
+fn choked_filling_rate() {
+    let c = chamber(1.25, BraidFriction::NONE, 1.4);
+    let s0 = ChamberState {
+        pressure_pa: P_ATM,
+        temperature_k: 293.15,
+    };
+    let v = valve(ValveKind::Proportional {
+        response_time_s: 0.0,
+    });
+    let r = c.rates(
+        &s0,
+        0.2,
+        0.0,
+        &Port::Valve {
+            valve: v,
+            spool: 1.0,
+        },
+    );
+    let q: f64 = 5.0e-9 * 1.185 * 701_325.0;
+    assert!((q - 4.155_35e-3).abs() < 1e-8, "{q}");
+    let vol: f64 = 3.0e-6 + PI * 0.005 * 0.005 * 0.2;
+    assert!((vol - 1.870_796e-5).abs() < 1e-11, "{vol}");
+    let dp = 1.4 * 287.05 * 293.15 * q / vol;
+    assert!(
+        rel(r.mass_flow_kg_per_s, q) < 1e-12,
+        "{}",
+        r.mass_flow_kg_per_s
+    );
+    assert!(
+        rel(r.pressure_pa_per_s, dp) < 1e-12,
+        "{} vs {dp}",
+        r.pressure_pa_per_s
+    );
+    // Supply air at the chamber's temperature heats the chamber: dT/dt = T/p (dp/dt - R T q / V) > 0.
+    let dt = 293.15 / P_ATM * (dp - 287.05 * 293.15 * q / vol);
+    assert!(rel(r.temperature_k_per_s, dt) < 1e-12 && dt > 0.0);
+    // Venting (spool -1) from 3 bar gauge: a_exhaust, choked the other way, q = -C rho0 p sqrt(T0/T).
+    let s = ChamberState {
+        pressure_pa: P_ATM + 3.0e5,
+        temperature_k: 293.15,
+    };
+    let r = c.rates(
+        &s,
+        0.2,
+        0.0,
+        &Port::Valve {
+            valve: v,
+            spool: -1.0,
+        },
+    );
+    assert!(rel(r.mass_flow_kg_per_s, -5.0e-9 * 1.185 * (P_ATM + 3.0e5)) < 1e-12);
+}
+
 fn valve(kind: ValveKind) -> ValveModel {
     ValveModel {
         orifice: Orifice {
