@@ -204,3 +204,61 @@ fn unknown_key_and_missing_component() {
         "{msg}"
     );
 }
+
+/// The shipped muscle, its valve fully open at 5 bar, lifts a 20 kg weight (196.1 N) and holds it where the
+/// static balance pi r0^2 p [a (1 - k eps)^2 - b] = m g puts it, solved here by bisection with the sheet's
+/// alpha0 = 20.47 deg and k = (1 - 1/(sqrt(3) cos alpha0)) / 0.25: eps = 0.14192, 28.4 mm of lift.
+#[test]
+fn shipped_muscle_lifts_a_weight_to_its_static_balance() {
+    use pneuflex_muscle::{ChamberState, Load, MusclePlant, PlantState};
+    let s = MuscleSheet::load(pneumatics_dir().join("festo-dmsp-10-muscle.toml")).unwrap();
+    let weight = 20.0 * 9.80665;
+    let alpha0 = 20.47f64.to_radians();
+    let (a, b) = (3.0 / alpha0.tan().powi(2), 1.0 / alpha0.sin().powi(2));
+    let k = (1.0 - 1.0 / (3f64.sqrt() * alpha0.cos())) / 0.25;
+    let p = 601_325.0 - 101_325.0;
+    let residual = |eps: f64| {
+        std::f64::consts::PI * 0.005 * 0.005 * p * (a * (1.0 - k * eps).powi(2) - b) - weight
+    };
+    let (mut lo, mut hi) = (0.0, 0.25);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if residual(mid) > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let eps = 0.5 * (lo + hi);
+    assert!((eps - 0.141_92).abs() < 1e-5, "{eps}");
+    let load = Load {
+        mass_kg: 20.0,
+        spring_n_per_m: 0.0,
+        spring_free_length_m: 0.0,
+        damping_n_s_per_m: 50.0,
+        pull_n: weight,
+    };
+    let mut plant = MusclePlant::new(s.chamber, load, s.plant_feed());
+    let l_hang = 0.2 + weight / 5.0e4; // hanging on the stretch stiffness, unpressurised
+    let mut x = PlantState {
+        length_m: l_hang,
+        velocity_m_per_s: 0.0,
+        chamber: ChamberState {
+            pressure_pa: 101_325.0,
+            temperature_k: 293.15,
+        },
+        inflow_kg: 0.0,
+    };
+    let dt = 1.0e-4;
+    assert!(dt < plant.friction_step_limit_s());
+    for _ in 0..150_000 {
+        plant.step(&mut x, 1.0, dt);
+    }
+    let want = 0.2 * (1.0 - eps);
+    assert!(
+        (x.length_m - want).abs() < 1e-7,
+        "{} m vs {want} m",
+        x.length_m
+    );
+    assert!((x.chamber.pressure_pa - 601_325.0).abs() < 1.0);
+}
