@@ -116,6 +116,10 @@ pub struct Excite {
     /// hiding this actuator sheet; --seed also seeds its sensor noise. For CI and worked examples.
     #[arg(long, conflicts_with = "port")]
     pub lockstep_truth: Option<PathBuf>,
+    /// Also write the recording as a rosbag2 folder `bag/` beside trace.csv (MCAP storage, CDR, on the
+    /// trace's clock; docs/ros2.md): `identify --log DIR/bag` reads it.
+    #[arg(long)]
+    pub mcap: bool,
 }
 
 /// Run one of a scene's controllers on a rig, real or emulated, with the safety supervisor.
@@ -200,6 +204,7 @@ impl Excite {
                 hold_s: self.hold,
                 seed: self.seed,
                 lockstep_truth: self.lockstep_truth,
+                mcap: self.mcap,
             },
             self.out.as_deref(),
         )

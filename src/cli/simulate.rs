@@ -74,6 +74,10 @@ pub struct Run {
     /// The figures' format: png (default), svg or pdf (vector, for a paper).
     #[arg(long, value_enum, default_value_t = FigureFormat::Png)]
     pub format: FigureFormat,
+    /// Also write each run's trace as a rosbag2 recording (MCAP storage, CDR), `<run>/bag/`: joint
+    /// states, chamber pressures, valve command, force reference, controller signals (docs/ros2.md).
+    #[arg(long)]
+    pub mcap: bool,
 }
 
 /// Run a scene at every point of a grid or sample of its keys, in parallel: one table of every point's
@@ -202,6 +206,7 @@ impl Run {
                 rerun: self.rerun,
                 limits: self.limits.limits(),
                 figures: self.format.into(),
+                mcap: self.mcap,
             },
         )
     }

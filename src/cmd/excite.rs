@@ -33,6 +33,8 @@ pub struct ExciteArgs {
     /// Instead of a port: the rig file's emulator in lockstep with a simulated clock (not real time, no
     /// pty), hiding this actuator sheet, sensor noise seeded with `seed` (for CI and worked examples).
     pub lockstep_truth: Option<std::path::PathBuf>,
+    /// `--mcap`: the recording also as a rosbag2 folder `bag/` beside trace.csv (docs/ros2.md).
+    pub mcap: bool,
 }
 
 /// `pneuflex rig excite`: an identification experiment (pneuflex_identify::excite) on the rig, through the
@@ -119,6 +121,14 @@ pub fn excite(
             &Path::new("out").join("rig").join("excite").join(&a.signal),
         ),
     };
+    // The bag is written from the closed trace into the staged recording, before its commit.
+    let mut finish = |dir: &Path, _: &pneuflex_rig::rtloop::LoopReport| {
+        if a.mcap {
+            super::bag::write_recording(dir).map(|_| ())
+        } else {
+            Ok(())
+        }
+    };
     let Some(truth) = &a.lockstep_truth else {
         return run(
             record::EXCITE,
@@ -130,7 +140,7 @@ pub fn excite(
             a.duration_s,
             &out_dir,
             &mut (),
-            &mut |_, _| Ok(()),
+            &mut finish,
         )
         .map(|_| ());
     };
@@ -144,6 +154,6 @@ pub fn excite(
         &mut controller,
         &mut reference,
         a.duration_s,
-        &mut |_, _| Ok(()),
+        &mut finish,
     )
 }

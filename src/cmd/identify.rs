@@ -68,7 +68,12 @@ pub fn identify(
     let sheet = pneuflex_pneumatics::ActuatorSheet::load(&req.actuator)?;
     let keys = pneuflex_identify::request::parse_free(&req.free, &sheet.model())?;
     pneuflex_identify::request::parse_bounds(&keys, &req.bounds, &sheet.model())?;
-    for l in &req.logs {
+    // A bag (`--mcap`) is a folder: crates/ros2 reads it.
+    for l in req
+        .logs
+        .iter()
+        .filter(|l| !pneuflex_identify::log_bag::is_bag(l))
+    {
         pneuflex_files::input::check_regular(l, pneuflex_files::InputKind::Trace)?;
     }
     let stage = stage_output(&req, &dest)?;

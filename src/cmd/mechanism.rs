@@ -21,6 +21,7 @@ pub fn run(
     rerun: Option<&[String]>,
     limits: pneuflex_scene::Limits,
     figures: pneuflex_viz::Format,
+    mcap: bool,
 ) -> anyhow::Result<()> {
     let scene = MechanismScene::load(scene_path)?;
     scene.check_budget(&limits)?;
@@ -68,6 +69,11 @@ pub fn run(
     let elapsed = started.elapsed().as_secs_f64();
     let summary = mechanism::summarise(&scene, &runs);
     mechanism::write(stage.path(), &summary, &runs)?;
+    if mcap {
+        // Into the staged directory: committed with the traces, or with the partial.
+        let actuators: Vec<String> = scene.actuators.iter().map(|a| a.name.clone()).collect();
+        super::bag::write_runs(stage.path(), &runs, &actuators)?;
+    }
     let digests: Vec<InputDigest> = inputs
         .iter()
         .filter_map(|(role, p)| InputDigest::of_file(p, role).ok())

@@ -79,6 +79,7 @@ pub fn interrupted(signal: usize, what: String) -> anyhow::Error {
     .into()
 }
 
+mod bag;
 pub mod compare;
 pub mod excite;
 pub mod identify;

@@ -8,8 +8,9 @@
 
 use std::path::{Path, PathBuf};
 
+use pneuflex_control::Sink;
 use pneuflex_outputs::{Outcome, Outputs, Simulate, Simulated, Stopped, simulate_into};
-use pneuflex_scene::{Limits, Scene};
+use pneuflex_scene::{Limits, Plant, RunOptions, Scene};
 
 use super::Exit;
 
@@ -24,6 +25,8 @@ pub struct RunArgs {
     pub limits: Limits,
     /// `--format`: the figures' format.
     pub figures: pneuflex_viz::Format,
+    /// `--mcap`: each run's trace also as a rosbag2 folder `<run>/bag/` (docs/ros2.md).
+    pub mcap: bool,
 }
 
 /// Runs a scene file and writes its outputs; Err on bad input, on a write failure, when a run diverged
@@ -39,6 +42,7 @@ pub fn run(scene_path: &Path, out: Option<&Path>, args: &RunArgs) -> anyhow::Res
             args.rerun.as_deref(),
             args.limits,
             args.figures,
+            args.mcap,
         );
     }
     let scene = Scene::load(scene_path)?;
@@ -102,13 +106,19 @@ fn run_scene_file(
         stop: Some(&stop),
         figures: args.figures,
     };
+    // With --mcap the bags go into the staged directory between the runs and the commit.
+    let simulate = if args.mcap {
+        simulate_with_bags
+    } else {
+        simulate_plain
+    };
     #[cfg(feature = "rerun")]
     let simulated = match observer.as_mut() {
-        Some(obs) => simulate_into(scene, outputs, how, &mut progress, obs)?,
-        None => simulate_into(scene, outputs, how, &mut progress, &mut ())?,
+        Some(obs) => simulate(scene, outputs, how, &mut progress, obs)?,
+        None => simulate(scene, outputs, how, &mut progress, &mut ())?,
     };
     #[cfg(not(feature = "rerun"))]
-    let simulated = simulate_into(scene, outputs, how, &mut progress, &mut ())?;
+    let simulated = simulate(scene, outputs, how, &mut progress, &mut ())?;
     bar.finish();
     let Simulated {
         results,
@@ -177,4 +187,51 @@ fn run_scene_file(
             .map(|r| (r.name.as_str(), r.diverged.as_deref())),
         &dest,
     )
+}
+
+/// [`simulate_into`] as it is (no `--mcap`).
+fn simulate_plain(
+    scene: &Scene,
+    outputs: Outputs,
+    how: Simulate<'_>,
+    progress: &mut dyn FnMut(f64),
+    sink: &mut dyn Sink<dyn Plant>,
+) -> anyhow::Result<Simulated> {
+    Ok(simulate_into(scene, outputs, how, progress, sink)?)
+}
+
+/// [`simulate_into`] with each run's bag (`--mcap`): the runs, then the bags into the staged directory,
+/// then the traces, summary.json and figures and the commit (or the partial after a signal). The traces
+/// are written after every run ended, not while the others simulate as simulate_into does.
+fn simulate_with_bags(
+    scene: &Scene,
+    outputs: Outputs,
+    how: Simulate<'_>,
+    progress: &mut dyn FnMut(f64),
+    sink: &mut dyn Sink<dyn Plant>,
+) -> anyhow::Result<Simulated> {
+    let start = std::time::Instant::now();
+    let opts = RunOptions {
+        limits: how.limits,
+        stop: how.stop,
+        on_run: None,
+    };
+    let results = pneuflex_scene::run_scene_with(scene, &opts, progress, sink)?;
+    let simulation_time = start.elapsed();
+    super::bag::write_runs(outputs.dir(), &results, &[])?;
+    let summary = pneuflex_scene::summary(scene, &results);
+    let outcome = if summary.complete {
+        Outcome::Committed(outputs.commit(scene, &results, how.figures)?)
+    } else {
+        let signal = how
+            .stop
+            .map_or(0, |s| s.load(std::sync::atomic::Ordering::Relaxed));
+        Outcome::Partial(outputs.commit_partial(scene, &results, signal, None)?)
+    };
+    Ok(Simulated {
+        results,
+        summary,
+        simulation_time,
+        outcome,
+    })
 }

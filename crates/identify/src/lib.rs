@@ -12,6 +12,7 @@ pub mod excite;
 pub mod fit;
 pub mod leak;
 pub mod log;
+pub mod log_bag;
 pub mod log_format;
 pub mod log_rows;
 pub mod params;

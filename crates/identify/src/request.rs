@@ -385,7 +385,15 @@ pub fn write_staged(
     }
     let mut inputs = Vec::new();
     for p in &req.logs {
-        inputs.push(InputDigest::of_file(p, "log").map_err(|e| werr(p.clone(), e.to_string()))?);
+        // A bag's files (its MCAP files; the log's sha256 is theirs).
+        let files = match crate::log_bag::is_bag(p) {
+            true => pneuflex_ros2::bag::bag_files(p).map_err(|e| werr(p.clone(), e.to_string()))?,
+            false => vec![p.clone()],
+        };
+        for f in &files {
+            inputs
+                .push(InputDigest::of_file(f, "log").map_err(|e| werr(f.clone(), e.to_string()))?);
+        }
     }
     inputs.push(
         InputDigest::of_file(&req.actuator, "actuator")

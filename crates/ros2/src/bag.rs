@@ -124,7 +124,7 @@ impl BagWriter {
         let mcap = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("pneuflex-ros2 ", env!("CARGO_PKG_VERSION")))
-            .compression(Some(mcap::Compression::Zstd))
+            .compression(None) // rosbag2's default; zstd at opt-level 0 (debug builds) tripled the write time
             .create(BufWriter::new(out))
             .map_err(|e| Ros2Error::Mcap {
                 path: file.clone(),
@@ -313,7 +313,7 @@ impl BagContents {
 
 /// The MCAP files of a rosbag2 folder, in its `metadata.yaml`'s order (`relative_file_paths`); a path to
 /// an `.mcap` file is that file.
-fn bag_files(path: &Path) -> Result<Vec<PathBuf>, Ros2Error> {
+pub fn bag_files(path: &Path) -> Result<Vec<PathBuf>, Ros2Error> {
     if path.is_file() {
         return Ok(vec![path.to_path_buf()]);
     }

@@ -11,6 +11,12 @@
 //!
 //! A one-actuator trace has bare column names and its joint is `cylinder`; a trace of several has
 //! `<actuator>.<signal>` columns and each joint is the actuator's name.
+//!
+//! A rig's trace with the board's record (`board_t` ... `applied_u`, docs/rig.md "Trace") is written on the
+//! board's clock: the joint states and pressures are the board's samples at their `board_t` (`board_x`,
+//! `board_f_e`, `board_p_a`, `board_p_b`), and `/pneuflex/valve_applied` holds each command the board
+//! applied (`applied_u`) at its `applied_t`; the loop's own signals (valve command, force reference, the
+//! others) stay at the loop's tick times `t`.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -29,6 +35,20 @@ pub const JOINT_STATES: &str = "/pneuflex/joint_states";
 pub const VALVE_COMMAND: &str = "/pneuflex/valve_command";
 /// The force reference's topic.
 pub const FORCE_REFERENCE: &str = "/pneuflex/force_reference";
+/// The valve commands the board applied, at the board's time (a rig's trace).
+pub const VALVE_APPLIED: &str = "/pneuflex/valve_applied";
+
+/// The board's record in a rig's trace: a sample (time, x, f_e, p_a, p_b) and an applied echo (time, duty)
+/// per row, empty cells NaN.
+const BOARD: [&str; 7] = [
+    "board_t",
+    "board_x",
+    "board_f_e",
+    "board_p_a",
+    "board_p_b",
+    "applied_t",
+    "applied_u",
+];
 
 /// The signals with a topic of their own; the others go to `/pneuflex/controller/<signal>`.
 const MAPPED: [&str; 7] = ["x", "x_dot", "f_e", "p_a", "p_b", "u", "f_ref"];
@@ -131,12 +151,24 @@ pub fn write_trace_bag(dir: &Path, trace: &TraceColumns<'_>) -> Result<BagSummar
         signals[i].1[joint.unwrap_or(0)] = Some(values);
     }
 
+    let board: Option<Vec<&[f64]>> = (trace.actuators.is_empty())
+        .then(|| {
+            BOARD
+                .iter()
+                .map(|c| trace.column(c))
+                .collect::<Option<Vec<_>>>()
+        })
+        .flatten();
+    if board.is_some() {
+        signals.retain(|(s, _)| !BOARD.contains(&s.as_str()));
+    }
+
     let mut bag = BagWriter::create(dir)?;
     let joint_states = bag.topic::<JointState>(JOINT_STATES)?;
     let pressures = joints
         .iter()
         .zip(&cols)
-        .filter(|(_, c)| c.p.is_some())
+        .filter(|(_, c)| c.p.is_some() || board.is_some())
         .map(|((name, _), _)| {
             Ok((
                 bag.topic::<FluidPressure>(&pressure_topic(name, 'a'))?,
@@ -145,6 +177,10 @@ pub fn write_trace_bag(dir: &Path, trace: &TraceColumns<'_>) -> Result<BagSummar
         })
         .collect::<Result<Vec<_>, Ros2Error>>()?;
     let valve = bag.topic::<Float64MultiArray>(VALVE_COMMAND)?;
+    let applied = match board {
+        Some(_) => Some(bag.topic::<Float64MultiArray>(VALVE_APPLIED)?),
+        None => None,
+    };
     let force_ref = bag.topic::<Float64MultiArray>(FORCE_REFERENCE)?;
     let signal_topics = signals
         .iter()
@@ -154,35 +190,84 @@ pub fn write_trace_bag(dir: &Path, trace: &TraceColumns<'_>) -> Result<BagSummar
         .collect::<Result<Vec<_>, Ros2Error>>()?;
     let names: Vec<String> = joints.iter().map(|(n, _)| n.clone()).collect();
     let with_velocity = cols.iter().all(|c| c.x_dot.is_some());
+
+    // What is written, in time order: (ns, what, row). The board's record lags the loop's rows.
+    #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+    enum Item {
+        Sample,
+        Applied,
+        Tick,
+    }
+    let mut items: Vec<(u64, Item, usize)> = Vec::with_capacity(t.len() * 3);
     for (k, &tk) in t.iter().enumerate() {
-        let ns = nanos_of_seconds(tk)?;
-        let header = Header {
+        items.push((nanos_of_seconds(tk)?, Item::Tick, k));
+        if let Some(b) = &board {
+            if b[0][k].is_finite() {
+                items.push((nanos_of_seconds(b[0][k])?, Item::Sample, k));
+            }
+            if b[5][k].is_finite() {
+                items.push((nanos_of_seconds(b[5][k])?, Item::Applied, k));
+            }
+        }
+    }
+    if board.is_some() {
+        items.sort();
+    }
+    let header = |ns: u64| -> Result<Header, Ros2Error> {
+        Ok(Header {
             stamp: Time::from_nanos(ns)?,
             frame_id: String::new(),
-        };
-        let state = JointState {
-            header: header.clone(),
-            name: names.clone(),
-            position: cols.iter().map(|c| c.x[k]).collect(),
-            velocity: if with_velocity {
+        })
+    };
+    for (ns, item, k) in items {
+        // The sample of the state and pressures: the loop's row, or the board's record.
+        let sample = match (item, &board) {
+            (Item::Tick, None) => Some(
                 cols.iter()
-                    .map(|c| c.x_dot.map_or(f64::NAN, |v| v[k]))
-                    .collect()
-            } else {
-                Vec::new()
-            },
-            effort: cols.iter().map(|c| c.f_e[k]).collect(),
-        };
-        bag.write(joint_states, ns, &state)?;
-        for ((a, b), (pa, pb)) in pressures.iter().zip(cols.iter().filter_map(|c| c.p)) {
-            for (topic, p) in [(*a, pa[k]), (*b, pb[k])] {
-                let msg = FluidPressure {
-                    header: header.clone(),
-                    fluid_pressure: p,
-                    variance: 0.0,
-                };
-                bag.write(topic, ns, &msg)?;
+                    .map(|c| {
+                        (
+                            c.x[k],
+                            c.x_dot.map(|v| v[k]),
+                            c.f_e[k],
+                            c.p.map(|(a, b)| (a[k], b[k])),
+                        )
+                    })
+                    .collect::<Vec<_>>(),
+            ),
+            (Item::Sample, Some(b)) => {
+                Some(vec![(b[1][k], None, b[2][k], Some((b[3][k], b[4][k])))])
             }
+            _ => None,
+        };
+        if let Some(sample) = sample {
+            let state = JointState {
+                header: header(ns)?,
+                name: names.clone(),
+                position: sample.iter().map(|s| s.0).collect(),
+                velocity: if with_velocity && board.is_none() {
+                    sample.iter().map(|s| s.1.unwrap_or(f64::NAN)).collect()
+                } else {
+                    Vec::new()
+                },
+                effort: sample.iter().map(|s| s.2).collect(),
+            };
+            bag.write(joint_states, ns, &state)?;
+            for ((a, b), (pa, pb)) in pressures.iter().zip(sample.iter().filter_map(|s| s.3)) {
+                for (topic, p) in [(*a, pa), (*b, pb)] {
+                    let msg = FluidPressure {
+                        header: header(ns)?,
+                        fluid_pressure: p,
+                        variance: 0.0,
+                    };
+                    bag.write(topic, ns, &msg)?;
+                }
+            }
+        }
+        if let (Item::Applied, Some(b), Some(topic)) = (item, &board, applied) {
+            bag.write(topic, ns, &Float64MultiArray::per_actuator(vec![b[6][k]]))?;
+        }
+        if item != Item::Tick {
+            continue;
         }
         let per = |f: &dyn Fn(&Joint<'_>) -> f64| {
             Float64MultiArray::per_actuator(cols.iter().map(f).collect())
@@ -219,6 +304,9 @@ pub struct ActuatorLog {
     pub p_b: Vec<f64>,
     /// Contact force, N.
     pub f_e: Vec<f64>,
+    /// A rig's bag: the commands the board applied, (board time s, duty), from `/pneuflex/valve_applied`;
+    /// the rows are then the board's samples and `u` is empty (the valve's command is these).
+    pub applied: Option<Vec<(f64, f64)>>,
 }
 
 /// Reads actuator `joint` (None: the bag's only joint) of a bag written as [`write_trace_bag`] writes
@@ -272,8 +360,23 @@ pub fn read_actuator_log(path: &Path, joint: Option<&str>) -> Result<ActuatorLog
                 .ok_or_else(|| Ros2Error::Cdr(format!("{topic}: fewer values than joints")))
         }
     };
-    bag.messages::<Float64MultiArray>(VALVE_COMMAND)?;
-    let u = by_time(VALVE_COMMAND, &entry(VALVE_COMMAND))?;
+    // A rig's bag: the board's applied commands; otherwise the loop's command of each tick.
+    let applied = match bag.topics.contains_key(VALVE_APPLIED) {
+        true => Some(
+            bag.messages::<Float64MultiArray>(VALVE_APPLIED)?
+                .iter()
+                .map(|m| Ok((seconds(m.t_ns), entry(VALVE_APPLIED)(&m.data)?)))
+                .collect::<Result<Vec<_>, Ros2Error>>()?,
+        ),
+        false => None,
+    };
+    let u = match applied {
+        Some(_) => BTreeMap::new(),
+        None => {
+            bag.messages::<Float64MultiArray>(VALVE_COMMAND)?;
+            by_time(VALVE_COMMAND, &entry(VALVE_COMMAND))?
+        }
+    };
     let pressure = |chamber| {
         let topic = pressure_topic(&name, chamber);
         bag.messages::<FluidPressure>(&topic)?;
@@ -285,6 +388,7 @@ pub fn read_actuator_log(path: &Path, joint: Option<&str>) -> Result<ActuatorLog
     let mut log = ActuatorLog {
         path: path.to_path_buf(),
         joint: name.clone(),
+        applied: applied.clone(),
         ..ActuatorLog::default()
     };
     for m in states {
@@ -306,8 +410,10 @@ pub fn read_actuator_log(path: &Path, joint: Option<&str>) -> Result<ActuatorLog
                 ))
             })
         };
-        log.t.push(ns as f64 * 1e-9);
-        log.u.push(at(VALVE_COMMAND, &u)?);
+        log.t.push(seconds(ns));
+        if applied.is_none() {
+            log.u.push(at(VALVE_COMMAND, &u)?);
+        }
         log.p_a.push(at(&pressure_topic(&name, 'a'), &p_a)?);
         log.p_b.push(at(&pressure_topic(&name, 'b'), &p_b)?);
         log.x.push(
@@ -322,4 +428,9 @@ pub fn read_actuator_log(path: &Path, joint: Option<&str>) -> Result<ActuatorLog
         );
     }
     Ok(log)
+}
+
+/// Nanoseconds as seconds, correctly rounded (a time written as `0.001000` reads back as `0.001` does).
+fn seconds(ns: u64) -> f64 {
+    ns as f64 / 1e9
 }
