@@ -141,11 +141,7 @@ pub fn sweep(scene_path: &Path, out: Option<&Path>, args: &SweepArgs) -> anyhow:
     bar.finish_and_clear();
     let run_s = start.elapsed().as_secs_f64();
 
-    let manifest = Manifest::new(
-        "sweep",
-        env!("CARGO_PKG_VERSION"),
-        scene.input_digests(),
-    );
+    let manifest = Manifest::new("sweep", env!("CARGO_PKG_VERSION"), scene.input_digests());
     if let Some(signal) = signal {
         return interrupted(stage, manifest, &sweep, signal, done, &dest);
     }

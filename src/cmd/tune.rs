@@ -81,8 +81,8 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
     let scene = &tuner.base_scene;
     let dest = out
         .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new("out").join(format!("{}-tune", scene.name)));
-    let inputs = pneuflex_outputs::input_files(scene, scene_path);
+        .unwrap_or_else(|| Path::new("out").join(format!("{}-tune", scene.name())));
+    let inputs = scene.input_files(scene_path);
     let protect: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let stage = OutputDir::create(&dest, &protect, Writer::simulation("tune"))?;
 
@@ -105,7 +105,7 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
         args.options.budget as u64,
         &format!(
             "tuning {} over {} environment(s)",
-            scene.name,
+            scene.name(),
             tuner.envs.len()
         ),
         args.quiet,
@@ -126,11 +126,7 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
         reason.as_deref(),
         args.figures,
     )?;
-    let manifest = Manifest::new(
-        "tune",
-        env!("CARGO_PKG_VERSION"),
-        pneuflex_scene::scene_inputs(scene),
-    );
+    let manifest = Manifest::new("tune", env!("CARGO_PKG_VERSION"), scene.input_digests());
     if let Some(reason) = reason {
         let to = stage.commit_partial(
             manifest,
@@ -177,7 +173,7 @@ pub fn tune(scene_path: &Path, out: Option<&Path>, args: &TuneArgs) -> anyhow::R
         }
         outln!(
             "{}: worst-case J {} -> {} after {} candidates ({} generations) in {search_s:.1} s; tuned scene {}, report {}",
-            scene.name,
+            scene.name(),
             j(summary.j_before),
             j(summary.j_after),
             summary.evaluations,

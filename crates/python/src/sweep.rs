@@ -151,9 +151,7 @@ pub fn tune_run(
         .map_err(err)?;
     // Staged as `pneuflex tune --out` stages, before the search: a folder pneuflex did not write (or one
     // holding an input) is refused, not written into; the files appear there only when complete.
-    let scene = &t.base_scene;
-    let mut inputs = vec![scene_path.to_path_buf()];
-    inputs.extend(scene.input_files().into_iter().skip(1).map(|(_, p)| p));
+    let inputs = t.base_scene.input_files(&scene_path);
     let protect: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
     let stage =
         OutputDir::create(&out, &protect, Writer::simulation("tune")).map_err(errors::other)?;
@@ -217,7 +215,7 @@ pub fn tune_run(
     let manifest = Manifest::new(
         "tune",
         env!("CARGO_PKG_VERSION"),
-        pneuflex_scene::scene_inputs(&t.base_scene),
+        t.base_scene.input_digests(),
     );
     stage.commit(manifest).map_err(errors::other)?;
     serde_json::to_string(&summary).map_err(errors::other)

@@ -156,6 +156,82 @@ impl AnyScene {
         }
     }
 
+    /// The index of the run named `name`; the error lists the scene's runs.
+    pub fn run_index(&self, name: &str) -> Result<usize, SceneError> {
+        match self {
+            AnyScene::One(s) => s.run_index(name),
+            AnyScene::Mechanism(m) => m.runs.iter().position(|r| r.name == name).ok_or_else(|| {
+                let names: Vec<&str> = m.runs.iter().map(|r| r.name.as_str()).collect();
+                m.invalid(
+                    "runs",
+                    format!("no run named {name:?}, expected one of {names:?}"),
+                )
+            }),
+        }
+    }
+
+    /// Keeps only run `run` and no claims (a tuner's candidate runs the tuned run alone).
+    pub fn keep_only_run(&mut self, run: usize) {
+        match self {
+            AnyScene::One(s) => {
+                s.runs = vec![s.runs[run].clone()];
+                s.claims.clear();
+            }
+            AnyScene::Mechanism(m) => {
+                m.runs = vec![m.runs[run].clone()];
+                m.claims.clear();
+            }
+        }
+    }
+
+    /// Every scene key that names a file, with the file resolved (a copy of the scene written elsewhere
+    /// names them relative to its new folder): `plant.actuator` and `plant.urdf`, or `urdf` and each
+    /// `actuators[i].sheet`.
+    pub fn named_files(&self) -> Vec<(String, PathBuf)> {
+        match self {
+            AnyScene::One(s) => s
+                .plant
+                .files()
+                .into_iter()
+                .map(|(key, p)| (key.to_string(), s.resolve(p)))
+                .collect(),
+            AnyScene::Mechanism(m) => std::iter::once(("urdf".to_string(), m.resolve(&m.urdf)))
+                .chain(
+                    m.actuators
+                        .iter()
+                        .enumerate()
+                        .map(|(i, a)| (format!("actuators[{i}].sheet"), m.resolve(&a.sheet))),
+                )
+                .collect(),
+        }
+    }
+
+    /// Whether the scene loads whole: a one-actuator scene's plant builds, a mechanism's sheets and URDF
+    /// read.
+    pub fn check_builds(&self) -> Result<(), SceneError> {
+        match self {
+            AnyScene::One(s) => crate::build_plant(s).map(drop),
+            AnyScene::Mechanism(m) => crate::mechanism::MechanismPlant::new(m).map(drop),
+        }
+    }
+
+    /// The metric column `WINDOW.METRIC` (one actuator) or `WINDOW.ACTUATOR.METRIC` / `WINDOW.force_imbalance_n`
+    /// (a mechanism); the error lists the scene's.
+    pub fn metric_column(&self, name: &str) -> Result<MetricColumn, String> {
+        let columns = self.metric_columns();
+        columns
+            .iter()
+            .find(|c| c.name() == name)
+            .cloned()
+            .ok_or_else(|| {
+                let known: Vec<String> = columns.iter().map(MetricColumn::name).collect();
+                format!(
+                    "no metric column {name:?}; the scene's are {}",
+                    known.join(", ")
+                )
+            })
+    }
+
     /// The files the scene reads, the scene file first.
     pub fn input_files(&self, scene_path: &Path) -> Vec<PathBuf> {
         let mut inputs = vec![scene_path.to_path_buf()];

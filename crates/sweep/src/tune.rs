@@ -13,10 +13,11 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use cmaes::{CMAESOptions, DVector};
-use pneuflex_scene::{Scene, WindowKind};
+use pneuflex_scene::any_scene::MetricColumn;
+use pneuflex_scene::{AnyScene, WindowKind};
 use rayon::prelude::*;
 
-use crate::engine::{SweepError, metric_of};
+use crate::engine::SweepError;
 use crate::key::{Base, KeyPath, Value};
 use crate::points::{Points, SetArg, Spec};
 
@@ -134,8 +135,25 @@ impl Term {
 }
 
 /// The default terms for a scene: every sine window's RMS error (1 /N) and phase lag (0.1 /deg), every
-/// event window's recovery overshoot (0.05 /%).
-pub fn default_terms(scene: &Scene) -> Vec<Term> {
+/// event window's recovery overshoot (0.05 /%); in a mechanism, every window's RMS error of every actuator
+/// (1 /N).
+pub fn default_terms(scene: &AnyScene) -> Vec<Term> {
+    let scene = match scene {
+        AnyScene::One(s) => s,
+        AnyScene::Mechanism(m) => {
+            return m
+                .metrics
+                .iter()
+                .flat_map(|w| {
+                    m.actuators.iter().map(move |a| Term {
+                        window: w.name.clone(),
+                        metric: format!("{}.rms_force_error_n", a.name),
+                        weight: 1.0,
+                    })
+                })
+                .collect();
+        }
+    };
     let mut out = Vec::new();
     for w in &scene.metrics {
         let mut add = |m: &str, weight: f64| {
@@ -309,8 +327,8 @@ pub struct HistoryRow {
 pub struct Tuner {
     /// The scene file.
     pub scene_path: PathBuf,
-    /// The scene as written.
-    pub base_scene: Scene,
+    /// The scene as written, of either kind.
+    pub base_scene: AnyScene,
     /// The free keys and their boxes.
     pub free: Vec<FreeArg>,
     /// The environments (the `--over` keys' grid).
@@ -321,6 +339,8 @@ pub struct Tuner {
     pub run: usize,
     /// The objective's terms.
     pub terms: Vec<Term>,
+    /// Each term's metric column, in the order of `terms`.
+    term_columns: Vec<MetricColumn>,
     /// The free keys' values in the scene as written (the box's middle where the file has none), clamped
     /// into the box: where the search starts.
     pub initial: Vec<f64>,
@@ -371,7 +391,7 @@ impl Tuner {
         max_runs: u64,
         limits: pneuflex_scene::Limits,
     ) -> Result<Tuner, SweepError> {
-        let base_scene = Scene::load(scene_path)?;
+        let base_scene = AnyScene::load(scene_path)?;
         let base = Base::load(scene_path).map_err(|e| SweepError::Other(e.to_string()))?;
         let mut keys: Vec<(&str, &KeyPath)> = free.iter().map(|f| ("--free", &f.key)).collect();
         keys.extend(over.iter().map(|s| ("--over", &s.key)));
@@ -413,7 +433,7 @@ impl Tuner {
         let run = match run {
             Some(name) => base_scene.run_index(name)?,
             None => base_scene
-                .runs
+                .runs()
                 .iter()
                 .position(|r| r.controller == pneuflex_scene::ControllerKind::Adaptive)
                 .unwrap_or(0),
@@ -429,23 +449,31 @@ impl Tuner {
                     .into(),
             ));
         }
+        let mut term_columns = Vec::with_capacity(terms.len());
         for t in &terms {
-            let Some(w) = base_scene.metrics.iter().find(|w| w.name == t.window) else {
-                let names: Vec<&str> = base_scene.metrics.iter().map(|w| w.name.as_str()).collect();
-                return Err(SweepError::Other(format!(
-                    "--term {}: no metric window {:?}, the scene has {names:?}",
-                    t.name(),
-                    t.window
-                )));
-            };
-            let known = crate::engine::window_metrics(w.kind);
-            if !known.contains(&t.metric.as_str()) {
-                return Err(SweepError::Other(format!(
-                    "--term {}: a {:?} window has {known:?}",
-                    t.name(),
-                    w.kind
-                )));
+            if let AnyScene::One(scene) = &base_scene {
+                let Some(w) = scene.metrics.iter().find(|w| w.name == t.window) else {
+                    let names: Vec<&str> = scene.metrics.iter().map(|w| w.name.as_str()).collect();
+                    return Err(SweepError::Other(format!(
+                        "--term {}: no metric window {:?}, the scene has {names:?}",
+                        t.name(),
+                        t.window
+                    )));
+                };
+                let known = crate::engine::window_metrics(w.kind);
+                if !known.contains(&t.metric.as_str()) {
+                    return Err(SweepError::Other(format!(
+                        "--term {}: a {:?} window has {known:?}",
+                        t.name(),
+                        w.kind
+                    )));
+                }
             }
+            term_columns.push(
+                base_scene
+                    .metric_column(&t.name())
+                    .map_err(|e| SweepError::Other(format!("--term {}: {e}", t.name())))?,
+            );
         }
         let as_written: Vec<Option<f64>> = free.iter().map(|f| base.number(&f.key)).collect();
         let initial = free
@@ -464,6 +492,7 @@ impl Tuner {
                 .collect(),
             run,
             terms,
+            term_columns,
             initial,
             as_written,
             limits,
@@ -550,12 +579,17 @@ impl Tuner {
     }
 
     /// The scene with the free keys at `x` in environment `e`; `only_run` keeps just the tuned run.
-    pub fn scene(&self, x: &[f64], e: usize, only_run: bool) -> Result<Scene, SweepError> {
+    pub fn scene(&self, x: &[f64], e: usize, only_run: bool) -> Result<AnyScene, SweepError> {
         self.scene_with(Some(x), e, only_run)
     }
 
     /// [`Tuner::scene`], or with `x` None the scene as written (its own values at the free keys).
-    fn scene_with(&self, x: Option<&[f64]>, e: usize, only_run: bool) -> Result<Scene, SweepError> {
+    fn scene_with(
+        &self,
+        x: Option<&[f64]>,
+        e: usize,
+        only_run: bool,
+    ) -> Result<AnyScene, SweepError> {
         let xv = x.map(|x| self.values(x)).unwrap_or_default();
         let env = self.envs.row(e);
         let mut edits: Vec<(&KeyPath, &Value)> =
@@ -578,29 +612,38 @@ impl Tuner {
             format!("{} in {}", kv.join(", "), self.describe_env(e))
         };
         let mut scene =
-            Scene::from_toml_str(&edited.scene_text, &self.scene_path, &self.base.base_dir)
+            AnyScene::from_toml_str(&edited.scene_text, &self.scene_path, &self.base.base_dir)
                 .map_err(|err| SweepError::Point {
                     point: point(),
                     error: Box::new(err),
                 })?;
-        scene.text = self.base.scene.text.clone();
-        scene.overlay = edited.overlay;
-        if !scene.overlay.is_empty() {
-            let Some(sheet) = scene.actuator_sheet_path() else {
-                return Err(SweepError::Other(format!(
-                    "{}: this plant has no actuator sheet",
-                    point()
-                )));
-            };
-            scene.load_sheet(&sheet).map_err(|err| SweepError::Sheet {
-                point: point(),
-                error: Box::new(err),
-            })?;
+        scene.set_text(self.base.scene.text.clone());
+        if !edited.overlay.is_empty() {
+            match &mut scene {
+                AnyScene::One(scene) => {
+                    scene.overlay = edited.overlay;
+                    let Some(sheet) = scene.actuator_sheet_path() else {
+                        return Err(SweepError::Other(format!(
+                            "{}: this plant has no actuator sheet",
+                            point()
+                        )));
+                    };
+                    scene.load_sheet(&sheet).map_err(|err| SweepError::Sheet {
+                        point: point(),
+                        error: Box::new(err),
+                    })?;
+                }
+                AnyScene::Mechanism(m) => {
+                    m.overlay = edited.overlay;
+                    m.check_sheets().map_err(|err| SweepError::Point {
+                        point: point(),
+                        error: Box::new(err),
+                    })?;
+                }
+            }
         }
         if only_run {
-            let keep = scene.runs[self.run].clone();
-            scene.runs = vec![keep];
-            scene.claims.clear();
+            scene.keep_only_run(self.run);
         }
         scene
             .check_budget(&self.limits)
@@ -614,13 +657,12 @@ impl Tuner {
     /// The scene keys that name files, with each file's path as seen from `dir`.
     fn named_files(&self, dir: &Path) -> Vec<(KeyPath, Value)> {
         self.base_scene
-            .plant
-            .files()
+            .named_files()
             .into_iter()
             .filter_map(|(key, p)| {
-                let rel = pneuflex_files::path::relative_to(&self.base_scene.resolve(p), dir);
+                let rel = pneuflex_files::path::relative_to(&p, dir);
                 Some((
-                    KeyPath::parse(key).ok()?,
+                    KeyPath::parse(&key).ok()?,
                     Value::Str(rel.to_string_lossy().replace('\\', "/")),
                 ))
             })
@@ -644,30 +686,8 @@ impl Tuner {
 
     /// J_e and its terms for one run's result.
     fn env_eval(&self, r: &pneuflex_scene::RunResult) -> EnvEval {
-        let terms: Vec<Option<f64>> = self
-            .terms
-            .iter()
-            .map(|t| {
-                if r.diverged.is_some() {
-                    return None;
-                }
-                r.window(&t.window).and_then(|w| metric_of(w, &t.metric))
-            })
-            .collect();
-        let unsettled: Vec<String> = r
-            .windows
-            .iter()
-            .filter_map(|w| {
-                let ev = w.event.as_ref()?;
-                (!ev.settled).then(|| {
-                    format!(
-                        "{}: {}",
-                        w.name,
-                        ev.not_settled.as_deref().unwrap_or("not settled")
-                    )
-                })
-            })
-            .collect();
+        let terms = self.base_scene.values(r, &self.term_columns);
+        let unsettled = self.base_scene.unsettled(r);
         let finite: f64 = self
             .terms
             .iter()
@@ -709,7 +729,7 @@ impl Tuner {
                     Ok(s) => s,
                     Err(err) => return fail(err.to_string()),
                 };
-                match pneuflex_scene::run_scene(&scene, &mut |_| {}) {
+                match scene.run(&mut |_| {}) {
                     Ok(r) => self.env_eval(&r[0]),
                     Err(err) => fail(err.to_string()),
                 }
@@ -750,7 +770,7 @@ impl Tuner {
         (0..self.envs.len())
             .into_par_iter()
             .map(|e| {
-                let n = self.base_scene.runs.len();
+                let n = self.base_scene.runs().len();
                 let fail = |why: String| {
                     vec![
                         EnvEval {
@@ -765,7 +785,7 @@ impl Tuner {
                     Ok(s) => s,
                     Err(err) => return fail(err.to_string()),
                 };
-                match pneuflex_scene::run_scene(&scene, &mut |_| {}) {
+                match scene.run(&mut |_| {}) {
                     Ok(r) => r.iter().map(|r| self.env_eval(r)).collect(),
                     Err(err) => fail(err.to_string()),
                 }

@@ -161,7 +161,7 @@ pub fn write(
 /// The objective as the tuned scene's comment and the report state it: the worst case over the
 /// environments of the weighted terms of the tuned run.
 fn objective_text(tuner: &Tuner) -> String {
-    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let run_name = &tuner.base_scene.runs()[tuner.run].name;
     let terms_text: Vec<String> = tuner
         .terms
         .iter()
@@ -221,14 +221,14 @@ fn convergence_figure(
     best_line: &[(f64, f64)],
     figures: pneuflex_plot::Format,
 ) -> Result<(), SweepError> {
-    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let run_name = &tuner.base_scene.runs()[tuner.run].name;
     let conv_name = format!("convergence.{}", figures.ext());
     let conv = dir.join(&conv_name);
     match pneuflex_plot::write_convergence(
         &conv,
         &format!(
             "tune {}: run `{run_name}`, worst case over the environments",
-            tuner.base_scene.name
+            tuner.base_scene.name()
         ),
         "J (worst case)",
         candidates,
@@ -252,9 +252,9 @@ fn report_head(
     kept_start: Option<&str>,
     tuned_name: &str,
 ) -> String {
-    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let run_name = &tuner.base_scene.runs()[tuner.run].name;
     let mut r = String::new();
-    let _ = writeln!(r, "# pneuflex tune: {}\n", tuner.base_scene.name);
+    let _ = writeln!(r, "# pneuflex tune: {}\n", tuner.base_scene.name());
     if let Some(sig) = interrupted {
         let _ = writeln!(
             r,
@@ -384,9 +384,9 @@ fn why_start_kept(
             candidates
         ))
     } else if let Err(e) =
-        pneuflex_scene::Scene::from_toml_str(text, tuned_path, dir).and_then(|s| {
+        pneuflex_scene::AnyScene::from_toml_str(text, tuned_path, dir).and_then(|s| {
             // Loading the sheet (and the URDF) is part of loading: a plant that cannot be built does not load.
-            pneuflex_scene::build_plant(&s).map(|_| ())
+            s.check_builds()
         })
     {
         Some(format!(
@@ -452,7 +452,7 @@ fn report_tables(
     all_before: &[Vec<EnvEval>],
     all_after: &[Vec<EnvEval>],
 ) {
-    let run_name = &tuner.base_scene.runs[tuner.run].name;
+    let run_name = &tuner.base_scene.runs()[tuner.run].name;
     let _ = writeln!(r, "## J_e of `{run_name}` per environment\n");
     let _ = writeln!(
         r,
@@ -477,7 +477,7 @@ fn report_tables(
     }
     let _ = writeln!(r, "{head}\n{rule}");
     for e in 0..tuner.envs.len() {
-        for (k, run) in tuner.base_scene.runs.iter().enumerate() {
+        for (k, run) in tuner.base_scene.runs().iter().enumerate() {
             let (b, a) = (&all_before[e][k], &all_after[e][k]);
             let mut line = format!(
                 "| {} | {} | {} → {} |",

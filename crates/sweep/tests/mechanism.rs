@@ -174,3 +174,53 @@ fn a_bad_key_is_the_scenes_own_error() {
         .to_string();
     assert!(e.contains("actuators[NAME].sheet:KEY"), "{e}");
 }
+
+#[test]
+fn tune_on_a_mechanism_writes_a_scene_whose_run_scores_what_the_search_said() {
+    use pneuflex_sweep::tune::{FreeArg, Term, TuneOptions, Tuner};
+    let (dir, path) = short_gripper(false);
+    let tuner = Tuner::new(
+        &path,
+        vec![FreeArg::parse("runs[impedance].impedance.b_d_ns_per_m=[150,600]").unwrap()],
+        &[],
+        Some("impedance"),
+        vec![
+            Term::parse("squeeze.left.rms_force_error_n=1").unwrap(),
+            Term::parse("squeeze.force_imbalance_n=0.5").unwrap(),
+        ],
+        pneuflex_sweep::points::DEFAULT_MAX_POINTS,
+    )
+    .unwrap();
+    let opts = TuneOptions {
+        budget: 6,
+        population: Some(3),
+        seed: 1,
+        threads: 2,
+        ..TuneOptions::default()
+    };
+    let history = tuner.search(&opts, None, &|| {}).unwrap();
+    let best = pneuflex_sweep::tune_output::best(&history).unwrap();
+    assert!(best.j.is_finite(), "{:?}", best.envs);
+    // The tuned scene, written and read back as a user would, scores J = rms + 0.5 imbalance.
+    let text = tuner.tuned_text(&best.x, "test", dir.path()).unwrap();
+    let tuned_path = dir.path().join("gripper-tuned.toml");
+    std::fs::write(&tuned_path, &text).unwrap();
+    let scene = MechanismScene::load(&tuned_path).unwrap();
+    let runs = run_all(&scene, &mut |_| {}, None, &mut ()).unwrap();
+    let summary = summarise(&scene, &runs);
+    let w = &summary.runs[0].windows[0];
+    let j = w.actuators[0].1.rms_force_error_n + 0.5 * w.force_imbalance_n;
+    assert_eq!(j, best.j);
+    // A term the scene does not have is refused, naming the columns it has.
+    let e = Tuner::new(
+        &path,
+        vec![FreeArg::parse("runs[impedance].impedance.b_d_ns_per_m=[150,600]").unwrap()],
+        &[],
+        None,
+        vec![Term::parse("squeeze.middle.rms_force_error_n=1").unwrap()],
+        pneuflex_sweep::points::DEFAULT_MAX_POINTS,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("squeeze.left.rms_force_error_n"), "{e}");
+}
