@@ -39,7 +39,7 @@ mod _native {
     #[pymodule_export]
     use crate::scene::{
         bench_rapier, bench_scene_ticks, initial_state, load_scene, loop_signals, run,
-        run_mechanism, run_with_summary, summarize,
+        run_mechanism, run_results, run_with_summary, summarize,
     };
 
     #[pymodule_export]

@@ -168,6 +168,61 @@ pub fn run_with_summary<'py>(
     Ok((out, s, wall))
 }
 
+/// Like `run_with_summary`, and also each column's unit: `(traces, summary, wall_s, units)` with
+/// `units = {run: {column: unit}}` as the trace declares them (trace.csv's header, `loop_signals()` and the
+/// controller's and plant's own signals); `pneuflex.run` puts them in each DataFrame's `attrs["units"]`.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+pub fn run_results<'py>(
+    py: Python<'py>,
+    scene_path: crate::shipped::ScenePath,
+) -> PyResult<(
+    Bound<'py, PyDict>,
+    Bound<'py, PyAny>,
+    f64,
+    Bound<'py, PyDict>,
+)> {
+    let units = PyDict::new(py);
+    let out = PyDict::new(py);
+    let (summary, wall, runs) = if is_mechanism(&scene_path) {
+        use pneuflex_scene::mechanism::{self, MechanismScene};
+        let scene = MechanismScene::load(&scene_path).map_err(errors::scene)?;
+        let start = Instant::now();
+        let runs = py
+            .detach(|| mechanism::run_all(&scene, &mut |_| {}, None, &mut ()))
+            .map_err(errors::scene)?;
+        let wall = start.elapsed().as_secs_f64();
+        let s = to_py(py, &mechanism::summarise(&scene, &runs))?;
+        (
+            s,
+            wall,
+            runs.into_iter()
+                .map(|r| (r.name, r.trace))
+                .collect::<Vec<_>>(),
+        )
+    } else {
+        let scene = load(&scene_path)?;
+        let (results, wall) = run_all(py, &scene)?;
+        let s = to_py(py, &summary(&scene, &results))?;
+        (
+            s,
+            wall,
+            results.into_iter().map(|r| (r.name, r.trace)).collect(),
+        )
+    };
+    for (name, trace) in runs {
+        let d = PyDict::new(py);
+        let u = PyDict::new(py);
+        for (c, v) in trace.into_columns() {
+            u.set_item(&c.name, &c.unit)?;
+            d.set_item(c.name, v.into_pyarray(py))?;
+        }
+        out.set_item(&name, d)?;
+        units.set_item(name, u)?;
+    }
+    Ok((out, summary, wall, units))
+}
+
 /// summary.json content for traces produced elsewhere (e.g. MuJoCo): `traces` maps run names of the scene
 /// to dicts of arrays; `diverged` optionally maps run names to the reason they stopped. The metrics are the
 /// scene crate's own (same windows, same formulas as `pneuflex run`).

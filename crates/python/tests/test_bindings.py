@@ -431,6 +431,21 @@ def shipped_scenes_are_taken_by_name():
 
 
 @test
+def trace_columns_carry_their_units():
+    """pneuflex.run's DataFrames carry each column's unit in attrs["units"]: the loop's as loop_signals() declares
+    them, the adaptive law's g, p, d and the plant's spool; a scene with several actuators, each prefixed column."""
+    r = pneuflex.run(SCENE)
+    units = r.trace("adaptive").attrs["units"]
+    assert {name: unit for name, unit, _group in pneuflex.loop_signals()}.items() <= units.items(), units
+    assert (units["g"], units["p"], units["d"], units["spool"]) == ("m", "m/N", "s", "1"), units
+    assert set(units) == set(r["adaptive"]) and "g" not in r.trace("impedance").attrs["units"], units
+    g = pneuflex.run(str(ROOT / "scenes" / "gripper.toml"))
+    run = next(iter(g))
+    gu = g.trace(run).attrs["units"]
+    assert set(gu) == set(g[run]) and gu["left.f_e"] == "N" and gu["left.p_a"] == "Pa", gu
+
+
+@test
 def the_gymnasium_examples_run():
     """crates/python/examples: the random policy, the adaptive baseline (on the scene's own values it is the
     scene's adaptive run: RMS 1.699 N) and a small CEM over the impedance gains run to their end."""

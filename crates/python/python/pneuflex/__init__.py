@@ -51,6 +51,8 @@ the argument, a count or seed out of range a ``ValueError``; nothing is converte
 a file named "42"), and one string where a list of them goes is that one entry.
 """
 
+import os
+
 from ._native import *  # noqa: F401,F403
 from ._native import PneuflexError, __version__  # noqa: F401
 from . import _native
@@ -59,14 +61,15 @@ from .frames import Results, SweepTable  # noqa: F401
 from .sweeps import LocalExecutor, RayExecutor, sweep, tune  # noqa: F401,E402
 
 
-def run(scene_path) -> Results:
-    """Runs every controller of the scene file: a :class:`Results`, the ``{run: {column: ndarray}}`` dict of the
-    traces (trace.csv's columns), with ``.summary`` (summary.json), ``.claims``, ``.trace(run)`` (a DataFrame),
+def run(scene_path: str | os.PathLike[str]) -> Results:
+    """Runs every controller of the scene file (a path or a shipped scene's name): a :class:`Results`, the
+    ``{run: {column: ndarray}}`` dict of the traces (trace.csv's columns), with ``.summary`` (summary.json),
+    ``.units`` (``{run: {column: unit}}``), ``.claims``, ``.trace(run)`` (a DataFrame, its units in ``attrs["units"]``),
     ``.metrics`` and ``.claims_frame`` (pneuflex.frames; pandas for the DataFrames)."""
     from ._checks import path
 
-    traces, summary, wall_s = _native.run_with_summary(path(scene_path, "scene_path", "pneuflex.run"))
-    return Results(traces, summary, wall_s)
+    traces, summary, wall_s, units = _native.run_results(path(scene_path, "scene_path", "pneuflex.run"))
+    return Results(traces, summary, wall_s, units)
 
 
 MUJOCO_PLUGIN_FILE = "libpneuflex_mujoco.so"

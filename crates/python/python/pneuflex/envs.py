@@ -316,9 +316,13 @@ def rollout(env: gymnasium.Env, policy, seed: int | None = None, options: dict |
             return {"return": total, "rms_force_error_n": (sq / n) ** 0.5, "steps": n, "draw": draw}
 
 
-def adaptive_baseline(env: ForceControl, run: str = "adaptive"):
+def adaptive_baseline(env: gymnasium.Env, run: str = "adaptive"):
     """The scene's own controller (its ``run``, by default the adaptive one) as a policy: ``policy(obs) -> action``
-    reading the plant's state through ``env`` (a baseline a learned policy should beat)."""
+    reading the plant's state through ``env`` (a baseline a learned policy should beat): a :class:`ForceControl`,
+    ``gymnasium.make(...).unwrapped``."""
+    if not isinstance(env, ForceControl):
+        raise TypeError(f"adaptive_baseline: env must be a ForceControl (gymnasium.make(...).unwrapped), got "
+                        f"{c.kind(env)}")
     controller = pneuflex.Controller.from_scene(env.scene_path, run)
 
     def policy(_obs):

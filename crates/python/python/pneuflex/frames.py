@@ -24,8 +24,10 @@ def _pandas():
 class Results(dict):
     """The runs of a scene: ``{run: {column: ndarray}}``, with the summary, the claims and DataFrames."""
 
-    def __init__(self, traces, summary, wall_s):
+    def __init__(self, traces, summary, wall_s, units=None):
         super().__init__(traces)
+        #: Each run's column units, ``{run: {column: unit}}`` (trace.csv's; "1" for a dimensionless one).
+        self.units = units or {}
         #: summary.json as a dict (the metrics of every window, the claims, the Lyapunov checks).
         self.summary = summary
         #: The runner's wall time, s.
@@ -37,13 +39,16 @@ class Results(dict):
         return self.summary.get("claims", [])
 
     def trace(self, run):
-        """Run ``run``'s trace as a DataFrame indexed by ``t`` (s), one column per signal, SI units."""
+        """Run ``run``'s trace as a DataFrame indexed by ``t`` (s), one column per signal, SI units; the units in
+        ``frame.attrs["units"]`` ({column: unit}, ``t`` included)."""
         pd = _pandas()
         if run not in self:
             raise KeyError(f"no run named {run!r}, expected one of {list(self)}")
         columns = dict(self[run])
         t = columns.pop("t")
-        return pd.DataFrame(columns, index=pd.Index(t, name="t"))
+        frame = pd.DataFrame(columns, index=pd.Index(t, name="t"))
+        frame.attrs["units"] = dict(self.units.get(run, {}))
+        return frame
 
     @property
     def traces(self):
