@@ -8,10 +8,15 @@
 //! same code, so both ends agree on every byte. [`ctrl`] holds the embedded-controller messages.
 #![cfg_attr(not(test), no_std)]
 
+pub mod channels;
 pub mod crc;
 pub mod ctrl;
 
 use crate::crc::crc16;
+pub use channels::{
+    AppliedAllPayload, ChannelFaultPayload, ChannelSample, ChannelValve, MAX_CHANNELS,
+    SamplesPayload, ValvesPayload,
+};
 pub use ctrl::{
     OutputPayload, ParamPayload, ReadyPayload, SafePayload, SegmentPayload, SensorsPayload,
     StartPayload, TextPayload,
@@ -48,6 +53,14 @@ pub mod msg_type {
     pub const CONFIG: u8 = 0x06;
     /// Board -> host: the valve command the board applied, and when (its own clock).
     pub const APPLIED: u8 = 0x07;
+    /// Board -> host: every channel's sample (several actuators, docs/protocol.md §6).
+    pub const SAMPLES: u8 = 0x08;
+    /// Host -> board: every channel's valve command for one tick.
+    pub const VALVES: u8 = 0x09;
+    /// Board -> host: every channel's applied valve command, and when.
+    pub const APPLIED_ALL: u8 = 0x0A;
+    /// Board -> host: a fault of one channel.
+    pub const CHANNEL_FAULT: u8 = 0x0B;
     /// Host -> embedded controller: one controller parameter (setup).
     pub const CTRL_PARAM: u8 = 0x10;
     /// Host -> embedded controller: one reference schedule segment (setup).
@@ -213,6 +226,14 @@ pub enum Message {
     Config(ConfigPayload),
     /// Board -> host: the valve command applied, and when.
     Applied(AppliedPayload),
+    /// Board -> host: every channel's sample.
+    Samples(SamplesPayload),
+    /// Host -> board: every channel's valve command.
+    Valves(ValvesPayload),
+    /// Board -> host: every channel's applied command, and when.
+    AppliedAll(AppliedAllPayload),
+    /// Board -> host: one channel's fault.
+    ChannelFault(ChannelFaultPayload),
     /// Embedded-controller setup: one parameter.
     CtrlParam(ParamPayload),
     /// Embedded-controller setup: one schedule segment.
@@ -231,8 +252,8 @@ pub enum Message {
     Safe(SafePayload),
 }
 
-/// Payload length of each message type; CtrlOutput's without its signals (8 bytes each, counted in the
-/// payload: [`expected_len`]).
+/// Payload length of each message type; CtrlOutput's without its signals (8 bytes each), the N-channel
+/// messages' without their channels (counted in the payload: [`expected_len`]).
 pub fn payload_len(msg_type: u8) -> Option<usize> {
     match msg_type {
         msg_type::SAMPLE => Some(23),
@@ -242,20 +263,24 @@ pub fn payload_len(msg_type: u8) -> Option<usize> {
         msg_type::RESET => Some(2),
         msg_type::CONFIG => Some(7),
         msg_type::APPLIED => Some(11),
-        t => ctrl::payload_len(t),
+        t => channels::layout(t)
+            .map(|(base, _)| base)
+            .or_else(|| ctrl::payload_len(t)),
     }
 }
 
 /// The length a received payload of `msg_type` must have: [`payload_len`], and for CtrlOutput 8 bytes
-/// more for each signal its count byte announces.
+/// more for each signal its count byte announces, for an N-channel message each channel's bytes for the
+/// channels its count byte (the last before the channels) announces.
 pub fn expected_len(msg_type: u8, payload: &[u8]) -> Option<usize> {
     let base = payload_len(msg_type)?;
+    let count = || usize::from(payload.get(base - 1).copied().unwrap_or(0));
     Some(match msg_type {
-        msg_type::CTRL_OUTPUT => {
-            let n = payload.get(base - 1).copied().unwrap_or(0);
-            base + 8 * usize::from(n)
-        }
-        _ => base,
+        msg_type::CTRL_OUTPUT => base + 8 * count(),
+        t => match channels::layout(t) {
+            Some((_, per)) if per > 0 => base + per * count(),
+            _ => base,
+        },
     })
 }
 
@@ -330,6 +355,10 @@ impl Message {
             Message::Reset(_) => msg_type::RESET,
             Message::Config(_) => msg_type::CONFIG,
             Message::Applied(_) => msg_type::APPLIED,
+            Message::Samples(_) => msg_type::SAMPLES,
+            Message::Valves(_) => msg_type::VALVES,
+            Message::AppliedAll(_) => msg_type::APPLIED_ALL,
+            Message::ChannelFault(_) => msg_type::CHANNEL_FAULT,
             Message::CtrlParam(_) => msg_type::CTRL_PARAM,
             Message::CtrlSegment(_) => msg_type::CTRL_SEGMENT,
             Message::CtrlStart(_) => msg_type::CTRL_START,
@@ -346,6 +375,9 @@ impl Message {
         let base = payload_len(self.type_code()).unwrap_or(0);
         match self {
             Message::CtrlOutput(o) => base + 8 * o.signals().len(),
+            Message::Samples(s) => base + channels::SAMPLE_CHANNEL_LEN * s.channels().len(),
+            Message::Valves(v) => base + channels::VALVE_CHANNEL_LEN * v.channels().len(),
+            Message::AppliedAll(a) => base + channels::VALVE_CHANNEL_LEN * a.channels().len(),
             _ => base,
         }
     }
@@ -385,6 +417,10 @@ impl Message {
                 w.put(&a.duty_q15.to_le_bytes());
                 w.put(&[a.mode.code()]);
             }
+            m @ (Message::Samples(_)
+            | Message::Valves(_)
+            | Message::AppliedAll(_)
+            | Message::ChannelFault(_)) => channels::write_payload(m, w),
             m => ctrl::write_payload(m, w),
         }
     }
@@ -445,6 +481,7 @@ impl Message {
                 duty_q15: r.i16()?,
                 mode: ValveMode::from_code(r.u8()?)?,
             }),
+            t if channels::layout(t).is_some() => return channels::parse_fields(t, &mut r),
             t => return ctrl::parse_fields(t, &mut r),
         };
         Some(msg)
@@ -720,6 +757,8 @@ mod tests {
                         signals,
                     })
                 }),
+            // Several actuators' frames (§6), N in 1..=MAX_CHANNELS.
+            channels::tests::arb_channel_message(),
         ]
     }
 
@@ -869,9 +908,10 @@ mod tests {
                 UnknownType,
             ),
             (
-                "unknown type 0x08",
-                raw_frame(1, 0x08, &[0; 7]),
-                0x08,
+                // 0x08..=0x0B are the N-channel messages (§6).
+                "unknown type 0x0C",
+                raw_frame(1, 0x0C, &[0; 7]),
+                0x0C,
                 UnknownType,
             ),
             (
@@ -1066,7 +1106,7 @@ mod tests {
             let mut wire = Vec::new();
             for _ in 0..1 + rng.below(3) {
                 let r = rng.next();
-                let msg = match rng.below(6) {
+                let msg = match rng.below(8) {
                     0 => Message::Sample(SamplePayload {
                         board_time_us: r as u32,
                         last_cmd_tick: (r >> 32) as u32,
@@ -1089,6 +1129,32 @@ mod tests {
                         detail: (r >> 8) as u16,
                     },
                     4 => Message::Reset(r as u16),
+                    5 => Message::Valves(
+                        ValvesPayload::new(
+                            r as u32,
+                            &[ChannelValve {
+                                duty_q15: (r >> 32) as i16,
+                                mode: ValveMode::from_code((r >> 48) as u8 % 3).unwrap(),
+                            }; 2],
+                        )
+                        .unwrap(),
+                    ),
+                    6 => Message::Samples(
+                        SamplesPayload::new(
+                            r as u32,
+                            (r >> 32) as u32,
+                            &[ChannelSample {
+                                position: r as u16,
+                                p_a: (r >> 8) as u16,
+                                p_b: (r >> 16) as u16,
+                                p_supply: (r >> 24) as u16,
+                                load: (r >> 3) as i32,
+                                duty_q15: (r >> 40) as i16,
+                                status: (r >> 56) as u8,
+                            }; MAX_CHANNELS][..1 + (r >> 61) as usize % MAX_CHANNELS],
+                        )
+                        .unwrap(),
+                    ),
                     _ => Message::Config(ConfigPayload {
                         sample_period_us: r as u32,
                         watchdog_ms: (r >> 32) as u16,
