@@ -214,3 +214,47 @@ fn identify_refuses_a_folder_that_is_not_a_bag_naming_what_is_missing() {
     );
     assert!(!dir.path().join("fit").exists());
 }
+
+#[test]
+fn rig_run_writes_the_boards_record_on_its_clock() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("rr");
+    pneuflex(&[
+        "rig",
+        "run",
+        "--scene",
+        "scenes/paper-fig3.toml",
+        "--lockstep-truth",
+        "pneumatics/paper-actuator.toml",
+        "--duration",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+    ]);
+    let text = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    let tr = Trace::from_csv(&text, &["wall_time", "fault"]).unwrap();
+    let bag = read_bag(&out.join("bag")).unwrap();
+    let states = bag
+        .messages::<JointState>("/pneuflex/joint_states")
+        .unwrap();
+    // One joint state per board sample, at its board_t, with its readings.
+    let board_t = tr.column("board_t").unwrap();
+    let samples: Vec<usize> = (0..tr.len()).filter(|&k| board_t[k].is_finite()).collect();
+    assert_eq!(states.len(), samples.len());
+    for (m, &k) in states.iter().zip(&samples) {
+        let s = JointState::decode(&m.data).unwrap();
+        assert!((m.t_ns as f64 * 1e-9 - board_t[k]).abs() < 1e-9);
+        assert_eq!(s.position, [tr.column("board_x").unwrap()[k]]);
+        assert_eq!(s.effort, [tr.column("board_f_e").unwrap()[k]]);
+    }
+    let applied_u = tr.column("applied_u").unwrap();
+    let echoes: Vec<f64> = applied_u.iter().copied().filter(|u| u.is_finite()).collect();
+    let applied: Vec<f64> = arrays(&bag, "/pneuflex/valve_applied")
+        .into_iter()
+        .map(|d| d[0])
+        .collect();
+    assert_eq!(applied, echoes);
+    // The loop's own command, one a tick.
+    assert_eq!(arrays(&bag, "/pneuflex/valve_command").len(), tr.len());
+}

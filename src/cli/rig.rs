@@ -159,6 +159,10 @@ pub struct Run {
     /// The figures' format: png (default), svg or pdf.
     #[arg(long, value_enum, default_value_t = crate::cli::FigureFormat::Png)]
     pub format: crate::cli::FigureFormat,
+    /// Also write the recording as a rosbag2 folder `bag/` beside trace.csv (MCAP storage, CDR, on the
+    /// board's clock; docs/ros2.md).
+    #[arg(long)]
+    pub mcap: bool,
 }
 
 impl Emulate {
@@ -223,6 +227,7 @@ impl Run {
             self.out.as_deref(),
             self.rerun.as_deref(),
             self.format.into(),
+            self.mcap,
         )
     }
 }

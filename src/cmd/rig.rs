@@ -152,6 +152,7 @@ pub fn run_scene(
     out: Option<&Path>,
     rerun: Option<&[String]>,
     figures: pneuflex_viz::Format,
+    mcap: bool,
 ) -> anyhow::Result<()> {
     if let Some(d) = duration_s {
         check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
@@ -211,8 +212,15 @@ pub fn run_scene(
                 }
             }
         };
-        let judged = judge_recording(dir, &scene, index, end, pwm_period_s, figures)
-            .map_err(|e| e.to_string())?;
+        // `--mcap`: the bag first, removed again if the judging fails (this leaves no file of its own then).
+        if mcap {
+            super::bag::write_recording(dir)?;
+        }
+        let judged =
+            judge_recording(dir, &scene, index, end, pwm_period_s, figures).map_err(|e| {
+                let _ = std::fs::remove_dir_all(dir.join(super::bag::BAG_DIR));
+                e.to_string()
+            })?;
         // The host's timing, said apart from the plant's verdict (summary.json `rig`).
         if let Some(rig) = &judged.rig {
             match &rig.host_stalls {
