@@ -249,7 +249,11 @@ fn rig_run_writes_the_boards_record_on_its_clock() {
         assert_eq!(s.effort, [tr.column("board_f_e").unwrap()[k]]);
     }
     let applied_u = tr.column("applied_u").unwrap();
-    let echoes: Vec<f64> = applied_u.iter().copied().filter(|u| u.is_finite()).collect();
+    let echoes: Vec<f64> = applied_u
+        .iter()
+        .copied()
+        .filter(|u| u.is_finite())
+        .collect();
     let applied: Vec<f64> = arrays(&bag, "/pneuflex/valve_applied")
         .into_iter()
         .map(|d| d[0])

@@ -87,7 +87,12 @@ fn a_two_actuator_trace_reads_back_value_for_value() {
     // Actuator b as identification reads it.
     let log = read_actuator_log(&bag_dir, Some("b")).unwrap();
     // A bag's clock counts whole ns: t reads back to within half of one.
-    assert!(log.t.iter().zip(col("t")).all(|(a, b)| (a - b).abs() <= 0.5e-9));
+    assert!(
+        log.t
+            .iter()
+            .zip(col("t"))
+            .all(|(a, b)| (a - b).abs() <= 0.5e-9)
+    );
     assert_eq!(log.u, col("b.u"));
     assert_eq!(log.x, col("b.x"));
     assert_eq!(log.p_b, col("b.p_b"));
