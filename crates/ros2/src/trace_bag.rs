@@ -113,7 +113,12 @@ pub fn write_trace_bag(dir: &Path, trace: &TraceColumns<'_>) -> Result<BagSummar
     let cols: Vec<Joint<'_>> = joints
         .iter()
         .map(|(_, p)| {
-            let opt = |s: &str| trace.column(&format!("{p}{s}"));
+            // A column of no values (the ideal plant's pressures) is none.
+            let opt = |s: &str| {
+                trace
+                    .column(&format!("{p}{s}"))
+                    .filter(|v| v.iter().any(|x| !x.is_nan()))
+            };
             Ok(Joint {
                 x: need(p, "x")?,
                 x_dot: opt("x_dot"),

@@ -237,3 +237,28 @@ fn a_folder_without_metadata_is_not_a_bag() {
         "{e}"
     );
 }
+
+#[test]
+fn a_plant_without_chambers_has_no_pressure_topics() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = [0.0, 0.001, 0.002];
+    let none = [f64::NAN; 3];
+    let table = TraceColumns {
+        columns: vec![
+            ("t", &t[..]),
+            ("f_ref", &t),
+            ("f_e", &t),
+            ("x", &t),
+            ("p_a", &none),
+            ("p_b", &none),
+            ("u", &t),
+        ],
+        actuators: vec![],
+    };
+    let s = write_trace_bag(&dir.path().join("bag"), &table).unwrap();
+    let topics: Vec<&str> = s.topics.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        topics,
+        [JOINT_STATES, VALVE_COMMAND, "/pneuflex/force_reference"]
+    );
+}
