@@ -317,6 +317,13 @@ pub fn bag_files(path: &Path) -> Result<Vec<PathBuf>, Ros2Error> {
     if path.is_file() {
         return Ok(vec![path.to_path_buf()]);
     }
+    if path.extension().is_some_and(|e| e == "mcap") {
+        return Err(Ros2Error::Io {
+            path: path.to_path_buf(),
+            what: "read",
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        });
+    }
     let meta = path.join("metadata.yaml");
     let text = std::fs::read_to_string(&meta).map_err(|e| Ros2Error::Io {
         path: meta.clone(),
