@@ -262,3 +262,55 @@ fn a_plant_without_chambers_has_no_pressure_topics() {
         [JOINT_STATES, VALVE_COMMAND, "/pneuflex/force_reference"]
     );
 }
+
+/// A bag as a robot's `ros2 bag record --storage-preset-profile zstd_fast` may leave it: zstd chunks.
+#[test]
+fn a_bag_of_zstd_chunks_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("robot_0.mcap");
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .compression(Some(mcap::Compression::Zstd))
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(&file).unwrap(),
+        ))
+        .unwrap();
+    let schema = w
+        .add_schema(
+            JointState::TYPE,
+            "ros2msg",
+            JointState::definition().as_bytes(),
+        )
+        .unwrap();
+    let channel = w
+        .add_channel(schema, JOINT_STATES, "cdr", &Default::default())
+        .unwrap();
+    for k in 0..100u32 {
+        let m = JointState {
+            name: vec!["j".into()],
+            position: vec![f64::from(k)],
+            ..JointState::default()
+        };
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: k,
+            log_time: u64::from(k) * 1_000_000,
+            publish_time: u64::from(k) * 1_000_000,
+        };
+        w.write_to_known_channel(&header, &m.encode()).unwrap();
+    }
+    w.finish().unwrap();
+    drop(w);
+    std::fs::write(
+        dir.path().join("metadata.yaml"),
+        "rosbag2_bagfile_information:\n  version: 5\n  storage_identifier: mcap\n  relative_file_paths:\n    - robot_0.mcap\n",
+    )
+    .unwrap();
+    let bag = read_bag(dir.path()).unwrap();
+    let states = bag.messages::<JointState>(JOINT_STATES).unwrap();
+    assert_eq!(states.len(), 100);
+    assert_eq!(
+        JointState::decode(&states[42].data).unwrap().position,
+        [42.0]
+    );
+}
