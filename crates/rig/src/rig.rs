@@ -387,50 +387,55 @@ impl<R: Rig<Sample = SiSample>> Limited<R> {
 
     /// Checks one sample against the limits.
     pub fn check(&self, s: &SiSample) -> Result<(), RigError> {
-        let v = &s.sensors;
-        let all = [
-            ("x", v.x),
-            ("x_dot", v.x_dot),
-            ("f_e", v.f_e),
-            ("p_a", v.p_a),
-            ("p_b", v.p_b),
-            ("p_supply", s.supply_pa),
-        ];
-        if let Some((name, val)) = all.iter().find(|(_, val)| !val.is_finite()) {
-            return Err(RigError::new(
-                ErrorKind::NotANumber,
-                format!("sensor {name} is {val}"),
-            ));
-        }
-        let l = &self.limits;
-        let out = |name: &str, val: f64, r: [f64; 2], unit: &str| {
-            RigError::new(
-                ErrorKind::Limit,
-                format!("{name} = {val} {unit} outside [{}, {}]", r[0], r[1]),
-            )
-        };
-        if !(l.position_m[0]..=l.position_m[1]).contains(&v.x) {
-            return Err(out("position x", v.x, l.position_m, "m"));
-        }
-        if !(l.force_n[0]..=l.force_n[1]).contains(&v.f_e) {
-            return Err(out("force f_e", v.f_e, l.force_n, "N"));
-        }
-        for (name, p) in [("pressure p_a", v.p_a), ("pressure p_b", v.p_b)] {
-            if !(l.pressure_pa[0]..=l.pressure_pa[1]).contains(&p) {
-                return Err(out(name, p, l.pressure_pa, "Pa"));
-            }
-        }
-        if s.supply_pa < l.supply_min_pa {
-            return Err(RigError::new(
-                ErrorKind::Limit,
-                format!(
-                    "supply pressure {} Pa below minimum {} Pa (supply lost?)",
-                    s.supply_pa, l.supply_min_pa
-                ),
-            ));
-        }
-        Ok(())
+        check_limits(&self.limits, s)
     }
+}
+
+/// Checks one sample against `l`: every value finite, position, force and chamber pressures inside their
+/// ranges, supply above its minimum ([`Limited`], and per channel the several-actuator supervisor).
+pub fn check_limits(l: &LimitsConfig, s: &SiSample) -> Result<(), RigError> {
+    let v = &s.sensors;
+    let all = [
+        ("x", v.x),
+        ("x_dot", v.x_dot),
+        ("f_e", v.f_e),
+        ("p_a", v.p_a),
+        ("p_b", v.p_b),
+        ("p_supply", s.supply_pa),
+    ];
+    if let Some((name, val)) = all.iter().find(|(_, val)| !val.is_finite()) {
+        return Err(RigError::new(
+            ErrorKind::NotANumber,
+            format!("sensor {name} is {val}"),
+        ));
+    }
+    let out = |name: &str, val: f64, r: [f64; 2], unit: &str| {
+        RigError::new(
+            ErrorKind::Limit,
+            format!("{name} = {val} {unit} outside [{}, {}]", r[0], r[1]),
+        )
+    };
+    if !(l.position_m[0]..=l.position_m[1]).contains(&v.x) {
+        return Err(out("position x", v.x, l.position_m, "m"));
+    }
+    if !(l.force_n[0]..=l.force_n[1]).contains(&v.f_e) {
+        return Err(out("force f_e", v.f_e, l.force_n, "N"));
+    }
+    for (name, p) in [("pressure p_a", v.p_a), ("pressure p_b", v.p_b)] {
+        if !(l.pressure_pa[0]..=l.pressure_pa[1]).contains(&p) {
+            return Err(out(name, p, l.pressure_pa, "Pa"));
+        }
+    }
+    if s.supply_pa < l.supply_min_pa {
+        return Err(RigError::new(
+            ErrorKind::Limit,
+            format!(
+                "supply pressure {} Pa below minimum {} Pa (supply lost?)",
+                s.supply_pa, l.supply_min_pa
+            ),
+        ));
+    }
+    Ok(())
 }
 
 impl<R: Rig<Sample = SiSample>> Rig for Limited<R> {

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::protocol::ValveMode;
+use crate::protocol::{MAX_CHANNELS, ValveMode};
 
 /// A rig file could not be used; every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -399,6 +399,41 @@ fn default_plant_dt() -> f64 {
     1e-4
 }
 
+/// One actuator's channel on a board with several (docs/rig.md, "Several channels"): its name and, where
+/// they differ from the rig file's top-level tables, its own calibration, limits and valve. A table given here
+/// replaces the top-level one whole (no key-by-key merge: what a channel uses is one table to read).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelConfig {
+    /// The actuator this channel drives (a scene's actuator name), unique in the rig file.
+    pub name: String,
+    /// This channel's sensors, if not the top-level `[calibration]`.
+    #[serde(default)]
+    pub calibration: Option<CalibrationConfig>,
+    /// This channel's limits, if not the top-level `[limits]`.
+    #[serde(default)]
+    pub limits: Option<LimitsConfig>,
+    /// This channel's valve and safe state, if not the top-level `[valve]`.
+    #[serde(default)]
+    pub valve: Option<ValveConfig>,
+}
+
+/// A channel as the host uses it: resolved calibration, limits and safe state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    /// The actuator's name (`"actuator"` for a one-channel rig file).
+    pub name: String,
+    /// Counts to SI.
+    pub cal: Calibration,
+    /// Safety limits.
+    pub limits: LimitsConfig,
+    /// The valve's safe state.
+    pub safe_state: SafeState,
+}
+
+/// The name of the one channel of a rig file without `[[channel]]` entries.
+pub const SINGLE_CHANNEL_NAME: &str = "actuator";
+
 /// A rig: link, loop, calibration, limits, watchdog, valve and (for the emulator) the plant.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -421,9 +456,16 @@ pub struct RigFile {
     /// Emulator settings (only `pneuflex rig emulate` reads them).
     #[serde(default)]
     pub emulator: Option<EmulatorConfig>,
+    /// Several actuators on one board: one `[[channel]]` per actuator, in the order of the protocol's
+    /// channels (docs/protocol.md §6). Empty: one channel, described by the top-level tables.
+    #[serde(default, rename = "channel")]
+    pub channels: Vec<ChannelConfig>,
     /// The calibration resolved against the sensor sheets (filled by `parse`).
     #[serde(skip)]
     resolved: Option<Calibration>,
+    /// Each `[[channel]]`'s calibration resolved (filled by `parse`; empty for one channel).
+    #[serde(skip)]
+    resolved_channels: Vec<Calibration>,
     /// Directory of the rig file (relative paths in it are resolved from here).
     #[serde(skip)]
     dir: PathBuf,
@@ -439,6 +481,24 @@ const NAN_CHANNEL: LinearChannel = LinearChannel {
     quantity_min: f64::NAN,
     quantity_max: f64::NAN,
 };
+
+/// An error in a `[[channel]]` entry's own table: its key gets the entry's path.
+fn in_channel(i: usize, e: RigFileError) -> RigFileError {
+    match e {
+        RigFileError::Invalid {
+            file,
+            at,
+            key,
+            message,
+        } => RigFileError::Invalid {
+            file,
+            at,
+            key: format!("channel[{i}].{key}"),
+            message,
+        },
+        other => other,
+    }
+}
 
 struct Check<'a> {
     file: &'a Path,
@@ -474,6 +534,13 @@ impl Check<'_> {
         pneuflex_files::check::within(v, lo, hi, unit)
             .map(drop)
             .map_err(|m| self.err(field, m))
+    }
+    /// The limits table at `key` (`limits` or `channel[i].limits`).
+    fn limits(&self, key: &str, l: &LimitsConfig) -> Result<(), RigFileError> {
+        self.range(&format!("{key}.position_m"), l.position_m)?;
+        self.range(&format!("{key}.force_n"), l.force_n)?;
+        self.range(&format!("{key}.pressure_pa"), l.pressure_pa)?;
+        self.finite(&format!("{key}.supply_min_pa"), l.supply_min_pa)
     }
     fn range(&self, field: &str, r: [f64; 2]) -> Result<(), RigFileError> {
         self.finite(field, r[0])?;
@@ -727,6 +794,18 @@ impl RigFile {
         rig.validate(path).map_err(locate)?;
         let c = Check { file: path };
         rig.resolved = Some(c.calibration(&rig.dir, &rig.calibration).map_err(locate)?);
+        let mut resolved = Vec::with_capacity(rig.channels.len());
+        for (i, ch) in rig.channels.iter().enumerate() {
+            let cal = match &ch.calibration {
+                Some(own) => c
+                    .calibration(&rig.dir, own)
+                    .map_err(|e| in_channel(i, e))
+                    .map_err(locate)?,
+                None => rig.cal(),
+            };
+            resolved.push(cal);
+        }
+        rig.resolved_channels = resolved;
         Ok(rig)
     }
 
@@ -782,10 +861,33 @@ impl RigFile {
                 ),
             ));
         }
-        c.range("limits.position_m", self.limits.position_m)?;
-        c.range("limits.force_n", self.limits.force_n)?;
-        c.range("limits.pressure_pa", self.limits.pressure_pa)?;
-        c.finite("limits.supply_min_pa", self.limits.supply_min_pa)?;
+        c.limits("limits", &self.limits)?;
+        if self.channels.len() > MAX_CHANNELS {
+            return Err(c.err(
+                &format!("channel[{MAX_CHANNELS}]"),
+                format!(
+                    "{} channels: a board frame carries at most {MAX_CHANNELS} (docs/protocol.md §6)",
+                    self.channels.len()
+                ),
+            ));
+        }
+        for (i, ch) in self.channels.iter().enumerate() {
+            if ch.name.trim().is_empty() {
+                return Err(c.err(
+                    &format!("channel[{i}].name"),
+                    "expected the actuator's name",
+                ));
+            }
+            if let Some(j) = self.channels[..i].iter().position(|o| o.name == ch.name) {
+                return Err(c.err(
+                    &format!("channel[{i}].name"),
+                    format!("'{}' is also channel[{j}]'s name", ch.name),
+                ));
+            }
+            if let Some(l) = &ch.limits {
+                c.limits(&format!("channel[{i}].limits"), l)?;
+            }
+        }
         c.positive("watchdog.timeout_ms", self.watchdog.timeout_ms)?;
         c.within(
             "watchdog.timeout_ms",
@@ -884,6 +986,34 @@ impl RigFile {
             load_n_per_count: f64::NAN,
             load_offset_counts: f64::NAN,
         })
+    }
+
+    /// Every channel, in the protocol's order: the `[[channel]]` entries with the top-level tables filling
+    /// what an entry does not give, or, without entries, one channel named [`SINGLE_CHANNEL_NAME`] made of the
+    /// top-level tables (a one-channel rig file reads as it always did).
+    pub fn channels(&self) -> Vec<Channel> {
+        if self.channels.is_empty() {
+            return vec![Channel {
+                name: SINGLE_CHANNEL_NAME.to_string(),
+                cal: self.cal(),
+                limits: self.limits.clone(),
+                safe_state: self.valve.safe_state,
+            }];
+        }
+        self.channels
+            .iter()
+            .enumerate()
+            .map(|(i, ch)| Channel {
+                name: ch.name.clone(),
+                cal: self
+                    .resolved_channels
+                    .get(i)
+                    .copied()
+                    .unwrap_or_else(|| self.cal()),
+                limits: ch.limits.clone().unwrap_or_else(|| self.limits.clone()),
+                safe_state: ch.valve.as_ref().unwrap_or(&self.valve).safe_state,
+            })
+            .collect()
     }
 
     /// A path from the rig file, resolved against the rig file's directory.
@@ -1080,5 +1210,102 @@ pub(crate) mod tests {
             .unwrap_err()
             .to_string();
         assert!(m.contains("/nonexistent/rig.toml"), "{m}");
+    }
+
+    /// PAPER with two `[[channel]]` entries: the left finger inherits every table, the right one has its own
+    /// limits and safe state, and `extra` appended to the right one.
+    fn two_fingers(extra: &str) -> String {
+        format!(
+            "{PAPER}\n[[channel]]\nname = \"left\"\n\n[[channel]]\nname = \"right\"\n{extra}\n\
+             [channel.limits]\nposition_m = [0.0, 0.02]\nforce_n = [-5.0, 20.0]\n\
+             pressure_pa = [60000.0, 800000.0]\nsupply_min_pa = 350000.0\n\
+             [channel.valve]\nsafe_state = \"hold\"\n"
+        )
+    }
+
+    #[test]
+    fn a_one_channel_rig_file_is_one_channel_of_its_top_level_tables() {
+        let p = RigFile::parse(PAPER, &rigs_dir().join("paper-rig.toml")).unwrap();
+        let ch = p.channels();
+        assert_eq!(ch.len(), 1);
+        assert_eq!(ch[0].name, SINGLE_CHANNEL_NAME);
+        assert_eq!(
+            (ch[0].cal, &ch[0].limits, ch[0].safe_state),
+            (p.cal(), &p.limits, p.valve.safe_state)
+        );
+    }
+
+    #[test]
+    fn two_channels_each_with_its_own_limits_and_safe_state() {
+        let text = two_fingers("");
+        let r = RigFile::parse(&text, &rigs_dir().join("two.toml")).unwrap();
+        let ch = r.channels();
+        assert_eq!(
+            ch.iter().map(|c| c.name.as_str()).collect::<Vec<_>>(),
+            ["left", "right"]
+        );
+        // The left inherits the top-level tables, the right replaces limits and valve (not calibration).
+        assert_eq!(ch[0].limits, r.limits);
+        assert_eq!(ch[0].safe_state, SafeState::Vent);
+        assert_eq!(ch[1].limits.position_m, [0.0, 0.02]);
+        assert_eq!(ch[1].limits.force_n, [-5.0, 20.0]);
+        assert_eq!(ch[1].safe_state, SafeState::Hold);
+        assert_eq!((ch[0].cal, ch[1].cal), (r.cal(), r.cal()));
+        // A channel's own calibration table replaces the top-level one: here a 10-bit position ADC on the
+        // right finger, the 12-bit one of [calibration] on the left, the same sheet's line on both.
+        let pos = PAPER.find("[calibration.position]").unwrap();
+        let end = PAPER[pos..].find("\n\n").unwrap() + pos;
+        let own = PAPER[pos..end]
+            .replace("[calibration.position]", "[channel.calibration.position]")
+            .replace("adc_bits = 12", "adc_bits = 10");
+        let mut rest = String::new();
+        for t in ["differential", "pressure_b", "supply", "load_cell"] {
+            let s = PAPER.find(&format!("[calibration.{t}]")).unwrap();
+            let e = PAPER[s..]
+                .find("\n\n")
+                .map(|e| e + s)
+                .unwrap_or(PAPER.len());
+            rest.push_str(&PAPER[s..e].replace("[calibration.", "[channel.calibration."));
+            rest.push_str("\n\n");
+        }
+        let text = two_fingers(&format!("{own}\n\n{rest}"));
+        let r = RigFile::parse(&text, &rigs_dir().join("two.toml")).unwrap();
+        let ch = r.channels();
+        let span =
+            |c: &LinearChannel| (c.quantity_max - c.quantity_min) / (c.signal_max - c.signal_min);
+        assert_eq!(ch[1].cal.position.adc_bits, 10);
+        assert_eq!(ch[0].cal.position.adc_bits, 12);
+        assert_eq!(span(&ch[1].cal.position), span(&ch[0].cal.position));
+    }
+
+    #[test]
+    fn bad_channels_name_file_line_and_key() {
+        let text = two_fingers("").replace("position_m = [0.0, 0.02]", "position_m = [0.02, 0.0]");
+        let m = err(&text);
+        let line = text
+            .lines()
+            .position(|l| l.starts_with("position_m = [0.02"))
+            .unwrap()
+            + 1;
+        assert!(
+            m.contains(&format!("bad.toml:{line}:")) && m.contains("channel[1].limits.position_m"),
+            "{m}"
+        );
+        let m = err(&two_fingers("").replace("name = \"right\"", "name = \"left\""));
+        assert!(
+            m.contains("channel[1].name") && m.contains("also channel[0]"),
+            "{m}"
+        );
+        let m = err(&format!(
+            "{PAPER}\n{}",
+            "[[channel]]\nname = \"c\"\n".repeat(MAX_CHANNELS + 1)
+        ));
+        assert!(m.contains("channel[6]") && m.contains("at most 6"), "{m}");
+        let m = err(&two_fingers(
+            "[channel.calibration.position]\nadc_bits = 12\n",
+        ));
+        assert!(m.contains("bad.toml") && m.contains("adc_ref_v"), "{m}");
+        let m = err(&two_fingers("gain = 2.0"));
+        assert!(m.contains("bad.toml") && m.contains("gain"), "{m}");
     }
 }

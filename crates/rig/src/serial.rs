@@ -437,6 +437,18 @@ pub fn connect_link<L: Link, K: Clock + ?Sized>(
     rig: &RigFile,
     clock: &mut K,
 ) -> Result<SerialRig<L>, RigError> {
+    // This driver reads Sample and sends Valve frames: one actuator. A rig file with several channels needs
+    // the N-channel frames (docs/protocol.md §6) end to end; refusing here keeps a one-actuator run from
+    // driving channel 0 of a several-actuator board with the top-level tables.
+    if rig.channels.len() > 1 {
+        return Err(RigError::new(
+            ErrorKind::Io,
+            format!(
+                "the rig file has {} channels ([[channel]]); this host driver drives one actuator",
+                rig.channels.len()
+            ),
+        ));
+    }
     let mut s = SerialRig::new(
         link,
         rig.watchdog.crc_errors_max,
