@@ -466,3 +466,26 @@ pub fn connect_link<L: Link, K: Clock + ?Sized>(
     )?;
     Ok(s)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::clock::SimClock;
+    use crate::emulator::MemLink;
+    use crate::rigfile::tests::{PAPER, rigs_dir};
+
+    #[test]
+    fn a_rig_file_with_two_channels_is_refused_before_anything_is_sent() {
+        let text =
+            format!("{PAPER}\n[[channel]]\nname = \"left\"\n[[channel]]\nname = \"right\"\n");
+        let rig = RigFile::parse(&text, &rigs_dir().join("two.toml")).unwrap();
+        let (host, mut board) = MemLink::pair();
+        let e = connect_link(host, &rig, &mut SimClock::new())
+            .err()
+            .expect("refused");
+        assert!(e.message().contains("2 channels"), "{e}");
+        // No Config reached the board: it is not configured for one channel.
+        let mut buf = [0u8; 64];
+        assert_eq!(board.read_now(&mut buf).unwrap_or(0), 0);
+    }
+}
