@@ -425,7 +425,7 @@ def shipped_scenes_are_taken_by_name():
     try:
         pneuflex.run("paper-fig9")
     except FileNotFoundError as e:
-        assert "paper-fig9: no such file, nor a shipped scene; the shipped scenes are cross-slide" in str(e), e
+        assert f"paper-fig9: no such file, nor a shipped scene; the shipped scenes are {', '.join(names)}" in str(e), e
     else:
         raise AssertionError("an unknown scene name was accepted")
 
