@@ -55,3 +55,162 @@ impl AxialActuator for PneumaticForceElement {
         self.step(x, x_dot, dt)
     }
 }
+
+impl<T: AxialActuator + ?Sized> AxialActuator for Box<T> {
+    fn force(&mut self, x: f64, x_dot: f64, dt: f64) -> f64 {
+        (**self).force(x, x_dot, dt)
+    }
+}
+
+/// What an engine and a scene ask of an actuator family (a cylinder, a muscle) beside its force: the
+/// command, the named sensors, the state, the invariants and the travel its mount may take. A new family
+/// implements this and is built from its sheet in the scene's `mechanism/build.rs`: nothing else changes.
+pub trait ActuatorFamily: AxialActuator {
+    /// The family's name as scenes and messages say it: `cylinder`, `muscle`.
+    fn family(&self) -> &'static str;
+    /// Set the command held from the next step on: the valve command u in [-1, 1] (clamped; NaN is 0).
+    fn set_command(&mut self, u: f64);
+    /// The family's sensors, in the order [`ActuatorFamily::read_sensors`] writes them (a cylinder's
+    /// `p_a`, `p_b`; a muscle's `p_muscle`), each a trace column after the actuator's name.
+    fn sensors(&self) -> &'static [SensorSpec];
+    /// The sensors' values now, one per sensor (pressures in Pa absolute).
+    fn read_sensors(&self, out: &mut [f64]);
+    /// Whether the actuator pulls its anchors together (a muscle) rather than pushing them apart: its
+    /// force is then `-tension` and a scene reports its contraction and tension, so that for both kinds a
+    /// larger command gives a larger sensed position and force.
+    fn pulls(&self) -> bool {
+        false
+    }
+    /// Whether the mount's stroke `x_m` (m, from the retracted length) is one the family can take with a
+    /// stroke of `stroke_m`: a cylinder only between its end stops (with 0.1 % slack for the explicit
+    /// step), a muscle also slack (shorter than its fittings' distance allows).
+    fn admits_stroke(&self, x_m: f64, stroke_m: f64) -> bool {
+        let slack = 1e-3 * stroke_m;
+        (-slack..=stroke_m + slack).contains(&x_m)
+    }
+    /// The evolving state as numbers (chambers, valve, clock), for a host that stores or restores it.
+    fn state(&self) -> Vec<f64>;
+    /// Restores [`ActuatorFamily::state`]'s numbers; `false` (nothing changed) when they are not a state
+    /// the element can be in.
+    fn set_state(&mut self, s: &[f64]) -> bool;
+    /// The family's invariants at mount stroke `x_m` of `stroke_m`: its chambers' pressures within
+    /// (0, 2 x supply], temperatures positive, its travel possible; Err says which and by how much.
+    fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String>;
+}
+
+impl<T: ActuatorFamily + ?Sized> ActuatorFamily for Box<T> {
+    fn family(&self) -> &'static str {
+        (**self).family()
+    }
+    fn set_command(&mut self, u: f64) {
+        (**self).set_command(u)
+    }
+    fn sensors(&self) -> &'static [SensorSpec] {
+        (**self).sensors()
+    }
+    fn read_sensors(&self, out: &mut [f64]) {
+        (**self).read_sensors(out)
+    }
+    fn pulls(&self) -> bool {
+        (**self).pulls()
+    }
+    fn admits_stroke(&self, x_m: f64, stroke_m: f64) -> bool {
+        (**self).admits_stroke(x_m, stroke_m)
+    }
+    fn state(&self) -> Vec<f64> {
+        (**self).state()
+    }
+    fn set_state(&mut self, s: &[f64]) -> bool {
+        (**self).set_state(s)
+    }
+    fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String> {
+        (**self).check_invariants(x_m, stroke_m)
+    }
+}
+
+/// One of a family's sensors: its trace column's name (after the actuator's), unit and meaning.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SensorSpec {
+    /// Column name after `<actuator>.`.
+    pub name: &'static str,
+    /// SI unit.
+    pub unit: &'static str,
+    /// What it reads, in one line.
+    pub description: &'static str,
+}
+
+/// A cylinder's sensors: its two chambers' pressures, the control loop's own `p_a`, `p_b` columns.
+pub const CHAMBER_PRESSURES: [SensorSpec; 2] = [
+    SensorSpec {
+        name: "p_a",
+        unit: "Pa",
+        description: "chamber A pressure, absolute",
+    },
+    SensorSpec {
+        name: "p_b",
+        unit: "Pa",
+        description: "chamber B pressure, absolute",
+    },
+];
+
+/// Chamber pressures may reach this multiple of the supply before a run is stopped as diverged (the
+/// one-actuator plants' margin: a moving load compresses a closed chamber above the supply).
+pub const PRESSURE_MARGIN: f64 = 2.0;
+
+/// A pressure and a temperature within the invariants' bounds, or why not.
+pub fn gas_invariant(
+    (p_name, t_name): (&str, &str),
+    p_pa: f64,
+    t_k: f64,
+    supply_pa: f64,
+) -> Result<(), String> {
+    let p_max = PRESSURE_MARGIN * supply_pa;
+    if !(p_pa > 0.0 && p_pa <= p_max) {
+        return Err(format!(
+            "chamber pressure {p_name} = {p_pa:.6e} Pa (absolute) outside (0, {p_max:.3e}] Pa \
+             ({PRESSURE_MARGIN} x supply)"
+        ));
+    }
+    if !(t_k > 0.0 && t_k < 2000.0) {
+        return Err(format!(
+            "chamber temperature {t_name} = {t_k:.6e} K outside (0, 2000) K"
+        ));
+    }
+    Ok(())
+}
+
+impl ActuatorFamily for PneumaticForceElement {
+    fn family(&self) -> &'static str {
+        "cylinder"
+    }
+    fn set_command(&mut self, u: f64) {
+        PneumaticForceElement::set_command(self, u)
+    }
+    fn sensors(&self) -> &'static [SensorSpec] {
+        &CHAMBER_PRESSURES
+    }
+    fn read_sensors(&self, out: &mut [f64]) {
+        let (p_a, p_b) = self.pressures();
+        out[0] = p_a;
+        out[1] = p_b;
+    }
+    fn state(&self) -> Vec<f64> {
+        PneumaticForceElement::state(self).to_vec()
+    }
+    fn set_state(&mut self, s: &[f64]) -> bool {
+        <&[f64; Self::STATE_LEN]>::try_from(s)
+            .is_ok_and(|s| PneumaticForceElement::set_state(self, s))
+    }
+    fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String> {
+        let (c, s) = (&self.chambers, &self.actuator.supply);
+        gas_invariant(("p_a", "T_a"), c.p_a, c.t_a, s.supply_pressure_pa)?;
+        gas_invariant(("p_b", "T_b"), c.p_b, c.t_b, s.supply_pressure_pa)?;
+        let tol = 1e-3 + 0.01 * stroke_m;
+        if !(x_m >= -tol && x_m <= stroke_m + tol) {
+            return Err(format!(
+                "piston position x = {x_m:.6e} m outside the stroke [0, {stroke_m}] m (+/- {tol:.4} m)"
+            ));
+        }
+        Ok(())
+    }
+}

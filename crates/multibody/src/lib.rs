@@ -12,7 +12,9 @@ pub mod spring;
 pub mod urdf_build;
 pub mod urdf_scan;
 
-pub use actuator::{AxialActuator, ConstantForce, PneumaticForceElement, SpringActuator};
+pub use actuator::{
+    ActuatorFamily, AxialActuator, ConstantForce, PneumaticForceElement, SensorSpec, SpringActuator,
+};
 pub use error::MultibodyError;
 pub use mechanism::{
     ActuatorConfig, CarriageRig, ContactConfig, ContactParams, ContactReading, MaterialConfig,

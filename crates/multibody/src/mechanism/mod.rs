@@ -421,14 +421,30 @@ impl Mechanism {
     /// Whether every anchored cylinder is within its stroke (a joint mount's stroke is its joint's limits,
     /// which Rapier keeps): Err names the actuator and its length.
     pub fn check_strokes(&self) -> Result<(), String> {
-        for (a, s) in self.actuators.iter().zip(&self.states) {
+        self.check_travel(|_, x, stroke| {
+            let slack = 1e-3 * stroke;
+            (-slack..=stroke + slack).contains(&x)
+        })
+    }
+
+    /// Whether every anchored actuator's stroke is one its family admits
+    /// ([`crate::actuator::ActuatorFamily::admits_stroke`]: a cylinder between its end stops, a muscle
+    /// also slack); `elements[i]` is actuator `i`'s.
+    pub fn check_families<A: crate::actuator::ActuatorFamily>(
+        &self,
+        elements: &[A],
+    ) -> Result<(), String> {
+        self.check_travel(|i, x, stroke| elements[i].admits_stroke(x, stroke))
+    }
+
+    fn check_travel(&self, admits: impl Fn(usize, f64, f64) -> bool) -> Result<(), String> {
+        for (i, (a, s)) in self.actuators.iter().zip(&self.states).enumerate() {
             if matches!(a.mount, BuiltMount::Joint { .. }) {
                 continue;
             }
-            let slack = 1e-3 * a.stroke_m;
-            if !(-slack..=a.stroke_m + slack).contains(&s.x_m) {
+            if !admits(i, s.x_m, a.stroke_m) {
                 return Err(format!(
-                    "actuator '{}': stroke {:.6} m is outside [0, {}] m: the mechanism pulls the cylinder \
+                    "actuator '{}': stroke {:.6} m is outside [0, {}] m: the mechanism pulls the actuator \
                      past its end stop (limit the joint it turns)",
                     a.name, s.x_m, a.stroke_m
                 ));

@@ -2,7 +2,9 @@
 //! sensors, and its events resolved (errors name the key that causes them); its step budget.
 
 use pneuflex_control::SetpointSchedule;
-use pneuflex_multibody::{ActuatorConfig, ContactConfig, Mechanism, MechanismConfig, Mount};
+use pneuflex_multibody::{
+    ActuatorConfig, ActuatorFamily, ContactConfig, Mechanism, MechanismConfig, Mount,
+};
 use pneuflex_pneumatics::{ActuatorSheet, ChamberState};
 
 use super::schema::MechanismScene;
@@ -83,7 +85,7 @@ impl MechanismScene {
 /// The mechanism, its actuators' drives and schedules, built from the scene: what every run starts from.
 pub struct Built {
     pub(super) mechanism: Mechanism,
-    pub(super) drives: Vec<FlangeDrive>,
+    pub(super) drives: Vec<Drive>,
     pub(super) schedules: Vec<SetpointSchedule>,
     /// Each actuator's force sensor: a contact's index, or None for the rod's load cell.
     pub(super) sensors: Vec<Option<usize>>,
@@ -97,7 +99,7 @@ pub fn build(scene: &MechanismScene) -> Result<Built, SceneError> {
     let robot = pneuflex_multibody::urdf_build::read_urdf(&urdf)
         .map_err(|e| scene.invalid("urdf", e.to_string()))?;
     let sheets = actuator_sheets(scene)?;
-    let config = mechanism_config(scene, &sheets);
+    let config = mechanism_config(scene, &sheets)?;
     let mechanism = Mechanism::from_robot(&urdf, &robot, &config)
         .map_err(|e| scene.invalid(&mechanism_key(scene, &e), e.to_string()))?;
     let mut drives = Vec::with_capacity(sheets.len());
@@ -135,14 +137,51 @@ impl MechanismScene {
     }
 }
 
-/// Each actuator's sheet, refused when it models more than a mechanism's cylinders do.
-fn actuator_sheets(scene: &MechanismScene) -> Result<Vec<ActuatorSheet>, SceneError> {
+/// An actuator's force element, of whichever family, as the engine steps it and the plant asks it.
+pub type Drive = Box<dyn ActuatorFamily + Send>;
+
+/// An actuator's sheet by family (the families' one seam on the scene's side: a new family is a variant
+/// here and its force element in `pneuflex_multibody::actuator`). The sheet says which: a muscle sheet
+/// has a `[muscle]` table (docs/muscles.md), any other is a cylinder's actuator sheet.
+pub enum FamilySheet {
+    /// A cylinder and its valve, supply and friction (docs/components.md).
+    Cylinder(Box<ActuatorSheet>),
+}
+
+impl FamilySheet {
+    /// Reads the sheet at `path` (an edited copy from `overlay` in its place), of the family it gives.
+    fn load(
+        path: &std::path::Path,
+        overlay: &pneuflex_pneumatics::FileOverlay,
+    ) -> Result<Self, String> {
+        ActuatorSheet::load_overlaid(path, overlay)
+            .map(|a| Self::Cylinder(Box::new(a)))
+            .map_err(|e| e.to_string())
+    }
+
+    /// An anchors mount's (retracted length, stroke), m: a cylinder's retracted length is the scene's
+    /// `anchors.retracted_length_m` and its stroke the sheet's; a muscle's span from fully contracted,
+    /// L0 (1 - eps_max), to its rest length L0 (M6), both from its sheet.
+    fn span(&self, retracted_m: Option<f64>) -> Result<(f64, f64), &'static str> {
+        match (self, retracted_m) {
+            (Self::Cylinder(s), Some(r)) => Ok((r, s.actuator().cylinder.stroke_m)),
+            (Self::Cylinder(_), None) => {
+                Err("a cylinder between anchors needs anchors.retracted_length_m")
+            }
+        }
+    }
+}
+
+/// Each actuator's sheet, refused when it models more than a mechanism's actuators do.
+fn actuator_sheets(scene: &MechanismScene) -> Result<Vec<FamilySheet>, SceneError> {
     let mut sheets = Vec::with_capacity(scene.actuators.len());
     for (i, a) in scene.actuators.iter().enumerate() {
         let path = scene.resolve(&a.sheet);
         let key = format!("actuators[{i}].sheet");
-        let sheet = pneuflex_pneumatics::ActuatorSheet::load_overlaid(&path, &scene.overlay)
-            .map_err(|e| scene.invalid(&key, e.to_string()))?;
+        let sheet =
+            match FamilySheet::load(&path, &scene.overlay).map_err(|e| scene.invalid(&key, e))? {
+                FamilySheet::Cylinder(s) => s,
+            };
         let beyond = sheet.effects_beyond_paper();
         if !beyond.is_empty() {
             return Err(scene.invalid(
@@ -154,33 +193,43 @@ fn actuator_sheets(scene: &MechanismScene) -> Result<Vec<ActuatorSheet>, SceneEr
                 ),
             ));
         }
-        sheets.push(sheet);
+        sheets.push(FamilySheet::Cylinder(sheet));
     }
     Ok(sheets)
 }
 
 /// The multibody crate's description of the scene's mechanism.
-fn mechanism_config(scene: &MechanismScene, sheets: &[ActuatorSheet]) -> MechanismConfig {
-    let actuators = scene
-        .actuators
-        .iter()
-        .zip(sheets)
-        .map(|(a, sheet)| ActuatorConfig {
+fn mechanism_config(
+    scene: &MechanismScene,
+    sheets: &[FamilySheet],
+) -> Result<MechanismConfig, SceneError> {
+    let mut actuators = Vec::with_capacity(sheets.len());
+    for (i, (a, sheet)) in scene.actuators.iter().zip(sheets).enumerate() {
+        actuators.push(ActuatorConfig {
             name: a.name.clone(),
             mount: match (&a.joint, &a.anchors) {
                 (Some(j), _) => Mount::Joint { joint: j.clone() },
-                (None, Some(an)) => Mount::Anchors {
-                    link_a: an.link_a.clone(),
-                    point_a_m: an.point_a_m,
-                    link_b: an.link_b.clone(),
-                    point_b_m: an.point_b_m,
-                    retracted_length_m: an.retracted_length_m,
-                    stroke_m: sheet.actuator().cylinder.stroke_m,
-                },
+                (None, Some(an)) => {
+                    let (retracted_length_m, stroke_m) =
+                        sheet.span(an.retracted_length_m).map_err(|m| {
+                            scene.invalid(
+                                &format!("actuators[{i}].anchors.retracted_length_m"),
+                                m.into(),
+                            )
+                        })?;
+                    Mount::Anchors {
+                        link_a: an.link_a.clone(),
+                        point_a_m: an.point_a_m,
+                        link_b: an.link_b.clone(),
+                        point_b_m: an.point_b_m,
+                        retracted_length_m,
+                        stroke_m,
+                    }
+                }
                 (None, None) => unreachable!("checked at load: one mount per actuator"),
             },
-        })
-        .collect();
+        });
+    }
     let contacts = scene
         .contacts
         .iter()
@@ -192,7 +241,7 @@ fn mechanism_config(scene: &MechanismScene, sheets: &[ActuatorSheet]) -> Mechani
             damping_n_s_per_m: c.damping_n_s_per_m,
         })
         .collect();
-    MechanismConfig {
+    Ok(MechanismConfig {
         actuators,
         contacts,
         gravity_m_s2: scene.gravity_m_s2,
@@ -214,7 +263,7 @@ fn mechanism_config(scene: &MechanismScene, sheets: &[ActuatorSheet]) -> Mechani
             })
             .collect(),
         held_links: scene.held_links.clone(),
-    }
+    })
 }
 
 /// Actuator `i`'s force element at rest, its setpoints and the contact its force sensor reads (None: the
@@ -223,35 +272,11 @@ fn actuator_drive(
     scene: &MechanismScene,
     mechanism: &Mechanism,
     i: usize,
-    sheet: &ActuatorSheet,
-) -> Result<(FlangeDrive, SetpointSchedule, Option<usize>), SceneError> {
+    sheet: &FamilySheet,
+) -> Result<(Drive, SetpointSchedule, Option<usize>), SceneError> {
     let a = &scene.actuators[i];
-    let actuator = sheet.actuator();
-    let stroke = mechanism.actuator_stroke(i);
-    if (stroke - actuator.cylinder.stroke_m).abs() > 1e-9 {
-        return Err(scene.invalid(
-            &format!("actuators[{i}].sheet"),
-            format!(
-                "the cylinder's stroke is {} m, the joint '{}' allows {stroke} m: they must agree",
-                actuator.cylinder.stroke_m,
-                a.joint.as_deref().unwrap_or("")
-            ),
-        ));
-    }
-    // At rest with no net force: B halfway between supply and atmosphere, A balancing it (eq. (1)).
-    let (s, c) = (&actuator.supply, &actuator.cylinder);
-    let p_b = 0.5 * (s.supply_pressure_pa + s.atmosphere_pressure_pa);
-    let p_a = (p_b * c.area_b() + s.atmosphere_pressure_pa * c.area_rod()) / c.area_a();
-    let element = pneuflex_multibody::PneumaticForceElement::new(
-        actuator,
-        ChamberState::new(p_a, p_b),
-        scene.chamber_substeps,
-    );
-    let drive = FlangeDrive {
-        element,
-        friction: sheet.mechanics.friction,
-        // Gravity is Rapier's; along an anchored cylinder it has no one value to drive stick-slip.
-        gravity_force_n: 0.0,
+    let drive: Drive = match sheet {
+        FamilySheet::Cylinder(sheet) => Box::new(cylinder_drive(scene, mechanism, i, sheet)?),
     };
     let mut sp = SetpointSchedule::default();
     for (j, piece) in a.force.iter().enumerate() {
@@ -274,6 +299,43 @@ fn actuator_drive(
             })?)
         };
     Ok((drive, sp, sensor))
+}
+
+/// A cylinder's drive at rest with no net force.
+fn cylinder_drive(
+    scene: &MechanismScene,
+    mechanism: &Mechanism,
+    i: usize,
+    sheet: &ActuatorSheet,
+) -> Result<FlangeDrive, SceneError> {
+    let a = &scene.actuators[i];
+    let actuator = sheet.actuator();
+    let stroke = mechanism.actuator_stroke(i);
+    if (stroke - actuator.cylinder.stroke_m).abs() > 1e-9 {
+        return Err(scene.invalid(
+            &format!("actuators[{i}].sheet"),
+            format!(
+                "the cylinder's stroke is {} m, the joint '{}' allows {stroke} m: they must agree",
+                actuator.cylinder.stroke_m,
+                a.joint.as_deref().unwrap_or("")
+            ),
+        ));
+    }
+    // At rest with no net force: B halfway between supply and atmosphere, A balancing it (eq. (1)).
+    let (s, c) = (&actuator.supply, &actuator.cylinder);
+    let p_b = 0.5 * (s.supply_pressure_pa + s.atmosphere_pressure_pa);
+    let p_a = (p_b * c.area_b() + s.atmosphere_pressure_pa * c.area_rod()) / c.area_a();
+    let element = pneuflex_multibody::PneumaticForceElement::new(
+        actuator,
+        ChamberState::new(p_a, p_b),
+        scene.chamber_substeps,
+    );
+    Ok(FlangeDrive {
+        element,
+        friction: sheet.mechanics.friction,
+        // Gravity is Rapier's; along an anchored cylinder it has no one value to drive stick-slip.
+        gravity_force_n: 0.0,
+    })
 }
 
 /// Checks that every event names a contact or a spring of the mechanism, and only one of them: the loop

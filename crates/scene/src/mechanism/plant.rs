@@ -3,6 +3,7 @@
 //! the [`Plant`] trait that the simulation host drives for every scene kind.
 
 use pneuflex_control::{Sensors, Signal, Telemetry, ValveCommand};
+use pneuflex_multibody::ActuatorFamily;
 use pneuflex_multibody::ContactParams;
 
 use super::build::{Built, build};
@@ -22,9 +23,27 @@ const ACTUATOR_SIGNALS: [Signal; 2] = [
         "force",
         "N",
         "cylinder",
-        "force of the cylinder on the mechanism (chambers and friction)",
+        "force of the actuator on the mechanism along its line, + pushing the anchors apart (a muscle's is -tension)",
     ),
 ];
+
+/// Whether a family's sensors are the control loop's own `p_a`, `p_b` columns (a cylinder's chambers).
+fn loop_pressures(drive: &dyn ActuatorFamily) -> bool {
+    drive.sensors() == pneuflex_multibody::actuator::CHAMBER_PRESSURES
+}
+
+/// A family's sensors the plant records beside the loop's columns: none for a cylinder (the loop's
+/// `p_a`, `p_b` carry them), any other family's own (a muscle's `p_muscle`).
+fn family_signals(drive: &dyn ActuatorFamily) -> Vec<Signal> {
+    if loop_pressures(drive) {
+        return Vec::new();
+    }
+    drive
+        .sensors()
+        .iter()
+        .map(|s| Signal::new(s.name, s.unit, "pressure", s.description))
+        .collect()
+}
 
 /// The mechanism of a scene with several actuators, as the loop drives it.
 pub struct MechanismPlant {
@@ -42,15 +61,14 @@ impl MechanismPlant {
     pub fn new(scene: &MechanismScene) -> Result<Self, SceneError> {
         let built = build(scene)?;
         let names: Vec<String> = scene.actuators.iter().map(|a| a.name.clone()).collect();
-        let signals: Vec<Signal> = names
-            .iter()
-            .flat_map(|a| {
-                ACTUATOR_SIGNALS.iter().map(move |s| Signal {
-                    name: crate::run::interned(format!("{a}.{}", s.name)),
-                    ..*s
-                })
-            })
-            .collect();
+        let mut signals: Vec<Signal> = Vec::new();
+        for (a, drive) in names.iter().zip(&built.drives) {
+            let own = family_signals(drive.as_ref());
+            signals.extend(ACTUATOR_SIGNALS.iter().chain(&own).map(|s| Signal {
+                name: crate::run::interned(format!("{a}.{}", s.name)),
+                ..*s
+            }));
+        }
         Ok(Self {
             scene: scene.clone(),
             built,
@@ -106,14 +124,31 @@ impl Plant for MechanismPlant {
                 (s.x_m, s.x_dot_m_s)
             }
         };
-        let (p_a, p_b) = b.drives[i].element.pressures();
+        let drive = &b.drives[i];
+        // A family whose sensors are a cylinder's two chambers fills the loop's p_a, p_b; any other's
+        // sensors are the plant's own columns (`record`), and the loop's stay empty.
+        let (p_a, p_b) = if loop_pressures(drive.as_ref()) {
+            let mut p = [0.0; 2];
+            drive.read_sensors(&mut p);
+            (p[0], p[1])
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        let load_cell = b.mechanism.actuator_force(i);
+        // A muscle reports its contraction L0 - L (stroke - x) and its tension: a larger command, a
+        // larger sensed position and force, as for a cylinder.
+        let (x, x_dot, load_cell) = match (&b.positions[i], drive.pulls()) {
+            (None, true) => (b.mechanism.actuator_stroke(i) - x, -x_dot, -load_cell),
+            (_, true) => (x, x_dot, -load_cell),
+            (_, false) => (x, x_dot, load_cell),
+        };
         Sensors {
             t: b.mechanism.time(),
             x,
             x_dot,
             f_e: match b.sensors[i] {
                 Some(ci) => b.mechanism.contact(ci).force_n,
-                None => b.mechanism.actuator_force(i),
+                None => load_cell,
             },
             p_a,
             p_b,
@@ -121,7 +156,7 @@ impl Plant for MechanismPlant {
     }
 
     fn actuate_actuator(&mut self, i: usize, command: ValveCommand, _telemetry: &Telemetry) {
-        self.built.drives[i].element.set_command(command.u);
+        self.built.drives[i].set_command(command.u);
     }
 
     fn advance(&mut self, _dt: f64) {
@@ -129,7 +164,7 @@ impl Plant for MechanismPlant {
         for _ in 0..self.physics_steps_per_tick {
             self.built.mechanism.step(&mut self.built.drives);
             if self.overrun.is_none()
-                && let Err(why) = self.built.mechanism.check_strokes()
+                && let Err(why) = self.built.mechanism.check_families(&self.built.drives)
             {
                 self.overrun = Some(why);
             }
@@ -181,10 +216,10 @@ impl Plant for MechanismPlant {
         }
         let b = &self.built;
         for (i, name) in self.names.iter().enumerate() {
-            let el = &b.drives[i].element;
             let stroke = b.mechanism.actuator_stroke(i);
-            let piston = b.mechanism.actuator_state(i).x_m;
-            crate::plants::chamber_invariants(&el.chambers, &el.actuator.supply, piston, stroke)
+            let x = b.mechanism.actuator_state(i).x_m;
+            b.drives[i]
+                .check_invariants(x, stroke)
                 .map_err(|v| PlantError::invariant(format!("{name}: {v}")))?;
         }
         Ok(())
@@ -195,9 +230,16 @@ impl Plant for MechanismPlant {
     }
 
     fn record(&self, out: &mut [f64]) {
-        for (i, pair) in out.chunks_exact_mut(ACTUATOR_SIGNALS.len()).enumerate() {
-            pair[0] = self.sense_actuator(i).x_dot;
-            pair[1] = self.built.mechanism.actuator_force(i);
+        let mut at = 0;
+        for (i, drive) in self.built.drives.iter().enumerate() {
+            out[at] = self.sense_actuator(i).x_dot;
+            out[at + 1] = self.built.mechanism.actuator_force(i);
+            at += ACTUATOR_SIGNALS.len();
+            if !loop_pressures(drive.as_ref()) {
+                let n = drive.sensors().len();
+                drive.read_sensors(&mut out[at..at + n]);
+                at += n;
+            }
         }
     }
 

@@ -86,13 +86,15 @@ fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -pneuflex_multibody::STANDARD_GRAVITY]
 }
 
-/// One actuator: a cylinder and valve from a sheet, mounted along a joint or between anchors.
+/// One actuator: a cylinder and valve, or a muscle and its valve or regulator, from a sheet (the sheet says
+/// which family), mounted along a joint (a cylinder) or between anchors.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatorSpec {
     /// Its name: the prefix of its trace columns (`left.f_e`).
     pub name: String,
-    /// The pneumatic actuator sheet (cylinder, valve, supply, friction), relative to the scene file.
+    /// The pneumatic actuator sheet (cylinder, valve, supply, friction) or a muscle sheet (a `[muscle]`
+    /// table: docs/muscles.md), relative to the scene file.
     pub sheet: PathBuf,
     /// Mounted along this prismatic URDF joint (its limits are the stroke) ...
     #[serde(default)]
@@ -169,8 +171,9 @@ pub struct AnchorsSpec {
     pub link_b: String,
     /// Rod-eye point in `link_b`'s frame, m.
     pub point_b_m: [f64; 3],
-    /// Pin-to-pin length at the retracted stop, m.
-    pub retracted_length_m: f64,
+    /// Pin-to-pin length at the retracted stop, m (a cylinder's; a muscle's sheet gives its lengths).
+    #[serde(default)]
+    pub retracted_length_m: Option<f64>,
 }
 
 /// A compliant contact (Kelvin–Voigt pad) between two links' colliders.
@@ -509,12 +512,8 @@ impl MechanismScene {
                     return Err(self.invalid(&at("initial_position_m"), "only a `joint` mount starts away from the URDF's zero: move the anchors' link instead".into()));
                 }
             }
-            if let Some(an) = &a.anchors {
-                self.number(
-                    &at("anchors.retracted_length_m"),
-                    an.retracted_length_m,
-                    positive,
-                )?;
+            if let Some(r) = a.anchors.as_ref().and_then(|an| an.retracted_length_m) {
+                self.number(&at("anchors.retracted_length_m"), r, positive)?;
             }
         }
         Ok(())

@@ -56,6 +56,31 @@ impl AxialActuator for FlangeDrive {
     }
 }
 
+/// The cylinder family of a mechanism scene: its force element's command, sensors, state and invariants.
+impl pneuflex_multibody::ActuatorFamily for FlangeDrive {
+    fn family(&self) -> &'static str {
+        pneuflex_multibody::ActuatorFamily::family(&self.element)
+    }
+    fn set_command(&mut self, u: f64) {
+        self.element.set_command(u)
+    }
+    fn sensors(&self) -> &'static [pneuflex_multibody::SensorSpec] {
+        pneuflex_multibody::ActuatorFamily::sensors(&self.element)
+    }
+    fn read_sensors(&self, out: &mut [f64]) {
+        pneuflex_multibody::ActuatorFamily::read_sensors(&self.element, out)
+    }
+    fn state(&self) -> Vec<f64> {
+        pneuflex_multibody::ActuatorFamily::state(&self.element)
+    }
+    fn set_state(&mut self, s: &[f64]) -> bool {
+        pneuflex_multibody::ActuatorFamily::set_state(&mut self.element, s)
+    }
+    fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String> {
+        pneuflex_multibody::ActuatorFamily::check_invariants(&self.element, x_m, stroke_m)
+    }
+}
+
 /// The rig of `pneuflex-multibody` as a scene plant.
 pub struct MultibodyPlant {
     scene_file: PathBuf,
