@@ -11,6 +11,8 @@
 //! - [`trace`]: the crash-safe `trace.csv` writer;
 //! - [`record`]: one run into an output directory that never loses or overwrites data;
 //! - [`emulator`]: the pneumatic plant behind a pseudo-terminal speaking the board's protocol, with fault injection.
+//! - [`channel_board`]: several actuators on one board (docs/protocol.md §6): the emulated board of N plants
+//!   and the host driver of its N-channel frames.
 
 pub mod calib;
 pub mod clock;
@@ -22,6 +24,7 @@ pub mod rigfile;
 
 pub use error::{ErrorKind, RigError};
 pub use rigfile::{RigFile, RigFileError};
+pub mod channel_board;
 pub mod emulator;
 pub mod plant;
 pub mod record;

@@ -276,8 +276,9 @@ pub struct Calibrated<R> {
     v_filt: f64,
 }
 
-impl<R: Rig<Sample = RawSample>> Calibrated<R> {
-    /// Wraps `inner`; `velocity_cutoff_hz` sets the first-order filter on the position derivative.
+impl<R> Calibrated<R> {
+    /// Wraps `inner`; `velocity_cutoff_hz` sets the first-order filter on the position derivative (a
+    /// several-channel host keeps one `Calibrated<()>` per channel as its converter).
     pub fn new(inner: R, cal: Calibration, velocity_cutoff_hz: f64) -> Self {
         Self {
             inner,
