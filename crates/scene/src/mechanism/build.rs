@@ -2,6 +2,8 @@
 //! sensors, and its events resolved (errors name the key that causes them); its step budget.
 
 use pneuflex_control::SetpointSchedule;
+use pneuflex_multibody::actuator::MuscleForceElement;
+use pneuflex_multibody::actuator::pneuflex_muscle::{self, MuscleSheet};
 use pneuflex_multibody::{
     ActuatorConfig, ActuatorFamily, ContactConfig, Mechanism, MechanismConfig, Mount,
 };
@@ -146,6 +148,8 @@ pub type Drive = Box<dyn ActuatorFamily + Send>;
 pub enum FamilySheet {
     /// A cylinder and its valve, supply and friction (docs/components.md).
     Cylinder(Box<ActuatorSheet>),
+    /// A McKibben muscle and its 3/2 valve or regulator.
+    Muscle(Box<MuscleSheet>),
 }
 
 impl FamilySheet {
@@ -154,6 +158,19 @@ impl FamilySheet {
         path: &std::path::Path,
         overlay: &pneuflex_pneumatics::FileOverlay,
     ) -> Result<Self, String> {
+        let text = match overlay.get(path) {
+            Some(t) => t.clone(),
+            None => pneuflex_files::read_text(path, pneuflex_files::InputKind::Sheet)
+                .map_err(|e| e.to_string())?,
+        };
+        if text
+            .parse::<toml::Table>()
+            .is_ok_and(|t| t.contains_key("muscle"))
+        {
+            return MuscleSheet::from_str(path, &text)
+                .map(|m| Self::Muscle(Box::new(m)))
+                .map_err(|e| e.to_string());
+        }
         ActuatorSheet::load_overlaid(path, overlay)
             .map(|a| Self::Cylinder(Box::new(a)))
             .map_err(|e| e.to_string())
@@ -168,6 +185,14 @@ impl FamilySheet {
             (Self::Cylinder(_), None) => {
                 Err("a cylinder between anchors needs anchors.retracted_length_m")
             }
+            (Self::Muscle(m), None) => {
+                let b = &m.chamber.muscle.braid;
+                let l_min = b.rest_length_m * (1.0 - b.max_contraction());
+                Ok((l_min, b.rest_length_m - l_min))
+            }
+            (Self::Muscle(_), Some(_)) => Err(
+                "a muscle's lengths come from its sheet (fully contracted to rest): give no retracted_length_m",
+            ),
         }
     }
 }
@@ -178,10 +203,24 @@ fn actuator_sheets(scene: &MechanismScene) -> Result<Vec<FamilySheet>, SceneErro
     for (i, a) in scene.actuators.iter().enumerate() {
         let path = scene.resolve(&a.sheet);
         let key = format!("actuators[{i}].sheet");
-        let sheet =
-            match FamilySheet::load(&path, &scene.overlay).map_err(|e| scene.invalid(&key, e))? {
-                FamilySheet::Cylinder(s) => s,
-            };
+        let sheet = match FamilySheet::load(&path, &scene.overlay)
+            .map_err(|e| scene.invalid(&key, e))?
+        {
+            FamilySheet::Cylinder(s) => s,
+            FamilySheet::Muscle(m) => {
+                if a.anchors.is_none() {
+                    return Err(scene.invalid(
+                        &format!("actuators[{i}].joint"),
+                        format!(
+                            "{} is a muscle: it pulls between two anchor points, give `anchors` (no joint mount)",
+                            path.display()
+                        ),
+                    ));
+                }
+                sheets.push(FamilySheet::Muscle(m));
+                continue;
+            }
+        };
         let beyond = sheet.effects_beyond_paper();
         if !beyond.is_empty() {
             return Err(scene.invalid(
@@ -277,6 +316,19 @@ fn actuator_drive(
     let a = &scene.actuators[i];
     let drive: Drive = match sheet {
         FamilySheet::Cylinder(sheet) => Box::new(cylinder_drive(scene, mechanism, i, sheet)?),
+        // Unpressurised, the gas at the atmosphere's temperature: the muscle pulls nothing until filled.
+        FamilySheet::Muscle(m) => {
+            let s = &m.chamber.supply;
+            Box::new(MuscleForceElement::new(
+                m.chamber,
+                m.plant_feed(),
+                pneuflex_muscle::ChamberState {
+                    pressure_pa: s.atmosphere_pressure_pa,
+                    temperature_k: s.atmosphere_temperature_k,
+                },
+                scene.chamber_substeps,
+            ))
+        }
     };
     let mut sp = SetpointSchedule::default();
     for (j, piece) in a.force.iter().enumerate() {
