@@ -329,7 +329,8 @@ def the_vector_environment_is_many_single_ones():
 def gymnasiums_conventions_hold():
     """gymnasium.make / make_vec with max_episode_steps truncate at that step; render_mode="rgb_array" gives an
     HxWx3 uint8 frame with the force (blue) and position (green) traces; every reward lies in [0, 1], an end
-    stop's episode included; the default scene and the multibody one are found in the package (shipped names)."""
+    stop's episode included; the default scene and the multibody one are found in the package (shipped names);
+    check_env passes with rendering; AsyncVectorEnv with spawned workers runs the environment."""
     import gymnasium
 
     import pneuflex.envs as envs
@@ -343,6 +344,22 @@ def gymnasiums_conventions_hold():
     colours = {tuple(c) for c in frame.reshape(-1, 3)}
     assert {(31, 119, 180), (44, 160, 44), (150, 150, 150)} <= colours, colours
     assert envs.ForceControl().render() is None
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any complaint of the checker about rendering fails
+        check_env(gymnasium.make("pneuflex/ForceControl-v0", render_mode="rgb_array").unwrapped)
+    # Workers started by spawn: "module:id" imports pneuflex.envs there (it registers the ids).
+    spawned = gymnasium.vector.AsyncVectorEnv(
+        [lambda: gymnasium.make("pneuflex.envs:pneuflex/ForceControl-v0")] * 2, context="spawn")
+    try:
+        o, _ = spawned.reset(seed=0, options={"randomize": False})
+        o2, _, _, _, _ = spawned.step(np.zeros((2, 1), np.float32))
+        assert o.shape == (2, 6) and np.array_equal(o2[0], o2[1]), o2
+    finally:
+        spawned.close()
     vec = gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=3, vectorization_mode="vector_entry_point",
                              max_episode_steps=50, render_mode="rgb_array")
     vec.reset(seed=0, options={"randomize": False})
