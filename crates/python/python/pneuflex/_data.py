@@ -1,7 +1,8 @@
 """What the package ships (``pneuflex/data``, copied there at build time by ``scripts/stage_python_data``): the
 scenes of ``scenes/`` with the actuator sheets (``pneumatics/``) and URDFs and meshes (``urdf/``) they name, in
 the repository's layout, so that a scene's relative paths (``../pneumatics/paper-actuator.toml``) resolve inside
-the installed package; the MJCF examples of ``pneuflex/mjcf``; the MuJoCo plugin library."""
+the installed package; the MJCF examples of ``pneuflex/mjcf``; the MuJoCo plugin library. A package built without its data (``pip install
+./crates/python`` from a checkout, not staged) reads the checkout it was built in, which has the same layout."""
 
 from __future__ import annotations
 
@@ -9,8 +10,22 @@ import os
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
+
+
+def _data() -> Path:
+    """The package's data; in a package built without it (``pip install ./crates/python`` straight from a
+    checkout, not staged), the checkout the extension was built in, whose layout is the same."""
+    staged = PACKAGE / "data"
+    if (staged / "scenes").is_dir():
+        return staged
+    from . import _native
+
+    workspace = Path(getattr(_native, "_workspace_dir", staged)).resolve()
+    return workspace if (workspace / "scenes").is_dir() else staged
+
+
 #: The shipped files, in the repository's layout: scenes/, pneumatics/, urdf/.
-DATA = PACKAGE / "data"
+DATA = _data()
 SCENES = DATA / "scenes"
 
 
