@@ -1,8 +1,9 @@
 """What the package ships (``pneuflex/data``, copied there at build time by ``scripts/stage_python_data``): the
 scenes of ``scenes/`` with the actuator sheets (``pneumatics/``) and URDFs and meshes (``urdf/``) they name, in
 the repository's layout, so that a scene's relative paths (``../pneumatics/paper-actuator.toml``) resolve inside
-the installed package; the MJCF examples of ``pneuflex/mjcf``; the MuJoCo plugin library. A package built without its data (``pip install
-./crates/python`` from a checkout, not staged) reads the checkout it was built in, which has the same layout."""
+the installed package; the MJCF examples of ``pneuflex/mjcf``; the MuJoCo plugin library. A package built without
+its data (``pip install ./crates/python`` from a checkout, not staged) reads the checkout it was built in, which
+has the same layout."""
 
 from __future__ import annotations
 
