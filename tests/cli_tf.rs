@@ -131,3 +131,49 @@ fn tf_missing_component_names_sheet_line_and_key_and_the_os_error_once() {
     assert_eq!(e.matches("No such file").count(), 1, "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn tf_loop_on_a_scene_of_several_actuators_measures_each_actuators_loop() {
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+            .args(args)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap()
+    };
+    let table = ok(run(&["tf", "--loop", "scenes/cross-slide.toml"]));
+    assert!(table.contains("measured by injection"), "{table}");
+    for actuator in ["press", "push"] {
+        let line = table
+            .lines()
+            .find(|l| l.trim_start().starts_with(actuator))
+            .unwrap_or_else(|| panic!("no line for {actuator}:\n{table}"));
+        assert!(
+            line.contains("crossover") && line.contains("gain margin"),
+            "{line}"
+        );
+    }
+    let json: serde_json::Value = serde_json::from_str(&ok(run(&[
+        "tf",
+        "--loop",
+        "--json",
+        "scenes/cross-slide.toml",
+    ])))
+    .unwrap();
+    let loops = json.as_array().unwrap();
+    assert_eq!(loops.len(), 2, "{json}");
+    for l in loops {
+        // A stable loop at its valve: |L| falls through 1 with a positive phase margin.
+        assert!(l["crossover_hz"].as_f64().unwrap() > 0.1, "{l}");
+        assert!(l["phase_margin_deg"].as_f64().unwrap() > 0.0, "{l}");
+        assert!(l["bode"].as_array().unwrap().len() > 20, "{l}");
+    }
+    let e = err(run(&[
+        "tf",
+        "--loop",
+        "scenes/cross-slide.toml",
+        "--bode",
+        "/tmp/never-written.png",
+    ]));
+    assert!(e.contains("--bode") && e.contains("--json"), "{e}");
+}

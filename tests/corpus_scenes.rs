@@ -298,7 +298,6 @@ fn a_command_that_takes_one_actuator_refuses_a_several_actuator_scene_with_the_r
     let out = d.path().join("out");
     let o = s(&out);
     for args in [
-        vec!["tf", "--loop", g],
         vec!["compare", g, "--rig-log", s(&log), "--out", o],
         vec!["rig", "pil", "--scene", g, "--out", o],
         vec![

@@ -123,6 +123,10 @@ pub fn loop_margins(
             path.display()
         );
     }
+    let text = pneuflex_files::read_text(path, pneuflex_files::InputKind::Scene)?;
+    if pneuflex_scene::mechanism::MechanismScene::is_mechanism(&text) {
+        return mechanism_loops(path, json, bode);
+    }
     let scene = pneuflex_scene::Scene::load(path)?;
     // Never write over a file pneuflex did not make: the plot goes beside and is renamed in only if the
     // name is free.
@@ -262,6 +266,68 @@ pub fn loop_margins(
     }
     if json {
         return Ok(serde_json::to_string_pretty(&out)?);
+    }
+    Ok(s)
+}
+
+/// `tf --loop` on a scene of several actuators: the loop at each actuator's valve command, measured by
+/// injection with every controller closed (`pneuflex_scene::analysis::injection`), per run and per phase of
+/// the scene's events.
+fn mechanism_loops(path: &Path, json: bool, bode: Option<&Path>) -> anyhow::Result<String> {
+    use pneuflex_scene::analysis::injection::{Injection, mechanism_loops};
+    let scene = pneuflex_scene::mechanism::MechanismScene::load(path)?;
+    if let Some(b) = bode {
+        anyhow::bail!(
+            "--bode {}: a scene with several actuators has measured loops, not drawn yet; --json gives each \
+             loop's Bode points (Hz, dB, degrees)",
+            b.display()
+        );
+    }
+    let inj = Injection::default();
+    let loops = mechanism_loops(&scene, &inj)?;
+    if json {
+        return Ok(serde_json::to_string_pretty(&loops)?);
+    }
+    let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
+    let mut s = String::new();
+    writeln!(
+        s,
+        "{}: the loop at each actuator's valve command with every controller closed, measured by injection (a \
+         multisine of {} RMS on the command, {} frequencies from {:.2} to {} Hz over {} s after {} s; each force \
+         reference held at its first value; docs/scenes.md \"Loops of several actuators\")",
+        scene.name,
+        inj.rms,
+        loops.first().map_or(0, |l| l.measured.bode.len()),
+        loops
+            .first()
+            .and_then(|l| l.measured.bode.first())
+            .map_or(0.0, |b| b.0),
+        inj.f_max_hz,
+        inj.window_s,
+        inj.settle_s
+    )?;
+    let mut run = "";
+    for l in &loops {
+        if l.run != run {
+            run = &l.run;
+            writeln!(s, "run `{run}`:")?;
+        }
+        let phase = l
+            .after_events_at_s
+            .map_or("from the start".to_string(), |t| {
+                format!("after the events at {t} s")
+            });
+        let m = &l.measured;
+        writeln!(
+            s,
+            "  {:<14} {:<24} crossover {} Hz, phase margin {} deg; phase crossover {} Hz, gain margin {} dB",
+            l.actuator,
+            phase,
+            f(m.crossover_hz, 2),
+            f(m.phase_margin_deg, 1),
+            f(m.phase_crossover_hz, 2),
+            f(m.gain_margin_db, 1)
+        )?;
     }
     Ok(s)
 }

@@ -74,28 +74,28 @@ pub struct LoopAnalysis {
 }
 
 #[derive(Clone, Copy, Debug)]
-struct Cx(f64, f64);
+pub(crate) struct Cx(pub(crate) f64, pub(crate) f64);
 impl Cx {
-    fn add(self, o: Cx) -> Cx {
+    pub(crate) fn add(self, o: Cx) -> Cx {
         Cx(self.0 + o.0, self.1 + o.1)
     }
-    fn sub(self, o: Cx) -> Cx {
+    pub(crate) fn sub(self, o: Cx) -> Cx {
         Cx(self.0 - o.0, self.1 - o.1)
     }
-    fn mul(self, o: Cx) -> Cx {
+    pub(crate) fn mul(self, o: Cx) -> Cx {
         Cx(self.0 * o.0 - self.1 * o.1, self.0 * o.1 + self.1 * o.0)
     }
-    fn div(self, o: Cx) -> Cx {
+    pub(crate) fn div(self, o: Cx) -> Cx {
         let d = o.0 * o.0 + o.1 * o.1;
         Cx(
             (self.0 * o.0 + self.1 * o.1) / d,
             (self.1 * o.0 - self.0 * o.1) / d,
         )
     }
-    fn abs(self) -> f64 {
+    pub(crate) fn abs(self) -> f64 {
         self.0.hypot(self.1)
     }
-    fn arg(self) -> f64 {
+    pub(crate) fn arg(self) -> f64 {
         self.1.atan2(self.0)
     }
 }
@@ -225,7 +225,7 @@ fn loop_response(
 }
 
 /// (Hz, |L|, arg L rad) of a complex response, the phase unwrapped from the lowest frequency.
-fn unwrapped(resp: impl Iterator<Item = (f64, Cx)>) -> Vec<(f64, f64, f64)> {
+pub(crate) fn unwrapped(resp: impl Iterator<Item = (f64, Cx)>) -> Vec<(f64, f64, f64)> {
     let mut out = Vec::new();
     let mut prev: Option<f64> = None;
     for (f, l) in resp {
@@ -267,7 +267,9 @@ fn outer_response(
 }
 
 /// Crossovers and margins of a response.
-fn margins_of(resp: &[(f64, f64, f64)]) -> (Option<f64>, Option<f64>, Option<f64>, Option<f64>) {
+pub(crate) fn margins_of(
+    resp: &[(f64, f64, f64)],
+) -> (Option<f64>, Option<f64>, Option<f64>, Option<f64>) {
     let lerp = |a: (f64, f64), b: (f64, f64), y: f64| a.0 + (b.0 - a.0) * (y - a.1) / (b.1 - a.1);
     let mut gc = None;
     let mut pm = None;
@@ -295,6 +297,54 @@ fn margins_of(resp: &[(f64, f64, f64)]) -> (Option<f64>, Option<f64>, Option<f64
         }
     }
     (gc, pm, pc, gm)
+}
+
+/// The loop broken at the valve command with the outer force loop closed as well (what an injection at
+/// the valve measures, [`super::injection`]): u = C_r x_r − C_y x with x_r = −k_e x / (m_d s² + b_d s + k_d)
+/// from the impedance filter (eqs. 19–24, its zero-order hold left out as in [`outer_response`]), so
+///     L_all = P (C_y + C_r k_e / (m_d s² + b_d s + k_d)).
+/// Run `index` of the scene's plant at stiffness `k_e`, linearised at the operating point of
+/// [`analyse`]; (Hz, Re L, Im L) at `freqs`.
+pub fn loop_at_valve(
+    scene: &Scene,
+    index: usize,
+    k_e: f64,
+    freqs: &[f64],
+) -> Result<Vec<(f64, f64, f64)>, SceneError> {
+    let run = &scene.runs[index];
+    let Some(mut p) = linearisable_at(scene, k_e)? else {
+        return Err(scene.invalid(
+            "plant.kind",
+            "the loop at the valve needs a plant the valve command drives continuously".into(),
+        ));
+    };
+    let dt = scene.dt_s;
+    let f_op = scene.setpoints().map(|sp| sp.at(0.0).f_ref).unwrap_or(0.0);
+    let x_op = scene.environment.x_e_m + if k_e > 0.0 { f_op / k_e } else { 0.0 };
+    let mut pid = pneuflex_control::Pid::new(run.inner).expect("validated with the scene");
+    let mut u = 0.0;
+    for _ in 0..(2.0 / dt).round() as usize {
+        let x = p.sense().x;
+        u = pid.update(x_op, x, dt);
+        p.actuate(
+            pneuflex_control::ValveCommand { u },
+            &pneuflex_control::Telemetry::default(),
+        );
+        p.advance(dt);
+    }
+    let (phi, gamma) = linearise(&mut *p, u, dt);
+    let (pidp, imp) = (&run.inner, &run.impedance);
+    Ok(plant_response(&phi, &gamma, dt, freqs)
+        .into_iter()
+        .map(|(f, z, pz)| {
+            let one = Cx(1.0, 0.0);
+            let c_r = Cx(pidp.kp_per_m, 0.0).add(Cx(pidp.ki_per_m_s * dt, 0.0).div(z.sub(one)));
+            let w = std::f64::consts::TAU * f;
+            let filter = Cx(imp.k_d_n_per_m - imp.m_d_kg * w * w, imp.b_d_ns_per_m * w);
+            let l = pz.mul(pid_cy(pidp, dt, z).add(c_r.mul(Cx(k_e, 0.0)).div(filter)));
+            (f, l.0, l.1)
+        })
+        .collect())
 }
 
 /// The stiffnesses a scene's environment takes: the initial one, then after each stiffness event.

@@ -5,6 +5,7 @@ pub mod adaptation;
 pub mod advice;
 pub mod claims;
 pub mod comparison;
+pub mod injection;
 pub mod loop_margins;
 pub mod metrics;
 pub mod outer_law;

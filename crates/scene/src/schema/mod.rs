@@ -104,7 +104,7 @@ pub enum Integrator {
 
 /// Why a command that runs one actuator refuses a scene with `[[actuators]]`.
 pub const SEVERAL_ACTUATORS: &str = "a scene with several actuators ([[actuators]]) runs with `pneuflex run`, \
-     `sweep` and `tune` (Python: `pneuflex.run`, which returns its Results) so far; this command takes a \
+     `sweep`, `tune` and `tf --loop` (Python: `pneuflex.run`, which returns its Results) so far; this command takes a \
      one-actuator scene, with a [plant] table (docs/scenes.md)";
 
 impl Scene {
