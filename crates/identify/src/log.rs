@@ -74,23 +74,14 @@ pub fn read_log_limited(path: &Path, limits: &LogLimits) -> Result<Log, Identify
     read_log_formatted(path, limits, &LogFormat::default())
 }
 
-/// [`read_log_limited`] for a log in `format` (another tool's export: [`LogFormat`]).
+/// [`read_log_limited`] for a log in `format` (another tool's export: [`LogFormat`]); a text log (a bag is
+/// read by [`crate::log_bag::read_any_log`]).
 pub fn read_log_formatted(
     path: &Path,
     limits: &LogLimits,
     format: &LogFormat,
 ) -> Result<Log, IdentifyError> {
     use std::io::BufRead;
-    // A rosbag2 recording (`--mcap`): its topics are the columns.
-    if crate::log_bag::is_bag(path) {
-        if !format.own_trace {
-            return Err(IdentifyError::Input(format!(
-                "{}: a bag's topics are read as docs/ros2.md maps them; --log-format is for text logs",
-                path.display()
-            )));
-        }
-        return crate::log_bag::read_bag_log(path, limits);
-    }
     let size = pneuflex_files::input::check_regular(path, pneuflex_files::InputKind::Trace)
         .map_err(|e| IdentifyError::Input(e.to_string()))?;
     let max_bytes = (limits.max_rows as u64).saturating_mul(MAX_BYTES_PER_ROW) + 65_536;

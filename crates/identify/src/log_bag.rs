@@ -12,6 +12,25 @@ use crate::board_time::{BoardColumns, RecordedSample, on_board_grid};
 use crate::log::{LogLimits, parse_log_limited};
 use crate::log_rows::Log;
 
+/// Any log `identify --log` takes: a rosbag2 recording (`--mcap`: its topics are the columns) or a text log
+/// in `format`.
+pub fn read_any_log(
+    path: &Path,
+    limits: &LogLimits,
+    format: &crate::log_format::LogFormat,
+) -> Result<Log, IdentifyError> {
+    if !is_bag(path) {
+        return crate::log::read_log_formatted(path, limits, format);
+    }
+    if !format.own_trace {
+        return Err(IdentifyError::Input(format!(
+            "{}: a bag's topics are read as docs/ros2.md maps them; --log-format is for text logs",
+            path.display()
+        )));
+    }
+    read_bag_log(path, limits)
+}
+
 /// Whether `path` is a bag: a folder, or an `.mcap` file.
 pub fn is_bag(path: &Path) -> bool {
     path.is_dir() || path.extension().is_some_and(|e| e == "mcap")

@@ -10,7 +10,8 @@ use pneuflex_pneumatics::{ActuatorSheet, OneDofModel};
 use crate::IdentifyError;
 use crate::check::check;
 use crate::fit::{FitOptions, Free, fit_stoppable};
-use crate::log::{LogLimits, read_log_formatted};
+use crate::log::LogLimits;
+use crate::log_bag::read_any_log;
 use crate::log_format::LogFormat;
 use crate::params::{ALL, Key, Offsets};
 use crate::replay::Prepared;
@@ -211,7 +212,7 @@ pub fn identify_stoppable(
     options.replay.stroke_m = Some(base.actuator.cylinder.stroke_m);
     let mut data = Vec::new();
     for p in &req.logs {
-        let log = read_log_formatted(p, &req.limits, &req.log_format)?;
+        let log = read_any_log(p, &req.limits, &req.log_format)?;
         let n = log.len();
         let span = log.t[n - 1] - log.t[0];
         if options.replay.segment_s > span {

@@ -2,7 +2,14 @@
 //! bad value refused naming the joint state it is in.
 
 use pneuflex_identify::IdentifyError;
-use pneuflex_identify::log::read_log;
+use pneuflex_identify::log::LogLimits;
+use pneuflex_identify::log_bag::read_bag_log;
+
+fn read_log(
+    p: &std::path::Path,
+) -> Result<pneuflex_identify::log_rows::Log, pneuflex_identify::IdentifyError> {
+    read_bag_log(p, &LogLimits::default())
+}
 use pneuflex_ros2::{TraceColumns, write_trace_bag};
 
 /// 40 ticks of 1 ms of a plausible cylinder; `x[bad]` set to `bad_x` when given.
