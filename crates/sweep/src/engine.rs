@@ -378,26 +378,10 @@ impl Sweep {
         // Errors and summaries point at the file as written.
         scene.set_text(self.base.scene.text.clone());
         if !edited.overlay.is_empty() {
-            match &mut scene {
-                AnyScene::One(scene) => {
-                    scene.overlay = edited.overlay;
-                    let Some(sheet) = scene.actuator_sheet_path() else {
-                        return Err(SweepError::Other(format!(
-                            "sweep point {}: the plant of this scene has no actuator sheet",
-                            self.describe(i)
-                        )));
-                    };
-                    scene.load_sheet(&sheet).map_err(|e| SweepError::Sheet {
-                        point: self.describe(i),
-                        error: Box::new(e),
-                    })?;
-                }
-                // Each actuator's sheet is read through the overlay when the mechanism is built.
-                AnyScene::Mechanism(m) => {
-                    m.overlay = edited.overlay;
-                    m.check_sheets().map_err(located)?;
-                }
-            }
+            with_overlay(&mut scene, edited.overlay, &self.describe(i)).map_err(|e| match e {
+                SweepError::Scene(e) => located(e),
+                other => other,
+            })?;
         }
         scene.check_budget(&self.limits).map_err(located)?;
         Ok(scene)
@@ -608,6 +592,38 @@ impl Sweep {
                 .map(|w| format!("{}.rms_force_error_n", w.name))
         });
         sine.or_else(|| self.columns.first().map(MetricColumn::name))
+    }
+}
+
+/// Gives a point's scene the edited copies of its sheets (`overlay`) and reads them once to check them; `point`
+/// describes the point in errors.
+pub(crate) fn with_overlay(
+    scene: &mut AnyScene,
+    overlay: pneuflex_pneumatics::FileOverlay,
+    point: &str,
+) -> Result<(), SweepError> {
+    match scene {
+        AnyScene::One(scene) => {
+            scene.overlay = overlay;
+            let Some(sheet) = scene.actuator_sheet_path() else {
+                return Err(SweepError::Other(format!(
+                    "sweep point {point}: the plant of this scene has no actuator sheet"
+                )));
+            };
+            scene.load_sheet(&sheet).map_err(|e| SweepError::Sheet {
+                point: point.to_string(),
+                error: Box::new(e),
+            })?;
+            Ok(())
+        }
+        // Each actuator's sheet is read through the overlay when the mechanism is built.
+        AnyScene::Mechanism(m) => {
+            m.overlay = overlay;
+            m.check_sheets().map_err(|e| SweepError::Point {
+                point: point.to_string(),
+                error: Box::new(e),
+            })
+        }
     }
 }
 

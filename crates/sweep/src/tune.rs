@@ -619,28 +619,7 @@ impl Tuner {
                 })?;
         scene.set_text(self.base.scene.text.clone());
         if !edited.overlay.is_empty() {
-            match &mut scene {
-                AnyScene::One(scene) => {
-                    scene.overlay = edited.overlay;
-                    let Some(sheet) = scene.actuator_sheet_path() else {
-                        return Err(SweepError::Other(format!(
-                            "{}: this plant has no actuator sheet",
-                            point()
-                        )));
-                    };
-                    scene.load_sheet(&sheet).map_err(|err| SweepError::Sheet {
-                        point: point(),
-                        error: Box::new(err),
-                    })?;
-                }
-                AnyScene::Mechanism(m) => {
-                    m.overlay = edited.overlay;
-                    m.check_sheets().map_err(|err| SweepError::Point {
-                        point: point(),
-                        error: Box::new(err),
-                    })?;
-                }
-            }
+            crate::engine::with_overlay(&mut scene, edited.overlay, &point())?;
         }
         if only_run {
             scene.keep_only_run(self.run);

@@ -346,14 +346,7 @@ pub fn mechanism_loops(
                     }
                 }
                 let held: Vec<Setpoint> = plant.schedules().iter().map(|s| s.at(0.0)).collect();
-                let mut controllers = (0..scene.actuators.len())
-                    .map(|i| {
-                        scene
-                            .actuator_run(r, i)
-                            .build()
-                            .map_err(|e| scene.invalid(&format!("runs[{r}].{}", e.key), e.message))
-                    })
-                    .collect::<Result<Vec<_>, _>>()?;
+                let mut controllers = scene.run_controllers(r)?;
                 let mut each: Vec<&mut dyn Controller> = controllers
                     .iter_mut()
                     .map(|c| &mut **c as &mut dyn Controller)

@@ -319,19 +319,7 @@ pub fn loop_at_valve(
         ));
     };
     let dt = scene.dt_s;
-    let f_op = scene.setpoints().map(|sp| sp.at(0.0).f_ref).unwrap_or(0.0);
-    let x_op = scene.environment.x_e_m + if k_e > 0.0 { f_op / k_e } else { 0.0 };
-    let mut pid = pneuflex_control::Pid::new(run.inner).expect("validated with the scene");
-    let mut u = 0.0;
-    for _ in 0..(2.0 / dt).round() as usize {
-        let x = p.sense().x;
-        u = pid.update(x_op, x, dt);
-        p.actuate(
-            pneuflex_control::ValveCommand { u },
-            &pneuflex_control::Telemetry::default(),
-        );
-        p.advance(dt);
-    }
+    let u = settle_at_contact(&mut *p, scene, run, k_e);
     let (phi, gamma) = linearise(&mut *p, u, dt);
     let (pidp, imp) = (&run.inner, &run.impedance);
     Ok(plant_response(&phi, &gamma, dt, freqs)
@@ -405,17 +393,15 @@ fn frequencies(dt: f64) -> Vec<f64> {
         .collect()
 }
 
-fn at_stiffness<P: Linearisable + ?Sized>(
+/// The operating point of the analyses: the inner loop alone holding the position that presses the scene's
+/// first reference force into the environment of stiffness `k_e`, settled for 2 s; the command it holds.
+fn settle_at_contact<P: Linearisable + ?Sized>(
     p: &mut P,
     scene: &Scene,
     run: &crate::schema::RunSpec,
     k_e: f64,
-    target_db: f64,
-) -> Margins {
+) -> f64 {
     let dt = scene.dt_s;
-    p.without_coulomb_friction();
-    // Operating point: the inner loop alone holding the position that presses the scene's first reference
-    // force into the environment, settled for 2 s.
     let f_op = scene.setpoints().map(|sp| sp.at(0.0).f_ref).unwrap_or(0.0);
     let x_op = scene.environment.x_e_m + if k_e > 0.0 { f_op / k_e } else { 0.0 };
     let mut pid = pneuflex_control::Pid::new(run.inner).expect("validated with the scene");
@@ -429,6 +415,19 @@ fn at_stiffness<P: Linearisable + ?Sized>(
         );
         p.advance(dt);
     }
+    u
+}
+
+fn at_stiffness<P: Linearisable + ?Sized>(
+    p: &mut P,
+    scene: &Scene,
+    run: &crate::schema::RunSpec,
+    k_e: f64,
+    target_db: f64,
+) -> Margins {
+    let dt = scene.dt_s;
+    p.without_coulomb_friction();
+    let u = settle_at_contact(p, scene, run, k_e);
     let (phi, gamma) = linearise(p, u, dt);
     let plant = plant_response(&phi, &gamma, dt, &frequencies(dt));
     let resp = loop_response(&plant, &run.inner, dt);

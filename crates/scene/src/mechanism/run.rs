@@ -25,14 +25,7 @@ pub fn run_all(
     let mut out = Vec::with_capacity(scene.runs.len());
     for (r, spec) in scene.runs.iter().enumerate() {
         let mut plant = MechanismPlant::new(scene)?;
-        let mut controllers = (0..scene.actuators.len())
-            .map(|a| {
-                scene
-                    .actuator_run(r, a)
-                    .build()
-                    .map_err(|e| scene.invalid(&format!("runs[{r}].{}", e.key), e.message))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut controllers = scene.run_controllers(r)?;
         let schedules = plant.schedules().to_vec();
         let mut each: Vec<&mut dyn pneuflex_control::Controller> = controllers
             .iter_mut()

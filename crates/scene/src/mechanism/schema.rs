@@ -157,6 +157,20 @@ impl MechanismScene {
         }
         spec
     }
+
+    /// Run `run`'s controller on each actuator, in actuator order (an error names the run's key).
+    pub fn run_controllers(
+        &self,
+        run: usize,
+    ) -> Result<Vec<Box<dyn pneuflex_control::Controller + Send + Sync>>, SceneError> {
+        (0..self.actuators.len())
+            .map(|a| {
+                self.actuator_run(run, a)
+                    .build()
+                    .map_err(|e| self.invalid(&format!("runs[{run}].{}", e.key), e.message))
+            })
+            .collect()
+    }
 }
 
 /// A cylinder between a clevis on one link and a rod eye on another.
