@@ -1,12 +1,15 @@
 //! The force-control task of `pneuflex.envs` (Gymnasium), stepped in Rust: a batch of episodes of a
-//! 1-DOF pneumatic or multibody scene, each its own plant (the scene crate's plant, the one
-//! `pneuflex.run` simulates), spring environment, events and domain-randomised parameters.
+//! scene — a 1-DOF pneumatic or multibody plant, or a mechanism of several actuators — each its own plant
+//! (the scene crate's plant, the one `pneuflex.run` simulates), environment, events and domain-randomised
+//! parameters.
 //!
-//! One `step` advances every episode by one action (a valve command for a tick, or a retune of the
-//! impedance controller and its ticks), in parallel over the machine's cores with the GIL released. `ForceControl` is a batch of one, `ForceControlVector` the
-//! `gymnasium.vector.VectorEnv` over a batch of many: one implementation of the task for both.
+//! One `step` advances every episode by one action (a valve command per actuator for a tick, or a retune
+//! of each actuator's impedance controller and its ticks), in parallel over the machine's cores with the
+//! GIL released. `ForceControl` is a batch of one, `ForceControlVector` the `gymnasium.vector.VectorEnv`
+//! over a batch of many: one implementation of the task for both.
 
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
 use pneuflex_control::{
@@ -14,8 +17,10 @@ use pneuflex_control::{
     ValveCommand,
 };
 use pneuflex_pneumatics::ValveKind;
+use pneuflex_scene::mechanism::plant::loop_events;
+use pneuflex_scene::mechanism::{MechanismPlant, MechanismScene};
 use pneuflex_scene::plants::{LinearSpring, MultibodyPlant, OneDofPneumatic, Plant};
-use pneuflex_scene::schema::{ControllerKind, EventSpec, PlantSpec};
+use pneuflex_scene::schema::{ControllerKind, DivergenceSpec, EventSpec, PlantSpec};
 use pneuflex_scene::{Scene, SceneError};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -28,7 +33,7 @@ use crate::errors;
 
 /// Observation scales: f_e and f_ref in 10 N, x - x_e in 10 mm, velocity in 0.1 m/s, pressures in bar.
 pub const SCALES: [f64; OBS] = [10.0, 10.0, 0.01, 0.1, 1e5, 1e5];
-/// Length of an observation: f_e, f_ref, x - x_e, x_dot, p_a, p_b.
+/// Length of an actuator's observation block: f_e, f_ref, x - x_e, x_dot, p_a, p_b.
 const OBS: usize = 6;
 
 /// What domain randomisation draws from at each reset: every range is log-uniform but the switch time's.
@@ -45,6 +50,9 @@ struct Ranges {
     /// An on/off valve's switching delay as a multiple of the sheet's, log-uniform (kept below 0.9 of the
     /// PWM period).
     delay_scale: (f64, f64),
+    /// A mechanism's contacts and springs: every stiffness before its events, and every event's, as a
+    /// multiple of the scene's, log-uniform (a softer or stiffer object than the scene's).
+    compliance_scale: (f64, f64),
 }
 
 const RANGES: Ranges = Ranges {
@@ -53,13 +61,15 @@ const RANGES: Ranges = Ranges {
     mass_scale: (0.5, 2.0),
     friction_scale: (0.5, 2.0),
     delay_scale: (0.5, 2.0),
+    compliance_scale: (0.5, 2.0),
 };
 
 fn log_uniform(rng: &mut StdRng, (lo, hi): (f64, f64)) -> f64 {
     (lo.ln() + rng.random::<f64>() * (hi.ln() - lo.ln())).exp()
 }
 
-/// One episode's physical parameters.
+/// One episode's physical parameters. On a mechanism `k_before` and `k_after` are the scales of its
+/// contacts' and springs' stiffness before and after their events (1: the scene's).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Draw {
     k_before: f64,
@@ -70,7 +80,7 @@ struct Draw {
     delay_scale: f64,
 }
 
-/// What an action is.
+/// What an action is, per actuator.
 #[derive(Clone, Debug)]
 enum Action {
     /// The valve command u in [-1, 1], held over one control tick.
@@ -78,14 +88,14 @@ enum Action {
     /// Adjustments (a_m, a_b) in [-1, 1]^2 of the scene's impedance controller, which then runs each
     /// tick: m_d = m_d0 4^a_m, b_d = b_d0 4^a_b (k_d kept), held over `ticks` control ticks.
     Impedance {
-        /// The scene's impedance run's controller, its m_d0, b_d0, k_d0.
-        controller: Box<ImpedanceController>,
+        /// The scene's impedance run's controller of each actuator, its m_d0, b_d0, k_d0.
+        controllers: Vec<ImpedanceController>,
         ticks: u32,
     },
 }
 
 impl Action {
-    /// Values in one action.
+    /// Values in one actuator's action.
     fn width(&self) -> usize {
         match self {
             Action::Valve => 1,
@@ -94,56 +104,94 @@ impl Action {
     }
 }
 
+/// The scene an environment runs.
+enum Rig {
+    /// A scene of one `[plant]`, with its 1-DOF pneumatic plant at its initial state (each episode is
+    /// built from its model with the draw's mass and friction), or None for a multibody plant, whose
+    /// episodes reset their own.
+    Single {
+        scene: Box<Scene>,
+        one_dof: Option<OneDofPneumatic>,
+    },
+    /// A scene of several actuators (`[[actuators]]`).
+    Mechanism {
+        scene: Box<MechanismScene>,
+        /// Every contact's and spring's name and stiffness: what a draw scales from the start.
+        compliances: Vec<(String, f64)>,
+    },
+}
+
 /// The scene's values: what every episode starts from.
 struct Task {
     action: Action,
-    scene: Scene,
-    /// A 1-DOF pneumatic scene's plant at its initial state: each episode is built from its model with the
-    /// draw's mass and friction. None for a multibody scene, whose episodes reset their own plant.
-    one_dof: Option<OneDofPneumatic>,
-    setpoints: SetpointSchedule,
+    rig: Rig,
+    /// Each actuator's reference.
+    setpoints: Vec<SetpointSchedule>,
     /// The scene's events in time order.
     events: Vec<EventSpec>,
     /// The scene's own parameters (no randomisation).
     own: Draw,
     dt: f64,
     duration: f64,
-    x_e: f64,
+    /// Each actuator's x_e, where its observation's position is measured from: the environment's surface
+    /// (one plant), or its `x_d_m` (a mechanism: where the scene's impedance law rests, the gripper's pad
+    /// touching the object).
+    x_e: Vec<f64>,
+    /// The 1-DOF plant's stroke: an episode ends at either end (a multibody rig's end stops hold the
+    /// flange, as in the scene's runs: its episode ends where a run diverges).
     stroke: f64,
+    /// Each actuator's position and force limits (the scene's `[divergence]`): past them, or past a
+    /// plant's invariant, a multibody or mechanism episode ends, as a run stops.
+    divergence: DivergenceSpec,
     /// Gymnasium's `max_episode_steps`: an episode is truncated at that many steps (None: the scene's
     /// duration only).
     max_steps: Option<u64>,
 }
 
+/// The impedance run a `"impedance"` action retunes: the scene's first impedance run, not frozen.
+fn impedance_run(runs: &[pneuflex_scene::schema::RunSpec]) -> Option<usize> {
+    runs.iter()
+        .position(|r| r.controller == ControllerKind::Impedance && r.frozen.is_none())
+}
+
+const NO_IMPEDANCE_RUN: &str =
+    "no impedance run: the impedance action retunes the scene's impedance controller";
+
+fn unknown_action(file: &Path, other: &str) -> SceneError {
+    SceneError::Plant {
+        file: file.to_path_buf(),
+        message: format!("action = {other:?}: expected \"valve\" or \"impedance\""),
+    }
+}
+
 impl Task {
+    /// The task of the scene at `path`, one `[plant]` or `[[actuators]]`.
     fn load(path: &Path, action: &str, decision_ticks: u32) -> Result<Self, SceneError> {
+        // An unreadable file is the loader's to report, with its own message.
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        if MechanismScene::is_mechanism(&text) {
+            Self::load_mechanism(path, action, decision_ticks)
+        } else {
+            Self::load_single(path, action, decision_ticks)
+        }
+    }
+
+    fn load_single(path: &Path, action: &str, decision_ticks: u32) -> Result<Self, SceneError> {
         let scene = Scene::load(path)?;
         let action = match action {
             "valve" => Action::Valve,
             "impedance" => {
-                let run = scene
-                    .runs
-                    .iter()
-                    .find(|r| r.controller == ControllerKind::Impedance && r.frozen.is_none())
-                    .ok_or_else(|| {
-                        scene.invalid(
-                            "runs",
-                            "no impedance run: the impedance action retunes the scene's impedance controller".into(),
-                        )
-                    })?;
+                let run = impedance_run(&scene.runs)
+                    .map(|r| &scene.runs[r])
+                    .ok_or_else(|| scene.invalid("runs", NO_IMPEDANCE_RUN.into()))?;
                 let controller = ImpedanceController::new(run.impedance, run.inner)
                     .map_err(|e| scene.invalid("runs", e.to_string()))?;
                 Action::Impedance {
-                    controller: Box::new(controller),
+                    controllers: vec![controller],
                     ticks: decision_ticks,
                 }
             }
-            other => {
-                return Err(SceneError::Plant {
-                    file: scene.source.clone(),
-                    message: format!("action = {other:?}: expected \"valve\" or \"impedance\""),
-                });
-            }
+            other => return Err(unknown_action(&scene.source, other)),
         };
         let env = LinearSpring {
             stiffness_n_per_m: scene.environment.stiffness_n_per_m,
@@ -176,8 +224,7 @@ impl Task {
         let (t_change_s, k_after) = change.unwrap_or((f64::INFINITY, k0));
         let mut task = Self {
             action,
-            one_dof,
-            setpoints: scene.setpoints()?,
+            setpoints: vec![scene.setpoints()?],
             events,
             own: Draw {
                 k_before: k0,
@@ -189,29 +236,145 @@ impl Task {
             },
             dt: scene.dt_s,
             duration: scene.duration_s,
-            x_e: env.x_e_m,
+            x_e: vec![env.x_e_m],
             stroke: f64::INFINITY,
+            divergence: scene.divergence,
             max_steps: None,
-            scene,
+            rig: Rig::Single {
+                scene: Box::new(scene),
+                one_dof,
+            },
         };
         let plant = task.build()?;
         task.stroke = plant
             .actuator_geometry()
             .map_or(f64::INFINITY, |g| g.stroke_m);
-        // Every event must be one this plant takes (validation says so too; here it is the environment's).
-        for (i, ev) in task.scene.events.iter().enumerate() {
-            task.build()?
-                .apply(ev)
-                .map_err(|e| task.scene.invalid(&format!("events[{i}]"), e.to_string()))?;
-        }
+        task.check_events()?;
         Ok(task)
     }
 
+    fn load_mechanism(path: &Path, action: &str, decision_ticks: u32) -> Result<Self, SceneError> {
+        let scene = MechanismScene::load(path)?;
+        let action = match action {
+            "valve" => Action::Valve,
+            "impedance" => {
+                let r = impedance_run(&scene.runs)
+                    .ok_or_else(|| scene.invalid("runs", NO_IMPEDANCE_RUN.into()))?;
+                // Each actuator's own gains where it gives them, as the scene's run drives it.
+                let controllers = (0..scene.actuators.len())
+                    .map(|a| {
+                        let spec = scene.actuator_run(r, a);
+                        ImpedanceController::new(spec.impedance, spec.inner).map_err(|e| {
+                            scene.invalid(&format!("actuators[{a}].gains"), e.to_string())
+                        })
+                    })
+                    .collect::<Result<_, _>>()?;
+                Action::Impedance {
+                    controllers,
+                    ticks: decision_ticks,
+                }
+            }
+            other => return Err(unknown_action(&scene.source, other)),
+        };
+        let plant = MechanismPlant::new(&scene)?;
+        // The observation is each actuator's two chambers: a family without them (a muscle) is refused
+        // here rather than observed as NaN.
+        for (i, a) in scene.actuators.iter().enumerate() {
+            let s = plant.sense_actuator(i);
+            if !(s.p_a.is_finite() && s.p_b.is_finite()) {
+                return Err(scene.invalid(
+                    &format!("actuators[{i}].sheet"),
+                    format!(
+                        "actuator '{}' has no chamber pressures p_a, p_b (a muscle?): the force-control \
+                         environment observes each actuator's two chambers",
+                        a.name
+                    ),
+                ));
+            }
+        }
+        let mut events = loop_events(&scene);
+        events.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+        let compliances = scene
+            .contacts
+            .iter()
+            .map(|c| (c.name.clone(), c.stiffness_n_per_m))
+            .chain(
+                scene
+                    .springs
+                    .iter()
+                    .map(|s| (s.name.clone(), s.stiffness_n_per_m)),
+            )
+            .collect();
+        let task = Self {
+            action,
+            setpoints: plant.schedules().to_vec(),
+            events,
+            own: Draw {
+                k_before: 1.0,
+                k_after: 1.0,
+                t_change_s: f64::NAN,
+                mass_scale: 1.0,
+                friction_scale: 1.0,
+                delay_scale: 1.0,
+            },
+            dt: scene.dt_s,
+            duration: scene.duration_s,
+            x_e: scene.actuators.iter().map(|a| a.x_d_m).collect(),
+            stroke: f64::INFINITY,
+            divergence: scene.divergence,
+            max_steps: None,
+            rig: Rig::Mechanism {
+                scene: Box::new(scene),
+                compliances,
+            },
+        };
+        task.check_events()?;
+        Ok(task)
+    }
+
+    /// Every event must be one this plant takes (validation says so too; here it is the environment's).
+    fn check_events(&self) -> Result<(), SceneError> {
+        for (i, ev) in self.events.iter().enumerate() {
+            self.build()?
+                .apply(ev)
+                .map_err(|e| self.invalid(&format!("events[{i}]"), e.to_string()))?;
+        }
+        Ok(())
+    }
+
+    fn invalid(&self, key: &str, message: String) -> SceneError {
+        match &self.rig {
+            Rig::Single { scene, .. } => scene.invalid(key, message),
+            Rig::Mechanism { scene, .. } => scene.invalid(key, message),
+        }
+    }
+
+    /// Actuators each episode drives.
+    fn actuators(&self) -> usize {
+        self.setpoints.len()
+    }
+
+    /// Values in one episode's action: the actuator's action for each actuator, actuator by actuator.
+    fn width(&self) -> usize {
+        self.action.width() * self.actuators()
+    }
+
+    /// Values in one episode's observation: each actuator's block, actuator by actuator.
+    fn obs_len(&self) -> usize {
+        OBS * self.actuators()
+    }
+
     /// A new plant of the scene at its initial state.
-    fn build(&self) -> Result<Box<dyn Plant + Send + Sync>, SceneError> {
-        Ok(match &self.one_dof {
-            Some(p) => Box::new(p.clone()),
-            None => Box::new(MultibodyPlant::from_scene(&self.scene)?),
+    fn build(&self) -> Result<Box<dyn Plant + Send>, SceneError> {
+        Ok(match &self.rig {
+            Rig::Single {
+                one_dof: Some(p), ..
+            } => Box::new(p.clone()),
+            Rig::Single {
+                scene,
+                one_dof: None,
+            } => Box::new(MultibodyPlant::from_scene(scene)?),
+            Rig::Mechanism { scene, .. } => Box::new(MechanismPlant::new(scene)?),
         })
     }
 
@@ -222,7 +385,16 @@ impl Task {
             return self.own;
         }
         let r = RANGES;
-        let one_dof = self.one_dof.is_some();
+        let one_dof = match &self.rig {
+            Rig::Single { one_dof, .. } => one_dof.is_some(),
+            Rig::Mechanism { .. } => {
+                return Draw {
+                    k_before: log_uniform(rng, r.compliance_scale),
+                    k_after: log_uniform(rng, r.compliance_scale),
+                    ..self.own
+                };
+            }
+        };
         Draw {
             k_before: log_uniform(rng, r.stiffness_n_per_m),
             k_after: log_uniform(rng, r.stiffness_n_per_m),
@@ -245,9 +417,21 @@ impl Task {
         }
     }
 
-    /// The scene's events, with its first stiffness change (or one added) at the draw's time and value.
+    /// The scene's events for the draw: one plant's first stiffness change (or one added) at the draw's
+    /// time and value; a mechanism's every stiffness scaled by the draw's `k_after`.
     fn events(&self, draw: &Draw) -> Vec<EventSpec> {
         let mut events = self.events.clone();
+        if let Rig::Mechanism { .. } = self.rig {
+            for e in &mut events {
+                if let EventSpec::Stiffness {
+                    stiffness_n_per_m, ..
+                } = e
+                {
+                    *stiffness_n_per_m *= draw.k_after;
+                }
+            }
+            return events;
+        }
         let first = events
             .iter()
             .position(|e| matches!(e, EventSpec::Stiffness { .. }));
@@ -277,9 +461,14 @@ impl Task {
 
 /// One running episode.
 struct Episode {
-    plant: Box<dyn Plant + Send + Sync>,
-    /// The impedance action's controller, at the scene's parameters at each restart.
-    controller: Option<ImpedanceController>,
+    /// Behind a lock only to be shared with Python (a mechanism's drives are `Send`, not `Sync`); the
+    /// batch reaches it through `&mut`, which takes no lock.
+    plant: Mutex<Box<dyn Plant + Send>>,
+    /// The impedance action's controller of each actuator, at the scene's parameters at each restart
+    /// (empty under the valve action).
+    controllers: Vec<ImpedanceController>,
+    /// Each actuator's valve command of the tick (scratch).
+    commands: Vec<f64>,
     events: Vec<EventSpec>,
     /// The first event not yet applied.
     next: usize,
@@ -298,13 +487,16 @@ struct Episode {
     steps: u64,
     /// Terminated or truncated at the last step: the next step resets it (Gymnasium's next-step autoreset).
     ended: bool,
+    /// Why a multibody or mechanism episode terminated (an actuator's limit, an invariant), for the message.
+    why: Option<String>,
 }
 
 impl Episode {
     fn new(task: &Task, stream: u64) -> Result<Self, SceneError> {
         let mut e = Self {
-            plant: task.build()?,
-            controller: None,
+            plant: Mutex::new(task.build()?),
+            controllers: Vec::new(),
+            commands: vec![0.0; task.actuators()],
             events: Vec::new(),
             next: 0,
             t: 0.0,
@@ -315,9 +507,15 @@ impl Episode {
             actions: Vec::new(),
             steps: 0,
             ended: false,
+            why: None,
         };
         e.restart(task, false);
         Ok(e)
+    }
+
+    /// The plant, through `&mut` (no lock taken).
+    fn plant(&mut self) -> &mut dyn Plant {
+        &mut **self.plant.get_mut().unwrap_or_else(|e| e.into_inner())
     }
 
     /// Starts the next episode of the stream (an autoreset) with a new draw.
@@ -332,8 +530,10 @@ impl Episode {
         self.randomized = randomize;
         self.actions.clear();
         self.steps = 0;
-        match &task.one_dof {
-            Some(p) => {
+        match &task.rig {
+            Rig::Single {
+                one_dof: Some(p), ..
+            } => {
                 let mut model = *p.model();
                 model.mechanics.moving_mass_kg *= draw.mass_scale;
                 model.mechanics.friction = model.mechanics.friction.scaled(draw.friction_scale);
@@ -347,57 +547,82 @@ impl Episode {
                 }
                 let env = LinearSpring {
                     stiffness_n_per_m: draw.k_before,
-                    x_e_m: task.x_e,
+                    x_e_m: task.x_e[0],
                 };
                 // The chambers start at the static balance of this episode's mass (OneDofPneumatic::new).
-                self.plant = Box::new(OneDofPneumatic::new(model, p.state().x, env, p.substeps()));
+                *self.plant.get_mut().unwrap_or_else(|e| e.into_inner()) =
+                    Box::new(OneDofPneumatic::new(model, p.state().x, env, p.substeps()));
             }
-            None => {
-                self.plant.reset();
+            Rig::Single { one_dof: None, .. } => {
+                let plant = self.plant();
+                plant.reset();
                 // The material facing the flange at the draw's stiffness (checked at load: it takes it).
-                let _ = self.plant.apply(&EventSpec::Stiffness {
+                let _ = plant.apply(&EventSpec::Stiffness {
                     t_s: 0.0,
                     stiffness_n_per_m: draw.k_before,
                     material: None,
                     damping_n_s_per_m: None,
                 });
             }
+            Rig::Mechanism { compliances, .. } => {
+                let plant = self.plant();
+                plant.reset();
+                // Every contact and spring at the draw's multiple of its stiffness (the scene's when 1:
+                // then left as built). Their names are the scene's, so the plant takes them.
+                if draw.k_before != 1.0 {
+                    for (name, k) in compliances {
+                        let _ = plant.apply(&EventSpec::Stiffness {
+                            t_s: 0.0,
+                            stiffness_n_per_m: k * draw.k_before,
+                            material: Some(name.clone()),
+                            damping_n_s_per_m: None,
+                        });
+                    }
+                }
+            }
         }
-        self.controller = match task.action {
-            Action::Impedance { ref controller, .. } => Some(**controller),
-            Action::Valve => None,
-        };
+        match &task.action {
+            Action::Impedance { controllers, .. } => self.controllers.clone_from(controllers),
+            Action::Valve => self.controllers.clear(),
+        }
         self.events = task.events(&draw);
         self.draw = draw;
         self.next = 0;
         self.t = 0.0;
         self.ended = false;
+        self.why = None;
         self.apply_due();
     }
 
     /// Applies the events due at the current time, as the scene loop does before it senses.
     fn apply_due(&mut self) {
+        let plant = &mut **self.plant.get_mut().unwrap_or_else(|e| e.into_inner());
         while let Some(ev) = self.events.get(self.next) {
             if ev.t_s() > self.t + 1e-9 {
                 break;
             }
             // Checked when the task was loaded: the plant takes each of the scene's events.
-            let _ = self.plant.apply(ev);
+            let _ = plant.apply(ev);
             self.next += 1;
         }
     }
 
-    fn observe(&self, task: &Task, out: &mut [f32]) {
-        let s = self.plant.sense();
-        let f_ref = task.setpoints.at(self.t).f_ref;
-        let raw = [s.f_e, f_ref, s.x - task.x_e, s.x_dot, s.p_a, s.p_b];
-        for ((o, r), k) in out.iter_mut().zip(raw).zip(SCALES) {
-            *o = (r / k) as f32;
+    /// The observation: each actuator's block (f_e, f_ref, x - x_e, x_dot, p_a, p_b, scaled).
+    fn observe(&mut self, task: &Task, out: &mut [f32]) {
+        let t = self.t;
+        let plant = self.plant();
+        for (i, block) in out.chunks_mut(OBS).enumerate() {
+            let s = plant.sense_actuator(i);
+            let f_ref = task.setpoints[i].at(t).f_ref;
+            let raw = [s.f_e, f_ref, s.x - task.x_e[i], s.x_dot, s.p_a, s.p_b];
+            for ((o, r), k) in block.iter_mut().zip(raw).zip(SCALES) {
+                *o = (r / k) as f32;
+            }
         }
     }
 
-    /// One action: a control tick under a valve command, or a retune of the impedance controller and
-    /// its ticks; the rewards summed over the ticks.
+    /// One action: a control tick under a valve command per actuator, or a retune of each actuator's
+    /// impedance controller and its ticks; the rewards summed over the ticks.
     fn step(&mut self, task: &Task, action: &[f64]) -> Outcome {
         self.actions.extend_from_slice(action);
         self.steps += 1;
@@ -420,60 +645,108 @@ impl Episode {
                 0.0
             }
         };
-        let Some(c) = self.controller.as_mut() else {
-            let (reward, terminated, truncated) = self.tick(task, action[0]);
+        let mut commands = std::mem::take(&mut self.commands);
+        let Action::Impedance {
+            controllers: scene_controllers,
+            ticks,
+        } = &task.action
+        else {
+            commands.copy_from_slice(action);
+            let (reward, terminated, truncated) = self.tick(task, &commands);
+            self.commands = commands;
             return Outcome {
                 reward,
                 terminated,
                 truncated,
             };
         };
-        let Action::Impedance { controller, ticks } = &task.action else {
-            unreachable!("an episode has a controller only under the impedance action")
-        };
-        let p0 = controller.filter().params();
-        let retuned = ImpedanceParams {
-            m_d_kg: p0.m_d_kg * 4f64.powf(clamp(action[0])),
-            b_d_ns_per_m: p0.b_d_ns_per_m * 4f64.powf(clamp(action[1])),
-            k_d_n_per_m: p0.k_d_n_per_m,
-        };
-        // Positive and finite by construction: the scene's parameters were validated.
-        let _ = c.set_impedance(retuned);
+        for ((c, c0), a) in self
+            .controllers
+            .iter_mut()
+            .zip(scene_controllers)
+            .zip(action.chunks_exact(2))
+        {
+            let p0 = c0.filter().params();
+            let retuned = ImpedanceParams {
+                m_d_kg: p0.m_d_kg * 4f64.powf(clamp(a[0])),
+                b_d_ns_per_m: p0.b_d_ns_per_m * 4f64.powf(clamp(a[1])),
+                k_d_n_per_m: p0.k_d_n_per_m,
+            };
+            // Positive and finite by construction: the scene's parameters were validated.
+            let _ = c.set_impedance(retuned);
+        }
         let mut out = Outcome::default();
         for _ in 0..*ticks {
-            let mut s: Sensors = self.plant.sense();
-            s.t = self.t;
-            let sp = task.setpoints.at(self.t);
-            let u = self
-                .controller
-                .as_mut()
-                .map_or(0.0, |c| c.update(&s, &sp, task.dt).u);
-            let (reward, terminated, truncated) = self.tick(task, u);
+            let t = self.t;
+            let plant = &**self.plant.get_mut().unwrap_or_else(|e| e.into_inner());
+            for (i, (c, u)) in self.controllers.iter_mut().zip(&mut commands).enumerate() {
+                let s = Sensors {
+                    t,
+                    ..plant.sense_actuator(i)
+                };
+                *u = c.update(&s, &task.setpoints[i].at(t), task.dt).u;
+            }
+            let (reward, terminated, truncated) = self.tick(task, &commands);
             out.reward += reward;
             (out.terminated, out.truncated) = (terminated, truncated);
             if terminated || truncated {
                 break;
             }
         }
+        self.commands = commands;
         out
     }
 
-    /// One control tick under valve command `u`: (reward, terminated, truncated).
-    fn tick(&mut self, task: &Task, u: f64) -> (f64, bool, bool) {
-        let u = if u.is_finite() {
-            u.clamp(-1.0, 1.0)
-        } else {
-            0.0
-        };
-        self.plant
-            .actuate(ValveCommand { u }, &Telemetry::default());
-        self.plant.advance(task.dt);
+    /// One control tick under each actuator's valve command: (reward, terminated, truncated). The reward
+    /// is the mean of the actuators' [`tick_reward`]s (one actuator: its own).
+    fn tick(&mut self, task: &Task, commands: &[f64]) -> (f64, bool, bool) {
+        let plant = self.plant();
+        for (i, &u) in commands.iter().enumerate() {
+            let u = if u.is_finite() {
+                u.clamp(-1.0, 1.0)
+            } else {
+                0.0
+            };
+            plant.actuate_actuator(i, ValveCommand { u }, &Telemetry::default());
+        }
+        plant.advance(task.dt);
         self.t += task.dt;
         self.apply_due();
-        let s = self.plant.sense();
-        let f_ref = task.setpoints.at(self.t).f_ref;
-        let reward = tick_reward(f_ref, s.f_e);
-        let terminated = s.x <= 0.0 || s.x >= task.stroke || !s.x.is_finite();
+        let t = self.t;
+        let plant = &**self.plant.get_mut().unwrap_or_else(|e| e.into_inner());
+        let mut reward = 0.0;
+        let mut terminated = false;
+        let one_dof = matches!(
+            task.rig,
+            Rig::Single {
+                one_dof: Some(_),
+                ..
+            }
+        );
+        for i in 0..task.actuators() {
+            let s = plant.sense_actuator(i);
+            reward += tick_reward(task.setpoints[i].at(t).f_ref, s.f_e);
+            if one_dof {
+                terminated |= s.x <= 0.0 || s.x >= task.stroke || !s.x.is_finite();
+            } else if self.why.is_none()
+                && let Some(why) = task.divergence.exceeded(t, s.x, s.f_e, 0.0)
+            {
+                // The scene's limits on each actuator's x and f_e, as a run's (no reference position
+                // here: x_r is given as 0).
+                self.why = Some(match plant.actuator_names().get(i) {
+                    Some(name) => format!("{name}: {why}"),
+                    None => why,
+                });
+            }
+        }
+        if !one_dof
+            && self.why.is_none()
+            && let Err(v) = plant.check_invariants()
+        {
+            self.why = Some(format!("{v} at t = {t:.4} s"));
+        }
+        terminated |= self.why.is_some();
+        let reward = reward / task.actuators() as f64;
         let truncated = self.t >= task.duration - 0.5 * task.dt;
         (reward, terminated, truncated && !terminated)
     }
@@ -487,7 +760,7 @@ struct Outcome {
     truncated: bool,
 }
 
-/// A batch of force-control episodes on a 1-DOF pneumatic scene (the Rust side of `pneuflex.envs`).
+/// A batch of force-control episodes of a scene (the Rust side of `pneuflex.envs`).
 #[pyclass(name = "ForceControlBatch", module = "pneuflex")]
 pub struct PyForceControlBatch {
     /// The constructor's arguments (a pickle rebuilds the batch from them, then replays its state).
@@ -639,11 +912,13 @@ fn tick_reward(f_ref: f64, f_e: f64) -> f64 {
 
 #[pymethods]
 impl PyForceControlBatch {
-    /// `num_envs` episodes of the scene at `scene_path` (a pneumatic 1-DOF or a multibody scene), at the
-    /// scene's values until reset. `randomize`: draw each episode's stiffness before and after the change
+    /// `num_envs` episodes of the scene at `scene_path` (a pneumatic 1-DOF or a multibody scene, or a scene
+    /// of several actuators: each step then takes every actuator's action and observes every actuator's
+    /// block, actuator by actuator), at the scene's values until reset. `randomize`: draw each episode's stiffness before and after the change
     /// (log-uniform 350-2800 N/m), the change's time (uniform 4-8 s) and, on the 1-DOF plant, the moving
     /// mass, the seal friction and an on/off valve's switching delay (each log-uniform 0.5-2x the sheet's)
-    /// at every reset; otherwise the scene's own values. `autoreset`: a step resets an episode that ended at the step before
+    /// at every reset (on a mechanism: every contact's and spring's stiffness before its events, and every
+    /// event's, each set scaled log-uniform 0.5-2x); otherwise the scene's own values. `autoreset`: a step resets an episode that ended at the step before
     /// (Gymnasium's next-step autoreset), returning its first observation. `action`: "valve" (u, one tick
     /// per step) or "impedance" (a_m, a_b retune the scene's impedance run: m_d = m_d0 4^a_m,
     /// b_d = b_d0 4^a_b, then `decision_ticks` ticks of that controller per step, the rewards summed).
@@ -672,19 +947,7 @@ impl PyForceControlBatch {
                 "decision_ticks must be at least 1 (control ticks per impedance action)",
             ));
         }
-        let mut task = Task::load(&scene_path, action, decision_ticks).map_err(|e| {
-            // A scene with [[actuators]] reads as an unknown key of a one-plant scene: say what it is.
-            let text = std::fs::read_to_string(&scene_path).unwrap_or_default();
-            if pneuflex_scene::mechanism::MechanismScene::is_mechanism(&text) {
-                errors::other(format!(
-                    "{}: a scene with [[actuators]] (several cylinders): the force-control environments \
-                     take a scene with one [plant], pneumatic or multibody",
-                    scene_path.display()
-                ))
-            } else {
-                errors::scene(e)
-            }
-        })?;
+        let mut task = Task::load(&scene_path, action, decision_ticks).map_err(errors::scene)?;
         task.max_steps = max_episode_steps;
         let episodes = (0..num_envs)
             .map(|i| Episode::new(&task, stream(0, i)))
@@ -739,7 +1002,7 @@ impl PyForceControlBatch {
     /// Restores `__getstate__`'s state: each episode restarted from its draw and its actions replayed.
     fn __setstate__(&mut self, py: Python<'_>, state: (bool, Vec<EpisodeState>)) -> PyResult<()> {
         let (randomize, saved) = state;
-        let width = self.task.action.width();
+        let width = self.task.width();
         if saved.len() != self.episodes.len() {
             return Err(PyValueError::new_err(format!(
                 "state: {} episodes for a batch of {}",
@@ -834,7 +1097,8 @@ impl PyForceControlBatch {
         Bound<'py, PyArray1<bool>>,
     )> {
         let n = self.episodes.len();
-        let width = self.task.action.width();
+        let width = self.task.width();
+        let obs_len = self.task.obs_len();
         let u = flat_actions(actions)?;
         if u.len() != n * width {
             return Err(PyValueError::new_err(format!(
@@ -852,7 +1116,7 @@ impl PyForceControlBatch {
                 u[k]
             )));
         }
-        let mut obs = vec![0f32; n * OBS];
+        let mut obs = vec![0f32; n * obs_len];
         let mut out = vec![Outcome::default(); n];
         let (task, randomize, autoreset) = (&self.task, self.randomize, self.autoreset);
         let episodes = &mut self.episodes;
@@ -863,13 +1127,13 @@ impl PyForceControlBatch {
                 let chunk = n.div_ceil(4 * rayon::current_num_threads()).max(16);
                 episodes
                     .par_chunks_mut(chunk)
-                    .zip(obs.par_chunks_mut(chunk * OBS))
+                    .zip(obs.par_chunks_mut(chunk * obs_len))
                     .zip(out.par_chunks_mut(chunk))
                     .zip(u.par_chunks(chunk * width))
                     .for_each(|(((eps, obs), out), u)| {
                         for (((e, o), r), u) in eps
                             .iter_mut()
-                            .zip(obs.chunks_mut(OBS))
+                            .zip(obs.chunks_mut(obs_len))
                             .zip(out.iter_mut())
                             .zip(u.chunks(width))
                         {
@@ -884,7 +1148,7 @@ impl PyForceControlBatch {
                     });
             });
         });
-        let obs = obs.into_pyarray(py).reshape([n, OBS])?;
+        let obs = obs.into_pyarray(py).reshape([n, obs_len])?;
         let rewards = out.iter().map(|o| o.reward).collect::<Vec<_>>();
         let term = out.iter().map(|o| o.terminated).collect::<Vec<_>>();
         let trunc = out.iter().map(|o| o.truncated).collect::<Vec<_>>();
@@ -897,7 +1161,9 @@ impl PyForceControlBatch {
     }
 
     /// Each episode's parameters as arrays: stiffness_n_per_m (before the change),
-    /// stiffness_after_n_per_m, t_change_s, mass_scale, friction_scale, switching_delay_scale.
+    /// stiffness_after_n_per_m, t_change_s, mass_scale, friction_scale, switching_delay_scale; on a
+    /// mechanism stiffness_scale and stiffness_after_scale (its contacts' and springs' stiffness before
+    /// and after their events, as multiples of the scene's).
     fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         let col = |f: fn(&Draw) -> f64| {
@@ -907,6 +1173,11 @@ impl PyForceControlBatch {
                 .collect::<Vec<_>>()
                 .into_pyarray(py)
         };
+        if let Rig::Mechanism { .. } = self.task.rig {
+            d.set_item("stiffness_scale", col(|d| d.k_before))?;
+            d.set_item("stiffness_after_scale", col(|d| d.k_after))?;
+            return Ok(d);
+        }
         d.set_item("stiffness_n_per_m", col(|d| d.k_before))?;
         d.set_item("stiffness_after_n_per_m", col(|d| d.k_after))?;
         d.set_item("t_change_s", col(|d| d.t_change_s))?;
@@ -916,23 +1187,37 @@ impl PyForceControlBatch {
         Ok(d)
     }
 
-    /// Episode `i`'s time and sensors in SI (pressures absolute): (t, x, x_dot, f_e, p_a, p_b); a
-    /// controller reads them as a policy.
-    fn sensors(&self, i: usize) -> PyResult<(f64, f64, f64, f64, f64, f64)> {
+    /// Episode `i`'s time and actuator `actuator`'s sensors in SI (pressures absolute):
+    /// (t, x, x_dot, f_e, p_a, p_b); a controller reads them as a policy.
+    #[pyo3(signature = (i, actuator = 0))]
+    fn sensors(&self, i: usize, actuator: usize) -> PyResult<(f64, f64, f64, f64, f64, f64)> {
         let e = self.episodes.get(i).ok_or_else(|| {
             PyValueError::new_err(format!(
                 "environment {i} out of range: the batch has {}",
                 self.episodes.len()
             ))
         })?;
-        let s = e.plant.sense();
+        self.check_actuator(actuator)?;
+        let s = e
+            .plant
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .sense_actuator(actuator);
         Ok((e.t, s.x, s.x_dot, s.f_e, s.p_a, s.p_b))
     }
 
-    /// The scene's (f_ref N, x_d m) at time `t` s.
-    fn setpoint(&self, t: f64) -> (f64, f64) {
-        let s = self.task.setpoints.at(t);
-        (s.f_ref, s.x_d)
+    /// Why episode `i` terminated, when an actuator of a multibody or mechanism scene passed the scene's
+    /// limits or its plant an invariant (None otherwise: a 1-DOF episode ends at an end of the stroke).
+    fn why(&self, i: usize) -> Option<String> {
+        self.episodes.get(i).and_then(|e| e.why.clone())
+    }
+
+    /// The scene's (f_ref N, x_d m) of actuator `actuator` at time `t` s.
+    #[pyo3(signature = (t, actuator = 0))]
+    fn setpoint(&self, t: f64, actuator: usize) -> PyResult<(f64, f64)> {
+        self.check_actuator(actuator)?;
+        let s = self.task.setpoints[actuator].at(t);
+        Ok((s.f_ref, s.x_d))
     }
 
     /// Number of episodes.
@@ -941,10 +1226,35 @@ impl PyForceControlBatch {
         self.episodes.len()
     }
 
-    /// Values per action: 1 (the valve command) or 2 (the impedance adjustments a_m, a_b).
+    /// The actuators' names, in the order of the action's and the observation's blocks (a mechanism's
+    /// `[[actuators]]`; empty for a scene of one `[plant]`).
+    #[getter]
+    fn actuator_names(&self) -> Vec<String> {
+        match &self.task.rig {
+            Rig::Mechanism { scene, .. } => {
+                scene.actuators.iter().map(|a| a.name.clone()).collect()
+            }
+            Rig::Single { .. } => Vec::new(),
+        }
+    }
+
+    /// Actuators each episode drives (1 for a scene of one `[plant]`).
+    #[getter]
+    fn num_actuators(&self) -> usize {
+        self.task.actuators()
+    }
+
+    /// Values per episode's action: per actuator 1 (the valve command) or 2 (the impedance adjustments
+    /// a_m, a_b), times the actuators.
     #[getter]
     fn action_width(&self) -> usize {
-        self.task.action.width()
+        self.task.width()
+    }
+
+    /// Values per episode's observation: 6 per actuator.
+    #[getter]
+    fn observation_width(&self) -> usize {
+        self.task.obs_len()
     }
 
     /// Control ticks per step: 1 under the valve action, `decision_ticks` under the impedance action.
@@ -976,14 +1286,25 @@ impl PyForceControlBatch {
 }
 
 impl PyForceControlBatch {
-    fn observations<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
+    fn check_actuator(&self, actuator: usize) -> PyResult<()> {
+        let n = self.task.actuators();
+        if actuator >= n {
+            return Err(PyValueError::new_err(format!(
+                "actuator {actuator} out of range: the scene has {n}"
+            )));
+        }
+        Ok(())
+    }
+
+    fn observations<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
         let n = self.episodes.len();
-        let mut obs = vec![0f32; n * OBS];
-        for (e, o) in self.episodes.iter().zip(obs.chunks_mut(OBS)) {
+        let len = self.task.obs_len();
+        let mut obs = vec![0f32; n * len];
+        for (e, o) in self.episodes.iter_mut().zip(obs.chunks_mut(len)) {
             e.observe(&self.task, o);
         }
         obs.into_pyarray(py)
-            .reshape([n, OBS])
-            .expect("n * 6 values reshape to (n, 6)")
+            .reshape([n, len])
+            .expect("n * len values reshape to (n, len)")
     }
 }

@@ -3,6 +3,7 @@ failure). Run: scripts/test_python.sh (installs the bindings into .venv first)."
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import sys
@@ -508,6 +509,169 @@ def the_multibody_environment_is_the_multibody_scene():
     assert len(sampled) == n and abs(rms / want - 1) < 1e-6, (rms, want, n)
 
 
+@functools.cache
+def _gripper_runs():
+    """pneuflex.run_mechanism and pneuflex.run of scenes/gripper.toml, once for the tests that read them
+    (each is two 8 s runs of the mechanism: about 3.5 s in the dev build)."""
+    gripper = str(ROOT / "scenes" / "gripper.toml")
+    return pneuflex.run_mechanism(gripper), pneuflex.run(gripper)
+
+
+def _impedance_forces(env, cap=None):
+    """Each actuator's contact force after every step of an episode of the impedance action held at 0 (each
+    actuator keeps the scene's gains), as (steps, actuators), and the RMS of f_ref - f_e from the
+    observations (float32) over the steps and actuators."""
+    env.reset(seed=0, options={"randomize": False})
+    width = env.observation_space.shape[0]
+    f_e, err = [], []
+    while True:
+        obs, _, term, trunc, info = env.step(np.zeros(env.action_space.shape, np.float32))
+        f_e.append(np.atleast_1d(info["f_e_n"]))
+        err.append(obs.reshape(width // 6, 6)[:, 1] * 10.0 - f_e[-1])
+        if term or trunc or (cap and len(f_e) >= cap):
+            return np.array(f_e), float(np.sqrt(np.mean(np.square(err))))
+
+
+@test
+def the_gripper_environment_drives_both_fingers_as_the_scene_does():
+    """pneuflex/GripperForceControl-v0 (scenes/gripper.toml, two cylinders): the action is one valve command
+    per finger, Box(2) (impedance: Box(4)), the observation each finger's block, Box(12); check_env passes
+    with rendering; held at 0, the impedance action is the scene's impedance run on both fingers over the
+    whole 8 s episode (foam, the sine, the stiffening to rubber at 5 s): every finger's f_e at every 10th tick
+    equals the trace's to 1e-9 N (the same plant and controllers in the same order: measured equal to the
+    bit; a tick's shift of the event alone moves f_e by newtons), the RMS through the float32 observation
+    within 1e-6; a step's reward is the mean of the fingers' 1 - min(((f_ref - f_e) / 10 N)^2, 1); a seed
+    repeats its draw of the pads' stiffness; a 1e12 N/m pad ends the episode, terminated, naming the finger."""
+    import warnings
+
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pneuflex.envs as envs
+
+    env = gymnasium.make("pneuflex/GripperForceControl-v0", render_mode="rgb_array").unwrapped
+    assert env.action_space.shape == (2,) and env.observation_space.shape == (12,), env.action_space
+    assert env.actuators == ["left", "right"] and env.scene_path.endswith("scenes/gripper.toml")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env)
+    assert env.render().shape == (640, 480, 3), "one panel pair per finger"
+    imp = gymnasium.make("pneuflex/GripperForceControl-v0", action="impedance").unwrapped
+    assert imp.action_space.shape == (4,)
+    f_e, rms = _impedance_forces(imp)
+    run = _gripper_runs()[1]["impedance"]
+    assert f_e.shape == (800, 2), f_e.shape
+    for i, side in enumerate(("left", "right")):
+        want = run[f"{side}.f_e"][10::10]
+        assert np.abs(f_e[:, i] - want).max() <= 1e-9, (side, np.abs(f_e[:, i] - want).max())
+    want = np.sqrt(np.mean([(run[f"{s}.f_ref"] - run[f"{s}.f_e"])[10::10] ** 2 for s in ("left", "right")]))
+    assert abs(rms / want - 1) < 1e-6, (rms, want)
+    # The reward of one tick (an impedance step of one tick, the fingers retuned apart so that their errors
+    # differ), from the sensors and the references the batch reports.
+    one = envs.ForceControl(scene="gripper", action="impedance", decision_ticks=1, randomize=False)
+    one.reset(seed=0)
+    for _ in range(1500):
+        _, reward, *_ = one.step(np.array([1.0, -1.0, -1.0, 1.0], np.float32))
+    each = [1 - min(((one.batch.setpoint(one.t, i)[0] - one.sensors(i)[3]) / 10.0) ** 2, 1) for i in (0, 1)]
+    assert abs(reward - np.mean(each)) < 1e-12 and abs(each[0] - each[1]) > 1e-3, (reward, each)
+    # Randomised: the pads' stiffness before and after the event, as multiples of the scene's.
+    _, a = env.reset(seed=5)
+    _, b = env.reset(seed=5)
+    _, c = env.reset(seed=6)
+    assert set(a) == set(envs.MECHANISM_PARAMS) and a == b and a != c, (a, c)
+    assert all(0.5 <= v <= 2 for v in (*a.values(), *c.values())), (a, c)
+    # A pad of 1e12 N/m at 0.05 s: the left finger leaves its stroke; the episode (the scene's gains, one
+    # tick a step) terminates at the tick the scene's impedance run stops as diverged, for the same reason.
+    text = (ROOT / "scenes" / "gripper.toml").read_text().replace('"../', f'"{ROOT}/')
+    text = text.replace("t_s = 5.0", "t_s = 0.05").replace("stiffness_n_per_m = 20000.0   # rubber",
+                                                          "stiffness_n_per_m = 1e12")
+    with tempfile.TemporaryDirectory() as d:
+        stiff = Path(d) / "stiff.toml"
+        stiff.write_text(text)
+        bad = envs.ForceControl(scene=stiff, randomize=False, action="impedance", decision_ticks=1)
+        bad.reset(seed=0)
+        for k in range(200):
+            _, _, term, trunc, _ = bad.step(np.zeros(4))
+            if term or trunc:
+                break
+        diverged = pneuflex.run(stiff).summary["runs"][0]["diverged"]
+    assert term and not trunc and bad.batch.why(0) == diverged, (term, trunc, bad.batch.why(0), diverged)
+    assert diverged.startswith("left: piston position") and abs(bad.t - 0.057) < 1e-9, (diverged, bad.t)
+    refused(lambda: bad.step(np.zeros(4)), RuntimeError, "terminated (left: piston position", "outside the stroke")
+
+
+@test
+def the_gripper_environment_refuses_a_wrong_shape_and_pickles():
+    """An action of one finger's shape (or a flat batch) is refused naming both shapes, and no finger moves;
+    a pickled or deep-copied gripper environment, and a pickled vector one past an autoreset, go on bit for
+    bit as the original fed the same actions."""
+    import copy
+    import pickle
+
+    import pneuflex.envs as envs
+
+    env = envs.ForceControl(scene="gripper", action="impedance")
+    env.reset(seed=2)
+    for a in (np.zeros(2), np.zeros((2, 2)), np.zeros(5), 0.0):
+        refused(lambda: env.step(a), ValueError, "ForceControl.step: the action has shape",
+                "the action space's is (4,)")
+    assert env.t == 0.0
+    acts = [np.array([0.3 * math.sin(0.1 * k), -0.2, 0.1, 0.4 * math.cos(0.2 * k)], np.float32) for k in range(60)]
+    for a in acts[:30]:
+        env.step(a)
+    again, copied = pickle.loads(pickle.dumps(env)), copy.deepcopy(env)
+    want = [env.step(a) for a in acts[30:]]
+    for other in (again, copied):
+        got = [other.step(a) for a in acts[30:]]
+        assert all(np.array_equal(w[0], g[0]) and w[1:4] == g[1:4] and np.array_equal(w[4]["f_e_n"], g[4]["f_e_n"])
+                   for w, g in zip(want, got))
+    vec = envs.ForceControlVector(num_envs=2, scene="gripper", max_episode_steps=20)
+    vec.reset(seed=1)
+    refused(lambda: vec.step(np.zeros((2, 1))), ValueError, "the action space's is (2, 2)")
+    refused(lambda: vec.step(np.zeros(4)), ValueError, "the action space's is (2, 2)")
+    for k in range(30):  # past an autoreset
+        vec.step(np.full((2, 2), 0.2 * math.sin(0.3 * k), np.float32))
+    twin = pickle.loads(pickle.dumps(vec))
+    for k in range(15):
+        a, b = vec.step(np.full((2, 2), -0.1, np.float32)), twin.step(np.full((2, 2), -0.1, np.float32))
+        assert all(np.array_equal(x, y) for x, y in zip(a[:4], b[:4])), k
+    assert a[0].shape == (2, 12)
+
+
+@test
+def the_fig7_environment_is_the_fig7_scene():
+    """The paper's fig7 scene (paper-fig7-wood-to-iron: the multibody rig, the carriage swapping wood for iron
+    at 3 s) by name: check_env passes; held at 0, the impedance action is the scene's impedance run over the
+    whole 8 s (f_e at every 10th tick to 1e-9 N, the RMS within 1e-6); a pickled environment goes on bit for
+    bit."""
+    import pickle
+    import warnings
+
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pneuflex.envs  # noqa: F401
+
+    env = gymnasium.make("pneuflex/ForceControl-v0", scene="paper-fig7-wood-to-iron").unwrapped
+    assert env.action_space.shape == (1,) and env.observation_space.shape == (6,)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(env, skip_render_check=True)
+    imp = gymnasium.make("pneuflex/ForceControl-v0", scene="paper-fig7-wood-to-iron", action="impedance").unwrapped
+    f_e, rms = _impedance_forces(imp)
+    run = pneuflex.run("paper-fig7-wood-to-iron")["impedance"]
+    assert f_e.shape == (800, 1) and np.abs(f_e[:, 0] - run["f_e"][10::10]).max() <= 1e-9
+    want = np.sqrt(np.mean((run["f_ref"] - run["f_e"])[10::10] ** 2))
+    assert abs(rms / want - 1) < 1e-6, (rms, want)
+    env.reset(seed=4)
+    for k in range(400):
+        env.step(np.array([0.1 * math.sin(0.05 * k)], np.float32))
+    twin = pickle.loads(pickle.dumps(env))
+    for k in range(100):
+        a, b = env.step(np.array([0.2], np.float32)), twin.step(np.array([0.2], np.float32))
+        assert np.array_equal(a[0], b[0]) and a[1:4] == b[1:4], k
+
+
 @test
 def every_native_name_has_a_type_stub():
     """pneuflex/_native.pyi declares every function, class and method the native module exports, with the
@@ -795,8 +959,10 @@ def a_bad_scene_is_refused_naming_the_file_the_line_and_the_key():
     # A scene of the other kind was "unknown field `actuators`" (or `environment`): it says what the scene is
     # and where it runs; a broken scene of several cylinders gets its own loader's file, line and key.
     gripper = ROOT / "scenes" / "gripper.toml"
-    refused(lambda: envs.ForceControl(scene=gripper), pneuflex.PneuflexError,
-            "gripper.toml: a scene with [[actuators]] (several cylinders)", "one [plant]")
+    # The environment takes a scene of several cylinders (the_gripper_environment_...); a muscle has no
+    # chambers p_a, p_b to observe: refused naming the actuator, not observed as NaN.
+    refused(lambda: envs.ForceControl(scene="antagonist"), pneuflex.PneuflexError,
+            "antagonist.toml", "actuators[0].sheet", "has no chamber pressures p_a, p_b")
     # pneuflex.run takes it (run_mechanism_gives_each_actuator_...); what takes one actuator says so.
     refused(lambda: pneuflex.summarize(gripper, {}), pneuflex.PneuflexError,
             "gripper.toml: a scene with several actuators ([[actuators]])", "pneuflex.run")
@@ -1354,7 +1520,7 @@ def identify_recovers_a_mass_from_a_simulated_log():
 def run_mechanism_gives_each_actuator_its_prefixed_columns_and_the_summary():
     """A scene with [[actuators]] from Python: per run, `t` and each actuator's columns under its name, the
     squeeze the scene asks for on both fingers, and the summary's claims (docs/multibody.md)."""
-    traces, summary, wall_s = pneuflex.run_mechanism(str(ROOT / "scenes" / "gripper.toml"))
+    traces, summary, wall_s = _gripper_runs()[0]
     assert set(traces) == {"impedance", "adaptive"}, list(traces)
     tr = traces["adaptive"]
     for side in ("left", "right"):
@@ -1368,7 +1534,7 @@ def run_mechanism_gives_each_actuator_its_prefixed_columns_and_the_summary():
     assert summary["actuators"] == ["left", "right"] and len(summary["claims"]) == 4
     assert wall_s > 0.0
     # pneuflex.run takes every scene kind: the same runs as Results, metrics per actuator, the claims.
-    res = pneuflex.run(str(ROOT / "scenes" / "gripper.toml"))
+    res = _gripper_runs()[1]
     assert isinstance(res, pneuflex.Results) and set(res) == {"impedance", "adaptive"}
     assert np.array_equal(res["adaptive"]["left.f_e"], tr["left.f_e"]), "the one loop is deterministic"
     assert res.summary["runs"][1]["controller"] == "adaptive" and len(res.claims) == 4

@@ -21,6 +21,13 @@ follow the scene's force reference while the environment's stiffness changes und
 - **Plant**: ``pneuflex/MultibodyForceControl-v0`` is the same task on the shipped ``paper-fig3-multibody``
   Rapier rig (its mass and friction not drawn); any pneumatic or multibody scene with ``scene=PATH`` or a
   shipped scene's name (``pneuflex.scenes()``).
+- **Several actuators**: ``pneuflex/GripperForceControl-v0`` is the task on the shipped ``gripper`` (two
+  fingers squeeze an object), and any scene with ``[[actuators]]`` runs the same way: the action is each
+  actuator's action, the observation each actuator's block of six, flat and actuator by actuator
+  (``Box(N k)``, ``Box(6 N)``; one actuator is the N = 1 case), the reward the mean of the actuators' rewards,
+  x - x_e measured from each actuator's ``x_d_m``. An episode terminates when any actuator passes the scene's
+  ``[divergence]`` limits or the plant an invariant (a chamber, the stroke); randomisation scales every
+  contact's and spring's stiffness, before and after the events, log-uniform 0.5-2x (:data:`MECHANISM_PARAMS`).
 - **Episode**: the scene's duration (10 s = 10,000 ticks for fig3), then truncated; terminated early if the
   flange reaches either end of the stroke; ``max_episode_steps`` (``gymnasium.make``/``make_vec``) truncates
   it sooner.
@@ -65,15 +72,20 @@ SCALES = np.array([10.0, 10.0, 0.01, 0.1, 1e5, 1e5])  # the batch's `scales`
 #: What a reset's info (or a vector reset's infos, as arrays) carries: each episode's drawn parameters.
 PARAMS = ("stiffness_n_per_m", "stiffness_after_n_per_m", "t_change_s", "mass_scale", "friction_scale",
           "switching_delay_scale")
+#: The same on a scene of several actuators: its contacts' and springs' stiffness before and after their
+#: events, as multiples of the scene's.
+MECHANISM_PARAMS = ("stiffness_scale", "stiffness_after_scale")
 
 
 def _scene(scene, where: str) -> str:
     """A path, or a shipped scene's name (FileNotFoundError listing them when it is neither)."""
     scene = Path(_data.resolve(c.path(scene, "scene", where) if scene is not None else DEFAULT_SCENE))
     if not scene.exists():
-        raise FileNotFoundError(f"{scene}: no such scene (pass scene=PATH to a pneumatic or multibody scene)")
+        raise FileNotFoundError(f"{scene}: no such scene (pass scene=PATH to a pneumatic, multibody or "
+                                f"several-actuator scene)")
     if not scene.is_file():
-        raise IsADirectoryError(f"{scene}: not a scene file (pass scene=PATH to a pneumatic or multibody scene)")
+        raise IsADirectoryError(f"{scene}: not a scene file (pass scene=PATH to a pneumatic, multibody or "
+                                f"several-actuator scene)")
     return str(scene)
 
 
@@ -128,10 +140,12 @@ def _actions(action, shape: tuple, where: str) -> np.ndarray:
     return action.astype(np.float64, copy=False).reshape(-1)
 
 
-def _spaces(width: int):
-    action = gymnasium.spaces.Box(-1.0, 1.0, shape=(width,), dtype=np.float32)
+def _spaces(batch):
+    """The action and observation spaces of one episode: flat, each actuator's values in turn (one actuator:
+    Box(1) or Box(2), and Box(6))."""
+    action = gymnasium.spaces.Box(-1.0, 1.0, shape=(batch.action_width,), dtype=np.float32)
     # Far beyond any reading of the plant (the scaled values are of order one).
-    observation = gymnasium.spaces.Box(-1e4, 1e4, shape=(6,), dtype=np.float32)
+    observation = gymnasium.spaces.Box(-1e4, 1e4, shape=(batch.observation_width,), dtype=np.float32)
     return action, observation
 
 
@@ -141,10 +155,12 @@ def _render_mode(mode, where: str):
     return mode
 
 
-def _frame_of(rows) -> np.ndarray:
-    """The frame of observations ``rows`` (n, 6): force and position traces in N and mm."""
-    rows = np.asarray(rows, dtype=float).reshape(-1, 6)
-    return _frame.traces(rows[:, 1] * SCALES[1], rows[:, 0] * SCALES[0], rows[:, 2] * SCALES[2] * 1e3)
+def _frame_of(rows, actuators: int = 1) -> np.ndarray:
+    """The frame of observations ``rows`` (n, 6 actuators): each actuator's force and position traces in N and
+    mm, one (320, 480) panel pair per actuator stacked top to bottom."""
+    rows = np.asarray(rows, dtype=float).reshape(-1, actuators, 6)
+    return np.concatenate([_frame.traces(r[:, 1] * SCALES[1], r[:, 0] * SCALES[0], r[:, 2] * SCALES[2] * 1e3)
+                           for r in rows.transpose(1, 0, 2)], axis=0)
 
 
 def _base_seed(rng: np.random.Generator) -> int:
@@ -166,9 +182,11 @@ class ForceControl(gymnasium.Env):
         self.batch = pneuflex.ForceControlBatch(self.scene_path, 1, randomize=randomize, action=action,
                                                 decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1))
         self.dt, self.duration = self.batch.dt, self.batch.duration
-        self.setpoints = pneuflex.Setpoints(self.scene_path)
+        #: The actuators' names, the order of the action's and the observation's blocks ([] for one [plant]).
+        self.actuators = list(self.batch.actuator_names)
+        self.setpoints = self._setpoints()
         self.randomize = randomize
-        self.action_space, self.observation_space = _spaces(self.batch.action_width)
+        self.action_space, self.observation_space = _spaces(self.batch)
         # Not reset yet, or the last step ended the episode: a step is refused until reset().
         self._ended = "call reset() before step()"
         # The episode's observations, kept for render() only.
@@ -182,22 +200,27 @@ class ForceControl(gymnasium.Env):
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self.setpoints = pneuflex.Setpoints(self.scene_path)
+        self.setpoints = self._setpoints()
+
+    def _setpoints(self):
+        """The reference schedule of a scene of one [plant] (None for several actuators: ``batch.setpoint``)."""
+        return None if self.actuators else pneuflex.Setpoints(self.scene_path)
 
     def render(self):
         """``render_mode="rgb_array"``: the episode's force and position traces, (320, 480, 3) uint8; else None."""
         if self.render_mode != "rgb_array":
             return None
-        return _frame_of(self._seen)
+        return _frame_of(self._seen, self.batch.num_actuators)
 
     @property
     def t(self) -> float:
         """The episode's time, s."""
         return self.batch.sensors(0)[0]
 
-    def sensors(self) -> tuple[float, float, float, float, float, float]:
-        """(t, x, x_dot, f_e, p_a, p_b) in SI, pressures absolute: what a controller reads."""
-        return self.batch.sensors(0)
+    def sensors(self, actuator: int = 0) -> tuple[float, float, float, float, float, float]:
+        """(t, x, x_dot, f_e, p_a, p_b) of actuator ``actuator`` in SI, pressures absolute: what a controller
+        reads."""
+        return self.batch.sensors(0, actuator)
 
     def reset(self, *, seed=None, options=None):
         randomize = _randomize(options, self.randomize, "ForceControl.reset")
@@ -219,8 +242,12 @@ class ForceControl(gymnasium.Env):
         if self.render_mode is not None:
             self._seen.append(obs[0])
         if terminated or truncated:
-            why = "terminated (an end of the stroke)" if terminated else "truncated (the scene's duration)"
+            why = (f"terminated ({self.batch.why(0) or 'an end of the stroke'})" if terminated
+                   else "truncated (the scene's duration)")
             self._ended = f"the episode ended at t = {t:.6g} s, {why}: call reset() before step()"
+        if self.actuators:  # each actuator's contact force, in the order of the blocks
+            return obs[0], float(reward[0]), terminated, truncated, {
+                "f_e_n": np.array([self.batch.sensors(0, i)[3] for i in range(len(self.actuators))])}
         return obs[0], float(reward[0]), terminated, truncated, {"f_e_n": f_e}
 
 
@@ -250,7 +277,8 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
                                                 decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1),
                                                 max_episode_steps=self.max_episode_steps)
         self.num_envs = num_envs
-        self.single_action_space, self.single_observation_space = _spaces(self.batch.action_width)
+        self.actuators = list(self.batch.actuator_names)
+        self.single_action_space, self.single_observation_space = _spaces(self.batch)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, num_envs)
         self.randomize = randomize
@@ -263,8 +291,9 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
         position over the last ``RENDER_STEPS`` steps (across its autoresets); else None."""
         if self.render_mode != "rgb_array":
             return None
-        seen = np.asarray(self._seen, dtype=float).reshape(-1, self.num_envs, 6)
-        return tuple(_frame_of(seen[:, i]) for i in range(self.num_envs))
+        width = self.batch.observation_width
+        seen = np.asarray(self._seen, dtype=float).reshape(-1, self.num_envs, width)
+        return tuple(_frame_of(seen[:, i], self.batch.num_actuators) for i in range(self.num_envs))
 
     def _remember(self, obs) -> None:
         if self.render_mode is not None:
@@ -304,14 +333,15 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
 
 def rollout(env: gymnasium.Env, policy, seed: int | None = None, options: dict | None = None) -> dict:
     """One episode of ``policy(obs) -> action`` on a force-control environment (any action variant):
-    ``{"return": sum of rewards, "rms_force_error_n": RMS of f_ref - f_e over the steps, "steps": n,
-    "draw": the reset's info}``."""
+    ``{"return": sum of rewards, "rms_force_error_n": RMS of f_ref - f_e over the steps (and the actuators),
+    "steps": n, "draw": the reset's info}``."""
     obs, draw = env.reset(seed=seed, options=options)
     total, sq, n = 0.0, 0.0, 0
     while True:
         obs, reward, terminated, truncated, info = env.step(policy(obs))
         total += reward
-        sq, n = sq + (float(obs[1]) * SCALES[1] - info["f_e_n"]) ** 2, n + 1
+        f_ref = np.asarray(obs, dtype=float).reshape(-1, 6)[:, 1] * SCALES[1]
+        sq, n = sq + float(np.mean((f_ref - info["f_e_n"]) ** 2)), n + 1
         if terminated or truncated:
             return {"return": total, "rms_force_error_n": (sq / n) ** 0.5, "steps": n, "draw": draw}
 
@@ -323,6 +353,9 @@ def adaptive_baseline(env: gymnasium.Env, run: str = "adaptive"):
     if not isinstance(env, ForceControl):
         raise TypeError(f"adaptive_baseline: env must be a ForceControl (gymnasium.make(...).unwrapped), got "
                         f"{c.kind(env)}")
+    if env.actuators:
+        raise ValueError(f"adaptive_baseline: {env.scene_path} has several actuators ({', '.join(env.actuators)}); "
+                         f"the baseline is one controller: use the impedance action at 0 for the scene's gains")
     controller = pneuflex.Controller.from_scene(env.scene_path, run)
 
     def policy(_obs):
@@ -353,4 +386,11 @@ gymnasium.register(
     entry_point="pneuflex.envs:ForceControl",
     vector_entry_point="pneuflex.envs:ForceControlVector",
     kwargs={"scene": "paper-fig3-multibody"},
+)
+# The task on several actuators: the shipped gripper's two fingers, one action and one block each.
+gymnasium.register(
+    id="pneuflex/GripperForceControl-v0",
+    entry_point="pneuflex.envs:ForceControl",
+    vector_entry_point="pneuflex.envs:ForceControlVector",
+    kwargs={"scene": "gripper"},
 )
