@@ -111,7 +111,7 @@ enum Rig {
     /// episodes reset their own.
     Single {
         scene: Box<Scene>,
-        one_dof: Option<OneDofPneumatic>,
+        one_dof: Option<Box<OneDofPneumatic>>,
     },
     /// A scene of several actuators (`[[actuators]]`).
     Mechanism {
@@ -198,7 +198,9 @@ impl Task {
             x_e_m: scene.environment.x_e_m,
         };
         let one_dof = match scene.plant {
-            PlantSpec::Pneumatic { .. } => Some(OneDofPneumatic::from_scene(&scene, env)?),
+            PlantSpec::Pneumatic { .. } => {
+                Some(Box::new(OneDofPneumatic::from_scene(&scene, env)?))
+            }
             PlantSpec::Multibody(_) => None,
             _ => {
                 return Err(scene.invalid(
@@ -369,7 +371,7 @@ impl Task {
         Ok(match &self.rig {
             Rig::Single {
                 one_dof: Some(p), ..
-            } => Box::new(p.clone()),
+            } => Box::new((**p).clone()),
             Rig::Single {
                 scene,
                 one_dof: None,
@@ -645,21 +647,20 @@ impl Episode {
                 0.0
             }
         };
-        let mut commands = std::mem::take(&mut self.commands);
         let Action::Impedance {
             controllers: scene_controllers,
             ticks,
         } = &task.action
         else {
-            commands.copy_from_slice(action);
-            let (reward, terminated, truncated) = self.tick(task, &commands);
-            self.commands = commands;
+            // The valve action: a command per actuator.
+            let (reward, terminated, truncated) = self.tick(task, action);
             return Outcome {
                 reward,
                 terminated,
                 truncated,
             };
         };
+        let mut commands = std::mem::take(&mut self.commands);
         for ((c, c0), a) in self
             .controllers
             .iter_mut()
