@@ -29,8 +29,9 @@ follow the scene's force reference while the environment's stiffness changes und
   ``[divergence]`` limits or the plant an invariant (a chamber, the stroke); randomisation scales every
   contact's and spring's stiffness, before and after the events, log-uniform 0.5-2x (:data:`MECHANISM_PARAMS`).
 - **Episode**: the scene's duration (10 s = 10,000 ticks for fig3), then truncated; terminated early if the
-  flange reaches either end of the stroke; ``max_episode_steps`` (``gymnasium.make``/``make_vec``) truncates
-  it sooner.
+  1-DOF plant's flange reaches either end of the stroke, or where a multibody or several-actuator scene's run
+  stops as diverged (its ``[divergence]`` limits, the plant's invariants; its end stops hold the flange);
+  ``max_episode_steps`` (``gymnasium.make``/``make_vec``) truncates it sooner.
 - **Render**: ``render_mode="rgb_array"``: ``render()`` is a (320, 480, 3) uint8 frame of the episode's force
   (f_ref grey, f_e blue) and position (x - x_e, green) traces; the vector environment's is a tuple of one frame
   per episode, over its last ``RENDER_STEPS`` steps.
