@@ -209,11 +209,17 @@ def gym_rates(rounds: int, quick: bool) -> None:
             f(i)
         return k * per / (time.perf_counter() - t0)
 
+    def single_step(i: int) -> None:
+        # An episode that ended (an end stop, or the 10 s run's end) is reset, as a training loop would.
+        _, _, terminated, truncated, _ = single.step(actions[i % 8, :1])
+        if terminated or truncated:
+            single.reset()
+
     rates: dict[str, list[float]] = {"batch": [], "vector": [], "single": []}
     for _ in range(rounds):
         rates["batch"].append(timed(lambda i: batch.step(actions[i % 8]), steps, n))
         rates["vector"].append(timed(lambda i: vec.step(actions[i % 8, :, None]), steps, n))
-        rates["single"].append(timed(lambda i: single.step(actions[i % 8, :1]), steps * 20, 1))
+        rates["single"].append(timed(single_step, steps * 20, 1))
     print(f"\nGymnasium force-control task on paper-fig3 (1 ms tick, 10 RK4 substeps; {n} episodes, "
           f"{rounds} rounds, interleaved), env-steps per wall-clock second:")
     print(f"  Rust batch (ForceControlBatch.step)      {fmt_rate(rates['batch'])}")
