@@ -51,6 +51,8 @@ DEFAULT_SCENES = [
     "scenes/gripper.toml",
     "scenes/lever.toml",
     "scenes/cross-slide.toml",
+    # Two McKibben muscles on an elbow, each the native `pneuflex.muscle` plugin on a spatial tendon.
+    "scenes/antagonist.toml",
 ]
 
 
@@ -428,6 +430,12 @@ def main(argv=None) -> int:
                           f"{v['mean_f_e_rapier_n']:.3f} N, MuJoCo {v['mean_f_e_mujoco_n']:.3f} N, RMS Δx = {1e3 * v['rms_x_diff_m']:.3f} mm; "
                           f"before the first event {100 * v['rms_f_e_diff_before_events_rel']:.2f}%  "
                           f"{'ok' if v['pass'] else 'FAIL'}")
+            for run, e in r["runs"].items():
+                if "joint" in e:
+                    j = e["joint"]
+                    print(f"[{r['scene']}] {run} / joint {j['name']}: RMS Δq = {1e3 * j['rms_diff']:.3f} mrad = {100 * j['rms_diff_rel']:.2f}% "
+                          f"of its range {1e3 * (j['range_ref'][1] - j['range_ref'][0]):.1f} mrad from {r['compared_from_s']} s, mean Rapier "
+                          f"{1e3 * j['mean_rapier']:.3f}, MuJoCo {1e3 * j['mean_mujoco']:.3f} mrad  {'ok' if j['pass'] else 'FAIL'}")
             print(f"[{r['scene']}] report {Path(args.out) / r['scene'] / 'report.json'} ({time.perf_counter() - t0:.1f} s)")
             if not r["pass"]:
                 failed.append(str(s))

@@ -14,6 +14,17 @@ MuJoCo's.
 
 Each control tick (the scene's dt): sense (stroke, rate, pad force, pressures), each actuator's controller
 updates, then `substeps` MuJoCo steps of dt/substeps, each preceded by one force-element step over it.
+
+A McKibben muscle (an actuator whose sheet has a `[muscle]` table, docs/muscles.md) is MuJoCo's own actuator:
+the `pneuflex.muscle` plugin (crates/mujoco-plugin, docs/mujoco-plugin.md) on the spatial tendon between its
+anchors, configured with the scene's muscle sheet and the chamber substeps that keep the engine's substep,
+started unpressurised as the engine starts it. Python only sets its ctrl (the valve command) each tick and
+reads its length (the contraction L0 - L is the loop's position, as the engine reports it), its rate and its
+force (the tension is -actuator_force, the mean over the last step, as the engine's load cell). A
+`[[springs]]` entry is the joint's MuJoCo stiffness and damping, resting at the joint's zero (a prismatic
+child's weight carried), as the engine's: its damping *replaces* the URDF joint's (the engine's spring is the
+joint's one motor, which the URDF damping's motor was: crates/multibody spring.rs, urdf_build.rs); a
+spring's event writes them.
 """
 
 from __future__ import annotations
@@ -40,19 +51,48 @@ def is_mechanism(scene: Path) -> bool:
     return "actuators" in doc and "plant" not in doc
 
 
-def mechanism_mjcf(urdf: Path, scene: dict, timestep_s: float) -> str:
+MUSCLE_PLUGIN = "pneuflex.muscle"
+# Joint types with one position (numpy ints compare with ints, not with the enum).
+_HINGE_SLIDE = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+def muscle_sheet(scene_dir: Path, a: dict) -> dict | None:
+    """The muscle sheet of actuator `a` (its TOML, with `path`), or None for a cylinder: a muscle sheet has
+    a `[muscle]` table, as the engine's FamilySheet tells them apart (crates/scene mechanism/build.rs)."""
+    path = (scene_dir / a["sheet"]).resolve()
+    doc = tomllib.loads(path.read_text())
+    if "muscle" not in doc:
+        return None
+    return {**doc, "path": str(path)}
+
+
+def chamber_substeps(scene: dict, substeps: int) -> int:
+    """Chamber substeps per MuJoCo step that keep the engine's chamber substep (its `chamber_substeps` per
+    physics step of dt / physics_steps_per_tick), at least 1."""
+    per_tick = int(scene.get("chamber_substeps", 10)) * int(scene.get("physics_steps_per_tick", 1))
+    return max(1, per_tick // substeps)
+
+
+def mechanism_mjcf(urdf: Path, scene: dict, timestep_s: float, scene_dir: Path | None = None, substeps: int = 1) -> str:
     """The MJCF of a mechanism scene (mjcf.urdf_to_mjcf): its URDF's tree, sites and tendons for the anchored
-    cylinders, a motor per cylinder. Colliders keep their names (`<link>/<i>`) and touch nothing (contype 0):
-    the pads are applied here."""
+    actuators, a motor per cylinder, a `pneuflex.muscle` plugin actuator per muscle (on its tendon; one
+    instance per muscle, with its sheet). Colliders keep their names (`<link>/<i>`) and touch nothing
+    (contype 0): the pads are applied here."""
     sites: dict[str, list[tuple[str, list[float]]]] = {}
-    tendons, motors = [], []
+    tendons, motors, plugins, plugin_acts = [], [], [], []
     for a in scene["actuators"]:
+        muscle = muscle_sheet(scene_dir, a) if scene_dir is not None else None
         if "anchors" in a:
             an = a["anchors"]
             sites.setdefault(an["link_a"], []).append((f"{a['name']}_a", an["point_a_m"]))
             sites.setdefault(an["link_b"], []).append((f"{a['name']}_b", an["point_b_m"]))
             tendons.append((a["name"], f"{a['name']}_a", f"{a['name']}_b"))
-            motors.append((a["name"], f'tendon="{a["name"]}"'))
+            if muscle is not None:
+                cfg = {"sheet": muscle["path"], "chamber_substeps": str(chamber_substeps(scene, substeps))}
+                plugins.append((MUSCLE_PLUGIN, a["name"], cfg))
+                plugin_acts.append((a["name"], f'tendon="{a["name"]}"', MUSCLE_PLUGIN, a["name"]))
+            else:
+                motors.append((a["name"], f'tendon="{a["name"]}"'))
         else:
             motors.append((a["name"], f'joint="{a["joint"]}"'))
     opt = mjcf.Options(
@@ -62,6 +102,8 @@ def mechanism_mjcf(urdf: Path, scene: dict, timestep_s: float) -> str:
         sites=sites,
         tendons=tendons,
         motors=motors,
+        plugins=plugins,
+        plugin_actuators=plugin_acts,
     )
     return mjcf.urdf_to_mjcf(urdf, opt)
 
@@ -90,12 +132,20 @@ class MujocoMechanism:
         self.dt = float(scene["dt_s"])
         self.h = self.dt / substeps
         self.substeps = substeps
-        self.xml = mechanism_mjcf(self.dir / scene["urdf"], scene, self.h)
+        self.muscles = [muscle_sheet(self.dir, a) for a in scene["actuators"]]
+        if any(self.muscles):
+            mujoco.mj_loadPluginLibrary(pneuflex.mujoco_plugin_path())
+        self.xml = mechanism_mjcf(self.dir / scene["urdf"], scene, self.h, self.dir, substeps)
         self.m = mujoco.MjModel.from_xml_string(self.xml)
         self.d = mujoco.MjData(self.m)
         self.acts = []
-        for a in scene["actuators"]:
-            if "anchors" in a:
+        # Each actuator's MuJoCo actuator id (motors first, then the plugin actuators).
+        self.act_ids = [mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_ACTUATOR, a["name"]) for a in scene["actuators"]]
+        for a, muscle in zip(scene["actuators"], self.muscles):
+            if muscle is not None:
+                # The loop's position is the contraction L0 - L (crates/scene mechanism/plant.rs).
+                self.acts.append(("muscle", mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_TENDON, a["name"]), float(muscle["muscle"]["rest_length_m"])))
+            elif "anchors" in a:
                 self.acts.append(("tendon", mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_TENDON, a["name"]), a["anchors"]["retracted_length_m"]))
             else:
                 jid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, a["joint"])
@@ -104,6 +154,20 @@ class MujocoMechanism:
                 if "initial_position_m" in a:
                     self.d.qpos[self.m.jnt_qposadr[jid]] = a["initial_position_m"]
         mujoco.mj_forward(self.m, self.d)
+        # The springs: (joint id, its dof, its qpos address, the child's weight along a prismatic joint), set
+        # from the scene's stiffness and damping.
+        self.springs = {}
+        for sp in scene.get("springs", []):
+            jid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, sp["joint"])
+            if jid < 0:
+                raise ValueError(f"{scene_path}: springs: no joint '{sp['joint']}' in the MJCF")
+            dof = int(self.m.jnt_dofadr[jid])
+            weight = 0.0
+            if int(self.m.jnt_type[jid]) == int(mujoco.mjtJoint.mjJNT_SLIDE):
+                body = int(self.m.jnt_bodyid[jid])
+                weight = float(self.m.body_mass[body] * np.dot(self.m.opt.gravity, self.d.xaxis[jid]))
+            self.springs[sp["name"]] = (jid, dof, int(self.m.jnt_qposadr[jid]), weight)
+            self.set_spring(sp["name"], sp["stiffness_n_per_m"], sp.get("damping_n_s_per_m", 0.0))
         self.pads = {}
         for c in scene.get("contacts", []):
             ga = [g for g in range(self.m.ngeom) if self.m.body(self.m.geom_bodyid[g]).name == c["link_a"]]
@@ -112,8 +176,23 @@ class MujocoMechanism:
         self._fromto = np.zeros(6)
         self._vel = np.zeros(6)
 
+    def set_spring(self, name: str, k: float, c: float) -> None:
+        """Spring `name` takes stiffness k and damping c, resting at the joint's zero with a prismatic child's
+        weight carried (q0 = -m g_axis / k), as the engine's. c replaces the URDF joint's damping, as in the
+        engine, whose spring is the joint's motor, the one the URDF damping had (measured on the antagonist:
+        adding the URDF's 0.1 N m s/rad to the spring's 0.2 moves the muscles' RMS force difference from
+        0.13 % to 0.35 % of the force level under impedance, 0.7 % to 2.5 % under adaptive)."""
+        jid, dof, qadr, weight = self.springs[name]
+        self.m.jnt_stiffness[jid] = k
+        self.m.dof_damping[dof] = c
+        self.m.qpos_spring[qadr] = -weight / k if k > 0 else 0.0
+        self.spring_params = getattr(self, "spring_params", {})
+        self.spring_params[name] = (k, c)
+
     def stroke(self, i: int) -> tuple[float, float]:
         kind, idx, ref = self.acts[i]
+        if kind == "muscle":
+            return ref - float(self.d.ten_length[idx]), -float(self.d.ten_velocity[idx])
         if kind == "tendon":
             return float(self.d.ten_length[idx]) - ref, float(self.d.ten_velocity[idx])
         return float(self.d.qpos[self.m.jnt_qposadr[idx]]) - ref, float(self.d.qvel[self.m.jnt_dofadr[idx]])
@@ -155,22 +234,26 @@ class MujocoMechanism:
 
 
 def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
-    """One run of the scene in MuJoCo: the trace's columns (a subset of the Rust runner's, same names)."""
-    for key in ("springs", "held_links"):
-        if scene.get(key):
-            raise NotImplementedError(f"{scene_path}: `{key}` has no MuJoCo equivalent in crossval/mechanism.py yet")
+    """One run of the scene in MuJoCo: the trace's columns (a subset of the Rust runner's, same names), plus
+    `q.<joint>`, each hinge or slide joint's position."""
+    if scene.get("held_links"):
+        raise NotImplementedError(f"{scene_path}: `held_links` has no MuJoCo equivalent in crossval/mechanism.py yet")
     mm = MujocoMechanism(scene_path, scene, substeps)
     acts = scene["actuators"]
     elements, controllers = [], []
-    for a in acts:
-        act = pneuflex.Actuator(str(scene_path.parent / a["sheet"]))
-        p = act.params()
-        # As the Rust runner starts them: B halfway between supply and atmosphere, A balancing it.
-        p_b = 0.5 * (p["supply_pressure_pa"] + p["atmosphere_pressure_pa"])
-        area_a = math.pi / 4 * p["bore_m"] ** 2
-        area_rod = math.pi / 4 * p["rod_m"] ** 2
-        p_a = (p_b * (area_a - area_rod) + p["atmosphere_pressure_pa"] * area_rod) / area_a
-        elements.append(pneuflex.ForceElement(act, p_a=p_a, p_b=p_b, substeps=max(1, int(scene.get("chamber_substeps", 10)) // substeps)))
+    for a, muscle in zip(acts, mm.muscles):
+        if muscle is not None:
+            # The pneuflex.muscle plugin steps it inside MuJoCo.
+            elements.append(None)
+        else:
+            act = pneuflex.Actuator(str(scene_path.parent / a["sheet"]))
+            p = act.params()
+            # As the Rust runner starts them: B halfway between supply and atmosphere, A balancing it.
+            p_b = 0.5 * (p["supply_pressure_pa"] + p["atmosphere_pressure_pa"])
+            area_a = math.pi / 4 * p["bore_m"] ** 2
+            area_rod = math.pi / 4 * p["rod_m"] ** 2
+            p_a = (p_b * (area_a - area_rod) + p["atmosphere_pressure_pa"] * area_rod) / area_a
+            elements.append(pneuflex.ForceElement(act, p_a=p_a, p_b=p_b, substeps=max(1, int(scene.get("chamber_substeps", 10)) // substeps)))
         # The actuator's own gains in place of the run's (MechanismScene::actuator_run).
         gains = a.get("gains", {})
         adaptive = gains.get("adaptive", run.get("adaptive")) if run.get("adaptive") is not None else None
@@ -178,9 +261,14 @@ def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
     n = int(round(scene["duration_s"] / mm.dt))
     events = sorted(((int(round(e["t_s"] / mm.dt)), e) for e in scene.get("events", [])), key=lambda x: x[0])
     cols = {"t": np.zeros(n + 1)}
-    for a in acts:
-        for c in ("f_r", "f_e", "x", "u", "force"):
+    for a, muscle in zip(acts, mm.muscles):
+        for c in ("f_r", "f_e", "x", "u", "force") + (("p_muscle",) if muscle is not None else ()):
             cols[f"{a['name']}.{c}"] = np.zeros(n + 1)
+    joints = [(mujoco.mj_id2name(mm.m, mujoco.mjtObj.mjOBJ_JOINT, j), int(mm.m.jnt_qposadr[j])) for j in range(mm.m.njnt)
+              if int(mm.m.jnt_type[j]) in _HINGE_SLIDE]
+    for jn, _ in joints:
+        cols[f"q.{jn}"] = np.zeros(n + 1)
+    state_adr = {i: int(mm.m.plugin_stateadr[mm.m.actuator_plugin[mm.act_ids[i]]]) for i, mu in enumerate(mm.muscles) if mu is not None}
     sensors = {a["name"]: a["force_sensor"] for a in acts}
     us = [0.0] * len(acts)
     forces = [0.0] * len(acts)
@@ -189,29 +277,48 @@ def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
         t = k * mm.dt
         for tick, e in events:
             if tick == k:
+                if e.get("spring") is not None:
+                    _, c_old = mm.spring_params[e["spring"]]
+                    c = e["damping_n_s_per_m"] if e.get("damping_n_s_per_m") is not None else c_old
+                    mm.set_spring(e["spring"], e["stiffness_n_per_m"], c)
+                    continue
                 pad = mm.pads[e["contact"]]
                 pad["k"] = e["stiffness_n_per_m"]
                 if e.get("damping_n_s_per_m") is not None:
                     pad["c"] = e["damping_n_s_per_m"]
         cols["t"][k] = t
+        for jn, adr in joints:
+            cols[f"q.{jn}"][k] = mm.d.qpos[adr]
         for i, a in enumerate(acts):
             x, xd = mm.position(i, a.get("position_sensor"))
-            f_e = forces[i] if sensors[a["name"]] == "load_cell" else mm.pads[sensors[a["name"]]]["force"]
-            f_r = _reference(a["force"], t)
-            pa, pb = elements[i].p_a, elements[i].p_b
-            us[i] = controllers[i].update(t, x, xd, f_e, pa, pb, f_r, a.get("x_d_m", 0.0), mm.dt)
             name = a["name"]
+            if elements[i] is None:
+                # The muscle's tension: -(the plugin's force over the last step), as the engine's load cell.
+                forces[i] = float(mm.d.actuator_force[mm.act_ids[i]])
+                f_cell = -forces[i]
+                pa = pb = float("nan")
+                cols[f"{name}.p_muscle"][k] = mm.d.plugin_state[state_adr[i]]
+            else:
+                f_cell = forces[i]
+                pa, pb = elements[i].p_a, elements[i].p_b
+            f_e = f_cell if sensors[name] == "load_cell" else mm.pads[sensors[name]]["force"]
+            f_r = _reference(a["force"], t)
+            us[i] = controllers[i].update(t, x, xd, f_e, pa, pb, f_r, a.get("x_d_m", 0.0), mm.dt)
             cols[f"{name}.f_r"][k], cols[f"{name}.f_e"][k], cols[f"{name}.x"][k] = f_r, f_e, x
             cols[f"{name}.u"][k], cols[f"{name}.force"][k] = us[i], forces[i]
+            if elements[i] is None:
+                mm.d.ctrl[mm.act_ids[i]] = us[i]
         if k == n:
             break
         for _ in range(mm.substeps):
             mm.apply_pads()
             for i in range(len(acts)):
+                if elements[i] is None:
+                    continue
                 x, xd = mm.stroke(i)
                 fp = elements[i].step(x, xd, us[i], mm.h)
                 forces[i] = fp - elements[i].friction_force(xd, fp)
-                mm.d.ctrl[i] = forces[i]
+                mm.d.ctrl[mm.act_ids[i]] = forces[i]
             mujoco.mj_step(mm.m, mm.d)
             if not np.all(np.isfinite(mm.d.qpos)):
                 raise RuntimeError(f"MuJoCo diverged at t = {t:.4f} s")
@@ -227,6 +334,34 @@ def simulate(scene_path: Path, scene: dict, run: dict, substeps: int) -> dict:
 # tolerance: before its first stiffness event the difference is within 1 % (the gripper on foam: 0.09 %).
 SCENE_TOLERANCES = {"gripper": 0.05}
 BEFORE_EVENTS_TOLERANCE = 0.01
+
+
+def joint_from_stroke(scene_path: Path, scene: dict, substeps: int):
+    """For a mechanism of one hinge or slide joint moved by an anchored actuator: (joint name, actuator name,
+    a function giving the joint position from that actuator's loop position x), by inverting the actuator's
+    length over the joint's range in MuJoCo's kinematics (the Rust trace records the loop's x, not the
+    joint). None for any other mechanism."""
+    mm = MujocoMechanism(scene_path, scene, substeps)
+    m = mm.m
+    if m.njnt != 1 or m.nv != 1 or int(m.jnt_type[0]) not in _HINGE_SLIDE:
+        return None
+    i = next((i for i, a in enumerate(scene["actuators"]) if "anchors" in a and a.get("position_sensor") is None), None)
+    if i is None:
+        return None
+    lo, hi = (m.jnt_range[0] if m.jnt_limited[0] else (-1.0, 1.0))
+    qs = np.linspace(lo, hi, 4001)
+    d = mujoco.MjData(m)
+    xs = np.empty_like(qs)
+    for k, q in enumerate(qs):
+        d.qpos[0] = q
+        mujoco.mj_fwdPosition(m, d)
+        mm.d = d
+        xs[k] = mm.stroke(i)[0]
+    order = np.argsort(xs)
+    if np.any(np.diff(xs[order]) <= 0):
+        return None
+    name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, 0)
+    return name, scene["actuators"][i]["name"], lambda x: np.interp(x, xs[order], qs[order])
 
 
 def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) -> dict:
@@ -249,6 +384,7 @@ def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) 
               "tolerance_rms_f_e_rel": tolerance, "compared_from_s": from_s, "first_event_s": until_s,
               "tolerance_before_events_rel": BEFORE_EVENTS_TOLERANCE, "mujoco": mujoco.__version__,
               "reference_wall_s": ref_wall, "runs": {}, "pass": True}
+    joint = joint_from_stroke(scene_path, scene, substeps)
     for run in scene["runs"]:
         w = time.perf_counter()
         mj = simulate(scene_path, scene, run, substeps)
@@ -281,6 +417,29 @@ def crossval(scene_path: Path, out_root: Path, substeps: int, tolerance: float) 
             )
             entry["actuators"][name] = e
             report["pass"] &= e["pass"]
+        if joint is not None:
+            # The joint from the Rust trace's loop position, against MuJoCo's own joint position.
+            jn, an, q_of = joint
+            q_ref, q_mj = q_of(rt[f"{an}.x"]), mjc[f"q.{jn}"]
+            dq = q_ref - q_mj
+            entry["joint"] = {
+                "name": jn,
+                "from_actuator": an,
+                "rms_diff_whole_run": float(np.sqrt(np.mean(dq**2))),
+                "rms_diff": float(np.sqrt(np.mean(dq[late] ** 2))),
+                "max_abs_diff": float(np.max(np.abs(dq[late]))),
+                "range_ref": [float(np.min(q_ref[late])), float(np.max(q_ref[late]))],
+                "mean_rapier": float(np.mean(q_ref[late])),
+                "mean_mujoco": float(np.mean(q_mj[late])),
+                # The inversion itself, on MuJoCo's own trace: its x against its own joint.
+                "inversion_check_rms": float(np.sqrt(np.mean((q_of(mjc[f"{an}.x"]) - q_mj) ** 2))),
+            }
+            j = entry["joint"]
+            span = j["range_ref"][1] - j["range_ref"][0]
+            # Relative to the joint's excursion over the compared part, within the force's tolerance.
+            j["rms_diff_rel"] = j["rms_diff"] / span if span > 0 else 0.0
+            j["pass"] = j["rms_diff_rel"] <= tolerance
+            report["pass"] &= j["pass"]
         report["runs"][run["name"]] = entry
     report["wall_s"] = time.perf_counter() - t0
     import json

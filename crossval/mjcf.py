@@ -66,6 +66,10 @@ class Options:
     tendons: list[tuple[str, str, str]] = field(default_factory=list)
     # Motors: (name, target attribute, e.g. 'joint="j"' or 'tendon="t"').
     motors: list[tuple[str, str]] = field(default_factory=list)
+    # Plugin instances in <extension>: (plugin, instance name, {config key: value}).
+    plugins: list[tuple[str, str, dict[str, str]]] = field(default_factory=list)
+    # Plugin actuators after the motors: (name, target attribute, plugin, instance), gear 1, ctrl in [-1, 1].
+    plugin_actuators: list[tuple[str, str, str, str]] = field(default_factory=list)
 
 
 def _floats(text: str | None, n: int = 3, default: float = 0.0) -> list[float]:
@@ -245,14 +249,27 @@ def urdf_to_mjcf(urdf: str | Path, opt: Options) -> str:
     ]
     if meshes:
         lines += ["  <asset>", *meshes, "  </asset>"]
+    if opt.plugins:
+        from xml.sax.saxutils import quoteattr
+
+        lines.append("  <extension>")
+        for plugin, inst, cfg in opt.plugins:
+            lines.append(f'    <plugin plugin="{plugin}"><instance name="{inst}">')
+            lines += [f"      <config key={quoteattr(k)} value={quoteattr(str(v))}/>" for k, v in cfg.items()]
+            lines.append("    </instance></plugin>")
+        lines.append("  </extension>")
     lines += ["  <worldbody>", *body, "  </worldbody>"]
     if opt.tendons:
         lines.append("  <tendon>")
         lines += [f'    <spatial name="{n}"><site site="{a}"/><site site="{b}"/></spatial>' for n, a, b in opt.tendons]
         lines.append("  </tendon>")
-    if opt.motors:
+    if opt.motors or opt.plugin_actuators:
         lines.append("  <actuator>")
         lines += [f'    <motor name="{n}" {target} gear="1"/>' for n, target in opt.motors]
+        lines += [
+            f'    <plugin name="{n}" {target} plugin="{p}" instance="{i}" gear="1" ctrlrange="-1 1" ctrllimited="true" forcelimited="false"/>'
+            for n, target, p, i in opt.plugin_actuators
+        ]
         lines.append("  </actuator>")
     lines.append("</mujoco>")
     return "\n".join(lines) + "\n"

@@ -43,7 +43,7 @@ struct Instance {
 ///
 /// # Safety
 /// `m` is a live mjModel.
-unsafe fn bound(m: Model, instance: usize) -> Vec<usize> {
+pub(crate) unsafe fn bound(m: Model, instance: usize) -> Vec<usize> {
     let n = unsafe { m.nactuator() };
     (0..n)
         .filter(|&a| usize::try_from(unsafe { m.actuator_plugin(a) }).ok() == Some(instance))
@@ -54,7 +54,7 @@ unsafe fn bound(m: Model, instance: usize) -> Vec<usize> {
 ///
 /// # Safety
 /// `m` is a live mjModel.
-unsafe fn who(api: &Api, m: Model, instance: c_int, actuators: &[usize]) -> String {
+pub(crate) unsafe fn who(api: &Api, m: Model, instance: c_int, actuators: &[usize]) -> String {
     let name =
         |ty, id| unsafe { ffi::text((api.mj_id2name)(m.0, ty, id)) }.filter(|s| !s.is_empty());
     if let Some(n) = name(MJ_OBJ_PLUGIN, instance) {
@@ -70,7 +70,7 @@ unsafe fn who(api: &Api, m: Model, instance: c_int, actuators: &[usize]) -> Stri
 }
 
 /// Runs `f`, returning `default` if it panics.
-fn guard<T>(default: T, f: impl FnOnce() -> T) -> T {
+pub(crate) fn guard<T>(default: T, f: impl FnOnce() -> T) -> T {
     catch_unwind(AssertUnwindSafe(f)).unwrap_or(default)
 }
 
@@ -85,7 +85,7 @@ unsafe extern "C" fn nstate(m: *const MjModel, instance: c_int) -> c_int {
 }
 
 /// Room for `init`'s message (MuJoCo's compiler keeps 500 bytes of an error; the key comes first).
-const MESSAGE_LEN: usize = 1000;
+pub(crate) const MESSAGE_LEN: usize = 1000;
 
 unsafe extern "C-unwind" fn init(m: *const MjModel, d: *mut MjData, instance: c_int) -> c_int {
     let Some(api) = ffi::api() else { return -1 };
@@ -137,7 +137,7 @@ unsafe fn set_up(
 
 /// `msg` as a NUL-terminated C string in `out`, cut at a character boundary if it is too long; an
 /// interior NUL becomes a space.
-fn c_text(msg: &str, out: &mut [c_char]) {
+pub(crate) fn c_text(msg: &str, out: &mut [c_char]) {
     let room = out.len() - 1;
     let mut end = msg.len().min(room);
     while !msg.is_char_boundary(end) {

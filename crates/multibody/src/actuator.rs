@@ -223,138 +223,9 @@ pub use pneuflex_muscle;
 /// valve or regulator over it in `substeps` RK4 substeps with the length moving at the step's rate (split
 /// at a PWM valve's spool edges), and returns the mean of -tension (M5, M7, M8): it pulls the anchors
 /// together. The mount's stroke x is L - L_min with L_min = L0 (1 - eps_max), the fully contracted length.
-#[derive(Debug, Clone)]
-pub struct MuscleForceElement {
-    /// Muscle, gas and supply.
-    pub chamber: pneuflex_muscle::MuscleChamber,
-    /// Valve or regulator.
-    pub feed: pneuflex_muscle::Feed,
-    /// Gas in the muscle.
-    pub gas: pneuflex_muscle::ChamberState,
-    /// The valve's spool and PWM state (unused with a regulator).
-    pub valve: pneuflex_pneumatics::ValveState,
-    /// The command u in [-1, 1] held until changed.
-    command: f64,
-    substeps: u32,
-    time_s: f64,
-}
-
-impl MuscleForceElement {
-    /// How many numbers [`ActuatorFamily::state`] writes: p, T, the valve's state and the clock.
-    pub const STATE_LEN: usize = 3 + pneuflex_pneumatics::ValveState::LEN;
-
-    /// A muscle at gas state `gas`, its valve at rest at spool 0, `substeps` (0 is 1) per physics step.
-    pub fn new(
-        chamber: pneuflex_muscle::MuscleChamber,
-        feed: pneuflex_muscle::Feed,
-        gas: pneuflex_muscle::ChamberState,
-        substeps: u32,
-    ) -> Self {
-        Self {
-            chamber,
-            feed,
-            gas,
-            valve: pneuflex_pneumatics::ValveState::default(),
-            command: 0.0,
-            substeps: substeps.max(1),
-            time_s: 0.0,
-        }
-    }
-
-    /// The fully contracted length L_min = L0 (1 - eps_max) (M6): the mount's retracted length, m.
-    pub fn contracted_length_m(&self) -> f64 {
-        let b = &self.chamber.muscle.braid;
-        b.rest_length_m * (1.0 - b.max_contraction())
-    }
-
-    /// The mount's stroke L0 - L_min from full contraction to the rest length, m.
-    pub fn stroke_m(&self) -> f64 {
-        self.chamber.muscle.braid.rest_length_m - self.contracted_length_m()
-    }
-
-    /// What feeds the chamber under command `u`: the 3/2 valve at `spool`, or the regulator set from
-    /// atmosphere (u = -1) to supply (u = +1), linearly.
-    fn port(&self, spool: f64) -> pneuflex_muscle::Port {
-        use pneuflex_muscle::{Feed, Port};
-        match self.feed {
-            Feed::Closed => Port::Closed,
-            Feed::Valve(valve) => Port::Valve { valve, spool },
-            Feed::Regulator { time_constant_s } => {
-                let s = &self.chamber.supply;
-                Port::Regulator {
-                    time_constant_s,
-                    set_pressure_pa: s.atmosphere_pressure_pa
-                        + 0.5
-                            * (self.command + 1.0)
-                            * (s.supply_pressure_pa - s.atmosphere_pressure_pa),
-                }
-            }
-        }
-    }
-
-    /// One RK4 step of the gas over `h` from length `l` moving at `l_dot`, the port held.
-    fn rk4(&mut self, l: f64, l_dot: f64, h: f64, port: &pneuflex_muscle::Port) {
-        use pneuflex_muscle::ChamberState as G;
-        let c = &self.chamber;
-        let d = |g: &G, l: f64| {
-            let r = c.rates(g, l, l_dot, port);
-            (r.pressure_pa_per_s, r.temperature_k_per_s)
-        };
-        let at = |g: &G, k: (f64, f64), s: f64| G {
-            pressure_pa: g.pressure_pa + s * k.0,
-            temperature_k: g.temperature_k + s * k.1,
-        };
-        let g = self.gas;
-        let k1 = d(&g, l);
-        let k2 = d(&at(&g, k1, 0.5 * h), l + 0.5 * h * l_dot);
-        let k3 = d(&at(&g, k2, 0.5 * h), l + 0.5 * h * l_dot);
-        let k4 = d(&at(&g, k3, h), l + h * l_dot);
-        self.gas = G {
-            pressure_pa: g.pressure_pa + h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0),
-            temperature_k: g.temperature_k + h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1),
-        };
-    }
-
-    /// Advances the chamber by `dt` (s) while the muscle's length goes from `length_m` at `rate` (m/s),
-    /// and returns the mean tension over the step, N (trapezoid over each piece).
-    pub fn step_length(&mut self, length_m: f64, rate: f64, dt: f64) -> f64 {
-        let h = dt / f64::from(self.substeps);
-        let mut t_sum = 0.0;
-        for i in 0..self.substeps {
-            let (t_sub, t_end) = (self.time_s, self.time_s + h);
-            let (mut tau, mut rest) = (t_sub, h);
-            loop {
-                let (spool, edge) = match self.feed {
-                    pneuflex_muscle::Feed::Valve(v) => {
-                        v.segment(&mut self.valve, self.command, tau, rest)
-                    }
-                    _ => (0.0, None),
-                };
-                let len = edge.map_or(rest, |e| (e - tau).min(rest));
-                let l = length_m + rate * (h * f64::from(i) + (tau - t_sub));
-                let f0 = self.chamber.tension(&self.gas, l, rate);
-                let port = self.port(spool);
-                self.rk4(l, rate, len, &port);
-                let f1 = self.chamber.tension(&self.gas, l + rate * len, rate);
-                t_sum += 0.5 * (f0 + f1) * (len / h);
-                match edge {
-                    Some(e) if e < t_end => {
-                        tau = e;
-                        rest = t_end - e;
-                    }
-                    _ => break,
-                }
-            }
-            self.time_s += h;
-        }
-        t_sum / f64::from(self.substeps)
-    }
-
-    /// The muscle's tension at rest at length `length_m` and the gas now, N (M5, M8).
-    pub fn static_tension(&self, length_m: f64) -> f64 {
-        self.chamber.tension(&self.gas, length_m, 0.0)
-    }
-}
+/// It lives in `pneuflex-muscle` (re-exported here) so that the MuJoCo plugin `pneuflex.muscle` runs it
+/// without Rapier, as the cylinder's `PneumaticForceElement` lives in `pneuflex-pneumatics`.
+pub use pneuflex_muscle::MuscleForceElement;
 
 impl AxialActuator for MuscleForceElement {
     fn force(&mut self, x: f64, x_dot: f64, dt: f64) -> f64 {
@@ -367,7 +238,7 @@ impl ActuatorFamily for MuscleForceElement {
         "muscle"
     }
     fn set_command(&mut self, u: f64) {
-        self.command = if u.is_nan() { 0.0 } else { u.clamp(-1.0, 1.0) };
+        MuscleForceElement::set_command(self, u)
     }
     /// `p_muscle`, not `p`: the adaptive law's own `p` takes that column name.
     fn sensors(&self) -> &'static [SensorSpec] {
@@ -389,31 +260,10 @@ impl ActuatorFamily for MuscleForceElement {
         l > 0.0 && l <= self.chamber.muscle.braid.fibre_length_m()
     }
     fn state(&self) -> Vec<f64> {
-        let mut v = vec![self.gas.pressure_pa, self.gas.temperature_k];
-        v.extend(self.valve.to_array());
-        v.push(self.time_s);
-        v
+        MuscleForceElement::state(self).to_vec()
     }
     fn set_state(&mut self, s: &[f64]) -> bool {
-        if s.len() != Self::STATE_LEN {
-            return false;
-        }
-        let mut va = [0.0; pneuflex_pneumatics::ValveState::LEN];
-        va.copy_from_slice(&s[2..2 + pneuflex_pneumatics::ValveState::LEN]);
-        let Some(valve) = pneuflex_pneumatics::ValveState::from_array(&va) else {
-            return false;
-        };
-        if !(s[..2].iter().all(|v| v.is_finite() && *v > 0.0) && s[Self::STATE_LEN - 1].is_finite())
-        {
-            return false;
-        }
-        self.gas = pneuflex_muscle::ChamberState {
-            pressure_pa: s[0],
-            temperature_k: s[1],
-        };
-        self.valve = valve;
-        self.time_s = s[Self::STATE_LEN - 1];
-        true
+        <&[f64; Self::STATE_LEN]>::try_from(s).is_ok_and(|s| MuscleForceElement::set_state(self, s))
     }
     fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String> {
         gas_invariant(

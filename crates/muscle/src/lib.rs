@@ -6,6 +6,8 @@
 //! - [`chamber`]: the chamber's mass and energy balance (the paper's eqs. (2)-(10)) with a volume that
 //!   depends on the length, fed by a 3/2 valve (ISO 6358, eq. (11), the pneumatics crate's flow and valve)
 //!   or a first-order pressure regulator;
+//! - [`element`]: the muscle as a force element between two anchors, stepped by a host (the engine's
+//!   mechanism, the MuJoCo plugin `pneuflex.muscle`) over each of its steps;
 //! - [`plant`]: a muscle pulling a mass against a spring, integrated with RK4;
 //! - [`sheet`]: muscle sheets as TOML.
 //!
@@ -14,10 +16,12 @@
 
 pub mod braid;
 pub mod chamber;
+pub mod element;
 pub mod plant;
 pub mod sheet;
 
 pub use braid::{Braid, BraidFriction, Muscle, NEUTRAL_BRAID_ANGLE_RAD, geometric_max_contraction};
 pub use chamber::{ChamberRates, ChamberState, MuscleChamber, Port};
+pub use element::MuscleForceElement;
 pub use plant::{Feed, Load, MusclePlant, PlantState};
 pub use sheet::{FeedSheet, MuscleSheet, SheetError};
