@@ -127,7 +127,7 @@ pub fn run(
 }
 
 /// One figure per run: each actuator's contact force against its reference, a panel each.
-fn write_figures(
+pub(super) fn write_figures(
     dir: &Path,
     scene: &MechanismScene,
     runs: &[RunResult],

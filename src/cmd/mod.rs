@@ -91,6 +91,7 @@ pub mod pil;
 pub mod progress;
 mod recording;
 pub mod rig;
+pub mod rig_mechanism;
 pub mod run;
 pub mod seal;
 pub mod sweep;

@@ -154,6 +154,20 @@ pub fn run_scene(
     figures: pneuflex_viz::Format,
     mcap: bool,
 ) -> anyhow::Result<()> {
+    // A scene of several actuators: the board's channels through the one loop (`rig_mechanism`).
+    if pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)
+        .is_ok_and(|t| pneuflex_scene::mechanism::MechanismScene::is_mechanism(&t))
+    {
+        if let Some(words) = rerun {
+            bail!(
+                "--rerun {}: a scene with several actuators on a board shows no live view yet",
+                words.join(" ")
+            );
+        }
+        return super::rig_mechanism::run(
+            rig_file, port, lockstep, scene_path, run_name, duration_s, out, figures, mcap,
+        );
+    }
     if let Some(d) = duration_s {
         check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
     }

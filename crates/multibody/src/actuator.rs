@@ -96,6 +96,15 @@ pub trait ActuatorFamily: AxialActuator {
     /// The family's invariants at mount stroke `x_m` of `stroke_m`: its chambers' pressures within
     /// (0, 2 x supply], temperatures positive, its travel possible; Err says which and by how much.
     fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String>;
+    /// Sets the pressure behind the valve's supply port, Pa absolute (an emulated board's supply lost, or dumped
+    /// to atmosphere to vent the actuator); `false` for a family without one (nothing changed).
+    fn set_supply_pa(&mut self, _p: f64) -> bool {
+        false
+    }
+    /// The pressure behind the valve's supply port, Pa absolute (`None` for a family without one).
+    fn supply_pa(&self) -> Option<f64> {
+        None
+    }
 }
 
 impl<T: ActuatorFamily + ?Sized> ActuatorFamily for Box<T> {
@@ -125,6 +134,12 @@ impl<T: ActuatorFamily + ?Sized> ActuatorFamily for Box<T> {
     }
     fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String> {
         (**self).check_invariants(x_m, stroke_m)
+    }
+    fn set_supply_pa(&mut self, p: f64) -> bool {
+        (**self).set_supply_pa(p)
+    }
+    fn supply_pa(&self) -> Option<f64> {
+        (**self).supply_pa()
     }
 }
 
@@ -183,6 +198,13 @@ impl ActuatorFamily for PneumaticForceElement {
     fn family(&self) -> &'static str {
         "cylinder"
     }
+    fn set_supply_pa(&mut self, p: f64) -> bool {
+        self.actuator.supply.supply_pressure_pa = p;
+        true
+    }
+    fn supply_pa(&self) -> Option<f64> {
+        Some(self.actuator.supply.supply_pressure_pa)
+    }
     fn set_command(&mut self, u: f64) {
         PneumaticForceElement::set_command(self, u)
     }
@@ -236,6 +258,13 @@ impl AxialActuator for MuscleForceElement {
 impl ActuatorFamily for MuscleForceElement {
     fn family(&self) -> &'static str {
         "muscle"
+    }
+    fn set_supply_pa(&mut self, p: f64) -> bool {
+        self.chamber.supply.supply_pressure_pa = p;
+        true
+    }
+    fn supply_pa(&self) -> Option<f64> {
+        Some(self.chamber.supply.supply_pressure_pa)
     }
     fn set_command(&mut self, u: f64) {
         MuscleForceElement::set_command(self, u)

@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 
 use crate::emulator::{Board, EmulatorLog, MemLink};
 use crate::error::{ErrorKind, RigError};
-use crate::plant::EmulatedPlant;
+use crate::plant::{CoupledPlant, Detached, EmulatedPlant, ValveDrive};
 use crate::protocol::{
     AppliedAllPayload, ChannelFaultPayload, ChannelSample, ChannelValve, ConfigPayload,
     DecodeEvent, Decoder, MAX_CHANNELS, MAX_FRAME, Message, SamplesPayload, ValvePayload, encode,
@@ -108,6 +108,18 @@ impl<P: EmulatedPlant, L: Link> ChannelBoard<P, L> {
     /// answers as one frame each: Samples, AppliedAll, one Heartbeat echo, one board Fault. Returns false
     /// once the link or a channel has stopped.
     pub fn step(&mut self, now: f64) -> Result<bool, RigError> {
+        self.step_with(now, |subs, now| {
+            subs.iter_mut().all(|sub| sub.board.step(now))
+        })
+    }
+
+    /// [`Self::step`] with the channels' periods run by `periods` (each channel's own plant, or one mechanism
+    /// under every channel's valve); false from it: a channel has stopped.
+    fn step_with(
+        &mut self,
+        now: f64,
+        periods: impl FnOnce(&mut [Sub<P>], f64) -> bool,
+    ) -> Result<bool, RigError> {
         for msg in drain(&mut self.link, &mut self.decoder)? {
             match msg {
                 Message::Valves(v) if usize::from(v.n) == self.subs.len() => {
@@ -129,11 +141,11 @@ impl<P: EmulatedPlant, L: Link> ChannelBoard<P, L> {
                 _ => {}
             }
         }
+        if !periods(&mut self.subs, now) {
+            return Ok(false);
+        }
         let mut out: Vec<Vec<Message>> = Vec::with_capacity(self.subs.len());
         for sub in &mut self.subs {
-            if !sub.board.step(now) {
-                return Ok(false);
-            }
             out.push(drain(&mut sub.to_board, &mut sub.decoder)?);
         }
         let n = self.subs.len();
@@ -200,6 +212,111 @@ impl<P: EmulatedPlant, L: Link> ChannelBoard<P, L> {
             }
         }
         Ok(true)
+    }
+}
+
+impl<L: Link> ChannelBoard<Detached, L> {
+    /// A board whose channels drive one mechanism, `plant` (a gripper's fingers on one part): channel i's
+    /// board is `channels[i]` as in [`Self::new`], with a [`Detached`] plant. `None` for no channels, more
+    /// than [`MAX_CHANNELS`], or a plant of another number of channels.
+    pub fn coupled(
+        link: L,
+        plant: Box<dyn CoupledPlant>,
+        channels: Vec<(crate::emulator::Emulator<Detached, MemLink>, MemLink)>,
+    ) -> Option<CoupledBoard<L>> {
+        if plant.channels() != channels.len() {
+            return None;
+        }
+        let board = Self::new(link, channels)?;
+        let drives = vec![ValveDrive::Vent; plant.channels()];
+        Some(CoupledBoard {
+            board,
+            plant,
+            drives,
+        })
+    }
+}
+
+/// A board of several channels on one mechanism ([`ChannelBoard::coupled`]). Each period every channel's
+/// board takes in the host's frames and its faults, then the mechanism advances under every channel's valve
+/// at once, then each channel samples its own actuator and answers: the order of a one-channel board's
+/// period, with the channels' physics joined.
+pub struct CoupledBoard<L: Link> {
+    board: ChannelBoard<Detached, L>,
+    plant: Box<dyn CoupledPlant>,
+    drives: Vec<ValveDrive>,
+}
+
+impl<L: Link> CoupledBoard<L> {
+    /// Channel `i`'s log (its valve commands as applied, its actuator's truth).
+    pub fn log(&self, i: usize) -> Option<EmulatorLog> {
+        self.board.log(i)
+    }
+
+    /// One sample period at board time `now` (see [`ChannelBoard::step`]).
+    pub fn step(&mut self, now: f64) -> Result<bool, RigError> {
+        let (plant, drives) = (&mut self.plant, &mut self.drives);
+        self.board.step_with(now, |subs, now| {
+            coupled_period(subs, plant.as_mut(), drives, now)
+        })
+    }
+}
+
+/// One period of the channels of a [`CoupledBoard`]: false once a channel has stopped.
+fn coupled_period(
+    subs: &mut [Sub<Detached>],
+    plant: &mut dyn CoupledPlant,
+    drives: &mut [ValveDrive],
+    now: f64,
+) -> bool {
+    let mut periods = Vec::with_capacity(subs.len());
+    for sub in subs.iter_mut() {
+        match sub.board.begin(now) {
+            Some(p) => periods.push(p),
+            None => return false,
+        }
+    }
+    // What the channels' boards asked of the plant: a new run (every channel hears the same Config), then a
+    // channel's supply lost.
+    let mut restart = false;
+    for sub in subs.iter_mut() {
+        restart |= std::mem::take(&mut sub.board.plant_mut().restart_asked);
+    }
+    if restart {
+        plant.restart();
+    }
+    for (i, sub) in subs.iter_mut().enumerate() {
+        if let Some(p) = sub.board.plant_mut().supply_asked.take() {
+            plant.set_supply_pa(i, p);
+        }
+        drives[i] = sub.board.valve_drive();
+    }
+    // Every channel hears the same first Run: channel 0's clock stands for all.
+    let (h, substeps) = subs[0].board.substep();
+    if subs[0].board.running() {
+        let t0 = periods[0].t_now();
+        for k in 0..substeps {
+            plant.step(t0 + k as f64 * h, drives, h);
+        }
+    }
+    for (i, (sub, period)) in subs.iter_mut().zip(&periods).enumerate() {
+        let ps = plant.sample(i);
+        sub.board.plant_mut().state = ps;
+        if !sub.board.end_period(now, period, &ps, plant.load_n(i)) {
+            return false;
+        }
+    }
+    true
+}
+
+impl<L: Link> crate::emulator::Stepped for CoupledBoard<L> {
+    fn period_s(&self) -> f64 {
+        self.board.subs[0].board.period_s()
+    }
+
+    /// A link error stops the board, as a failed link stops a one-channel board.
+    fn step_period(&mut self, now: f64) -> bool {
+        self.step(now).unwrap_or(false)
     }
 }
 

@@ -219,7 +219,12 @@ pub struct Emulator<P: EmulatedPlant, L: Link> {
 impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
     /// An emulator of `plant` behind `link`, with the rig's calibration (inverted to make counts).
     pub fn new(plant: P, link: L, cal: Calibration, cfg: EmulatorConfig) -> Self {
-        let env = Environment::from_config(&cfg.environment);
+        // No spring: a board whose plant is a mechanism (its contacts are the environment); a one-actuator
+        // emulator without one is refused where it is made (`session::emulated_plant`).
+        let env = cfg
+            .environment
+            .as_ref()
+            .map_or(Environment::NONE, Environment::from_config);
         Self {
             plant,
             link: Some(link),
@@ -306,6 +311,25 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
     }
 }
 
+/// One period's state between [`Board::begin`] and [`Board::end_period`].
+pub(crate) struct Period {
+    /// Experiment time at the period's start, s (0 before the run starts).
+    t_now: f64,
+    /// A heartbeat echo and a watchdog fault to send.
+    replies: [Option<Message>; 2],
+    stalled: bool,
+    dropping: bool,
+    corrupt: bool,
+    stuck: bool,
+}
+
+impl Period {
+    /// Experiment time at the period's start, s.
+    pub(crate) fn t_now(&self) -> f64 {
+        self.t_now
+    }
+}
+
 /// The firmware's state: one [`Board::step`] per sample period at board time `now` (s since power-up).
 /// Time is passed in, so the same board runs in real time ([`Emulator::spawn`]) or in lockstep with a
 /// simulated clock ([`lockstep`]).
@@ -357,8 +381,31 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
     /// One sample period at board time `now`: receive, board watchdog, physics, sample, transmit.
     /// Returns false once the board has stopped (link closed or failed).
     pub fn step(&mut self, now: f64) -> bool {
-        if self.finished {
+        let Some(period) = self.begin(now) else {
             return false;
+        };
+        let drive = self.valve_drive();
+        if self.running() {
+            for i in 0..self.substeps {
+                let ts = period.t_now + i as f64 * self.h;
+                let x = self.plant.sample().x;
+                let f_e = self.env.force(ts, x);
+                // f_ext on the flange = -f_e.
+                self.plant.step(drive, -f_e, self.h);
+            }
+        }
+        let ps = self.plant.sample();
+        let f_e = self.env.force(period.t_now, ps.x);
+        self.end_period(now, &period, &ps, f_e)
+    }
+
+    /// The board's part of a period before the physics: injected faults, the host's frames, the board's
+    /// watchdog. `None` once the board has stopped. A board of several channels on one mechanism
+    /// ([`crate::channel_board::ChannelBoard::coupled`]) runs this on every channel, then the mechanism under
+    /// every channel's [`Self::valve_drive`], then [`Self::end_period`] on every channel.
+    pub(crate) fn begin(&mut self, now: f64) -> Option<Period> {
+        if self.finished {
+            return None;
         }
         // Experiment time runs from the first Run command.
         let t = self.run_start_s.map(|s| now - s);
@@ -387,11 +434,11 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         if close && self.link.is_some() {
             self.link = None;
             self.end("link closed by fault injection".into());
-            return false;
+            return None;
         }
 
         if !stalled && !self.receive() {
-            return false;
+            return None;
         }
         let mut replies: [Option<Message>; 2] = [None, None];
         if stalled {
@@ -407,14 +454,55 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         if !stalled {
             replies[1] = self.board_watchdog(now);
         }
-        let t_now = t.unwrap_or(0.0);
-        let (ps, f_e) = self.advance_plant(t_now);
-        let sample = self.sample_payload(now, &ps, f_e, stuck);
-        // Transmit.
-        if stalled {
+        Some(Period {
+            t_now: t.unwrap_or(0.0),
+            replies,
+            stalled,
+            dropping,
+            corrupt,
+            stuck,
+        })
+    }
+
+    /// Whether a run is under way (the plant moves only then; before the first Run command it rests).
+    pub(crate) fn running(&self) -> bool {
+        self.run_start_s.is_some()
+    }
+
+    /// The plant's integration step within a period, s, and the steps per period.
+    pub(crate) fn substep(&self) -> (f64, usize) {
+        (self.h, self.substeps)
+    }
+
+    /// The board's plant (a channel of a coupled board holds a [`crate::plant::Detached`] one).
+    pub(crate) fn plant_mut(&mut self) -> &mut P {
+        &mut self.plant
+    }
+
+    /// The board's part of a period after the physics: the truth logged, the sample with its noise, the
+    /// frames sent (none while stalled). False once the link is gone or failed.
+    pub(crate) fn end_period(
+        &mut self,
+        now: f64,
+        period: &Period,
+        ps: &PlantSample,
+        f_e: f64,
+    ) -> bool {
+        if self.running()
+            && let Ok(mut l) = self.log.lock()
+            && l.truth.len() < LOG_CAP
+        {
+            l.truth.push(TruthRecord {
+                t: period.t_now,
+                x: ps.x,
+                f_e,
+            });
+        }
+        let sample = self.sample_payload(now, ps, f_e, period.stuck);
+        if period.stalled {
             return true;
         }
-        self.transmit(&replies, sample, dropping, corrupt)
+        self.transmit(&period.replies, sample, period.dropping, period.corrupt)
     }
 
     /// Reads what the host sent into `pending`; false once the link failed (the board has stopped).
@@ -533,9 +621,9 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         None
     }
 
-    /// Physics (never stalls) over one sample period from experiment time `t_now`; before the run starts
-    /// the plant rests. Returns the plant's state and the contact force at `t_now`.
-    fn advance_plant(&mut self, t_now: f64) -> (PlantSample, f64) {
+    /// What the valve does this period: the latest command, a run command after the transport delay (a safe
+    /// state at once).
+    pub(crate) fn valve_drive(&mut self) -> ValveDrive {
         let drive = match self.drive_mode {
             ValveMode::Run => ValveDrive::Run(from_q15(self.duty_q15)),
             ValveMode::SafeVent => ValveDrive::Vent,
@@ -544,7 +632,7 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
         // Transport delay: a run command reaches the valve `transport_delay_s` later (until the first one
         // arrives the valve keeps its power-up state, vented). A safe state is the board's own: at once.
         let delay_periods = (self.cfg.transport_delay_s / self.period_s).round() as usize;
-        let drive = match drive {
+        match drive {
             ValveDrive::Run(_) if delay_periods > 0 && self.run_start_s.is_some() => {
                 self.delay_line.push_back(drive);
                 if self.delay_line.len() > delay_periods {
@@ -558,29 +646,7 @@ impl<P: EmulatedPlant, L: Link> Board<P, L> {
                 self.delay_line.clear();
                 drive
             }
-        };
-        if self.run_start_s.is_some() {
-            for i in 0..self.substeps {
-                let ts = t_now + i as f64 * self.h;
-                let x = self.plant.sample().x;
-                let f_e = self.env.force(ts, x);
-                // f_ext on the flange = -f_e.
-                self.plant.step(drive, -f_e, self.h);
-            }
         }
-        let ps = self.plant.sample();
-        let f_e = self.env.force(t_now, ps.x);
-        if self.run_start_s.is_some()
-            && let Ok(mut l) = self.log.lock()
-            && l.truth.len() < LOG_CAP
-        {
-            l.truth.push(TruthRecord {
-                t: t_now,
-                x: ps.x,
-                f_e,
-            });
-        }
-        (ps, f_e)
     }
 
     /// The sample the board sends: the plant's state in counts with the ADC's noise (frozen by a stuck
@@ -789,40 +855,76 @@ impl Drop for MemLink {
     }
 }
 
-/// The host end of a link to a [`Board`] stepped in lockstep with a [`SimClock`]: every read first runs
+/// A board a simulated clock steps, one call per sample period: the one-channel [`Board`], or a board of
+/// several channels ([`crate::channel_board`]).
+pub trait Stepped: Send {
+    /// The sample period, s.
+    fn period_s(&self) -> f64;
+    /// One sample period at board time `now`; false once the board has stopped.
+    fn step_period(&mut self, now: f64) -> bool;
+}
+
+impl<P: EmulatedPlant> Stepped for Board<P, MemLink> {
+    fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    fn step_period(&mut self, now: f64) -> bool {
+        self.step(now)
+    }
+}
+
+/// The host end of a link to a board stepped in lockstep with a [`SimClock`]: every read first runs
 /// the board's sample periods up to the clock's time (board time = clock time). Deterministic: no threads,
 /// no wall clock.
-pub struct LockstepLink<P: EmulatedPlant> {
+pub struct LockstepLink<B: Stepped> {
     host: MemLink,
-    board: Board<P, MemLink>,
+    board: B,
     clock: SimClock,
     /// Board steps done; step k runs at k · period.
     steps: u64,
     period_ns: u64,
 }
 
-impl<P: EmulatedPlant> LockstepLink<P> {
+impl<B: Stepped> LockstepLink<B> {
+    /// `board`, whose link's other end is `host`, stepped with `clock`.
+    pub fn new(board: B, host: MemLink, clock: SimClock) -> Self {
+        let period_ns = ((board.period_s() * 1e9).round() as u64).max(1);
+        Self {
+            host,
+            board,
+            clock,
+            steps: 0,
+            period_ns,
+        }
+    }
+
+    /// The board.
+    pub fn board(&self) -> &B {
+        &self.board
+    }
+
     fn advance(&mut self) {
         let now = self.clock.now_ns();
         while self.steps * self.period_ns <= now {
             let t = (self.steps * self.period_ns) as f64 * 1e-9;
             self.steps += 1;
-            if !self.board.step(t) {
+            if !self.board.step_period(t) {
                 break;
             }
         }
     }
 }
 
-impl<P: EmulatedPlant> Drop for LockstepLink<P> {
+impl<B: Stepped> Drop for LockstepLink<B> {
     /// One more board period, so that the board takes in the last frames sent (the final safe command).
     fn drop(&mut self) {
         let t = (self.steps * self.period_ns) as f64 * 1e-9;
-        self.board.step(t);
+        self.board.step_period(t);
     }
 }
 
-impl<P: EmulatedPlant> Link for LockstepLink<P> {
+impl<B: Stepped> Link for LockstepLink<B> {
     fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError> {
         self.advance();
         self.host.read_now(buf)
@@ -840,19 +942,9 @@ pub fn lockstep<P: EmulatedPlant + 'static>(
     cal: Calibration,
     cfg: EmulatorConfig,
     clock: SimClock,
-) -> (LockstepLink<P>, Arc<Mutex<EmulatorLog>>) {
+) -> (LockstepLink<Board<P, MemLink>>, Arc<Mutex<EmulatorLog>>) {
     let (host, board_end) = MemLink::pair();
     let log = Arc::new(Mutex::new(EmulatorLog::default()));
     let board = Emulator::new(plant, board_end, cal, cfg).board(log.clone());
-    let period_ns = ((board.period_s() * 1e9).round() as u64).max(1);
-    (
-        LockstepLink {
-            host,
-            board,
-            clock,
-            steps: 0,
-            period_ns,
-        },
-        log,
-    )
+    (LockstepLink::new(board, host, clock), log)
 }

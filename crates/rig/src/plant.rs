@@ -44,6 +44,55 @@ pub trait EmulatedPlant: Send {
     fn restart(&mut self);
 }
 
+/// Several actuators coupled by one mechanism (a gripper's two fingers on one part): the plant of a board with
+/// several channels, advanced as one under every channel's valve, each channel sensed on its own. The
+/// mechanism's own contacts are its environment, and its own events (a part stiffening) come at their
+/// experiment time.
+pub trait CoupledPlant: Send {
+    /// Channels (actuators), in the board's order.
+    fn channels(&self) -> usize;
+    /// Advances by `dt` from experiment time `t`, channel i's valve under `drives[i]`.
+    fn step(&mut self, t: f64, drives: &[ValveDrive], dt: f64);
+    /// Channel i's measurable state.
+    fn sample(&self, i: usize) -> PlantSample;
+    /// Channel i's load cell, N (positive = the actuator pushes on what it holds).
+    fn load_n(&self, i: usize) -> f64;
+    /// Changes channel i's supply pressure (supply loss), Pa absolute.
+    fn set_supply_pa(&mut self, i: usize, p: f64);
+    /// Back to the state it was made in (a new run: positions, chambers, supplies, the events not yet come).
+    fn restart(&mut self);
+}
+
+/// The plant of one channel of a board whose channels share a [`CoupledPlant`]: it holds no physics, only
+/// what the channel's board asked of its plant this period (a restart, a supply loss), for the coupled board
+/// to pass on, and the channel's latest state.
+#[derive(Clone, Debug, Default)]
+pub struct Detached {
+    /// The latest state of this channel of the mechanism.
+    pub state: PlantSample,
+    /// A new run was asked for (a Config frame).
+    pub restart_asked: bool,
+    /// A supply pressure was set (an injected supply loss), Pa absolute.
+    pub supply_asked: Option<f64>,
+}
+
+impl EmulatedPlant for Detached {
+    /// Never called: the coupled board advances the mechanism itself.
+    fn step(&mut self, _drive: ValveDrive, _f_ext_n: f64, _dt: f64) {}
+
+    fn sample(&self) -> PlantSample {
+        self.state
+    }
+
+    fn set_supply_pa(&mut self, p: f64) {
+        self.supply_asked = Some(p);
+    }
+
+    fn restart(&mut self) {
+        self.restart_asked = true;
+    }
+}
+
 /// The pneumatic 1-DOF plant (cylinder thermodynamics, valve flow, eq. (1) mechanics).
 #[derive(Clone, Debug)]
 pub struct PneumaticPlant {
@@ -129,6 +178,14 @@ pub struct Environment {
 }
 
 impl Environment {
+    /// No environment: never in contact.
+    pub const NONE: Self = Self {
+        x_e_m: f64::INFINITY,
+        k_before: 0.0,
+        k_after: 0.0,
+        change_at_s: f64::INFINITY,
+    };
+
     /// From the rig file's `[emulator.environment]`.
     pub fn from_config(c: &EnvironmentConfig) -> Self {
         Self {

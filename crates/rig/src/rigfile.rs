@@ -388,8 +388,10 @@ pub struct EmulatorConfig {
     /// whole sample periods; 0 = applied in the period it arrives). Models a slow fieldbus or driver.
     #[serde(default)]
     pub transport_delay_s: f64,
-    /// The environment spring.
-    pub environment: EnvironmentConfig,
+    /// The one-actuator emulator's environment spring (required there); the emulator of a scene with several
+    /// actuators has the scene's contacts instead (`rig run --scene … --lockstep-truth`).
+    #[serde(default)]
+    pub environment: Option<EnvironmentConfig>,
     /// Faults to inject.
     #[serde(default)]
     pub faults: Vec<InjectedFault>,
@@ -945,16 +947,15 @@ impl RigFile {
                 1.0,
                 "s",
             )?;
-            c.finite("emulator.environment.x_e_m", e.environment.x_e_m)?;
-            c.positive(
-                "emulator.environment.k_e_n_per_m",
-                e.environment.k_e_n_per_m,
-            )?;
-            if let Some(k) = e.environment.k_e_after_n_per_m {
-                c.positive("emulator.environment.k_e_after_n_per_m", k)?;
-            }
-            if let Some(t) = e.environment.change_at_s {
-                c.finite("emulator.environment.change_at_s", t)?;
+            if let Some(env) = &e.environment {
+                c.finite("emulator.environment.x_e_m", env.x_e_m)?;
+                c.positive("emulator.environment.k_e_n_per_m", env.k_e_n_per_m)?;
+                if let Some(k) = env.k_e_after_n_per_m {
+                    c.positive("emulator.environment.k_e_after_n_per_m", k)?;
+                }
+                if let Some(t) = env.change_at_s {
+                    c.finite("emulator.environment.change_at_s", t)?;
+                }
             }
             for (i, f) in e.faults.iter().enumerate() {
                 let (at, dur) = match *f {
@@ -1057,7 +1058,7 @@ pub(crate) mod tests {
         assert_eq!(p.rt.rate_hz, 1000.0);
         assert!(p.emulator.is_none());
         let e = RigFile::parse(EMULATED, &rigs_dir().join("emulated.toml")).unwrap();
-        let env = &e.emulator.unwrap().environment;
+        let env = e.emulator.unwrap().environment.unwrap();
         assert_eq!(
             (env.k_e_n_per_m, env.k_e_after_n_per_m),
             (700.0, Some(1400.0))

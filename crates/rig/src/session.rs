@@ -69,6 +69,15 @@ pub fn emulated_plant(rig: &RigFile, file: &Path) -> Result<PneumaticPlant, RigF
             "missing: expected the path of an actuator sheet (e.g. ../pneumatics/paper-actuator.toml)".into(),
         ));
     };
+    if e.environment.is_none() {
+        return Err(invalid(
+            file,
+            "emulator.environment",
+            "missing: the one-actuator emulator's contact spring (x_e_m, k_e_n_per_m); only a scene with \
+             several actuators brings its own contacts"
+                .into(),
+        ));
+    }
     let path = rig.resolve_path(sheet);
     let sheet = ActuatorSheet::load(&path)
         .map_err(|err| invalid(file, "emulator.actuator", err.to_string()))?;
@@ -194,6 +203,10 @@ pub fn spawn_port_emulator(
     Ok(Emulator::new(plant, link, rig.cal(), cfg).spawn(None))
 }
 
+/// The host end of the link to the one-channel emulated board of a pneumatic plant, in lockstep.
+pub type PneumaticLockstep =
+    crate::emulator::LockstepLink<crate::emulator::Board<PneumaticPlant, crate::emulator::MemLink>>;
+
 /// The emulator of `rig` on an in-memory link, stepped in lockstep with `clock` (see
 /// [`crate::emulator::lockstep`]); with [`serial::connect_link`] and [`crate::rtloop::run_with_clock`] on the
 /// same clock, a run does not depend on the machine's speed.
@@ -203,7 +216,7 @@ pub fn lockstep_emulator(
     clock: crate::clock::SimClock,
 ) -> Result<
     (
-        crate::emulator::LockstepLink<PneumaticPlant>,
+        PneumaticLockstep,
         std::sync::Arc<std::sync::Mutex<crate::emulator::EmulatorLog>>,
     ),
     RigError,
@@ -216,7 +229,7 @@ pub fn lockstep_emulator(
 /// behind the supervisor, with the clock a loop must run on (`rtloop::run_with_clock`) and the emulator's log.
 pub struct LockstepRig {
     /// The supervised rig.
-    pub rig: Supervisor<RigStack<crate::emulator::LockstepLink<PneumaticPlant>>>,
+    pub rig: Supervisor<RigStack<PneumaticLockstep>>,
     /// The simulated clock the emulator steps with.
     pub clock: crate::clock::SimClock,
     /// What the emulated board saw and did.

@@ -33,7 +33,7 @@ fn rig_with(faults: Vec<InjectedFault>, change_at_s: Option<f64>) -> RigFile {
     rig.rt.post_fault_s = 0.05;
     let e = rig.emulator.as_mut().unwrap();
     e.faults = faults;
-    e.environment.change_at_s = change_at_s;
+    e.environment.as_mut().unwrap().change_at_s = change_at_s;
     rig
 }
 
@@ -128,7 +128,7 @@ fn simulate(rig: &RigFile, duration_s: f64) -> Vec<(f64, f64)> {
     let file = common::rig_path();
     let mut plant = session::emulated_plant(rig, &file).unwrap();
     let e = rig.emulator.as_ref().unwrap();
-    let env = Environment::from_config(&e.environment);
+    let env = Environment::from_config(e.environment.as_ref().unwrap());
     let mut ctrl = common::paper_controller();
     let dt = rig.dt();
     let sub = (dt / e.plant_dt_s).round() as usize;

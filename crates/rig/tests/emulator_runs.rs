@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex};
 
 use pneuflex_control::Setpoint;
 use pneuflex_rig::clock::SimClock;
-use pneuflex_rig::emulator::{EmulatorLog, LockstepLink, TruthRecord};
+use pneuflex_rig::emulator::{Board, EmulatorLog, LockstepLink, MemLink, TruthRecord};
 use pneuflex_rig::plant::PneumaticPlant;
 use pneuflex_rig::rtloop::{self, LoopReport};
 use pneuflex_rig::serial::Link;
@@ -37,7 +37,7 @@ fn rig() -> RigFile {
     rig.rt.post_fault_s = 0.05;
     let e = rig.emulator.as_mut().unwrap();
     e.faults = vec![];
-    e.environment.change_at_s = Some(CHANGE_AT_S);
+    e.environment.as_mut().unwrap().change_at_s = Some(CHANGE_AT_S);
     rig
 }
 
@@ -69,7 +69,7 @@ fn parse(report: LoopReport, out: Vec<u8>) -> Trace {
 /// The lockstep board's host end, shared so that two connections in a row reach one emulator (as two
 /// `rig run --port` reach one `rig emulate`).
 #[derive(Clone)]
-struct Shared(Arc<Mutex<LockstepLink<PneumaticPlant>>>);
+struct Shared(Arc<Mutex<LockstepLink<Board<PneumaticPlant, MemLink>>>>);
 
 impl Link for Shared {
     fn read_now(&mut self, buf: &mut [u8]) -> Result<usize, RigError> {
@@ -126,13 +126,14 @@ fn check_truth(run: &[TruthRecord], rig: &RigFile, which: &str) {
         first.x,
         e.x0_m
     );
-    let x_e = e.environment.x_e_m;
+    let env = e.environment.as_ref().unwrap();
+    let x_e = env.x_e_m;
     let mut in_contact = [0, 0];
     for r in run.iter().filter(|r| r.x > x_e + 1e-3) {
         let (k, i) = if r.t < CHANGE_AT_S {
-            (e.environment.k_e_n_per_m, 0)
+            (env.k_e_n_per_m, 0)
         } else {
-            (e.environment.k_e_after_n_per_m.unwrap(), 1)
+            (env.k_e_after_n_per_m.unwrap(), 1)
         };
         in_contact[i] += 1;
         let seen = r.f_e / (r.x - x_e);

@@ -186,9 +186,10 @@ pub fn record_delayed(
     {
         let e = rig.emulator.as_mut().unwrap();
         e.faults.clear();
-        e.environment.change_at_s = None;
+        let env = e.environment.as_mut().expect("the rig file's environment");
+        env.change_at_s = None;
         // Free motion: the block beyond the stroke.
-        e.environment.x_e_m = x_e_m.unwrap_or(1.0);
+        env.x_e_m = x_e_m.unwrap_or(1.0);
     }
     let mut lockstep = session::lockstep_rig(&rig, &file).expect("the emulator connects");
     let stop = AtomicBool::new(false);

@@ -84,6 +84,17 @@ impl MechanismPlant {
         &self.built.mechanism
     }
 
+    /// Actuator `i`'s supply pressure, Pa absolute (`None`: a family without one).
+    pub fn supply_pa(&self, i: usize) -> Option<f64> {
+        self.built.drives[i].supply_pa()
+    }
+
+    /// Sets actuator `i`'s supply pressure, Pa absolute (an emulated board's supply lost, or dumped to vent
+    /// the actuator); `false` for a family without one.
+    pub fn set_supply_pa(&mut self, i: usize, p: f64) -> bool {
+        self.built.drives[i].set_supply_pa(p)
+    }
+
     /// Each actuator's setpoint schedule (force pieces and x_d), in scene order.
     pub fn schedules(&self) -> &[pneuflex_control::SetpointSchedule] {
         &self.built.schedules

@@ -79,6 +79,12 @@ impl pneuflex_multibody::ActuatorFamily for FlangeDrive {
     fn check_invariants(&self, x_m: f64, stroke_m: f64) -> Result<(), String> {
         pneuflex_multibody::ActuatorFamily::check_invariants(&self.element, x_m, stroke_m)
     }
+    fn set_supply_pa(&mut self, p: f64) -> bool {
+        pneuflex_multibody::ActuatorFamily::set_supply_pa(&mut self.element, p)
+    }
+    fn supply_pa(&self) -> Option<f64> {
+        pneuflex_multibody::ActuatorFamily::supply_pa(&self.element)
+    }
 }
 
 /// The rig of `pneuflex-multibody` as a scene plant.

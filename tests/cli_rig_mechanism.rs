@@ -1,0 +1,218 @@
+//! `pneuflex rig run` on a scene with several actuators (the gripper): the scene's run through the one loop
+//! on an emulated board of two channels whose plant is the scene's own mechanism, in lockstep.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn pneuflex(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("runs")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// A trace as (header, rows).
+fn read_trace(p: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let t = std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    let mut lines = t.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (header, rows)
+}
+
+fn col(h: &[String], name: &str) -> usize {
+    h.iter()
+        .position(|c| c == name)
+        .unwrap_or_else(|| panic!("no column {name} in {h:?}"))
+}
+
+fn rig_run(out: &Path, rig: &str, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "rig",
+        "run",
+        "--rig",
+        rig,
+        "--scene",
+        "scenes/gripper.toml",
+        "--lockstep-truth",
+        "pneumatics/gripper-finger.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    pneuflex(&args)
+}
+
+/// The board run of the scene's own sheets writes both fingers' columns, the mechanism's summary and figure,
+/// and follows the simulation of the same run until the sensors' noise has had time to matter: over the first
+/// 0.3 s (the squeeze's approach, contact and first overshoot) each finger's force within 0.1 N RMS of
+/// `pneuflex run`'s. A second board run with the same seed is the same recording.
+#[test]
+fn the_gripper_on_a_board_of_two_channels_records_both_fingers_and_follows_its_simulation() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a");
+    let o = rig_run(&a, "rigs/gripper.toml", &["--duration", "1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (h, rows) = read_trace(&a.join("impedance").join("trace.csv"));
+    for c in [
+        "left.f_e",
+        "left.x",
+        "left.p_a",
+        "left.u",
+        "right.f_e",
+        "right.x",
+        "right.p_b",
+        "board_t",
+    ] {
+        col(&h, c);
+    }
+    assert_eq!(rows.len(), 1001, "1 s at 1 ms");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["actuators"], serde_json::json!(["left", "right"]));
+    assert_eq!(summary["runs"][0]["name"], "impedance");
+    let png = std::fs::read(a.join("impedance").join("force.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let manifest = std::fs::read_to_string(a.join(".pneuflex-output.json")).unwrap();
+    assert!(manifest.contains("\"truth\""), "{manifest}");
+
+    let sim = dir.path().join("sim");
+    let o = pneuflex(&[
+        "run",
+        "scenes/gripper.toml",
+        "--out",
+        sim.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (hs, srows) = read_trace(&sim.join("impedance").join("trace.csv"));
+    for finger in ["left", "right"] {
+        let (i, j) = (
+            col(&h, &format!("{finger}.f_e")),
+            col(&hs, &format!("{finger}.f_e")),
+        );
+        let n = 300;
+        let rms = (rows[..n]
+            .iter()
+            .zip(&srows[..n])
+            .map(|(b, s)| (b[i] - s[j]).powi(2))
+            .sum::<f64>()
+            / n as f64)
+            .sqrt();
+        let peak = srows[..n].iter().map(|s| s[j].abs()).fold(0.0, f64::max);
+        assert!(
+            peak > 4.0,
+            "{finger}: the squeeze reached {peak} N by 0.3 s"
+        );
+        assert!(
+            rms < 0.1,
+            "{finger}: board run {rms:.4} N RMS from the simulation over the first 0.3 s"
+        );
+    }
+
+    let b = dir.path().join("b");
+    let o = rig_run(&b, "rigs/gripper.toml", &["--duration", "1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        std::fs::read(a.join("impedance").join("trace.csv")).unwrap(),
+        std::fs::read(b.join("impedance").join("trace.csv")).unwrap(),
+        "two lockstep runs with one seed"
+    );
+}
+
+/// A fault on one channel (the right finger's load cell past its own limit) ends the run in that tick with
+/// every valve safe; the recording is kept, marked, and the exit is non-zero.
+#[test]
+fn a_fault_on_one_finger_ends_the_run_and_keeps_the_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("rigs/gripper.toml"))
+            .unwrap();
+    let rig = rig.replace(
+        "[[channel]]\nname = \"right\"\n",
+        "[[channel]]\nname = \"right\"\n[channel.limits]\nposition_m = [-0.001, 0.051]\nforce_n = [-5.0, 8.0]\n\
+         pressure_pa = [60000.0, 800000.0]\nsupply_min_pa = 350000.0\n",
+    );
+    assert!(rig.contains("force_n = [-5.0, 8.0]"));
+    let rig_path = dir.path().join("rig.toml");
+    // The rig file's relative paths (sensor sheets) from its own folder.
+    std::fs::write(
+        &rig_path,
+        rig.replace(
+            "\"../pneumatics/",
+            &format!("\"{}/pneumatics/", env!("CARGO_MANIFEST_DIR")),
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let o = rig_run(&out, rig_path.to_str().unwrap(), &["--duration", "1"]);
+    let all = text(&o);
+    assert!(!o.status.success(), "{all}");
+    assert!(all.contains("channel 1 (right)"), "{all}");
+    assert!(
+        all.contains("every valve was put in its safe state"),
+        "{all}"
+    );
+    assert!(all.contains("force f_e = ") && all.contains("outside [-5, 8]"), "{all}");
+    let (h, rows) = read_trace(&out.join("impedance").join("trace.diverged.csv"));
+    let f = col(&h, "right.f_e");
+    let t = rows.last().unwrap()[0];
+    assert!(t > 0.01 && t < 1.0, "the recording stops at the fault, t = {t} s");
+    assert!(rows.iter().any(|r| r[f] > 7.0), "the squeeze neared the limit");
+    assert!(out.join("summary.json").is_file());
+}
+
+/// What the command refuses, each naming the file and what to change.
+#[test]
+fn a_board_whose_channels_are_not_the_scenes_actuators_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("rigs/gripper.toml"))
+            .unwrap()
+            .replace("name = \"right\"", "name = \"thumb\"")
+            .replace(
+                "\"../pneumatics/",
+                &format!("\"{}/pneumatics/", env!("CARGO_MANIFEST_DIR")),
+            );
+    let rig_path = dir.path().join("rig.toml");
+    std::fs::write(&rig_path, rig).unwrap();
+    let out = dir.path().join("out");
+    let o = rig_run(&out, rig_path.to_str().unwrap(), &[]);
+    let all = text(&o);
+    assert!(!o.status.success(), "{all}");
+    assert!(
+        all.contains("rig.toml") && all.contains("thumb") && all.contains("[[channel]]"),
+        "{all}"
+    );
+    assert!(!out.exists(), "nothing written");
+
+    let o = pneuflex(&[
+        "rig",
+        "run",
+        "--rig",
+        "rigs/gripper.toml",
+        "--scene",
+        "scenes/gripper.toml",
+        "--port",
+        "/dev/null",
+    ]);
+    let all = text(&o);
+    assert!(!o.status.success(), "{all}");
+    assert!(all.contains("--lockstep-truth"), "{all}");
+}
