@@ -126,6 +126,78 @@ fn the_gripper_on_a_board_of_two_channels_records_both_fingers_and_follows_its_s
         );
     }
 
+    // `compare` on the recording: each finger's f_e and x RMS difference over the recorded second, as an
+    // independent calculation from the two traces gives it.
+    let cmp = dir.path().join("cmp");
+    let log = a.join("impedance").join("trace.csv");
+    let o = pneuflex(&[
+        "compare",
+        "scenes/gripper.toml",
+        "--rig-log",
+        log.to_str().unwrap(),
+        "--out",
+        cmp.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cmp.join("compare.json")).unwrap()).unwrap();
+    assert_eq!(report["samples"], 1001);
+    for (k, finger) in ["left", "right"].iter().enumerate() {
+        let got = &report["actuators"][k];
+        assert_eq!(got["actuator"], *finger);
+        for (c, key) in [("f_e", "f_e_rms_difference_n"), ("x", "x_rms_difference_m")] {
+            let (i, j) = (
+                col(&h, &format!("{finger}.{c}")),
+                col(&hs, &format!("{finger}.{c}")),
+            );
+            let want = (rows
+                .iter()
+                .zip(&srows)
+                .map(|(b, s)| (b[i] - s[j]).powi(2))
+                .sum::<f64>()
+                / rows.len() as f64)
+                .sqrt();
+            let v = got[key].as_f64().unwrap();
+            assert!(
+                (v - want).abs() <= 1e-9 * want.max(1e-9),
+                "{finger} {key}: {v} vs {want}"
+            );
+        }
+    }
+    assert!(
+        report["metrics"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|m| m["window"] == "squeeze"
+                && m["actuator"] == "right"
+                && m["metric"] == "rms_force_error_n")
+    );
+    assert_eq!(&std::fs::read(cmp.join("force.png")).unwrap()[1..4], b"PNG");
+    // A simulation's trace is not a recording; a recording is not another scene's.
+    let o = pneuflex(&[
+        "compare",
+        "scenes/gripper.toml",
+        "--rig-log",
+        sim.join("impedance").join("trace.csv").to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("a simulation's trace"),
+        "{}",
+        text(&o)
+    );
+    let o = pneuflex(&[
+        "compare",
+        "scenes/lever.toml",
+        "--rig-log",
+        log.to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("not of `lever`"),
+        "{}",
+        text(&o)
+    );
+
     let b = dir.path().join("b");
     let o = rig_run(&b, "rigs/gripper.toml", &["--duration", "1"]);
     assert!(o.status.success(), "{}", text(&o));
@@ -169,12 +241,21 @@ fn a_fault_on_one_finger_ends_the_run_and_keeps_the_recording() {
         all.contains("every valve was put in its safe state"),
         "{all}"
     );
-    assert!(all.contains("force f_e = ") && all.contains("outside [-5, 8]"), "{all}");
+    assert!(
+        all.contains("force f_e = ") && all.contains("outside [-5, 8]"),
+        "{all}"
+    );
     let (h, rows) = read_trace(&out.join("impedance").join("trace.diverged.csv"));
     let f = col(&h, "right.f_e");
     let t = rows.last().unwrap()[0];
-    assert!(t > 0.01 && t < 1.0, "the recording stops at the fault, t = {t} s");
-    assert!(rows.iter().any(|r| r[f] > 7.0), "the squeeze neared the limit");
+    assert!(
+        t > 0.01 && t < 1.0,
+        "the recording stops at the fault, t = {t} s"
+    );
+    assert!(
+        rows.iter().any(|r| r[f] > 7.0),
+        "the squeeze neared the limit"
+    );
     assert!(out.join("summary.json").is_file());
 }
 
@@ -215,4 +296,39 @@ fn a_board_whose_channels_are_not_the_scenes_actuators_is_refused() {
     let all = text(&o);
     assert!(!o.status.success(), "{all}");
     assert!(all.contains("--lockstep-truth"), "{all}");
+
+    // The default rig file is the one-channel emulated rig: not this scene's board.
+    let o = pneuflex(&[
+        "rig",
+        "run",
+        "--scene",
+        "scenes/gripper.toml",
+        "--lockstep-truth",
+        "pneumatics/gripper-finger.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let all = text(&o);
+    assert!(!o.status.success(), "{all}");
+    assert!(
+        all.contains("rigs/emulated.toml") && all.contains("[[channel]]"),
+        "{all}"
+    );
+    assert!(!out.exists(), "nothing written");
+
+    // `compare` takes only a recording of the scene: a CSV from elsewhere is refused with what it needs.
+    let log = dir.path().join("trace.csv");
+    std::fs::write(&log, "t,left.f_e\n0,0\n").unwrap();
+    let o = pneuflex(&[
+        "compare",
+        "scenes/gripper.toml",
+        "--rig-log",
+        log.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let all = text(&o);
+    assert!(!o.status.success(), "{all}");
+    assert!(all.contains("rig run --scene"), "{all}");
+    assert!(!out.exists(), "nothing written");
 }

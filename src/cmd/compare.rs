@@ -14,6 +14,7 @@ use pneuflex_scene::analysis::comparison::{Comparison, compare as compare_runs};
 use pneuflex_scene::analysis::recorded::recorded_run;
 use pneuflex_scene::{PlantSpec, RunResult, Scene};
 
+mod mechanism;
 mod rig_log;
 
 /// One `--rig-log`: the run it recorded, its path, its trace (up to a fault), how it ended and what the
@@ -115,6 +116,12 @@ pub struct CompareArgs<'a> {
 }
 
 pub fn compare(a: &CompareArgs<'_>) -> anyhow::Result<()> {
+    // A scene of several actuators: its recording on a board of several channels (compare/mechanism.rs).
+    if pneuflex_files::read_text(a.scene, pneuflex_files::InputKind::Scene)
+        .is_ok_and(|t| pneuflex_scene::mechanism::MechanismScene::is_mechanism(&t))
+    {
+        return mechanism::compare(a);
+    }
     let scene = Scene::load(a.scene)?;
     let single = a.rig_log.len() == 1;
     if !single && a.run.is_some() {

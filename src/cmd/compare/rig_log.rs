@@ -67,14 +67,20 @@ pub(super) fn summary_of(trace: &Path) -> Option<(String, String)> {
     ))
 }
 
-/// Reads and checks `path` (given as `arg`) as a recording of `scene`'s run `run`.
-pub(super) fn check(
-    scene: &Scene,
-    scene_path: &Path,
-    run: usize,
-    arg: &str,
-    path: &Path,
-) -> anyhow::Result<RigLog> {
+/// A file given as `--rig-log`: its text, what could not be confirmed, and the output it belongs to.
+pub(super) struct Recording {
+    /// The file's text.
+    pub text: String,
+    /// What the checks could not confirm, in words.
+    pub notes: Vec<String>,
+    /// The output it belongs to (its folder, manifest, and its path in it), when one lists it.
+    pub owner: Option<(PathBuf, Manifest, String)>,
+}
+
+/// Reads `path` (given as `arg`) as a recording of `rig run`: a regular text file, not in a staging folder,
+/// of an output whose manifest says `rig run` and lists it. Any other command's output is refused, saying
+/// what it is. Shared by the one-actuator and the several-actuator checks.
+pub(super) fn read_recording(arg: &str, path: &Path) -> anyhow::Result<Recording> {
     let shown = path.display().to_string();
     let meta = match std::fs::metadata(path) {
         Ok(m) => m,
@@ -159,6 +165,78 @@ pub(super) fn check(
             e.utf8_error().valid_up_to()
         )
     })?;
+    Ok(Recording { text, notes, owner })
+}
+
+/// Refuses a recording made with another scene file than `scene_path` (or this one since changed), by the
+/// hash its manifest (or its trace's own line, `from_trace`) recorded; `scene_name` says which case it is.
+pub(super) fn check_scene_hash(
+    arg: &str,
+    path: &Path,
+    scene_name: &str,
+    scene_path: &Path,
+    owner: Option<&(PathBuf, Manifest, String)>,
+    from_trace: Option<(String, String)>,
+    notes: &mut Vec<String>,
+) -> anyhow::Result<()> {
+    let shown = path.display().to_string();
+    // The scene it ran: by hash, from the manifest, else from the trace's own input line.
+    let recorded = owner
+        .and_then(|(_, m, _)| m.inputs.iter().find(|i| i.role == "scene"))
+        .map(|i| (i.path.clone(), i.sha256.clone()))
+        .or(from_trace);
+    let given = pneuflex_files::InputDigest::of_file(scene_path, "scene")?;
+    match recorded {
+        Some((was, hash)) if hash != given.sha256 => {
+            let same_name = summary_of(path).is_some_and(|(s, _)| s == scene_name);
+            let head = |h: &str| h.chars().take(12).collect::<String>();
+            if same_name {
+                bail!(
+                    "--rig-log {arg}: recorded with scene `{}` as it was then ({was}, sha256 {}…); {} is now \
+                     sha256 {}…: the scene changed since the recording; compare with the scene as recorded",
+                    scene_name,
+                    head(&hash),
+                    scene_path.display(),
+                    head(&given.sha256)
+                );
+            }
+            bail!(
+                "--rig-log {arg}: recorded with {was} (sha256 {}…), and {} is sha256 {}…: another scene, or \
+                 this one changed since the recording",
+                head(&hash),
+                scene_path.display(),
+                head(&given.sha256)
+            );
+        }
+        Some(_) => {}
+        None if owner.is_some() => notes.push(format!(
+            "{shown}: an older recording: its manifest does not name the scene it ran, so it is not \
+             checked to be a recording of {}",
+            scene_path.display()
+        )),
+        None => bail!(
+            "--rig-log {arg}: names no scene among its inputs (no manifest, no `# input scene` line): an \
+             excitation log (`rig excite`) or a trace from elsewhere; compare needs the trace.csv that `rig \
+             run --scene` recorded"
+        ),
+    }
+    Ok(())
+}
+
+/// Reads and checks `path` (given as `arg`) as a recording of `scene`'s run `run`.
+pub(super) fn check(
+    scene: &Scene,
+    scene_path: &Path,
+    run: usize,
+    arg: &str,
+    path: &Path,
+) -> anyhow::Result<RigLog> {
+    let shown = path.display().to_string();
+    let Recording {
+        text,
+        mut notes,
+        owner,
+    } = read_recording(arg, path)?;
     // The lines: comments before the header, the header, the data rows with their line numbers, the end
     // marker.
     let mut comments = Vec::new();
@@ -223,47 +301,15 @@ pub(super) fn check(
             missing.join(", ")
         );
     }
-    // The scene it ran: by hash, from the manifest, else from the trace's own input line.
-    let recorded = owner
-        .as_ref()
-        .and_then(|(_, m, _)| m.inputs.iter().find(|i| i.role == "scene"))
-        .map(|i| (i.path.clone(), i.sha256.clone()))
-        .or_else(|| scene_line(&comments));
-    let given = pneuflex_files::InputDigest::of_file(scene_path, "scene")?;
-    match recorded {
-        Some((was, hash)) if hash != given.sha256 => {
-            let same_name = summary_of(path).is_some_and(|(s, _)| s == scene.name);
-            let head = |h: &str| h.chars().take(12).collect::<String>();
-            if same_name {
-                bail!(
-                    "--rig-log {arg}: recorded with scene `{}` as it was then ({was}, sha256 {}…); {} is now \
-                     sha256 {}…: the scene changed since the recording; compare with the scene as recorded",
-                    scene.name,
-                    head(&hash),
-                    scene_path.display(),
-                    head(&given.sha256)
-                );
-            }
-            bail!(
-                "--rig-log {arg}: recorded with {was} (sha256 {}…), and {} is sha256 {}…: another scene, or \
-                 this one changed since the recording",
-                head(&hash),
-                scene_path.display(),
-                head(&given.sha256)
-            );
-        }
-        Some(_) => {}
-        None if owner.is_some() => notes.push(format!(
-            "{shown}: an older recording: its manifest does not name the scene it ran, so it is not \
-             checked to be a recording of {}",
-            scene_path.display()
-        )),
-        None => bail!(
-            "--rig-log {arg}: names no scene among its inputs (no manifest, no `# input scene` line): an \
-             excitation log (`rig excite`) or a trace from elsewhere; compare needs the trace.csv that `rig \
-             run --scene` recorded"
-        ),
-    }
+    check_scene_hash(
+        arg,
+        path,
+        &scene.name,
+        scene_path,
+        owner.as_ref(),
+        scene_line(&comments),
+        &mut notes,
+    )?;
     // The run: its controller's own columns sit between the loop's signals and the board's.
     let controller = scene.controller(run)?;
     let want: Vec<&str> = controller.signals().iter().map(|s| s.name).collect();
