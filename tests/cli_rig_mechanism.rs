@@ -297,6 +297,20 @@ fn a_board_whose_channels_are_not_the_scenes_actuators_is_refused() {
     assert!(!o.status.success(), "{all}");
     assert!(all.contains("--lockstep-truth"), "{all}");
 
+    // --truth names an actuator of the scene.
+    let o = rig_run(
+        &out,
+        "rigs/gripper.toml",
+        &["--truth", "thumb=pneumatics/gripper-finger.toml"],
+    );
+    let all = text(&o);
+    assert!(!o.status.success(), "{all}");
+    assert!(
+        all.contains("`thumb` is not an actuator") && all.contains("left, right"),
+        "{all}"
+    );
+    assert!(!out.exists(), "nothing written");
+
     // The default rig file is the one-channel emulated rig: not this scene's board.
     let o = pneuflex(&[
         "rig",

@@ -148,6 +148,10 @@ pub struct Run {
     /// Seed of the lockstep emulator's sensor noise.
     #[arg(long, default_value_t = 1, requires = "lockstep_truth")]
     pub seed: u64,
+    /// On a scene of several actuators: NAME=SHEET hides SHEET as actuator NAME's truth instead of
+    /// --lockstep-truth's (repeat per actuator).
+    #[arg(long = "truth", value_name = "NAME=SHEET", requires = "lockstep_truth")]
+    pub truths: Vec<String>,
     /// Output directory for trace.csv (default: out/rig/<scene>/<run>/).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -221,6 +225,7 @@ impl Run {
             &self.rig,
             self.port.as_deref(),
             self.lockstep_truth.as_deref().map(|t| (t, self.seed)),
+            &self.truths,
             &self.scene,
             self.run.as_deref(),
             self.duration,

@@ -146,6 +146,7 @@ pub fn run_scene(
     rig_file: &Path,
     port: Option<&str>,
     lockstep: Option<(&Path, u64)>,
+    truths: &[String],
     scene_path: &Path,
     run_name: Option<&str>,
     duration_s: Option<f64>,
@@ -165,7 +166,12 @@ pub fn run_scene(
             );
         }
         return super::rig_mechanism::run(
-            rig_file, port, lockstep, scene_path, run_name, duration_s, out, figures, mcap,
+            rig_file, port, lockstep, truths, scene_path, run_name, duration_s, out, figures, mcap,
+        );
+    }
+    if let Some(t) = truths.first() {
+        bail!(
+            "--truth {t}: names an actuator's truth on a scene of several actuators; this scene has one"
         );
     }
     if let Some(d) = duration_s {

@@ -246,20 +246,19 @@ fn channels_for(
     Ok(channels)
 }
 
-/// The coupled board of `scene` (SHEET hidden as every actuator's truth) behind a lockstep link, and the
-/// clock it steps with.
+/// The coupled board of `scene` (`truths[i]` hidden as actuator i's) behind a lockstep link, and the clock it
+/// steps with.
 fn emulated_board(
     rig: &RigFile,
     rig_file: &Path,
     scene: &MechanismScene,
-    truth: &Path,
+    truths: &[PathBuf],
     seed: u64,
     channels: &[Channel],
 ) -> anyhow::Result<(LockstepLink<CoupledBoard<MemLink>>, SimClock)> {
     let mut hidden = scene.clone();
-    let truth = std::path::absolute(truth)?;
-    for a in &mut hidden.actuators {
-        a.sheet.clone_from(&truth);
+    for (a, t) in hidden.actuators.iter_mut().zip(truths) {
+        a.sheet = std::path::absolute(t)?;
     }
     hidden.check_sheets()?;
     let plant = SceneMechanism::new(&hidden, channels[0].cal.atmosphere_pa)?;
@@ -304,6 +303,7 @@ pub fn run(
     rig_file: &Path,
     port: Option<&str>,
     lockstep: Option<(&Path, u64)>,
+    truths: &[String],
     scene_path: &Path,
     run_name: Option<&str>,
     duration_s: Option<f64>,
@@ -322,6 +322,29 @@ pub fn run(
     };
     let rig = RigFile::load(rig_file)?;
     let mut scene = MechanismScene::load(scene_path)?;
+    // Each actuator's hidden truth: --lockstep-truth's, or its own --truth NAME=SHEET.
+    let mut hidden: Vec<PathBuf> = vec![truth.to_path_buf(); scene.actuators.len()];
+    for t in truths {
+        let Some((name, sheet)) = t.split_once('=') else {
+            bail!(
+                "--truth {t}: expected NAME=SHEET (an actuator of {} and its truth)",
+                scene_path.display()
+            );
+        };
+        let Some(i) = scene.actuators.iter().position(|a| a.name == name) else {
+            bail!(
+                "--truth {t}: `{name}` is not an actuator of {} (its actuators: {})",
+                scene_path.display(),
+                scene
+                    .actuators
+                    .iter()
+                    .map(|a| a.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        };
+        hidden[i] = PathBuf::from(sheet);
+    }
     session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file)?;
     let channels = channels_for(&rig, rig_file, &scene)?;
     let index = match run_name {
@@ -361,13 +384,14 @@ pub fn run(
         ),
     };
     let inputs = scene.input_files();
-    let protect: Vec<&Path> = [scene_path, rig_file, truth]
+    let protect: Vec<&Path> = [scene_path, rig_file]
         .into_iter()
+        .chain(hidden.iter().map(PathBuf::as_path))
         .chain(inputs.iter().map(|(_, p)| p.as_path()))
         .collect();
     let stage = OutputDir::create(&dest, &protect, Writer::recording("rig run"))?;
 
-    let (link, mut clock) = emulated_board(&rig, rig_file, &scene, truth, seed, &channels)?;
+    let (link, mut clock) = emulated_board(&rig, rig_file, &scene, &hidden, seed, &channels)?;
     let mut driver = SerialChannels::new(link, &channels, rig.rt.velocity_cutoff_hz);
     driver.configure(ConfigPayload {
         sample_period_us: (1e6 / rig.rt.rate_hz).round() as u32,
@@ -449,14 +473,12 @@ pub fn run(
         // Into the staged directory: committed with the trace.
         super::bag::write_runs(stage.path(), &runs, &channel_names)?;
     }
-    let digests: Vec<pneuflex_files::InputDigest> = [
-        ("rig", rig_file.to_path_buf()),
-        ("truth", truth.to_path_buf()),
-    ]
-    .into_iter()
-    .chain(inputs.iter().cloned())
-    .filter_map(|(role, p)| pneuflex_files::InputDigest::of_file(&p, role).ok())
-    .collect();
+    let digests: Vec<pneuflex_files::InputDigest> = [("rig", rig_file.to_path_buf())]
+        .into_iter()
+        .chain(hidden.iter().map(|p| ("truth", p.clone())))
+        .chain(inputs.iter().cloned())
+        .filter_map(|(role, p)| pneuflex_files::InputDigest::of_file(&p, role).ok())
+        .collect();
     let manifest = Manifest::new("rig run", env!("CARGO_PKG_VERSION"), digests);
     let dest: PathBuf = stage.commit(manifest)?;
     let r = &runs[0];
@@ -464,11 +486,16 @@ pub fn run(
         errln!("note: {missed} ticks had no new sample and used the previous one");
     }
     outln!(
-        "{}: run {} on the emulated board of {} channels (lockstep, truth {}); outputs in {}",
+        "{}: run {} on the emulated board of {} channels (lockstep, hidden truths {}); outputs in {}",
         scene.name,
         r.name,
         channels.len(),
-        truth.display(),
+        channels
+            .iter()
+            .zip(&hidden)
+            .map(|(c, t)| format!("{}={}", c.name, t.display()))
+            .collect::<Vec<_>>()
+            .join(", "),
         dest.display()
     );
     super::fail_on_divergence(
