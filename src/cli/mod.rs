@@ -4,6 +4,7 @@
 pub mod identify;
 pub mod new;
 pub mod rig;
+pub mod ros2;
 pub mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -58,6 +59,7 @@ pub enum Command {
         #[command(subcommand)]
         action: rig::RigCommand,
     },
+    Ros2(ros2::Ros2),
 }
 
 impl Command {
@@ -74,6 +76,7 @@ impl Command {
             Command::Leak(a) => a.call(),
             Command::New { what } => what.call(),
             Command::Rig { action } => action.call(),
+            Command::Ros2(a) => a.call(),
         }
     }
 }

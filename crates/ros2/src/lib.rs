@@ -1,10 +1,14 @@
 //! ROS 2 without a ROS install (docs/ros2.md): the standard messages a recording of pneuflex uses in CDR
 //! ([`cdr`], [`msg`]), rosbag2 folders in MCAP storage written and read ([`bag`]), and a run's trace as
-//! such a bag and back ([`trace_bag`]).
+//! such a bag and back ([`trace_bag`]); with the feature `node`, a native ROS 2 node ([`node`]) and the
+//! commands it takes ([`joint_commands`]).
 
 pub mod bag;
 pub mod cdr;
+pub mod joint_commands;
 pub mod msg;
+#[cfg(feature = "node")]
+pub mod node;
 pub mod trace_bag;
 
 pub use bag::{BagContents, BagSummary, BagWriter, read_bag};
@@ -50,4 +54,7 @@ pub enum Ros2Error {
     /// A topic name.
     #[error("topic {0}")]
     Topic(String),
+    /// The DDS middleware (joining a domain, creating a node or a topic).
+    #[error("ROS 2: {0}")]
+    Dds(String),
 }

@@ -2,6 +2,11 @@
 //! bag's schema: the type's own `.msg` text, then each type it uses after a line of 80 `=` and
 //! `MSG: pkg/Type` (the definitions are those of ROS 2's common_interfaces and rcl_interfaces, Humble to
 //! Jazzy, comments left out).
+//!
+//! Each type is also `serde`'s, field for field in the order of its definition, so a DDS library's CDR
+//! serialiser (the node's, [`crate::node`]) writes the same bytes as [`Message::encode`] (a test checks it).
+
+use serde::{Deserialize, Serialize};
 
 use crate::Ros2Error;
 use crate::cdr::{CdrReader, CdrWriter};
@@ -18,6 +23,7 @@ const FLUID_PRESSURE_MSG: &str =
 const FLOAT64_MULTI_ARRAY_MSG: &str = "std_msgs/MultiArrayLayout layout\nfloat64[] data\n";
 const LAYOUT_MSG: &str = "std_msgs/MultiArrayDimension[] dim\nuint32 data_offset\n";
 const DIMENSION_MSG: &str = "string label\nuint32 size\nuint32 stride\n";
+const CLOCK_MSG: &str = "builtin_interfaces/Time clock\n";
 
 /// A type's full definition: its text, then each dependency's after the separator.
 fn definition(own: &str, uses: &[(&str, &str)]) -> String {
@@ -41,7 +47,7 @@ pub trait Message: Sized {
 }
 
 /// `builtin_interfaces/msg/Time`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Time {
     /// Whole seconds.
     pub sec: i32,
@@ -99,8 +105,36 @@ pub fn nanos_of_seconds(t_s: f64) -> Result<u64, Ros2Error> {
     Ok(ns as u64)
 }
 
+/// `rosgraph_msgs/msg/Clock`: the time a node that publishes `/clock` (a simulator) runs on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Clock {
+    /// The time.
+    pub clock: Time,
+}
+
+impl Message for Clock {
+    const TYPE: &'static str = "rosgraph_msgs/msg/Clock";
+
+    fn definition() -> String {
+        definition(CLOCK_MSG, &[("builtin_interfaces/Time", TIME_MSG)])
+    }
+
+    fn encode(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        self.clock.write(&mut w);
+        w.finish()
+    }
+
+    fn decode(data: &[u8]) -> Result<Self, Ros2Error> {
+        let mut r = CdrReader::new(data)?;
+        Ok(Self {
+            clock: Time::read(&mut r)?,
+        })
+    }
+}
+
 /// `std_msgs/msg/Header`.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Header {
     /// When the values were read.
     pub stamp: Time,
@@ -124,7 +158,7 @@ impl Header {
 
 /// `sensor_msgs/msg/JointState`: for a prismatic joint position in m, velocity in m/s, effort in N. An
 /// array may be empty (not measured); a non-empty one has an entry per name.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct JointState {
     /// Stamp and frame.
     pub header: Header,
@@ -188,7 +222,7 @@ impl Message for JointState {
 }
 
 /// `sensor_msgs/msg/FluidPressure`: absolute pressure, Pa.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FluidPressure {
     /// Stamp and frame.
     pub header: Header,
@@ -230,7 +264,7 @@ impl Message for FluidPressure {
 }
 
 /// `std_msgs/msg/MultiArrayDimension`.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct MultiArrayDimension {
     /// What the dimension counts.
     pub label: String,
@@ -242,7 +276,7 @@ pub struct MultiArrayDimension {
 
 /// `std_msgs/msg/Float64MultiArray`: here one value per actuator, in the order of the JointState's names,
 /// one dimension labelled `actuator`.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Float64MultiArray {
     /// The dimensions (`std_msgs/MultiArrayLayout` dim).
     pub dim: Vec<MultiArrayDimension>,

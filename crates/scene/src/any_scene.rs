@@ -4,10 +4,14 @@
 //! once for both kinds, so a command written against [`AnyScene`] takes every scene.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicUsize;
+
+use pneuflex_control::Setpoint;
 
 use crate::error::SceneError;
 use crate::mechanism::MechanismScene;
-use crate::run::{RunResult, WindowMetrics};
+use crate::plants::Plant;
+use crate::run::{RunResult, Sink, WindowMetrics};
 use crate::schema::{Limits, RunSpec, Scene, WindowKind};
 
 /// A scene file of either kind.
@@ -297,6 +301,50 @@ impl AnyScene {
                     }))
                 })
                 .collect(),
+        }
+    }
+
+    /// Sets the simulated time, s (`pneuflex ros2 --duration`): the runs last this long, the events and the
+    /// reference keep their times.
+    pub fn set_duration(&mut self, duration_s: f64) {
+        match self {
+            AnyScene::One(s) => s.duration_s = duration_s,
+            AnyScene::Mechanism(m) => m.duration_s = duration_s,
+        }
+    }
+
+    /// Run `run` alone on this thread, actuator `i`'s setpoint at `t` being `reference(i, t, scheduled)`
+    /// with `scheduled` the scene's own (`pneuflex ros2`: the force a ROS 2 system commands while it
+    /// commands one); `observer` sees every tick and its `end`; a non-zero `stop` ends the run at the next
+    /// tick, marked interrupted. The result has no window metrics: its reference need not be the scene's.
+    pub fn run_referenced(
+        &self,
+        run: usize,
+        reference: &mut dyn FnMut(usize, f64, Setpoint) -> Setpoint,
+        observer: &mut dyn Sink<dyn Plant>,
+        stop: Option<&AtomicUsize>,
+    ) -> Result<RunResult, SceneError> {
+        match self {
+            AnyScene::One(s) => {
+                let mut plant = crate::build_plant(s)?;
+                let mut controller = s.controller(run)?;
+                let setpoints = s.setpoints()?;
+                let r = crate::run::simulate_referenced(
+                    s,
+                    run,
+                    plant.as_mut(),
+                    controller.as_mut(),
+                    &mut |i, t| reference(i, t, setpoints.at(t)),
+                    &mut |_| {},
+                    observer,
+                    stop,
+                )?;
+                observer.end(r.diverged.as_deref().or(r.interrupted.as_deref()));
+                Ok(r)
+            }
+            AnyScene::Mechanism(m) => {
+                crate::mechanism::run::run_one(m, run, reference, &mut |_| {}, observer, stop)
+            }
         }
     }
 

@@ -4,6 +4,8 @@
 
 use std::sync::atomic::AtomicUsize;
 
+use pneuflex_control::Setpoint;
+
 use super::plant::{MechanismPlant, loop_events};
 use super::schema::MechanismScene;
 use crate::error::SceneError;
@@ -20,37 +22,17 @@ pub fn run_all(
     stop: Option<&AtomicUsize>,
     observer: &mut dyn Sink<dyn Plant>,
 ) -> Result<Vec<RunResult>, SceneError> {
-    let events = loop_events(scene);
-    let invalid = |key: &str, message: String| scene.invalid(key, message);
     let mut out = Vec::with_capacity(scene.runs.len());
-    for (r, spec) in scene.runs.iter().enumerate() {
-        let mut plant = MechanismPlant::new(scene)?;
-        let mut controllers = scene.run_controllers(r)?;
-        let schedules = plant.schedules().to_vec();
-        let mut each: Vec<&mut dyn pneuflex_control::Controller> = controllers
-            .iter_mut()
-            .map(|c| &mut **c as &mut dyn pneuflex_control::Controller)
-            .collect();
-        let plan = RunPlan {
-            name: &spec.name,
-            controller: spec.controller,
-            dt_s: scene.dt_s,
-            n_steps: scene.n_steps(),
-            events: &events,
-            divergence: &scene.divergence,
-            invalid: &invalid,
-        };
-        let n = scene.runs.len() as f64;
-        let run = simulate_run(
-            &plan,
-            &mut plant,
-            &mut each,
-            &mut |i, t| schedules[i].at(t),
+    let n = scene.runs.len() as f64;
+    for r in 0..scene.runs.len() {
+        let run = run_one(
+            scene,
+            r,
+            &mut |_, _, scheduled| scheduled,
             &mut |f| progress((r as f64 + f) / n),
             observer,
             stop,
         )?;
-        observer.end(run.diverged.as_deref().or(run.interrupted.as_deref()));
         let stopped = run.interrupted.is_some();
         out.push(run);
         if stopped {
@@ -59,4 +41,47 @@ pub fn run_all(
     }
     progress(1.0);
     Ok(out)
+}
+
+/// Run `r` of the scene on a fresh plant, actuator `i`'s setpoint at `t` being `reference(i, t, scheduled)`
+/// with `scheduled` the scene's own (`pneuflex ros2` replaces it with a commanded one); the sink's `end` is
+/// called when it ends.
+pub fn run_one(
+    scene: &MechanismScene,
+    r: usize,
+    reference: &mut dyn FnMut(usize, f64, Setpoint) -> Setpoint,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn Sink<dyn Plant>,
+    stop: Option<&AtomicUsize>,
+) -> Result<RunResult, SceneError> {
+    let events = loop_events(scene);
+    let invalid = |key: &str, message: String| scene.invalid(key, message);
+    let spec = &scene.runs[r];
+    let mut plant = MechanismPlant::new(scene)?;
+    let mut controllers = scene.run_controllers(r)?;
+    let schedules = plant.schedules().to_vec();
+    let mut each: Vec<&mut dyn pneuflex_control::Controller> = controllers
+        .iter_mut()
+        .map(|c| &mut **c as &mut dyn pneuflex_control::Controller)
+        .collect();
+    let plan = RunPlan {
+        name: &spec.name,
+        controller: spec.controller,
+        dt_s: scene.dt_s,
+        n_steps: scene.n_steps(),
+        events: &events,
+        divergence: &scene.divergence,
+        invalid: &invalid,
+    };
+    let run = simulate_run(
+        &plan,
+        &mut plant,
+        &mut each,
+        &mut |i, t| reference(i, t, schedules[i].at(t)),
+        progress,
+        observer,
+        stop,
+    )?;
+    observer.end(run.diverged.as_deref().or(run.interrupted.as_deref()));
+    Ok(run)
 }

@@ -60,6 +60,31 @@ pub fn simulate_stoppable<'p>(
     observer: &mut dyn Sink<dyn Plant + 'p>,
     stop: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<RunResult, SceneError> {
+    simulate_referenced(
+        scene,
+        index,
+        plant,
+        controller,
+        &mut |_, t| setpoints.at(t),
+        progress,
+        observer,
+        stop,
+    )
+}
+
+/// [`simulate_stoppable`] toward `reference(0, t)` instead of the scene's setpoints (`pneuflex ros2`: a
+/// reference a ROS 2 system commands).
+#[allow(clippy::too_many_arguments)]
+pub fn simulate_referenced<'p>(
+    scene: &Scene,
+    index: usize,
+    plant: &mut (dyn Plant + 'p),
+    controller: &mut dyn Controller,
+    reference: &mut dyn FnMut(usize, f64) -> Setpoint,
+    progress: &mut dyn FnMut(f64),
+    observer: &mut dyn Sink<dyn Plant + 'p>,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
+) -> Result<RunResult, SceneError> {
     let run = &scene.runs[index];
     let invalid = |key: &str, message: String| scene.invalid(key, message);
     let plan = RunPlan {
@@ -75,7 +100,7 @@ pub fn simulate_stoppable<'p>(
         &plan,
         plant,
         &mut [controller],
-        &mut |_, t| setpoints.at(t),
+        reference,
         progress,
         observer,
         stop,

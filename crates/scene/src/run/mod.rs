@@ -16,7 +16,9 @@ use crate::error::SceneError;
 use crate::plants::Plant;
 use crate::schema::plant::build_plant;
 use crate::schema::{ControllerKind, FrozenValues, Scene};
-pub use host::{RunPlan, simulate, simulate_observed, simulate_run, simulate_stoppable};
+pub use host::{
+    RunPlan, simulate, simulate_observed, simulate_referenced, simulate_run, simulate_stoppable,
+};
 pub(crate) use host::{interned, interned_signals};
 pub use observe::{Sink, Sinks};
 pub use result::{LyapunovSummary, RunResult, WindowMetrics};
