@@ -144,11 +144,11 @@ fn rms_error(s: &serde_json::Value, run: &str, window: &str, actuator: &str) -> 
         .unwrap()
 }
 
-/// The right finger started 1 mm further out than the left (0.029 m against 0.028 m): from 0.5 s on, in both
-/// runs, the object stays within ±1 mm of the centre (measured 0.001 mm impedance, 0.04 mm adaptive; 18 mm on
-/// the bare slide), each finger's RMS force error in each sine window is within 5 % of the symmetric run's
-/// (measured: equal to 4 digits; 3.9-4.3 N against 0.39-2.6 N on the bare slide), and every claim keeps the
-/// symmetric run's verdict.
+/// The right finger starts 1 mm further along its stroke than the left (0.029 m against 0.028 m): from 0.5 s
+/// on, in both runs, the object stays within ±1 mm of the centre (measured 0.002 mm impedance, 0.10 mm
+/// adaptive; 18 mm on the bare slide), each finger's RMS force error in each sine window is within 5 % of the
+/// symmetric run's (measured: equal to 4 digits; 3.9-4.3 N against 0.39-2.6 N on the bare slide), and every
+/// claim keeps the symmetric run's verdict.
 #[test]
 fn the_gripper_with_one_finger_1_mm_out_holds_the_object_centred_and_tracks_as_the_symmetric_one() {
     let dir = tempfile::tempdir().unwrap();
