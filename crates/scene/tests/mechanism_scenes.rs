@@ -254,15 +254,22 @@ fn bad_input_in_every_new_key_is_named_with_file_line_and_key() {
             "chamber_substeps = 10\nheld_links = [\"plinth\"]",
             "held_links: ",
         ),
+        // The shipped scene's one spring, the object's fixture.
         (
-            "[[runs]]",
-            "[[springs]]\nname = \"ret\"\njoint = \"wrist\"\nstiffness_n_per_m = 10.0\n\n[[runs]]",
+            "joint = \"object_slide\"",
+            "joint = \"wrist\"",
             "springs[0].joint: ",
         ),
         (
-            "[[runs]]",
-            "[[springs]]\nname = \"ret\"\njoint = \"object_slide\"\nstiffness_n_per_m = -10.0\n\n[[runs]]",
+            "stiffness_n_per_m = 100.0",
+            "stiffness_n_per_m = -10.0",
             "springs[0].stiffness_n_per_m",
+        ),
+        // A second one, after it.
+        (
+            "[[runs]]",
+            "[[springs]]\nname = \"ret\"\njoint = \"wrist\"\nstiffness_n_per_m = 10.0\n\n[[runs]]",
+            "springs[1].joint: ",
         ),
         (
             "contact = \"left_pad\"",
