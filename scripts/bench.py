@@ -180,8 +180,11 @@ def fmt_rate(xs: list[float]) -> str:
 def gym_rates(rounds: int, quick: bool) -> None:
     """Env-steps per second of the Gymnasium force-control task (docs/gymnasium.md) on paper-fig3, interleaved
     over rounds: the Rust batch alone (`ForceControlBatch.step`, both cores), the same through the vector
-    environment (`gymnasium.make_vec`), and the single environment's Python step. Random valve commands,
-    domain randomisation on, next-step autoreset."""
+    environment (`gymnasium.make_vec`), at 256 episodes (issue 45's targets: 1.5 M and 200 k on 2 cores), and
+    the single environment's Python step, with its layers: the unwrapped environment's step (without
+    Gymnasium's wrappers) and the Rust call alone (`ForceControlBatch.step_single` of a batch of one), so the
+    Python overhead per step is the first minus the last. Random valve commands, domain randomisation on,
+    next-step autoreset."""
     try:
         import gymnasium
 
@@ -189,7 +192,7 @@ def gym_rates(rounds: int, quick: bool) -> None:
     except ImportError as e:
         print(f"\n(Gymnasium rows skipped: {e})")
         return
-    n = 1024
+    n = 256
     scene = str(ROOT / "scenes" / "paper-fig3.toml")
     batch = pneuflex.ForceControlBatch(scene, n, randomize=True, autoreset=True)
     batch.reset(1)
@@ -197,6 +200,10 @@ def gym_rates(rounds: int, quick: bool) -> None:
     vec.reset(seed=1)
     single = gymnasium.make("pneuflex/ForceControl-v0")
     single.reset(seed=1)
+    unwrapped = gymnasium.make("pneuflex/ForceControl-v0").unwrapped
+    unwrapped.reset(seed=1)
+    one = pneuflex.ForceControlBatch(scene, 1, randomize=True, autoreset=True)
+    one.reset(1)
     import numpy as np
 
     rng = np.random.default_rng(0)
@@ -215,16 +222,28 @@ def gym_rates(rounds: int, quick: bool) -> None:
         if terminated or truncated:
             single.reset()
 
-    rates: dict[str, list[float]] = {"batch": [], "vector": [], "single": []}
+    def unwrapped_step(i: int) -> None:
+        _, _, terminated, truncated, _ = unwrapped.step(actions[i % 8, :1])
+        if terminated or truncated:
+            unwrapped.reset()
+
+    rates: dict[str, list[float]] = {"batch": [], "vector": [], "single": [], "unwrapped": [], "rust": []}
     for _ in range(rounds):
         rates["batch"].append(timed(lambda i: batch.step(actions[i % 8]), steps, n))
         rates["vector"].append(timed(lambda i: vec.step(actions[i % 8, :, None]), steps, n))
-        rates["single"].append(timed(single_step, steps * 20, 1))
+        rates["single"].append(timed(single_step, steps * 50, 1))
+        rates["unwrapped"].append(timed(unwrapped_step, steps * 50, 1))
+        rates["rust"].append(timed(lambda i: one.step_single(actions[i % 8, :1]), steps * 50, 1))
     print(f"\nGymnasium force-control task on paper-fig3 (1 ms tick, 10 RK4 substeps; {n} episodes, "
           f"{rounds} rounds, interleaved), env-steps per wall-clock second:")
     print(f"  Rust batch (ForceControlBatch.step)      {fmt_rate(rates['batch'])}")
     print(f"  vector env (gymnasium.make_vec)          {fmt_rate(rates['vector'])}")
     print(f"  single env (gymnasium.make, Python step) {fmt_rate(rates['single'])}")
+    print(f"    its unwrapped env (no wrappers)        {fmt_rate(rates['unwrapped'])}")
+    print(f"    its Rust call (step_single, 1 episode) {fmt_rate(rates['rust'])}")
+    over = [1e6 / a - 1e6 / b for a, b in zip(rates["single"], rates["rust"])]
+    lo, med, hi = stats(over)
+    print(f"  Python overhead per single-env step (make's step - the Rust call): {med:.2f} us (min {lo:.2f}, max {hi:.2f})")
 
 
 def peak_rss(binary: Path, scene: str, out_root: Path) -> dict:
@@ -267,9 +286,18 @@ def main() -> int:
     ap.add_argument("--rss-binary", default=None, help="pneuflex binary for the RSS runs (default target/release/pneuflex)")
     ap.add_argument("--no-rss", action="store_true")
     ap.add_argument("--no-plugin", action="store_true", help="skip the native plugin's rows (pneuflex.mujoco_plugin_path())")
+    ap.add_argument("--gym-only", action="store_true", help="only the Gymnasium environments' rows (gym_rates)")
     args = ap.parse_args()
     if args.quick:
         args.rounds, args.ticks = min(args.rounds, 5), min(args.ticks, 5000)
+    if args.gym_only:
+        m0 = machine()
+        print(f"machine: {m0['cpus']} CPUs, {m0['model']}; load average {m0['load'][0]:.2f} {m0['load'][1]:.2f} "
+              f"{m0['load'][2]:.2f}")
+        gym_rates(args.rounds, args.quick)
+        m1 = os.getloadavg()
+        print(f"  load average after: {m1[0]:.2f} {m1[1]:.2f} {m1[2]:.2f}")
+        return 0
 
     scene_path = str(ROOT / args.scene)
     c = couple.prepare(scene_path)

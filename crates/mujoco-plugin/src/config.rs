@@ -3,14 +3,18 @@
 //! as the sheet's own errors spell it (`cylinder.bore_m`, `valve.sonic_conductance_m3_per_s_pa`,
 //! `supply.pressure_abs_pa`, `mechanics.coulomb_n`, ...). The override is written into a copy of the
 //! sheet's text and loaded by `pneuflex_pneumatics::ActuatorSheet::load_overlaid`, so an inline value is
-//! validated exactly as the same value in the file. Plain Rust, no MuJoCo: tested here directly.
+//! validated exactly as the same value in the file. `command` chooses what ctrl is: the valve command
+//! (`"valve"`, one actuator per cylinder) or the chambers' pressure set-points behind a pressure regulator in
+//! front of each chamber (`"pressure"`, two actuators per cylinder, `regulator.time_constant_s`). Plain Rust,
+//! no MuJoCo: tested here directly.
 
 use std::collections::BTreeMap;
 use std::ffi::CStr;
 use std::path::{Path, PathBuf};
 
 use pneuflex_pneumatics::{
-    Actuator, ActuatorSheet, ChamberState, ComponentError, FileOverlay, Friction, T_DEFAULT,
+    Actuator, ActuatorSheet, ChamberState, ComponentError, FileOverlay, Friction,
+    PressureRegulator, T_DEFAULT,
 };
 
 /// The file of the sheet a key lives in.
@@ -90,6 +94,8 @@ pub const KEYS: &[Key] = &[
     own(c"initial_p_a_pa"),
     own(c"initial_p_b_pa"),
     own(c"initial_temperature_k"),
+    own(c"command"),
+    own(c"regulator.time_constant_s"),
     num(c"cylinder.bore_m", File::Cylinder),
     num(c"cylinder.rod_m", File::Cylinder),
     num(c"cylinder.stroke_m", File::Cylinder),
@@ -156,6 +162,30 @@ const CHAMBER_PRESSURE_PA: (f64, f64) = (1e3, 10e6);
 /// Initial gas temperature, K: the sheets' range of the constant-property air model.
 const GAS_TEMPERATURE_K: (f64, f64) = (200.0, 400.0);
 
+/// The pressure regulators' time constant unless given, s (`command="pressure"`): a fast proportional
+/// pressure regulator, as the Gymnasium environments' default.
+pub const REGULATOR_TIME_CONSTANT_S: f64 = 0.01;
+
+/// What an actuator's ctrl is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// The valve command u in [-1, 1]: one actuator per cylinder.
+    Valve,
+    /// The set-points of a pressure regulator in front of each chamber, Pa absolute: two actuators per
+    /// cylinder, chamber A's ctrl then chamber B's (`pneuflex_pneumatics::regulator`).
+    Pressure(PressureRegulator),
+}
+
+impl Command {
+    /// Actuators (and so controls) per cylinder.
+    pub fn actuators_per_cylinder(self) -> usize {
+        match self {
+            Command::Valve => 1,
+            Command::Pressure(_) => 2,
+        }
+    }
+}
+
 /// What the plugin runs: the sheet with its inline values applied.
 #[derive(Clone, Debug)]
 pub struct Config {
@@ -167,6 +197,8 @@ pub struct Config {
     pub chamber_substeps: u32,
     /// Chambers at reset.
     pub initial: ChamberState,
+    /// What ctrl is.
+    pub command: Command,
 }
 
 /// A configuration error: the key it is about and what is wrong.
@@ -312,7 +344,42 @@ pub fn parse(get: impl Fn(&str) -> Option<String>) -> Result<Config, ConfigError
         friction,
         chamber_substeps,
         initial: ChamberState::with_temperature(p_a, p_b, t_k),
+        command: command(&given)?,
     })
+}
+
+/// `command` and `regulator.time_constant_s`.
+fn command(given: &impl Fn(&str) -> Option<String>) -> Result<Command, ConfigError> {
+    const TAU: &str = "regulator.time_constant_s";
+    let tau = given(TAU);
+    match given("command").as_deref().map(str::trim) {
+        None | Some("valve") => match tau {
+            None => Ok(Command::Valve),
+            Some(_) => Err(err(
+                TAU,
+                "the regulators replace the valve: give it with command=\"pressure\"",
+            )),
+        },
+        Some("pressure") => {
+            let t = match tau {
+                None => REGULATOR_TIME_CONSTANT_S,
+                Some(v) => v
+                    .trim()
+                    .parse::<f64>()
+                    .map_err(|_| err(TAU, format!("expected a time constant in s, got '{v}'")))?,
+            };
+            PressureRegulator::new(t)
+                .map(Command::Pressure)
+                .map_err(|e| err(TAU, e))
+        }
+        Some(other) => Err(err(
+            "command",
+            format!(
+                "expected \"valve\" (ctrl the valve command) or \"pressure\" (the chambers' pressure \
+                 set-points, two actuators per cylinder), got '{other}'"
+            ),
+        )),
+    }
 }
 
 /// A key's name as text.
@@ -487,6 +554,23 @@ mod tests {
         let f = c.actuator.piston_force(&c.initial);
         assert!(f.abs() < 1e-9, "piston force at the default chambers {f} N");
         assert_eq!(c.initial.t_a, T_DEFAULT);
+        assert_eq!(c.command, Command::Valve);
+        let c = parse(with(&[("sheet", &sheet), ("command", "pressure")])).unwrap();
+        assert_eq!(
+            c.command,
+            Command::Pressure(PressureRegulator::new(REGULATOR_TIME_CONSTANT_S).unwrap())
+        );
+        let c = parse(with(&[
+            ("sheet", &sheet),
+            ("command", "pressure"),
+            ("regulator.time_constant_s", "0.05"),
+        ]))
+        .unwrap();
+        assert_eq!(c.command.actuators_per_cylinder(), 2);
+        assert_eq!(
+            c.command,
+            Command::Pressure(PressureRegulator::new(0.05).unwrap())
+        );
     }
 
     #[test]
@@ -618,6 +702,25 @@ mod tests {
                 &[("initial_temperature_k", "1000")],
                 "initial_temperature_k",
                 "got '1000'",
+            ),
+            (&[("command", "torque")], "command", "got 'torque'"),
+            (
+                &[("regulator.time_constant_s", "0.01")],
+                "regulator.time_constant_s",
+                "command=\"pressure\"",
+            ),
+            (
+                &[("command", "pressure"), ("regulator.time_constant_s", "0")],
+                "regulator.time_constant_s",
+                "got 0",
+            ),
+            (
+                &[
+                    ("command", "pressure"),
+                    ("regulator.time_constant_s", "10 ms"),
+                ],
+                "regulator.time_constant_s",
+                "'10 ms'",
             ),
             // A value that makes another (not inline) value of its file invalid names the inline key.
             (

@@ -5,10 +5,12 @@
 //! returns the mean piston force, and the actuator force for the step is that minus the sheet's Coulomb
 //! friction at v. MuJoCo calls `compute` (which needs the force) before the step and `advance` (which
 //! moves the state on) after it; both call [`Cylinder::step`], and a [`Memo`] makes the second a lookup.
+//! Under `command="pressure"` the element runs behind a pressure regulator in front of each chamber and the
+//! two controls are the chambers' set-points (`pneuflex_pneumatics::regulator`); the state is the same.
 
 use pneuflex_pneumatics::{Actuator, ChamberState, Friction, PneumaticForceElement};
 
-use crate::config::Config;
+use crate::config::{Command, Config};
 
 /// Numbers of plugin_state per cylinder.
 pub const STATE_LEN: usize = PneumaticForceElement::STATE_LEN;
@@ -23,13 +25,14 @@ pub struct Cylinder {
     friction: Friction,
     substeps: u32,
     initial: ChamberState,
+    command: Command,
 }
 
 /// The result of one step for its inputs: what `compute` worked out, for `advance` to commit.
 #[derive(Clone, Debug)]
 pub struct Memo {
-    /// The inputs' bits: state, x, v, u, h.
-    key: [u64; STATE_LEN + 4],
+    /// The inputs' bits: state, x, v, the two controls, h.
+    key: [u64; STATE_LEN + 5],
     /// The state after the step.
     pub next: State,
     /// The actuator force for the step, N.
@@ -54,6 +57,7 @@ impl Cylinder {
             friction: c.friction,
             substeps: c.chamber_substeps,
             initial: c.initial,
+            command: c.command,
         }
     }
 
@@ -62,19 +66,24 @@ impl Cylinder {
         PneumaticForceElement::new(self.actuator, self.initial, self.substeps).state()
     }
 
-    /// One step of `h` (s) from `state` at extension `x` (m) and velocity `v` (m/s) under valve command
-    /// `u` (clamped to [-1, 1]; NaN closes the valve), reusing `memo` when it was made for these inputs.
+    /// One step of `h` (s) from `state` at extension `x` (m) and velocity `v` (m/s) under the controls
+    /// `ctrl`: the valve command `ctrl[0]` (clamped to [-1, 1]; NaN closes the valve; `ctrl[1]` unused), or
+    /// under `command="pressure"` the set-points of chambers A and B, Pa absolute (clamped to [atmosphere,
+    /// supply]; NaN closes the chamber); reusing `memo` when it was made for these inputs.
     pub fn step(
         &self,
         state: &State,
         x: f64,
         v: f64,
-        u: f64,
+        ctrl: [f64; 2],
         h: f64,
         memo: &mut Option<Memo>,
     ) -> Result<(State, f64), Refused> {
-        let mut key = [0u64; STATE_LEN + 4];
-        for (k, s) in key.iter_mut().zip(state.iter().chain(&[x, v, u, h])) {
+        let mut key = [0u64; STATE_LEN + 5];
+        for (k, s) in key
+            .iter_mut()
+            .zip(state.iter().chain(&[x, v, ctrl[0], ctrl[1], h]))
+        {
             *k = s.to_bits();
         }
         if let Some(m) = memo.as_ref().filter(|m| m.key == key) {
@@ -87,7 +96,13 @@ impl Cylinder {
         if !el.set_state(state) {
             return Err(Refused::State);
         }
-        el.set_command(u);
+        match self.command {
+            Command::Valve => el.set_command(ctrl[0]),
+            Command::Pressure(regulator) => {
+                el.set_regulator(Some(regulator));
+                el.set_pressure_command(ctrl[0], ctrl[1]);
+            }
+        }
         let f = el.step(x, v, h);
         // As crossval: the drive argument matters only to stick-slip friction, which the plugin refuses.
         let force = f - self.friction.force(v, f);
@@ -135,13 +150,13 @@ mod tests {
                 0.045 * (9.0 * t).cos(),
                 (3.0 * t).sin(),
             );
-            let (next, force) = cyl.step(&state, x, v, u, h, &mut memo).unwrap();
+            let (next, force) = cyl.step(&state, x, v, [u, 0.0], h, &mut memo).unwrap();
             el.set_command(u);
             let f = el.step(x, v, h);
             assert_eq!(force, f - sheet.mechanics.friction.force(v, f), "step {k}");
             assert_eq!(next, el.state(), "step {k}");
             // The same inputs again: the memo's answer, bit for bit; then the step is committed.
-            let again = cyl.step(&state, x, v, u, h, &mut memo).unwrap();
+            let again = cyl.step(&state, x, v, [u, 0.0], h, &mut memo).unwrap();
             assert_eq!(again, (next, force));
             state = next;
         }
@@ -155,11 +170,46 @@ mod tests {
         let cyl = cylinder(&[]);
         let state = cyl.initial_state();
         let mut memo = None;
-        let a = cyl.step(&state, 0.02, 0.0, 0.5, 1e-3, &mut memo).unwrap();
-        let b = cyl.step(&state, 0.02, 0.0, -0.5, 1e-3, &mut memo).unwrap();
+        let a = cyl
+            .step(&state, 0.02, 0.0, [0.5, 0.0], 1e-3, &mut memo)
+            .unwrap();
+        let b = cyl
+            .step(&state, 0.02, 0.0, [-0.5, 0.0], 1e-3, &mut memo)
+            .unwrap();
         assert_ne!(a.0, b.0, "another command must give another state");
-        let c = cyl.step(&state, 0.02, 0.0, 0.5, 1e-3, &mut memo).unwrap();
+        let c = cyl
+            .step(&state, 0.02, 0.0, [0.5, 0.0], 1e-3, &mut memo)
+            .unwrap();
         assert_eq!(a, c);
+    }
+
+    /// Under `command="pressure"` the step is the force element behind the regulators at the two set-points
+    /// (minus the sheet's friction), the valve left at rest; held, the chambers reach the set-points.
+    #[test]
+    fn a_pressure_step_is_the_regulated_force_element_step() {
+        let cyl = cylinder(&[("command", "pressure"), ("chamber_substeps", "2")]);
+        let Command::Pressure(reg) = cyl.command else {
+            panic!("pressure command expected")
+        };
+        let mut el = PneumaticForceElement::new(cyl.actuator, cyl.initial, 2);
+        el.set_regulator(Some(reg));
+        let mut state = cyl.initial_state();
+        let mut memo = None;
+        let (set, h) = ([3.2e5, 2.1e5], 1e-4);
+        for k in 0..2000 {
+            let x = 0.02 + 1e-3 * (k as f64 * 1e-3).sin();
+            let (next, force) = cyl.step(&state, x, 0.01, set, h, &mut memo).unwrap();
+            el.set_pressure_command(set[0], set[1]);
+            let f = el.step(x, 0.01, h);
+            assert_eq!(force, f - cyl.friction.force(0.01, f), "step {k}");
+            assert_eq!(next, el.state(), "step {k}");
+            state = next;
+        }
+        assert!(
+            (state[0] - set[0]).abs() < 1.0 && (state[1] - set[1]).abs() < 1.0,
+            "{state:?}"
+        );
+        assert_eq!(state[4], 0.0, "the spool stays at rest");
     }
 
     #[test]
@@ -168,16 +218,16 @@ mod tests {
         let mut s = cyl.initial_state();
         let mut memo = None;
         assert_eq!(
-            cyl.step(&s, f64::NAN, 0.0, 0.0, 1e-3, &mut memo),
+            cyl.step(&s, f64::NAN, 0.0, [0.0; 2], 1e-3, &mut memo),
             Err(Refused::Input)
         );
         assert_eq!(
-            cyl.step(&s, 0.0, 0.0, 0.0, 0.0, &mut memo),
+            cyl.step(&s, 0.0, 0.0, [0.0; 2], 0.0, &mut memo),
             Err(Refused::Input)
         );
         s[0] = -5.0;
         assert_eq!(
-            cyl.step(&s, 0.0, 0.0, 0.0, 1e-3, &mut memo),
+            cyl.step(&s, 0.0, 0.0, [0.0; 2], 1e-3, &mut memo),
             Err(Refused::State)
         );
         assert!(memo.is_none());

@@ -19,12 +19,15 @@ use crate::layout::{MJ_INT_RK4, MJ_OBJ_ACTUATOR, MJ_OBJ_PLUGIN, MJ_PLUGIN_ACTUAT
 /// The name MJCF files use.
 pub const NAME: &std::ffi::CStr = c"pneuflex.cylinder";
 
-/// One actuator driven by an instance.
+/// One cylinder driven by an instance: its actuator, and under `command="pressure"` the actuator after it,
+/// whose control is chamber B's set-point (and whose force is 0).
 struct Bound {
     /// Actuator id, its control and its force output.
     id: usize,
     ctrl: usize,
     out: usize,
+    /// The second actuator's control and output (`command="pressure"`).
+    second: Option<(usize, usize)>,
     /// The last step worked out by `compute`.
     memo: Option<Memo>,
 }
@@ -79,9 +82,34 @@ unsafe extern "C" fn nstate(m: *const MjModel, instance: c_int) -> c_int {
         let Ok(i) = usize::try_from(instance) else {
             return 0;
         };
-        let n = unsafe { bound(Model(m), i) }.len() * STATE_LEN;
+        // One state per cylinder: two actuators each under command="pressure" (init checks the count).
+        let per = match ffi::api() {
+            Some(api) => unsafe { per_cylinder(api, Model(m), instance) },
+            None => 1,
+        };
+        let n = unsafe { bound(Model(m), i) }.len() / per * STATE_LEN;
         c_int::try_from(n).unwrap_or(0)
     })
+}
+
+/// Actuators per cylinder of `instance`: 2 when its `command` is "pressure", else 1.
+///
+/// # Safety
+/// `m` is a live mjModel.
+unsafe fn per_cylinder(api: &Api, m: Model, instance: c_int) -> usize {
+    // SAFETY: m is live; MuJoCo returns NULL or a string owned by the model.
+    let v = unsafe {
+        ffi::text((api.mj_get_plugin_config)(
+            m.0,
+            instance,
+            c"command".as_ptr(),
+        ))
+    };
+    if v.is_some_and(|v| v.trim() == "pressure") {
+        2
+    } else {
+        1
+    }
 }
 
 /// Room for `init`'s message (MuJoCo's compiler keeps 500 bytes of an error; the key comes first).
@@ -181,7 +209,16 @@ unsafe fn make(api: &Api, m: Model, instance: c_int) -> Result<Instance, String>
             NAME.to_string_lossy()
         ));
     }
-    let mut actuators = Vec::with_capacity(acts.len());
+    let per = config.command.actuators_per_cylinder();
+    if acts.len() % per != 0 {
+        return Err(format!(
+            "{}: {who}: command=\"pressure\" takes two actuators per cylinder (chamber A's set-point, then \
+             chamber B's), in actuator order; the instance drives {}",
+            NAME.to_string_lossy(),
+            acts.len()
+        ));
+    }
+    let mut controls = Vec::with_capacity(acts.len());
     for &a in &acts {
         let (cn, on) = unsafe { (m.actuator_ctrlnum(a), m.actuator_outnum(a)) };
         if cn != 1 || on != 1 {
@@ -194,17 +231,26 @@ unsafe fn make(api: &Api, m: Model, instance: c_int) -> Result<Instance, String>
             ));
         }
         let (ctrl, out) = unsafe { (m.actuator_ctrladr(a), m.actuator_outadr(a)) };
-        actuators.push(Bound {
-            id: a,
-            ctrl: usize::try_from(ctrl).map_err(|_| "bad control address".to_string())?,
-            out: usize::try_from(out).map_err(|_| "bad output address".to_string())?,
-            memo: None,
-        });
+        controls.push((
+            usize::try_from(ctrl).map_err(|_| "bad control address".to_string())?,
+            usize::try_from(out).map_err(|_| "bad output address".to_string())?,
+        ));
     }
+    let actuators: Vec<Bound> = acts
+        .chunks_exact(per)
+        .zip(controls.chunks_exact(per))
+        .map(|(a, c)| Bound {
+            id: a[0],
+            ctrl: c[0].0,
+            out: c[0].1,
+            second: c.get(1).copied(),
+            memo: None,
+        })
+        .collect();
     let (_, num) = unsafe { m.plugin_state_span(i) };
     if num != actuators.len() * STATE_LEN {
         return Err(format!(
-            "{}: {who}: plugin_state holds {num} numbers, expected {} ({STATE_LEN} per actuator)",
+            "{}: {who}: plugin_state holds {num} numbers, expected {} ({STATE_LEN} per cylinder)",
             NAME.to_string_lossy(),
             actuators.len() * STATE_LEN
         ));
@@ -256,21 +302,25 @@ unsafe extern "C" fn reset(
     })
 }
 
-/// The inputs of actuator `b` for a step: x, v, clamped u, h.
+/// The inputs of cylinder `b` for a step: x, v, its controls clamped (the second 0 under the valve
+/// command), h.
 ///
 /// # Safety
-/// `m`, `d` are live and `b` one of the instance's actuators.
-unsafe fn inputs(m: Model, d: Data, b: &Bound) -> (f64, f64, f64, f64) {
+/// `m`, `d` are live and `b` one of the instance's cylinders.
+unsafe fn inputs(m: Model, d: Data, b: &Bound) -> (f64, f64, [f64; 2], f64) {
     unsafe {
-        let mut u = d.ctrl(b.ctrl);
-        // MuJoCo clamps ctrl for its own actuators only, in a copy: a plugin clamps it itself.
-        if let Some((lo, hi)) = m.ctrlrange(b.ctrl).filter(|(lo, hi)| lo <= hi) {
-            u = u.clamp(lo, hi);
-        }
+        let ctrl = |c: usize| {
+            let u = d.ctrl(c);
+            // MuJoCo clamps ctrl for its own actuators only, in a copy: a plugin clamps it itself.
+            match m.ctrlrange(c).filter(|(lo, hi)| lo <= hi) {
+                Some((lo, hi)) => u.clamp(lo, hi),
+                None => u,
+            }
+        };
         (
             d.actuator_length(b.out),
             d.actuator_velocity(b.out),
-            u,
+            [ctrl(b.ctrl), b.second.map_or(0.0, |(c, _)| ctrl(c))],
             m.timestep(),
         )
     }
@@ -342,6 +392,10 @@ unsafe extern "C" fn compute(m: *const MjModel, d: *mut MjData, instance: c_int,
             // An actuator in a group that opt.disableactuator turns off gives no force (as MuJoCo's own).
             let g = m.actuator_group(b.id);
             let off = (0..=30).contains(&g) && (disabled >> g) & 1 == 1;
+            // Chamber B's set-point actuator carries no force of its own: the cylinder's is on the first.
+            if let Some((_, out)) = b.second {
+                d.set_actuator_force(out, 0.0);
+            }
             let force = match r {
                 Ok((_, f)) if !off => f,
                 Ok(_) => 0.0,

@@ -207,9 +207,14 @@ impl Actuator {
     /// The constants of the chamber equations for spool position `spool`, held over one step.
     #[inline]
     pub(crate) fn step_consts(&self, spool: f64) -> ChamberStep {
+        self.consts_at(self.valve.openings(spool))
+    }
+
+    /// The constants of the chamber equations with the valve's paths open by `o`.
+    #[inline]
+    pub(crate) fn consts_at(&self, o: Openings) -> ChamberStep {
         let c = &self.cylinder;
         let sp = &self.supply;
-        let o: Openings = self.valve.openings(spool);
         // One set of ISO 6358 constants per path (all equal to the valve's unless the sheet gives paths).
         let v = &self.valve;
         let (or_pa, or_ar, or_pb, or_br) = (
@@ -296,23 +301,44 @@ pub(crate) struct ChamberStep {
     /// Gas constant R, J/(kg K).
     pub(crate) r: f64,
     /// ISO 6358 constants of the paths P->A, A->R, P->B, B->R.
-    or_pa: OrificeStep,
-    or_ar: OrificeStep,
-    or_pb: OrificeStep,
-    or_br: OrificeStep,
+    pub(crate) or_pa: OrificeStep,
+    pub(crate) or_ar: OrificeStep,
+    pub(crate) or_pb: OrificeStep,
+    pub(crate) or_br: OrificeStep,
     /// Gains (opening C rho0) of the paths P->A, A->R, P->B, B->R, kg/(s Pa).
-    k_pa: f64,
-    k_ar: f64,
-    k_pb: f64,
-    k_br: f64,
+    pub(crate) k_pa: f64,
+    pub(crate) k_ar: f64,
+    pub(crate) k_pb: f64,
+    pub(crate) k_br: f64,
     /// Supply pressure (Pa), temperature (K) and T0 / T_s.
-    ps: f64,
-    ts: f64,
+    pub(crate) ps: f64,
+    pub(crate) ts: f64,
     t0_over_ts: f64,
     /// Exhaust pressure (Pa), temperature (K) and T0 / T_atm.
     pub(crate) pr: f64,
     pub(crate) tr: f64,
     t0_over_tr: f64,
+}
+
+/// What feeds the chambers over a step, with its constants evaluated: the chamber equations' rates and the
+/// piston force, for the 1-DOF model's RK4 ([`ChamberStep`]: the valve at a held spool;
+/// [`crate::regulator::RegulatedStep`]: a pressure regulator in front of each chamber).
+pub(crate) trait Chambers {
+    /// Net pneumatic force on the rod along +x, N.
+    fn piston_force(&self, s: &ChamberState) -> f64;
+    /// Time derivatives of the chamber state (Pa/s, K/s) at extension `x` and velocity `x_dot`.
+    fn rates(&self, s: &ChamberState, x: f64, x_dot: f64) -> ChamberState;
+}
+
+impl Chambers for ChamberStep {
+    #[inline(always)]
+    fn piston_force(&self, s: &ChamberState) -> f64 {
+        ChamberStep::piston_force(self, s)
+    }
+    #[inline(always)]
+    fn rates(&self, s: &ChamberState, x: f64, x_dot: f64) -> ChamberState {
+        ChamberStep::rates(self, s, x, x_dot)
+    }
 }
 
 impl ChamberStep {
@@ -341,7 +367,7 @@ impl ChamberStep {
     /// Signed flow supply -> chamber (kg/s) through a path of gain `k` and its enthalpy carrier
     /// q T_upstream (kg K/s), eq. (11); the chamber is at `p`, `t` (floored).
     #[inline(always)]
-    fn supply_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
+    pub(crate) fn supply_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
         if k <= 0.0 {
             (0.0, 0.0)
         } else if self.ps >= p {
@@ -355,7 +381,7 @@ impl ChamberStep {
 
     /// Signed flow chamber -> exhaust (kg/s) and its enthalpy carrier (kg K/s), eq. (11).
     #[inline(always)]
-    fn exhaust_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
+    pub(crate) fn exhaust_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
         if k <= 0.0 {
             (0.0, 0.0)
         } else if p >= self.pr {

@@ -5,6 +5,7 @@
 //! every engine uses this one implementation.
 
 use crate::actuator::{Actuator, ChamberState, ChamberStep};
+use crate::regulator::{PressureRegulator, RegulatedStep, rk4_chambers};
 use crate::valve::ValveState;
 
 /// The pneumatic cylinder as a force element: it integrates the two chamber states (eqs. (2)-(10), via
@@ -12,6 +13,9 @@ use crate::valve::ValveState;
 /// `substeps` equal substeps split at the valve's spool edges, with the flange moving at the step's
 /// velocity, and returns the piston force p_a S_a - p_b S_b - p_atm S_rod (eq. (1)'s F_1 - F_2). Viscous
 /// friction K_v and Coulomb friction are not included (the engine's joint damping; the sheet's friction law).
+///
+/// With regulators fitted ([`PneumaticForceElement::set_regulator`]) the command is the chambers' pressure
+/// set-points instead of the valve command ([`crate::regulator`]); the valve's state then stays at rest.
 #[derive(Debug, Clone)]
 pub struct PneumaticForceElement {
     /// Cylinder, gas, valve and supply.
@@ -26,6 +30,10 @@ pub struct PneumaticForceElement {
     substeps: u32,
     /// Time of the element's own clock, s (drives the PWM period of an on/off valve).
     time_s: f64,
+    /// A pressure regulator in front of each chamber in place of the valve, or None (the valve).
+    regulator: Option<PressureRegulator>,
+    /// The regulators' set-points (A, B), Pa absolute, held until changed.
+    setpoints_pa: (f64, f64),
 }
 
 impl PneumaticForceElement {
@@ -43,7 +51,32 @@ impl PneumaticForceElement {
             command: 0.0,
             substeps: substeps.max(1),
             time_s: 0.0,
+            regulator: None,
+            setpoints_pa: (chambers.p_a, chambers.p_b),
         }
+    }
+
+    /// Fits a pressure regulator in front of each chamber in place of the valve (`None`: back to the valve);
+    /// the set-points start at the chambers' pressures (they hold them).
+    pub fn set_regulator(&mut self, regulator: Option<PressureRegulator>) {
+        self.regulator = regulator;
+        self.setpoints_pa = (self.chambers.p_a, self.chambers.p_b);
+    }
+
+    /// The regulator in front of each chamber, if fitted.
+    pub fn regulator(&self) -> Option<PressureRegulator> {
+        self.regulator
+    }
+
+    /// Sets the regulators' set-points of chambers A and B, Pa absolute, held from the next step on (clamped
+    /// to [atmosphere, supply] by the model; NaN passes no flow). Without regulators fitted they wait.
+    pub fn set_pressure_command(&mut self, p_a_pa: f64, p_b_pa: f64) {
+        self.setpoints_pa = (p_a_pa, p_b_pa);
+    }
+
+    /// The regulators' set-points (A, B), Pa absolute.
+    pub fn pressure_command(&self) -> (f64, f64) {
+        self.setpoints_pa
     }
 
     /// Set the valve command u in [-1, 1] (clamped; NaN closes the valve), held from the next step on.
@@ -126,6 +159,24 @@ impl PneumaticForceElement {
     pub fn step(&mut self, x: f64, x_dot: f64, dt: f64) -> f64 {
         let n = self.substeps;
         let h = dt / f64::from(n);
+        if let Some(reg) = &self.regulator {
+            let (a, b) = self.setpoints_pa;
+            let k = RegulatedStep::new(&self.actuator, reg, a, b);
+            let mut f_sum = 0.0;
+            for i in 0..n {
+                let f0 = self.actuator.piston_force(&self.chambers);
+                rk4_chambers(
+                    &k,
+                    &mut self.chambers,
+                    x + x_dot * h * f64::from(i),
+                    x_dot,
+                    h,
+                );
+                f_sum += 0.5 * (f0 + self.actuator.piston_force(&self.chambers));
+                self.time_s += h;
+            }
+            return f_sum / f64::from(n);
+        }
         let mut f_sum = 0.0;
         // Over the step: the chamber constants of the last spool position, and how long the spool holds
         // (while it does, `segment` would change nothing and is not called). Bit for bit the same.

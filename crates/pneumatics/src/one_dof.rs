@@ -2,13 +2,14 @@
 //! split at every spool edge, and the end stops — or, when the sheet gives effects beyond the paper,
 //! [`crate::extended`]'s step. The model's parameters and state are in [`crate::mechanics`].
 
-use crate::actuator::{ChamberState, ChamberStep};
+use crate::actuator::{ChamberState, ChamberStep, Chambers};
 use crate::mechanics::{OneDofModel, OneDofState};
+use crate::regulator::{PressureRegulator, RegulatedStep};
 
 /// What stays constant over one step of [`OneDofModel::step`].
-struct StepConsts<'a> {
-    /// Chamber-equation constants for the held spool.
-    chambers: &'a ChamberStep,
+struct StepConsts<'a, C: Chambers> {
+    /// Chamber-equation constants for the held spool (or the regulators' set-points).
+    chambers: &'a C,
     /// G_alpha + f_ext, N.
     f_load: f64,
     /// 1 / m, 1/kg.
@@ -24,7 +25,7 @@ struct Deriv {
 
 impl OneDofModel {
     #[inline(always)]
-    fn rates(&self, k: &StepConsts, x: f64, v: f64, c: &ChamberState) -> Deriv {
+    fn rates<C: Chambers>(&self, k: &StepConsts<C>, x: f64, v: f64, c: &ChamberState) -> Deriv {
         let m = &self.mechanics;
         let cs = &k.chambers;
         let drive = cs.piston_force(c) + k.f_load;
@@ -39,9 +40,9 @@ impl OneDofModel {
 
     /// One classic RK4 step of length `dt` from `(x0, v0, c0)` with the constants `k` held.
     #[inline(always)]
-    fn rk4(
+    fn rk4<C: Chambers>(
         &self,
-        k: &StepConsts,
+        k: &StepConsts<C>,
         x0: f64,
         v0: f64,
         c0: ChamberState,
@@ -119,6 +120,60 @@ impl OneDofModel {
         for _ in 0..substeps.max(1) {
             let f = f_ext(state.x);
             self.paper_step(state, u, f, gravity_n, inv_mass, h, &mut held);
+        }
+    }
+
+    /// [`Self::advance`] behind a pressure regulator in front of each chamber ([`crate::regulator`], the valve's
+    /// paths fully open as its flow limits) at set-points `set_pa` (A, B; Pa absolute) in place of the valve:
+    /// `substeps` RK4 steps of eq. (1) and the chambers, `f_ext(x)` evaluated at the start of each and held
+    /// over it, with the end stops and the sticking of [`Self::step`]. The valve's state is not touched. The
+    /// paper's model only: a model with effects beyond it ([`Self::is_paper_model`] false) is integrated
+    /// without them, so a host refuses it where it fits the regulators.
+    #[allow(clippy::too_many_arguments)]
+    pub fn advance_regulated(
+        &self,
+        state: &mut OneDofState,
+        reg: &PressureRegulator,
+        set_pa: (f64, f64),
+        gravity_n: f64,
+        dt: f64,
+        substeps: u32,
+        mut f_ext: impl FnMut(f64) -> f64,
+    ) {
+        let h = dt / f64::from(substeps.max(1));
+        let inv_mass = 1.0 / self.mechanics.moving_mass_kg;
+        let chambers = RegulatedStep::new(&self.actuator, reg, set_pa.0, set_pa.1);
+        let stroke = self.actuator.cylinder.stroke_m;
+        for _ in 0..substeps.max(1) {
+            let f_load = gravity_n + f_ext(state.x);
+            let k = StepConsts {
+                chambers: &chambers,
+                f_load,
+                inv_mass,
+            };
+            let (mut x, mut v, c) = self.rk4(&k, state.x, state.x_dot, state.chambers, h);
+            // End stops and sticking as in `paper_step`.
+            if x <= 0.0 {
+                x = 0.0;
+                v = v.max(0.0);
+            } else if x >= stroke {
+                x = stroke;
+                v = v.min(0.0);
+            }
+            if let crate::mechanics::Friction::StickSlip {
+                static_n,
+                stick_velocity_m_per_s,
+                ..
+            } = self.mechanics.friction
+                && v.abs() < stick_velocity_m_per_s
+                && (chambers.piston_force(&c) + f_load).abs() <= static_n
+            {
+                v = 0.0;
+            }
+            state.x = x;
+            state.x_dot = v;
+            state.chambers = c;
+            state.t += h;
         }
     }
 

@@ -672,6 +672,148 @@ def the_fig7_environment_is_the_fig7_scene():
         assert np.array_equal(a[0], b[0]) and a[1:4] == b[1:4], k
 
 
+def _sheets() -> dict:
+    """The paper actuator's sheets as numbers, read here (independent of the bindings)."""
+    import tomllib
+
+    d = ROOT / "pneumatics"
+    act = tomllib.loads((d / "paper-actuator.toml").read_text())
+    comp = act["components"]
+    cyl = tomllib.loads((d / comp["cylinder"]).read_text())["cylinder"]
+    sup = tomllib.loads((d / comp["supply"]).read_text())
+    a_a = math.pi / 4 * cyl["bore_m"] ** 2
+    a_rod = math.pi / 4 * cyl["rod_m"] ** 2
+    m = act["mechanics"]
+    return {"a_a": a_a, "a_b": a_a - a_rod, "a_rod": a_rod, "p_atm": sup["atmosphere"]["pressure_abs_pa"],
+            "p_s": sup["supply"]["pressure_abs_pa"], "stroke": cyl["stroke_m"],
+            "gravity_n": m["moving_mass_kg"] * m["gravity_m_per_s2"] * math.sin(math.radians(m["alpha_deg"]))}
+
+
+@test
+def the_pressure_action_holds_its_set_points_and_the_force_follows():
+    """pneuflex/ForceControlPressure-v0: the action is the two chambers' set-points in Pa absolute, Box(2) over
+    [atmosphere, supply] from the sheets. Held, the chambers converge to them (to 1e-3 Pa) and the flange comes
+    to rest where the contact force is p_a A_a - p_b A_b - p_atm A_rod + m g sin(alpha) (areas, atmosphere,
+    mass and incline from the sheets, computed here); stepped to a second pair, the force follows to the new
+    balance. A pickled environment goes on bit for bit; the vector environment's episodes equal the single
+    one's."""
+    import pickle
+
+    import gymnasium
+
+    import pneuflex.envs  # noqa: F401
+
+    k = _sheets()
+    env = gymnasium.make("pneuflex/ForceControlPressure-v0").unwrapped
+    assert env.action_space.shape == (2,) and env.action_space.dtype == np.float32
+    assert list(env.action_space.low) == [k["p_atm"]] * 2 and list(env.action_space.high) == [k["p_s"]] * 2
+    assert env.batch.action == "pressure" and env.batch.regulator_time_constant_s == 0.01
+    env.reset(seed=0, options={"randomize": False})
+    # The first pair until 5.5 s (the spring at 700 N/m: the flange creeps in, time constant about 0.46 s with
+    # the friction's slope), the second until 9.95 s (1400 N/m from 6 s: about 0.23 s).
+    rewards = []
+    for (p_a, p_b), steps, k_e, tol in [((2.7e5, 2.5e5), 5500, 700.0, 1e-3), ((3.1e5, 2.6e5), 4450, 1400.0, 1e-6)]:
+        action = np.array([p_a, p_b], np.float32)
+        for _ in range(steps):
+            obs, reward, terminated, truncated, info = env.step(action)
+        rewards.append(reward)
+        assert not (terminated or truncated)
+        t, x, x_dot, f_e, pa, pb = env.sensors()
+        assert abs(pa - p_a) < 1e-3 and abs(pb - p_b) < 1e-3, (pa, pb)
+        want = p_a * k["a_a"] - p_b * k["a_b"] - k["p_atm"] * k["a_rod"] + k["gravity_n"]
+        assert abs(f_e - want) < tol and abs(info["f_e_n"] - want) < tol, (t, f_e, want)
+        assert abs(x - (0.02 + want / k_e)) < tol / k_e, (x, 0.02 + want / k_e)
+        assert abs(obs[4] - p_a / 1e5) < 1e-6 and abs(obs[0] - want / 10.0) < 1e-5, obs
+    # The first pair presses about the reference's 10 N (reward near 1), the second 15.9 N against 10-12 N.
+    assert rewards[0] > 0.99 and rewards[1] < 0.9, rewards
+    env.reset(seed=5)
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        env.step(rng.uniform(k["p_atm"], k["p_s"], 2).astype(np.float32))
+    twin = pickle.loads(pickle.dumps(env))
+    for _ in range(100):
+        a = rng.uniform(k["p_atm"], k["p_s"], 2).astype(np.float32)
+        o1, o2 = env.step(a), twin.step(a)
+        assert np.array_equal(o1[0], o2[0]) and o1[1:4] == o2[1:4]
+    vec = gymnasium.make_vec("pneuflex/ForceControlPressure-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    vec.reset(seed=[3, 4])
+    singles = [gymnasium.make("pneuflex/ForceControlPressure-v0").unwrapped for _ in range(2)]
+    for e, s in zip(singles, [3, 4]):
+        e.reset(seed=s)
+    for _ in range(200):
+        a = rng.uniform(k["p_atm"], k["p_s"], (2, 2)).astype(np.float32)
+        vo, vr, _, _, _ = vec.step(a)
+        for i, e in enumerate(singles):
+            so, sr, _, _, _ = e.step(a[i])
+            assert np.array_equal(vo[i], so) and vr[i] == sr
+
+
+@test
+def the_pressure_action_refuses_bad_set_points_and_passes_check_env():
+    """A set-point that is NaN or infinite, below the atmosphere or above the supply, or an action of another
+    shape is refused naming the environment, the value and the bounds, and no episode moves; check_env passes
+    (its one remark: the Box in Pa is not normalised, as RescaleAction(env, -1, 1) makes it); the multibody rig
+    takes the pressure action, a scene of several actuators refuses it naming why."""
+    import warnings
+
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pneuflex.envs as envs
+
+    k = _sheets()
+    env = envs.ForceControl(action="pressure")
+    env.reset(seed=0)
+    t0 = env.t
+    refused(lambda: env.step(np.array([np.nan, 2e5])), ValueError,
+            "ForceControl.step: actions[0] (environment 0, value 0) is NaN: a pressure set-point must be finite")
+    refused(lambda: env.step(np.array([2e5, np.inf], np.float32)), ValueError, "is inf")
+    refused(lambda: env.step(np.array([9e4, 2e5], np.float32)), ValueError,
+            "actions[0] (environment 0, value 0: actuator 0's p_a set-point) is 90000 Pa: a set-point must be within "
+            "[101325, 601325] Pa absolute (the atmosphere and the supply)")
+    refused(lambda: env.step(np.array([2e5, 7e5])), ValueError, "actuator 0's p_b set-point) is 700000 Pa")
+    refused(lambda: env.step(np.array([2e5], np.float32)), ValueError,
+            "ForceControl.step: the action has shape (1,); the action space's is (2,)")
+    refused(lambda: env.step(np.array(["2e5", "3e5"])), TypeError, "the action must hold real numbers")
+    assert env.t == t0, "a refused action moved the episode"
+    # At the bounds (the space's float32 values) it steps.
+    env.step(np.array([k["p_atm"], k["p_s"]], np.float32))
+    vec = envs.ForceControlVector(num_envs=3, action="pressure")
+    vec.reset(seed=0)
+    bad = np.full((3, 2), 2e5)
+    bad[2, 1] = 6.5e5
+    refused(lambda: vec.step(bad), ValueError, "ForceControlVector.step: actions[5] (environment 2, value 1: "
+            "actuator 0's p_b set-point) is 650000 Pa")
+    assert all(vec.batch.sensors(i)[0] == 0.0 for i in range(3))
+    refused(lambda: envs.ForceControl(action="pressure", regulator_time_constant_s=0.0), ValueError,
+            "regulator_time_constant_s must be a time constant > 0 s")
+    refused(lambda: envs.ForceControl(action="pressure", regulator_time_constant_s=100.0), ValueError,
+            "regulator_time_constant_s: the regulator's time constant must be in [1e-5, 10] s, got 100")
+    refused(lambda: envs.ForceControl(scene="gripper", action="pressure"), pneuflex.PneuflexError,
+            "gripper.toml", 'action = "pressure"', "several actuators")
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        check_env(gymnasium.make("pneuflex/ForceControlPressure-v0", render_mode="rgb_array").unwrapped)
+    remarks = {str(w.message) for w in seen}
+    assert all("symmetric and normalized space" in r for r in remarks), remarks
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Gymnasium's own remark on its float64 bounds cast to the float32 space
+        rescaled = gymnasium.wrappers.RescaleAction(gymnasium.make("pneuflex/ForceControlPressure-v0"), -1.0, 1.0)
+    assert list(rescaled.action_space.low) == [-1, -1] and list(rescaled.action_space.high) == [1, 1]
+    rescaled.reset(seed=0)
+    rescaled.step(np.zeros(2, np.float32))
+    assert abs(rescaled.unwrapped.batch.sensors(0)[4] - (k["p_atm"] + k["p_s"]) / 2) < 3e5
+    multi = gymnasium.make("pneuflex/MultibodyForceControl-v0", action="pressure").unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(multi, skip_render_check=True)
+    multi.reset(seed=0, options={"randomize": False})
+    for _ in range(500):
+        multi.step(np.array([2.7e5, 2.5e5], np.float32))
+    _, _, _, _, pa, pb = multi.sensors()
+    assert abs(pa - 2.7e5) < 1e-2 and abs(pb - 2.5e5) < 1e-2, (pa, pb)
+
+
 @test
 def every_native_name_has_a_type_stub():
     """pneuflex/_native.pyi declares every function, class and method the native module exports, with the
@@ -1052,9 +1194,16 @@ def an_action_that_is_not_real_numbers_is_a_type_error():
     env.step(np.array([1]))
     env.step(np.array([0.5]))
     refused(lambda: pneuflex.ForceControlBatch(SCENE, 2).step([0.0, 0.0]), TypeError,
-            "actions must be a 1-D float64 numpy array (num_envs x action_width values), got list")
-    refused(lambda: pneuflex.ForceControlBatch(SCENE, 2).step(np.zeros(2, np.float32)), TypeError,
-            "got ndarray of dtype float32 and shape (2,)")
+            "actions must be a float64 or float32 numpy array (num_envs x action_width values), got list")
+    refused(lambda: pneuflex.ForceControlBatch(SCENE, 2).step(np.zeros(2, np.float16)), TypeError,
+            "got ndarray of dtype float16 and shape (2,)")
+    # float32 (the action space's dtype) and float64 are read as they are, in C order.
+    b32, b64 = pneuflex.ForceControlBatch(SCENE, 2), pneuflex.ForceControlBatch(SCENE, 2)
+    for b in (b32, b64):
+        b.reset(3)
+    u = np.array([[0.25], [-0.5]])
+    o32, o64 = b32.step(u.astype(np.float32)), b64.step(u.ravel())
+    assert all(np.array_equal(x, y) for x, y in zip(o32, o64))
 
 
 @test
@@ -1155,7 +1304,7 @@ def environment_arguments_are_checked():
     refused(lambda: pneuflex.ForceControlBatch(SCENE, 1, action="impedance", decision_ticks=0), ValueError,
             "decision_ticks must be at least 1")
     refused(lambda: envs.ForceControl(randomize="no"), TypeError, "ForceControl: randomize must be True or False, got str 'no'")
-    refused(lambda: envs.ForceControl(action=None), TypeError, 'ForceControl: action must be "valve" or "impedance", got NoneType')
+    refused(lambda: envs.ForceControl(action=None), TypeError, 'ForceControl: action must be "valve", "pressure" or "impedance", got NoneType')
     refused(lambda: envs.ForceControl(action="torque"), pneuflex.PneuflexError, "paper-fig3.toml", 'action = "torque"')
     refused(lambda: gymnasium.make("pneuflex/ForceControl-v0", randomize="no"), TypeError, "randomize must be True or False")
     refused(lambda: gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=-1, vectorization_mode="vector_entry_point"),

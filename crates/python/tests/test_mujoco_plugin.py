@@ -307,6 +307,92 @@ def several_actuators_share_an_instance_each_with_its_state():
     assert "pneuflex.cylinder: actuator 'c': config key 'valve.response_time_s'" in e, e
 
 
+def pressure_rig(config: dict | None = None, ctrlrange: str = "101325 601325", second: bool = True) -> str:
+    """rig() under command="pressure": the flange's cylinder takes two actuators, chamber A's set-point (named
+    cyl0, carrying the force) and chamber B's (named b)."""
+    cfg = {"command": "pressure", "regulator.time_constant_s": "0.02"}
+    cfg.update(config or {})
+    xml = rig(cfg, ctrlrange=ctrlrange)
+    if second:
+        xml = xml.replace("</actuator>", f'<plugin name="b" joint="slide0" plugin="pneuflex.cylinder" instance="cyl" '
+                                         f'ctrlrange="{ctrlrange}"/></actuator>')
+    return xml
+
+
+@test
+def the_pressure_command_follows_its_set_points():
+    """command="pressure": each cylinder takes two actuators, chamber A's set-point then chamber B's (Pa absolute),
+    and keeps 11 numbers of plugin_state. With the flange moving, each chamber follows the regulator's first-order
+    law, p_set + (p0 - p_set) e^(-t/tau) (tau = regulator.time_constant_s, the flow within the valve's limit), to
+    1e-3 Pa, then holds its set-point (to 1 Pa: MuJoCo's flange does not move exactly as the element's step assumes
+    between steps); the first actuator's force is then p_a A_a - p_b A_b - p_atm A_rod minus the
+    sheet's friction 0.6 tanh(v / 2 mm/s) at the step's velocity (bore, rod, friction from the sheets, to 1e-6 N),
+    the second's 0; the valve's spool stays at rest. A set-point beyond ctrlrange is clamped to it (MuJoCo itself
+    zeroes every ctrl when one is NaN, its BADCTRL warning: the set-points then fall to ctrlrange's low end)."""
+    import math
+    import tomllib
+
+    load_plugin()
+    d0 = ROOT / "pneumatics"
+    act = tomllib.loads((d0 / "paper-actuator.toml").read_text())
+    cyl = tomllib.loads((d0 / act["components"]["cylinder"]).read_text())["cylinder"]
+    a_a, a_rod = math.pi / 4 * cyl["bore_m"] ** 2, math.pi / 4 * cyl["rod_m"] ** 2
+    a_b, p_atm = a_a - a_rod, 101325.0
+    coulomb, v_s = act["mechanics"]["coulomb_n"], act["mechanics"]["smooth_velocity_m_per_s"]
+    m = mujoco.MjModel.from_xml_string(pressure_rig())
+    assert m.nu == 2 and int(m.plugin_statenum[0]) == 11, (m.nu, m.plugin_statenum)
+    d = mujoco.MjData(m)
+    d.qpos[0] = 0.02
+    p0, ps, tau = np.array([3.0e5, 3.5e5]), np.array([2.5e5, 4.0e5]), 0.02
+    d.ctrl[:] = ps
+    worst = 0.0
+    for k in range(1, 3001):  # 0.3 s = 15 tau
+        mujoco.mj_step(m, d)
+        want = ps + (p0 - ps) * math.exp(-k * H / tau)
+        worst = max(worst, float(np.max(np.abs(d.plugin_state[:2] - want))))
+    assert worst < 1e-3, worst
+    assert abs(d.qpos[0] - 0.02) > 1e-3, d.qpos[0]  # the flange moved meanwhile
+    for _ in range(200):
+        v = d.qvel[0]
+        mujoco.mj_step(m, d)
+        p_a, p_b = d.plugin_state[:2]
+        hand = p_a * a_a - p_b * a_b - p_atm * a_rod - coulomb * math.tanh(v / v_s)
+        assert abs(d.actuator_force[0] - hand) < 1e-6 and d.actuator_force[1] == 0.0, (d.actuator_force, hand)
+    assert np.allclose(d.plugin_state[:2], ps, rtol=0, atol=1.0) and d.plugin_state[4] == 0.0, d.plugin_state[:5]
+    # Beyond ctrlrange: clamped to it, bit for bit the run at the bound.
+    runs = []
+    for ctrl in ([9e5, 5e4], [601325.0, 101325.0]):
+        d = mujoco.MjData(m)
+        d.ctrl[:] = ctrl
+        mujoco.mj_step(m, d, nstep=300)
+        runs.append(d.plugin_state[:4].copy())
+    assert np.array_equal(*runs), runs
+
+
+@test
+def the_shipped_pressure_mjcf_and_its_errors():
+    """pneuflex.mjcf("cylinder-pressure") loads from any directory and holds its set-points (1 s); a pressure
+    instance with one actuator, an unknown command, a regulator time constant with the valve command or out of
+    range are load errors naming the key."""
+    load_plugin()
+    m = mujoco.MjModel.from_xml_string(pneuflex.mjcf("cylinder-pressure"))
+    d = mujoco.MjData(m)
+    d.ctrl[:] = [2.6e5, 2.4e5]
+    mujoco.mj_step(m, d, nstep=10000)
+    assert np.allclose(d.plugin_state[:2], [2.6e5, 2.4e5], rtol=0, atol=1e-3), d.plugin_state[:2]
+    assert d.sensor("cylinder_force").data[0] > 6.0 and d.actuator_force[1] == 0.0
+    cases = [
+        (pressure_rig(second=False), "command=\"pressure\" takes two actuators per cylinder"),
+        (pressure_rig({"command": "torque"}), "config key 'command': expected \"valve\""),
+        (rig({"regulator.time_constant_s": "0.01"}), "config key 'regulator.time_constant_s': the regulators replace"),
+        (pressure_rig({"regulator.time_constant_s": "0"}), "config key 'regulator.time_constant_s': the regulator's "
+                                                          "time constant must be in [1e-5, 10] s, got 0"),
+    ]
+    for xml, says in cases:
+        e = load_error(xml)
+        assert says in e and "pneuflex.cylinder: instance 'cyl'" in e, (says, e)
+
+
 @test
 def the_documented_mjcf_loads_and_pushes():
     """docs/mujoco-plugin.md's complete MJCF, as written (its relative sheet from the repository root), is the

@@ -11,7 +11,8 @@ The classes and functions come from the Rust crates through the native module ``
 - ``Controller(kind, impedance, inner, adaptive=None)`` / ``Controller.from_scene(path, run)``;
   ``update(t, x, x_dot, f_e, p_a, p_b, f_ref, x_d, dt) -> u``, ``telemetry()``.
 - ``ForceControlBatch(scene_path, num_envs=1, randomize=True, autoreset=False, action="valve")``: episodes of the
-  force-control task stepped in Rust, in parallel (``step(actions) -> (obs, rewards, terminated, truncated)``);
+  force-control task stepped in Rust, in parallel (``step(actions) -> (obs, rewards, terminated, truncated)``;
+  ``action`` "valve", "pressure" (the chambers' set-points behind pressure regulators) or "impedance");
   the Gymnasium environments of ``pneuflex.envs`` stand on it.
 - ``Setpoints(scene_path).at(t) -> (f_ref, x_d)``; ``load_scene(path) -> dict``; ``initial_state(path)``.
 - ``run(scene_path) -> Results``: ``{run: {column: ndarray}}`` with ``.summary``, ``.claims``, ``.trace(run)``
@@ -159,7 +160,8 @@ def mjcf(name: str = "cylinder") -> str:
     plugin made absolute inside the package's data (MuJoCo gives a plugin no model folder: a relative sheet
     would be read from the working directory). For ``mujoco.MjModel.from_xml_string`` after
     ``mujoco.mj_loadPluginLibrary(mujoco_plugin_path())``. ``"cylinder"``: the paper's cylinder pushing a
-    compliant wall, its stroke held by hard end stops (docs/mujoco-plugin.md)."""
+    compliant wall, its stroke held by hard end stops (docs/mujoco-plugin.md); ``"cylinder-pressure"``: the same
+    rig under ``command="pressure"``, its two actuators' ctrl the chambers' set-points in Pa absolute."""
     import os
     import xml.etree.ElementTree as ET
     from pathlib import Path

@@ -9,6 +9,12 @@ follow the scene's force reference while the environment's stiffness changes und
   shape than the space's, values that are not real numbers, NaN or infinity are refused (ValueError or
   TypeError naming the environment and the value), as is a step before ``reset()`` or after the episode ended
   (docs/gymnasium.md, "What an environment refuses").
+  ``pneuflex/ForceControlPressure-v0`` (``action="pressure"``): a pressure regulator in front of each chamber in
+  place of the valve; the action is the two chambers' set-points (p_a, p_b) in Pa absolute within [atmosphere,
+  supply] (``Box(2)``, 101325-601325 Pa on fig3; set-points outside are refused), held over a tick. Each
+  regulator follows its set-point with the time constant ``regulator_time_constant_s`` (default 0.01 s), its
+  flow limited by the valve's ISO 6358 paths fully open (``pneuflex_pneumatics::regulator``). A scene of one
+  ``[plant]``, pneumatic or multibody (``gymnasium.wrappers.RescaleAction(env, -1, 1)`` normalises it).
   ``pneuflex/ForceControlImpedance-v0`` (``action="impedance"``): (a_m, a_b) in [-1, 1]^2 (``Box(2)``) retune
   the scene's impedance controller, m_d = m_d0 4^a_m and b_d = b_d0 4^a_b (k_d kept, the filter's state kept),
   which then runs ``decision_ticks`` control ticks (default 10); the reward is the sum over them.
@@ -69,6 +75,12 @@ RENDER_STEPS = 2000
 
 #: Observation scales: f_e and f_ref in 10 N, x - x_e in 10 mm, velocity in 0.1 m/s, pressures in bar.
 SCALES = np.array([10.0, 10.0, 0.01, 0.1, 1e5, 1e5])  # the batch's `scales`
+#: The actions: the valve command, the chambers' pressure set-points, or the impedance controller's retune.
+ACTIONS = ("valve", "pressure", "impedance")
+#: The pressure regulators' time constant unless given, s (``action="pressure"``).
+REGULATOR_TIME_CONSTANT_S = 0.01
+# The dtypes the batch reads as they are (numpy's builtin dtypes are singletons: `is` compares them).
+_F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 
 #: What a reset's info (or a vector reset's infos, as arrays) carries: each episode's drawn parameters.
 PARAMS = ("stiffness_n_per_m", "stiffness_after_n_per_m", "t_change_s", "mass_scale", "friction_scale",
@@ -93,16 +105,13 @@ def _scene(scene, where: str) -> str:
 def _action_kind(action, where: str) -> str:
     """The ``action`` argument: a str (the batch says which ones, naming the scene)."""
     if not isinstance(action, str):
-        raise TypeError(f'{where}: action must be "valve" or "impedance", got {c.kind(action)}')
+        raise TypeError(f'{where}: action must be "valve", "pressure" or "impedance", got {c.kind(action)}')
     return action
 
 
-def _step(batch, actions: np.ndarray, where: str):
-    """The batch's step; its refusal of a non-finite value under the caller's name."""
-    try:
-        return batch.step(actions)
-    except ValueError as e:
-        raise ValueError(f"{where}: {e}") from None
+def _regulator(tau, where: str) -> float:
+    """``regulator_time_constant_s``: a number in seconds (the batch checks its range)."""
+    return c.number(tau, "regulator_time_constant_s", where, lambda v: v > 0, "a time constant > 0 s")
 
 
 #: The keys ``reset(options=...)`` takes.
@@ -123,10 +132,12 @@ def _randomize(options, default: bool, where: str) -> bool:
 
 
 def _actions(action, shape: tuple, where: str) -> np.ndarray:
-    """An action (or a batch of them) as the flat float64 array the Rust batch steps. Refused: another shape
-    than the action space's (no truncation, no broadcasting), values that are not real numbers (bool, complex,
-    str, None). Non-finite values are refused by the batch, naming the environment and the value; finite ones
-    outside [-1, 1] are clipped there, as Gymnasium's continuous-control environments clip."""
+    """An action (or a batch of them) as a float64 array the Rust batch steps (the environments' steps call this
+    for anything but a float32 or float64 array of the space's shape, which the batch reads as it is). Refused:
+    another shape than the action space's (no truncation, no broadcasting), values that are not real numbers
+    (bool, complex, str, None). Non-finite values are refused by the batch, naming the environment and the value;
+    finite ones outside [-1, 1] are clipped there, as Gymnasium's continuous-control environments clip (a
+    pressure set-point outside [atmosphere, supply] is refused)."""
     if type(action) is not np.ndarray or action.dtype.kind != "f":
         try:
             action = np.asarray(action)
@@ -143,8 +154,10 @@ def _actions(action, shape: tuple, where: str) -> np.ndarray:
 
 def _spaces(batch):
     """The action and observation spaces of one episode: flat, each actuator's values in turn (one actuator:
-    Box(1) or Box(2), and Box(6))."""
-    action = gymnasium.spaces.Box(-1.0, 1.0, shape=(batch.action_width,), dtype=np.float32)
+    Box(1) or Box(2), and Box(6)); the valve and impedance actions in [-1, 1], the pressure set-points in
+    [atmosphere, supply] Pa absolute."""
+    low, high = np.array(batch.action_low, np.float32), np.array(batch.action_high, np.float32)
+    action = gymnasium.spaces.Box(low, high, shape=(batch.action_width,), dtype=np.float32)
     # Far beyond any reading of the plant (the scaled values are of order one).
     observation = gymnasium.spaces.Box(-1e4, 1e4, shape=(batch.observation_width,), dtype=np.float32)
     return action, observation
@@ -175,19 +188,22 @@ class ForceControl(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
 
     def __init__(self, scene: str | Path | None = None, randomize: bool = True, action: str = "valve",
-                 decision_ticks: int = 10, render_mode: str | None = None):
+                 decision_ticks: int = 10, render_mode: str | None = None,
+                 regulator_time_constant_s: float = REGULATOR_TIME_CONSTANT_S):
         at = "ForceControl"
         self.render_mode = _render_mode(render_mode, at)
         self.scene_path = _scene(scene, at)
         randomize, action = c.flag(randomize, "randomize", at), _action_kind(action, at)
         self.batch = pneuflex.ForceControlBatch(self.scene_path, 1, randomize=randomize, action=action,
-                                                decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1))
+                                                decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1),
+                                                regulator_time_constant_s=_regulator(regulator_time_constant_s, at))
         self.dt, self.duration = self.batch.dt, self.batch.duration
         #: The actuators' names, the order of the action's and the observation's blocks ([] for one [plant]).
         self.actuators = list(self.batch.actuator_names)
         self.setpoints = self._setpoints()
         self.randomize = randomize
         self.action_space, self.observation_space = _spaces(self.batch)
+        self._shape = self.action_space.shape
         # Not reset yet, or the last step ended the episode: a step is refused until reset().
         self._ended = "call reset() before step()"
         # The episode's observations, kept for render() only.
@@ -236,20 +252,25 @@ class ForceControl(gymnasium.Env):
     def step(self, action):
         if self._ended:
             raise RuntimeError(f"ForceControl.step: {self._ended}")
-        at = "ForceControl.step"
-        obs, reward, terminated, truncated = _step(self.batch, _actions(action, self.action_space.shape, at), at)
-        t, _, _, f_e, _, _ = self.batch.sensors(0)
-        terminated, truncated = bool(terminated[0]), bool(truncated[0])
+        # A float32 or float64 array of the space's shape goes to the batch as it is; anything else is checked
+        # and converted (or refused) by _actions.
+        if type(action) is not np.ndarray or action.shape != self._shape or (action.dtype is not _F32
+                                                                             and action.dtype is not _F64):
+            action = _actions(action, self._shape, "ForceControl.step")
+        try:
+            obs, reward, terminated, truncated, t, f_e = self.batch.step_single(action)
+        except ValueError as e:
+            raise ValueError(f"ForceControl.step: {e}") from None
         if self.render_mode is not None:
-            self._seen.append(obs[0])
+            self._seen.append(obs)
         if terminated or truncated:
             why = (f"terminated ({self.batch.why(0) or 'an end of the stroke'})" if terminated
                    else "truncated (the scene's duration)")
             self._ended = f"the episode ended at t = {t:.6g} s, {why}: call reset() before step()"
         if self.actuators:  # each actuator's contact force, in the order of the blocks
-            return obs[0], float(reward[0]), terminated, truncated, {
+            return obs, reward, terminated, truncated, {
                 "f_e_n": np.array([self.batch.sensors(0, i)[3] for i in range(len(self.actuators))])}
-        return obs[0], float(reward[0]), terminated, truncated, {"f_e_n": f_e}
+        return obs, reward, terminated, truncated, {"f_e_n": f_e}
 
 
 class ForceControlVector(gymnasium.vector.VectorEnv):
@@ -266,7 +287,7 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
 
     def __init__(self, num_envs: int = 64, scene: str | Path | None = None, randomize: bool = True,
                  action: str = "valve", decision_ticks: int = 10, max_episode_steps: int | None = None,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None, regulator_time_constant_s: float = REGULATOR_TIME_CONSTANT_S):
         at = "ForceControlVector"
         self.render_mode = _render_mode(render_mode, at)
         self.scene_path = _scene(scene, at)
@@ -276,12 +297,14 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
         self.batch = pneuflex.ForceControlBatch(self.scene_path, num_envs, randomize=randomize, autoreset=True,
                                                 action=action,
                                                 decision_ticks=c.integer(decision_ticks, "decision_ticks", at, 1),
-                                                max_episode_steps=self.max_episode_steps)
+                                                max_episode_steps=self.max_episode_steps,
+                                                regulator_time_constant_s=_regulator(regulator_time_constant_s, at))
         self.num_envs = num_envs
         self.actuators = list(self.batch.actuator_names)
         self.single_action_space, self.single_observation_space = _spaces(self.batch)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, num_envs)
+        self._shape = self.action_space.shape
         self.randomize = randomize
         self._started = False
         # The last RENDER_STEPS observations (steps, num_envs, 6), kept for render() only.
@@ -326,9 +349,15 @@ class ForceControlVector(gymnasium.vector.VectorEnv):
     def step(self, actions):
         if not self._started:
             raise RuntimeError("ForceControlVector.step: call reset() before step()")
-        at = "ForceControlVector.step"
-        obs, rewards, terminated, truncated = _step(self.batch, _actions(actions, self.action_space.shape, at), at)
-        self._remember(obs)
+        if type(actions) is not np.ndarray or actions.shape != self._shape or (actions.dtype is not _F32
+                                                                               and actions.dtype is not _F64):
+            actions = _actions(actions, self._shape, "ForceControlVector.step")
+        try:
+            obs, rewards, terminated, truncated = self.batch.step(actions)
+        except ValueError as e:
+            raise ValueError(f"ForceControlVector.step: {e}") from None
+        if self.render_mode is not None:
+            self._remember(obs)
         return obs, rewards, terminated, truncated, {}
 
 
@@ -380,6 +409,13 @@ gymnasium.register(
     entry_point="pneuflex.envs:ForceControl",
     vector_entry_point="pneuflex.envs:ForceControlVector",
     kwargs={"action": "impedance"},
+)
+# The same task, a pressure regulator in front of each chamber: the action is the set-points (p_a, p_b) in Pa.
+gymnasium.register(
+    id="pneuflex/ForceControlPressure-v0",
+    entry_point="pneuflex.envs:ForceControl",
+    vector_entry_point="pneuflex.envs:ForceControlVector",
+    kwargs={"action": "pressure"},
 )
 # The same task on the Rapier rig of paper-fig3-multibody (URDF, contact on the wood mount).
 gymnasium.register(

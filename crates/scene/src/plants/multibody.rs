@@ -417,6 +417,22 @@ impl Plant for MultibodyPlant {
         self.drive.element.set_command(command.u);
     }
 
+    fn set_regulators(
+        &mut self,
+        _i: usize,
+        regulator: Option<pneuflex_pneumatics::PressureRegulator>,
+    ) -> Result<(f64, f64), super::PlantError> {
+        // The force element integrates the paper's chambers only (a sheet beyond it is refused at load).
+        self.drive.element.set_regulator(regulator);
+        self.drive0.element.set_regulator(regulator);
+        let s = &self.drive.element.actuator.supply;
+        Ok((s.atmosphere_pressure_pa, s.supply_pressure_pa))
+    }
+
+    fn actuate_pressures(&mut self, _i: usize, p_a_pa: f64, p_b_pa: f64) {
+        self.drive.element.set_pressure_command(p_a_pa, p_b_pa);
+    }
+
     fn advance(&mut self, dt: f64) {
         if self.ticks_per_step == 1 {
             // dt_s = steps_per_tick · physics_dt_s (validated at load).

@@ -2,6 +2,7 @@
 //! its errors, what the loop analyses ask of it, and the linear-spring environment of eq. (21).
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
+use pneuflex_pneumatics::PressureRegulator;
 
 use super::events::EventSpec;
 use super::visual::{ActuatorGeometry, Visual, VisualPose};
@@ -29,6 +30,23 @@ pub trait Plant {
     fn actuate_actuator(&mut self, _i: usize, command: ValveCommand, telemetry: &Telemetry) {
         self.actuate(command, telemetry);
     }
+    /// Fits a pressure regulator in front of each of actuator `i`'s chambers in place of its valve
+    /// (`pneuflex_pneumatics::regulator`: a first-order regulator limited by the valve's paths fully open), or
+    /// with `None` gives the valve back. The regulators stay through [`Plant::reset`]; their set-points start
+    /// at the chambers' pressures. Returns the set-points' range, (atmosphere, supply) in Pa absolute; Err for
+    /// a plant that has no regulator option (no chambers, or effects beyond the paper's model).
+    fn set_regulators(
+        &mut self,
+        _i: usize,
+        _regulator: Option<PressureRegulator>,
+    ) -> Result<(f64, f64), PlantError> {
+        Err(PlantError::unsupported(
+            "this plant takes a valve command only (no pressure regulators)",
+        ))
+    }
+    /// Sets the set-points (p_a, p_b) of actuator `i`'s regulators, Pa absolute, held until changed (the
+    /// model clamps them to [atmosphere, supply]); ignored without regulators fitted.
+    fn actuate_pressures(&mut self, _i: usize, _p_a_pa: f64, _p_b_pa: f64) {}
     /// Applies a scene event; Err explains why this plant cannot.
     fn apply(&mut self, event: &EventSpec) -> Result<(), PlantError>;
     /// Back to the initial state and initial environment.

@@ -3,7 +3,7 @@
 //! when x <= x_e. The flange feels f_ext = -f_e.
 
 use pneuflex_control::{Sensors, Telemetry, ValveCommand};
-use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState};
+use pneuflex_pneumatics::{ChamberState, OneDofModel, OneDofState, PressureRegulator};
 
 use crate::error::SceneError;
 use crate::plants::{ActuatorGeometry, LinearSpring, Plant};
@@ -22,6 +22,10 @@ pub struct OneDofPneumatic {
     substeps: u32,
     /// G_alpha = m g sin(alpha) of eq. (1), N: computed when the incline changes, not at every tick.
     gravity_n: f64,
+    /// A pressure regulator in front of each chamber in place of the valve ([`Plant::set_regulators`]).
+    regulator: Option<PressureRegulator>,
+    /// The regulators' set-points (p_a, p_b), Pa absolute.
+    set_pa: (f64, f64),
 }
 
 impl OneDofPneumatic {
@@ -45,6 +49,8 @@ impl OneDofPneumatic {
             u: 0.0,
             substeps: substeps.max(1),
             gravity_n,
+            regulator: None,
+            set_pa: (p_a, p_b),
         }
     }
 
@@ -238,8 +244,41 @@ impl Plant for OneDofPneumatic {
         self.u = command.u;
     }
 
+    fn set_regulators(
+        &mut self,
+        _i: usize,
+        regulator: Option<PressureRegulator>,
+    ) -> Result<(f64, f64), crate::plants::PlantError> {
+        if regulator.is_some() && !self.model.is_paper_model() {
+            return Err(crate::plants::PlantError::unsupported(
+                "the pressure regulators replace the valve of the paper's model only: this actuator's sheet \
+                 gives effects beyond it (leaks, lines, spool dynamics, wall heat, seal or LuGre friction)",
+            ));
+        }
+        self.regulator = regulator;
+        self.set_pa = (self.state.chambers.p_a, self.state.chambers.p_b);
+        let s = &self.model.actuator.supply;
+        Ok((s.atmosphere_pressure_pa, s.supply_pressure_pa))
+    }
+
+    fn actuate_pressures(&mut self, _i: usize, p_a_pa: f64, p_b_pa: f64) {
+        self.set_pa = (p_a_pa, p_b_pa);
+    }
+
     fn advance(&mut self, dt: f64) {
         let (gravity_n, env) = (self.gravity_n, self.env);
+        if let Some(reg) = &self.regulator {
+            self.model.advance_regulated(
+                &mut self.state,
+                reg,
+                self.set_pa,
+                gravity_n,
+                dt,
+                self.substeps,
+                |x| -env.force(x),
+            );
+            return;
+        }
         // The contact force is held over a substep: the spring's own time scale (≥ 20 ms at 1400 N/m on
         // 0.6 kg) is far longer than a substep.
         self.model
@@ -308,6 +347,7 @@ impl Plant for OneDofPneumatic {
         self.gravity_n = self.model.mechanics.gravity_force();
         self.env = self.env0;
         self.u = 0.0;
+        self.set_pa = (self.state.chambers.p_a, self.state.chambers.p_b);
     }
 }
 
