@@ -54,6 +54,11 @@ pub struct Identify {
     /// The validation figures' format: png (default), svg or pdf.
     #[arg(long, value_enum, default_value_t = super::FigureFormat::Png)]
     pub format: super::FigureFormat,
+    /// Which actuator of a recording of several (a scene with [[actuators]], e.g. the gripper's `left` or
+    /// `right`): its columns NAME.u, NAME.x, NAME.p_a, NAME.p_b, NAME.f_e are the log, fitted to --actuator
+    /// (docs/identification.md, "Several actuators").
+    #[arg(long, value_name = "NAME", conflicts_with = "log_format")]
+    pub channel: Option<String>,
 }
 
 /// Write a hidden truth for identification tests: the sheet with KEYS each moved 20-40 % (seeded).
@@ -161,6 +166,7 @@ impl Identify {
                     max_span_s: self.max_log_s,
                 },
                 log_format: self.log_format,
+                channel: self.channel,
                 figure_format: self.format.into(),
                 select: self.select,
             },

@@ -38,6 +38,8 @@ pub struct IdentifyArgs {
     pub limits: LogLimits,
     /// `--log-format`.
     pub log_format: Option<PathBuf>,
+    /// `--channel`: one actuator of a recording of several.
+    pub channel: Option<String>,
     /// `--format`: the validation figures'.
     pub figure_format: pneuflex_viz::Format,
     /// `--select`: fit every candidate structure and keep the best (`pneuflex_identify::select`).
@@ -135,9 +137,15 @@ fn request_of(logs: Vec<PathBuf>, actuator: &Path, a: IdentifyArgs) -> anyhow::R
     if !(a.limits.max_span_s.is_finite() && a.limits.max_span_s > 0.0) {
         bail!("--max-log-s: must be > 0 s, got {}", a.limits.max_span_s);
     }
-    let log_format = match &a.log_format {
-        Some(f) => pneuflex_identify::log_format::LogFormat::load(f)?,
-        None => Default::default(),
+    let log_format = match (&a.log_format, &a.channel) {
+        (Some(_), Some(_)) => {
+            bail!(
+                "--channel reads pneuflex's own recording; with --log-format name the actuator's columns in the format file"
+            )
+        }
+        (Some(f), None) => pneuflex_identify::log_format::LogFormat::load(f)?,
+        (None, Some(name)) => pneuflex_identify::log_format::LogFormat::channel(name)?,
+        (None, None) => Default::default(),
     };
     Ok(Request {
         logs,

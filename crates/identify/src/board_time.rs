@@ -259,7 +259,7 @@ fn log_error(host: &Log, line: Option<usize>, column: &str, message: String) -> 
 
 /// A sample missing from the record (it overflowed, or the board skipped one) is not compared; the
 /// contact force, an input of the replay, is the line between the samples either side across it.
-fn interpolate_unmeasured_force(grid: &mut Log) {
+pub(crate) fn interpolate_unmeasured_force(grid: &mut Log) {
     let n = grid.measured.len();
     let mut k = 0;
     while k < n {

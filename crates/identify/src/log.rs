@@ -210,6 +210,23 @@ fn header_text(names: &[String]) -> String {
     }
 }
 
+/// The actuators of a recording of several, in the header's order: each NAME with all of `NAME.u`,
+/// `NAME.x`, `NAME.p_a`, `NAME.p_b` and `NAME.f_e` among `names`.
+fn actuators_in(names: &[String]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for n in names {
+        if let Some(a) = n.strip_suffix(".u")
+            && !out.iter().any(|o| o == a)
+            && COLUMNS[2..]
+                .iter()
+                .all(|c| names.iter().any(|m| *m == format!("{a}.{c}")))
+        {
+            out.push(a.to_string());
+        }
+    }
+    out
+}
+
 /// A log read line by line: the header, then the rows, checked as they come.
 struct LogParser<'a> {
     path: &'a Path,
@@ -229,6 +246,11 @@ struct LogParser<'a> {
     board: Option<([usize; 7], BoardColumns)>,
     /// Lines read (for the message when `skip_lines` skips them all).
     lines: usize,
+    /// One actuator of a recording of several ([`LogFormat::channel`]): the `board_t` column's index, if
+    /// the recording has one.
+    board_t: Option<usize>,
+    /// The previous row's `board_t`.
+    prev_board_t: Option<f64>,
 }
 
 impl<'a> LogParser<'a> {
@@ -257,6 +279,8 @@ impl<'a> LogParser<'a> {
             },
             board: None,
             lines: 0,
+            board_t: None,
+            prev_board_t: None,
         }
     }
 
@@ -343,6 +367,9 @@ impl<'a> LogParser<'a> {
             v[i] = x;
         }
         self.row(line_no, v)?;
+        if let Some(i) = self.board_t {
+            self.board_time(line_no, fields[i])?;
+        }
         if let Some((idx, _)) = &self.board {
             let [t, x, f_e, p_a, p_b, at, au] = self.board_cells(line_no, &fields, *idx)?;
             if let Some((_, cols)) = &mut self.board {
@@ -426,6 +453,43 @@ impl<'a> LogParser<'a> {
         Ok(read)
     }
 
+    /// One actuator of a recording of several: the row's `board_t`, the board's time of the samples the
+    /// host's tick used. The same time as the previous row's is a tick that read no new sample (it held the
+    /// last one): the row is not compared, and its contact force is the line between its neighbours'.
+    fn board_time(&mut self, line_no: usize, cell: &str) -> Result<(), IdentifyError> {
+        let cell = cell.trim();
+        let b = cell
+            .parse::<f64>()
+            .ok()
+            .filter(|b| b.is_finite())
+            .ok_or_else(|| {
+                self.err(
+                    Some(line_no),
+                    Some("board_t"),
+                    format!(
+                        "`{}` is not a finite number (the board's time of the tick's samples)",
+                        cell.chars().take(40).collect::<String>()
+                    ),
+                )
+            })?;
+        if let Some(prev) = self.prev_board_t {
+            if b < prev {
+                return Err(self.err(
+                    Some(line_no),
+                    Some("board_t"),
+                    format!("{b} s after {prev} s: the board's time must not go back"),
+                ));
+            }
+            if b == prev
+                && let Some(m) = self.log.measured.last_mut()
+            {
+                *m = false;
+            }
+        }
+        self.prev_board_t = Some(b);
+        Ok(())
+    }
+
     fn header(&mut self, line_no: usize, line: &str) -> Result<(), IdentifyError> {
         let names: Vec<String> = self
             .format
@@ -433,6 +497,44 @@ impl<'a> LogParser<'a> {
             .iter()
             .map(|n| n.trim().trim_matches('"').to_string())
             .collect();
+        // A recording of several actuators (`t`, then `NAME.u`, ... per actuator): one actuator at a time.
+        if self.format.own_trace {
+            let actuators = actuators_in(&names);
+            let list = actuators.join(", ");
+            match &self.format.channel {
+                None if !names.iter().any(|n| n == "u") && !actuators.is_empty() => {
+                    return Err(self.err(
+                        Some(line_no),
+                        None,
+                        format!(
+                            "a recording of several actuators ({list}): identification fits one actuator's \
+                             sheet at a time; choose it with --channel NAME (docs/identification.md, \
+                             \"Several actuators\")"
+                        ),
+                    ));
+                }
+                Some(name) if !actuators.contains(name) => {
+                    return Err(self.err(
+                        Some(line_no),
+                        None,
+                        if actuators.is_empty() {
+                            format!(
+                                "--channel {name}: the log has no actuator's columns `NAME.u, NAME.x, NAME.p_a, \
+                                 NAME.p_b, NAME.f_e` (the header has {}); a trace of one actuator is read \
+                                 without --channel",
+                                header_text(&names)
+                            )
+                        } else {
+                            format!(
+                                "--channel {name}: no actuator `{name}` in this recording; it has {list}"
+                            )
+                        },
+                    ));
+                }
+                Some(_) => self.board_t = names.iter().position(|n| n == "board_t"),
+                None => {}
+            }
+        }
         for (i, c) in COLUMNS.iter().enumerate() {
             let name = &self.format.columns[i].name;
             let found: Vec<usize> = (0..names.len()).filter(|&k| names[k] == *name).collect();
@@ -474,7 +576,7 @@ impl<'a> LogParser<'a> {
             }
         }
         // pneuflex's rig trace since schema 2: the board's clock and applied-command echoes.
-        if self.format.own_trace {
+        if self.format.own_trace && self.format.channel.is_none() {
             let at = |c: &str| names.iter().position(|n| n == c);
             if let [
                 Some(a),
@@ -639,7 +741,25 @@ impl<'a> LogParser<'a> {
                 ),
             ));
         }
-        if self.log.note.is_none() && !self.end_marker && self.format.own_trace {
+        if let Some(name) = &self.format.channel {
+            // A scene's recording has no end marker, and no record of the board's samples and applied
+            // commands: its rows are the host's ticks (docs/identification.md, "Several actuators").
+            let held = self.log.measured.iter().filter(|&&m| !m).count();
+            self.log.note = Some(format!(
+                "actuator `{name}` of a recording of several actuators: the host's rows replayed as they are \
+                 (the recording has no board record of samples and applied commands){}",
+                if self.board_t.is_none() {
+                    String::new()
+                } else {
+                    format!(
+                        "; {held} row(s) whose tick read no new sample (board_t repeated) not compared"
+                    )
+                }
+            ));
+            if held > 0 {
+                crate::board_time::interpolate_unmeasured_force(&mut self.log);
+            }
+        } else if self.log.note.is_none() && !self.end_marker && self.format.own_trace {
             self.log.note = Some("no end marker: the trace was cut (its rows are used)".into());
         }
         self.log.sha256 = sha256;

@@ -28,6 +28,13 @@ pub fn read_any_log(
             path.display()
         )));
     }
+    if let Some(name) = &format.channel {
+        return Err(IdentifyError::Input(format!(
+            "{}: --channel {name} picks an actuator's columns of a recording's trace.csv; a bag of several \
+             joints is not read by identify (give the recording's trace.csv)",
+            path.display()
+        )));
+    }
     read_bag_log(path, limits)
 }
 

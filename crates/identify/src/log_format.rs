@@ -106,6 +106,9 @@ pub struct LogFormat {
     /// Where `skip_lines` was given, `format.toml:LINE:COLUMN` (the format file alone when the key is
     /// absent), for the log's errors that it can cause; None for pneuflex's own trace.
     pub skip_lines_at: Option<String>,
+    /// One actuator of pneuflex's recording of several (`identify --channel NAME`): the columns read are
+    /// `t` and that actuator's `NAME.u`, `NAME.x`, `NAME.p_a`, `NAME.p_b`, `NAME.f_e` ([`LogFormat::channel`]).
+    pub channel: Option<String>,
 }
 
 impl Default for LogFormat {
@@ -122,6 +125,7 @@ impl Default for LogFormat {
             }),
             own_trace: true,
             skip_lines_at: None,
+            channel: None,
         }
     }
 }
@@ -328,7 +332,26 @@ impl LogFormat {
             columns,
             own_trace: false,
             skip_lines_at: Some(skip_lines_at),
+            channel: None,
         })
+    }
+
+    /// Actuator `name`'s columns of pneuflex's recording of several actuators (`rig run` or `run` of a scene
+    /// with `[[actuators]]`: `t`, then `NAME.f_ref, NAME.f_e, NAME.x, ...` per actuator): the time column
+    /// shared, each signal from `NAME.<signal>`. Errors when `name` could not be a column's prefix.
+    pub fn channel(name: &str) -> Result<LogFormat, IdentifyError> {
+        if name.is_empty() || name.contains([',', '.', '"']) || name.trim() != name {
+            return Err(IdentifyError::Input(format!(
+                "--channel {name:?}: an actuator's name as the recording's columns carry it (`left` for \
+                 `left.u`, ...): not empty, no `,`, `.` or quote, no surrounding space"
+            )));
+        }
+        let mut f = LogFormat::default();
+        for (m, c) in f.columns.iter_mut().zip(COLUMNS).skip(1) {
+            m.name = format!("{name}.{c}");
+        }
+        f.channel = Some(name.to_string());
+        Ok(f)
     }
 
     /// The fields of a row (or of the header).
