@@ -212,9 +212,28 @@ fn identify_fits_each_finger_of_a_gripper_recording_to_its_own_hidden_truth() {
         "finger", "key", "truth", "estimate", "95 % interval"
     );
     for (finger, truth) in [("left", left_truth), ("right", right_truth)] {
-        let out = dir.path().join(format!("id_{finger}"));
-        let o = identify(&["--channel", finger], &out);
+        // Without --out, from the temporary folder: each finger's output in its own default folder
+        // (out/identify/<the log's folder>-<finger>), so that the second does not replace the first.
+        let sheet = Path::new(env!("CARGO_MANIFEST_DIR")).join(SHEET);
+        let o = Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+            .args([
+                "identify",
+                "--log",
+                trace,
+                "--channel",
+                finger,
+                "--actuator",
+            ])
+            .arg(&sheet)
+            .args(["--free", &KEYS.join(",")])
+            .current_dir(dir.path())
+            .output()
+            .expect("runs");
         assert!(o.status.success(), "{}", text(&o));
+        let out = dir
+            .path()
+            .join("out/identify")
+            .join(format!("impedance-{finger}"));
         let report = json(&out.join("report.json"));
         assert_eq!(
             report["model_check"]["adequate"], true,
@@ -240,6 +259,10 @@ fn identify_fits_each_finger_of_a_gripper_recording_to_its_own_hidden_truth() {
             );
         }
         fitted.push(est.iter().map(|e| e.0).collect::<Vec<f64>>());
+    }
+    for finger in ["left", "right"] {
+        let out = dir.path().join(format!("out/identify/impedance-{finger}"));
+        assert!(out.join("report.json").is_file(), "{}", out.display());
     }
     // Each finger fitted to its own truth: the estimates differ in the direction the truths do.
     for i in 0..2 {

@@ -23,7 +23,7 @@ pub struct Identify {
     /// Bounds of a free parameter, KEY=[lo,hi]; repeat for several.
     #[arg(long)]
     pub bounds: Vec<String>,
-    /// Output directory (default: out/identify/<folder of the first log>/).
+    /// Output directory (default: out/identify/<folder of the first log>/, with `-NAME` for --channel NAME).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Fraction of each log held out at its end for validation.

@@ -46,7 +46,8 @@ pub struct IdentifyArgs {
     pub select: bool,
 }
 
-/// `pneuflex identify --log L... --actuator S --free K,... [--bounds K=[lo,hi]]... [--out DIR]`.
+/// `pneuflex identify --log L... --actuator S --free K,... [--bounds K=[lo,hi]]... [--out DIR]` (default
+/// `out/identify/<folder of the first log>[-<--channel>]`).
 pub fn identify(
     logs: Vec<PathBuf>,
     actuator: &Path,
@@ -63,6 +64,11 @@ pub fn identify(
                 .and_then(|p| p.file_name())
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "log".into());
+            // Each actuator of one recording its own folder (`impedance-left`, `impedance-right`).
+            let stem = match &req.log_format.channel {
+                Some(name) => format!("{stem}-{name}"),
+                None => stem,
+            };
             Path::new("out").join("identify").join(stem)
         }
     };
