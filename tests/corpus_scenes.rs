@@ -287,19 +287,3 @@ fn sweep_and_tune_take_a_several_actuator_scene() {
     let kept = report.contains("the start is kept");
     assert_eq!(out.join("lever-tuned.toml").exists(), !kept, "{report}");
 }
-
-#[test]
-fn a_command_that_takes_one_actuator_refuses_a_several_actuator_scene_with_the_reason() {
-    let d = tempfile::tempdir().unwrap();
-    let gripper = repo().join("scenes/gripper.toml");
-    let g = s(&gripper);
-    let out = d.path().join("out");
-    let o = s(&out);
-    // `rig run` and `compare` take it (tests/cli_rig_mechanism.rs); `rig pil` runs one controller on the board.
-    for args in [vec!["rig", "pil", "--scene", g, "--out", o]] {
-        let r = run(&args, repo());
-        r.refused(&["several actuators", "[[actuators]]", "gripper.toml:"]);
-        assert!(!r.stderr.contains("unknown field"), "{}", r.stderr);
-        assert!(!out.exists(), "`{}` wrote an output", args.join(" "));
-    }
-}

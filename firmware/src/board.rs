@@ -172,11 +172,11 @@ impl Clock {
 
 /// Coil duty registers. The AN386 image has no PWM peripheral, so the duty is kept in a word a debugger or
 /// the panic handler can reach; on an STM32F4 this is a timer's capture/compare register (TIMx_CCRy).
-static COIL_DUTY: [AtomicU16; 2] = [AtomicU16::new(0), AtomicU16::new(0)];
+static COIL_DUTY: [AtomicU16; 2 * crate::CHANNELS] = [const { AtomicU16::new(0) }; 2 * crate::CHANNELS];
 /// Full duty of a coil output (a 10 kHz PWM from a 100 MHz timer clock would have 10 000).
 pub const COIL_MAX_DUTY: u16 = 10_000;
 
-/// One coil's PWM output (0 = coil A, 1 = coil B).
+/// One coil's PWM output (2 i = channel i's coil A, 2 i + 1 its coil B).
 pub struct Coil(pub usize);
 
 impl PwmErrorType for Coil {

@@ -16,7 +16,7 @@ use core::fmt::Write as _;
 use core::sync::atomic::{AtomicBool, AtomicU8, AtomicU32, Ordering};
 
 use cortex_m_rt::{entry, exception};
-use pneuflex_protocol::ctrl::{SafePayload, TEXT_LEN, TextPayload};
+use pneuflex_protocol::ctrl::{ReadyPayload, SafePayload, TEXT_LEN, TextPayload, ready};
 use pneuflex_protocol::{DecodeEvent, Decoder, MAX_FRAME, Message, ValveMode, encode, fault_code};
 use pneuflex_valve_driver::{SafeMode, Sampler, ValveDriver, ValveType};
 
@@ -25,6 +25,10 @@ use io_board::IoBoard;
 use session::Session;
 
 /// Sequence number of the next frame sent (shared with the panic handler).
+/// Controllers the board runs, one per actuator channel (docs/protocol.md §5, "Several controllers"): the
+/// gripper's two fingers. Each session's controller, setup and schedule live in `main`'s frame (RAM).
+pub const CHANNELS: usize = 2;
+
 static TX_SEQ: AtomicU8 = AtomicU8::new(0);
 /// The safe state the panic handler applies: vent unless the host chose hold.
 static VENTS: AtomicBool = AtomicBool::new(true);
@@ -43,9 +47,11 @@ fn main() -> ! {
     let mut uart = Uart::init();
     let mut clock = Clock::init();
     // The paper's valve (5/2 single solenoid), safe = vent until the host says otherwise.
-    let valve = match ValveDriver::new(
-        Coil(0),
-        Coil(1),
+    // One controller session per actuator channel, each with its own valve driver (coils 2 i and 2 i + 1; the
+    // supply's dump valve is the board's one).
+    let valve = |ch: usize| match ValveDriver::new(
+        Coil(2 * ch),
+        Coil(2 * ch + 1),
         DumpValve,
         ValveType::SingleSolenoid52,
         SafeMode::Vent,
@@ -53,8 +59,16 @@ fn main() -> ! {
         Ok(v) => v,
         Err(_) => panic!("valve driver outputs failed"),
     };
-    let mut session = Session::new(valve, board::stack_peak_bytes);
-    // The I/O-board mode (rig run's board), entered by a Config frame while no controller runs.
+    // Built in place (an array literal, not `from_fn`, whose temporaries cost a session's size of stack).
+    let mut sessions: [Session<Coil, Coil, DumpValve>; CHANNELS] = [
+        Session::new(valve(0), board::stack_peak_bytes),
+        Session::new(valve(1), board::stack_peak_bytes),
+    ];
+    // The channel the controller frames address (None after an invalid CtrlChannel: dropped until a valid
+    // one), and the channels addressed since power-up (a one-controller host only ever addresses 0).
+    let mut current: Option<usize> = Some(0);
+    let mut addressed = [false; CHANNELS];
+    addressed[0] = true;
     let mut io = IoBoard::new(Sampler {
         position: board::Adc,
         channel_1: board::Adc,
@@ -68,12 +82,13 @@ fn main() -> ! {
         let byte = board::wait();
         let now = clock.now_ns();
         NOW_US.store((now / 1000) as u32, Ordering::Relaxed);
-        session.poll(now, &mut |m| send(&mut uart, m));
+        for s in sessions.iter_mut() {
+            s.poll(now, &mut |m| send(&mut uart, m));
+        }
         if byte.is_none() && io.period_ns().is_some() {
-            io.on_period(now, session.valve(), &mut |m| send(&mut uart, m));
+            io.on_period(now, sessions[0].valve(), &mut |m| send(&mut uart, m));
         }
         if let Some(b) = byte {
-            // Answers are queued while the decoder holds the session's input, then sent.
             let mut events = [None; 4];
             let mut n_ev = 0;
             decoder.feed(&[b], |ev| {
@@ -85,35 +100,78 @@ fn main() -> ! {
             for ev in events.into_iter().flatten() {
                 if let DecodeEvent::Frame(f) = ev
                     && (io.period_ns().is_some()
-                        || (matches!(f.msg, Message::Config(_)) && session.in_setup()))
+                        || (matches!(f.msg, Message::Config(_)) && sessions[0].in_setup()))
                 {
                     let before = io.period_ns();
-                    io.on_message(&f.msg, now, session.valve(), &mut |m| send(&mut uart, m));
+                    io.on_message(&f.msg, now, sessions[0].valve(), &mut |m| send(&mut uart, m));
                     if let Some(p) = io.period_ns().filter(|&p| Some(p) != before) {
-                        // Samples every period from now on (TIMER1 reloads itself).
                         board::arm_deadline(p);
                     }
                     continue;
                 }
-                let mut out: [Option<Message>; 2] = [None, None];
-                let mut k = 0;
-                let mut clk = || clock.now_ns();
-                session.on_event(ev, now, &mut clk, &mut |m: &Message| {
-                    if let Some(slot) = out.get_mut(k) {
-                        *slot = Some(*m);
-                        k += 1;
+                // Which sessions the event is for: CtrlChannel picks the channel; a safe command and Reset
+                // reach every channel addressed; everything else the current channel.
+                let mut to = [false; CHANNELS];
+                match ev {
+                    DecodeEvent::Frame(f) => match f.msg {
+                        Message::CtrlChannel(c) => {
+                            let c = usize::from(c);
+                            if c < CHANNELS {
+                                current = Some(c);
+                                addressed[c] = true;
+                            } else {
+                                current = None;
+                                send(
+                                    &mut uart,
+                                    &Message::CtrlReady(ReadyPayload {
+                                        result: ready::START,
+                                        detail: 3,
+                                    }),
+                                );
+                            }
+                            continue;
+                        }
+                        Message::Valve(v) if v.mode.is_safe() => to = addressed,
+                        Message::Reset(_) => to = addressed,
+                        _ => {
+                            if let Some(c) = current {
+                                to[c] = true;
+                            }
+                        }
+                    },
+                    _ => to[current.unwrap_or(0)] = true,
+                }
+                for (s, _) in sessions.iter_mut().zip(to).filter(|(_, t)| *t) {
+                    let mut out: [Option<Message>; 2] = [None, None];
+                    let mut k = 0;
+                    let mut clk = || clock.now_ns();
+                    s.on_event(ev, now, &mut clk, &mut |m: &Message| {
+                        if let Some(slot) = out.get_mut(k) {
+                            *slot = Some(*m);
+                            k += 1;
+                        }
+                    });
+                    for m in out.iter_mut().filter_map(Option::take) {
+                        send(&mut uart, &m);
                     }
-                });
-                for m in out.iter_mut().filter_map(Option::take) {
-                    send(&mut uart, &m);
                 }
             }
         }
-        if let Some(at) = session.take_deadline() {
+        // One safe state for the board: a channel gone safe takes every running channel with it, now.
+        if let Some((reason, latched)) = sessions.iter().find_map(Session::safe_reason)
+            && sessions.iter().any(Session::running)
+        {
+            let now = clock.now_ns();
+            for s in sessions.iter_mut().filter(|s| s.running()) {
+                s.force_safe(reason, latched, now, &mut |m| send(&mut uart, m));
+            }
+        }
+        if let Some(at) = sessions.iter_mut().filter_map(Session::take_deadline).min() {
             board::arm_deadline(at.saturating_sub(clock.now_ns()));
         }
-        VENTS.store(session.vents(), Ordering::Relaxed);
-        LAST_TICK.store(session.last_tick(), Ordering::Relaxed);
+        let used = || sessions.iter().zip(addressed).filter(|(_, a)| *a).map(|(s, _)| s);
+        VENTS.store(used().any(Session::vents), Ordering::Relaxed);
+        LAST_TICK.store(used().map(Session::last_tick).max().unwrap_or(0), Ordering::Relaxed);
     }
 }
 

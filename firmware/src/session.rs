@@ -101,6 +101,25 @@ impl<A: SetDutyCycle, B: SetDutyCycle, D: OutputPin> Session<A, B, D> {
         self.last_tick
     }
 
+    /// Whether the controller runs (set up, started, not safe).
+    pub fn running(&self) -> bool {
+        matches!(self.state, State::Run)
+    }
+
+    /// The safe state's reason and latch, when the session is safe.
+    pub fn safe_reason(&self) -> Option<(u8, bool)> {
+        match self.state {
+            State::Safe { reason, latched } => Some((reason, latched)),
+            _ => None,
+        }
+    }
+
+    /// Puts the valve in its safe state for `reason` (another channel's: a board of several actuators has one
+    /// safe state), and says so.
+    pub fn force_safe(&mut self, reason: u8, latched: bool, now_ns: u64, send: &mut impl FnMut(&Message)) {
+        self.go_safe(reason, latched, now_ns, send);
+    }
+
     /// Called often by the main loop: the watchdog.
     pub fn poll(&mut self, now_ns: u64, send: &mut impl FnMut(&Message)) {
         if matches!(self.state, State::Run)

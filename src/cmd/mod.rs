@@ -88,6 +88,7 @@ pub mod mechanism;
 pub mod new_rig;
 pub mod perturb;
 pub mod pil;
+pub mod pil_mechanism;
 pub mod progress;
 mod recording;
 pub mod rig;

@@ -35,6 +35,28 @@ pub fn pil(
     rerun: Option<&[String]>,
     figures: pneuflex_viz::Format,
 ) -> anyhow::Result<()> {
+    // A scene of several actuators: one controller per channel of the board (pil_mechanism.rs).
+    if pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)
+        .is_ok_and(|t| pneuflex_scene::mechanism::MechanismScene::is_mechanism(&t))
+    {
+        if let Some(words) = rerun {
+            bail!(
+                "--rerun {}: a scene of several actuators on the board shows no live view yet",
+                words.join(" ")
+            );
+        }
+        let elf = firmware.map_or_else(default_firmware, Path::to_path_buf);
+        pneuflex_pil::qemu::qemu_binary()?;
+        if !elf.exists() {
+            bail!(
+                "firmware {}: not found; build it with `cargo build --release` in firmware/ (docs/firmware.md), \
+                 or pass --firmware",
+                elf.display()
+            );
+        }
+        pneuflex_pil::qemu::check_firmware(&elf)?;
+        return super::pil_mechanism::pil(scene_path, run, &elf, out, figures);
+    }
     let scene = Scene::load(scene_path)?;
     let indices: Vec<usize> = match run {
         Some(name) => vec![scene.run_index(name)?],

@@ -12,7 +12,7 @@ use pneuflex_protocol::ctrl::{
 };
 use pneuflex_protocol::{Message, ValveMode, ValvePayload, crc::CRC16_INIT, fault_code};
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
 use crate::PilError;
@@ -43,9 +43,12 @@ pub fn reason_name(code: u8) -> &'static str {
     }
 }
 
-/// The firmware's controller, driven over the link.
+/// The firmware's controller, driven over the link (its own, or one shared by a board's several
+/// controllers, each addressed by its channel: docs/protocol.md §5, "Several controllers").
 pub struct FirmwareController {
-    link: Link,
+    link: Rc<RefCell<Link>>,
+    /// The board's channel of this controller (`None`: the board's one controller, no CtrlChannel sent).
+    channel: Option<u8>,
     tick: u32,
     signals: &'static [Signal],
     telemetry: Telemetry,
@@ -129,8 +132,18 @@ impl FirmwareController {
     /// A started firmware controller; `signals` are the controller's own recorded signals (the host
     /// controller of the same kind declares them).
     pub fn new(link: Link, signals: &'static [Signal]) -> Self {
+        Self::on(Rc::new(RefCell::new(link)), None, signals)
+    }
+
+    /// The started controller of channel `channel` on a board of several, over the board's shared link.
+    pub fn on_channel(link: Rc<RefCell<Link>>, channel: u8, signals: &'static [Signal]) -> Self {
+        Self::on(link, Some(channel), signals)
+    }
+
+    fn on(link: Rc<RefCell<Link>>, channel: Option<u8>, signals: &'static [Signal]) -> Self {
         Self {
             link,
+            channel,
             tick: 0,
             signals,
             telemetry: Telemetry::default(),
@@ -161,24 +174,30 @@ impl FirmwareController {
         }
     }
 
-    /// The link (its counters).
-    pub fn link(&mut self) -> &mut Link {
-        &mut self.link
+    /// The link's counters.
+    pub fn link_stats(&self) -> crate::link::LinkStats {
+        self.link.borrow().stats()
     }
 
     /// Ends the run: commands the safe state (the board parks the valve) and returns the board's report.
     pub fn finish(&mut self) -> Result<SafePayload, PilError> {
-        self.link.send(&Message::Valve(ValvePayload {
+        let mut link = self.link.borrow_mut();
+        link.send(&Message::Valve(ValvePayload {
             tick: self.tick,
             duty_q15: 0,
             mode: ValveMode::SafeVent,
         }))?;
-        let (s, _) = await_safe(&mut self.link)?;
+        let (s, _) = await_safe(&mut link)?;
         Ok(s)
     }
 
     fn exchange(&mut self, s: &Sensors, sp: &Setpoint) -> Result<OutputPayload, PilError> {
-        self.link.send(&Message::CtrlSensors(SensorsPayload {
+        let link = self.link.clone();
+        let mut link = link.borrow_mut();
+        if let Some(c) = self.channel {
+            link.send(&Message::CtrlChannel(c))?;
+        }
+        link.send(&Message::CtrlSensors(SensorsPayload {
             tick: self.tick,
             t: s.t,
             x: s.x,
@@ -189,7 +208,7 @@ impl FirmwareController {
         }))?;
         let mut text = Vec::new();
         loop {
-            match self.link.recv()?.msg {
+            match link.recv()?.msg {
                 Message::CtrlOutput(o) if o.tick == self.tick => {
                     if o.status != 0 {
                         return Err(PilError::Firmware(format!(
@@ -260,7 +279,7 @@ impl Controller for FirmwareController {
                     self.sum_ns += f64::from(o.update_ns);
                     self.outputs.push(o);
                     self.live.set(Live {
-                        link: self.link.stats(),
+                        link: self.link_stats(),
                         update_ns: o.update_ns,
                     });
                     self.tick = self.tick.wrapping_add(1);

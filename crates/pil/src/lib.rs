@@ -6,6 +6,7 @@
 
 pub mod controller;
 pub mod link;
+pub mod mechanism;
 pub mod observe;
 pub mod qemu;
 
@@ -213,7 +214,7 @@ pub fn run_pil_observed(
         firmware,
         host,
         comparison,
-        link: fw.link().stats(),
+        link: fw.link_stats(),
         cost: fw.cost(),
         end,
     })
@@ -239,7 +240,24 @@ pub fn compare(
     signals: &[pneuflex_control::Signal],
     setpoint_mismatches: u64,
 ) -> Comparison {
-    let col = |r: &RunResult, n: &str| r.trace.column(n).map(<[f64]>::to_vec).unwrap_or_default();
+    compare_actuator(fw, host, signals, setpoint_mismatches, "")
+}
+
+/// [`compare`] of one actuator's columns in the traces of a scene of several (`prefix` its name and a dot:
+/// `left.u`); a tick is bit-identical when every column of the trace is.
+pub fn compare_actuator(
+    fw: &RunResult,
+    host: &RunResult,
+    signals: &[pneuflex_control::Signal],
+    setpoint_mismatches: u64,
+    prefix: &str,
+) -> Comparison {
+    let col = |r: &RunResult, n: &str| {
+        r.trace
+            .column(&format!("{prefix}{n}"))
+            .map(<[f64]>::to_vec)
+            .unwrap_or_default()
+    };
     let (u1, u2) = (col(fw, "u"), col(host, "u"));
     let (f1, f2) = (col(fw, "f_e"), col(host, "f_e"));
     let (x1, x2) = (col(fw, "x_r"), col(host, "x_r"));

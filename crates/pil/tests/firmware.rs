@@ -434,3 +434,99 @@ fn io_board_mode_applies_valve_commands_and_trips_its_own_watchdog_latched() {
     }
     assert_eq!((s.status, s.duty_q15), (st::SAFE, 0), "cleared, still safe");
 }
+
+/// Boots the firmware and starts fig3's adaptive run on channels 0 and 1 (docs/protocol.md §5, "Several
+/// controllers"), each with a [`WATCHDOG_MS`] watchdog.
+fn started_two(elf: &Path) -> (qemu::Board, Link) {
+    let scene = Scene::load(&root().join("scenes/paper-fig3.toml")).expect("scene");
+    let (board, stdin, stdout) = qemu::Board::start(elf).expect("QEMU starts");
+    let mut link = Link::new(stdin, stdout);
+    let setup = setup_of(&scene.runs[1]).expect("setup");
+    for ch in 0..2 {
+        link.send(&Message::CtrlChannel(ch)).unwrap();
+        start(
+            &mut link,
+            &setup,
+            &scene.setpoints().unwrap(),
+            scene.dt_s,
+            WATCHDOG_MS,
+        )
+        .expect("Ready OK");
+    }
+    (board, link)
+}
+
+/// Channel `ch`'s tick `k`: its CtrlChannel and CtrlSensors, and the board's answer.
+fn tick_on(link: &mut Link, ch: u8, k: u32) -> Message {
+    link.send(&Message::CtrlChannel(ch)).unwrap();
+    link.send(&sensors(k)).unwrap();
+    link.recv().unwrap().msg
+}
+
+/// One safe state for the board: channel 1's host falls silent while channel 0's ticks go on; channel 1's
+/// watchdog trips, and channel 0 goes safe in the same pass of the main loop (the same board time), latched
+/// alike; a channel the board does not have is refused.
+#[test]
+fn one_silent_channel_puts_every_channel_safe_at_once() {
+    let Some(elf) = release_elf() else { return };
+    let (_board, mut link) = started_two(&elf);
+    for k in 0..20 {
+        for ch in 0..2 {
+            match tick_on(&mut link, ch, k) {
+                Message::CtrlOutput(o) => assert_eq!((o.tick, o.status), (k, 0), "channel {ch}"),
+                m => panic!("channel {ch}, tick {k}: expected an output, got {m:?}"),
+            }
+        }
+    }
+    // Only channel 0 from here on, until the board says it went safe.
+    let mut safes = Vec::new();
+    let mut k = 20;
+    while safes.is_empty() {
+        assert!(k < 100_000, "channel 1's watchdog never tripped");
+        link.send(&Message::CtrlChannel(0)).unwrap();
+        link.send(&sensors(k)).unwrap();
+        loop {
+            match link.recv().unwrap().msg {
+                Message::CtrlOutput(o) if o.tick == k => {
+                    if o.status != 0 {
+                        assert_eq!(o.status, status::SAFE | status::LATCHED, "tick {k}");
+                    }
+                    break;
+                }
+                Message::Safe(s) => safes.push(s),
+                m => panic!("tick {k}: unexpected {m:?}"),
+            }
+        }
+        k += 1;
+    }
+    // Both Safe frames: channel 1's own trip, then channel 0 taken with it.
+    while safes.len() < 2 {
+        match link.recv().unwrap().msg {
+            Message::Safe(s) => safes.push(s),
+            Message::CtrlOutput(_) => {}
+            m => panic!("unexpected {m:?}"),
+        }
+    }
+    eprintln!("{safes:?}");
+    assert!(
+        safes.iter().all(|s| s.reason == fault_code::HOST_SILENT),
+        "{safes:?}"
+    );
+    assert_eq!(safes[0].last_tick, 19, "channel 1 ran ticks 0..20 and tripped first");
+    assert!(safes[1].last_tick >= 20, "channel 0 ran on: {safes:?}");
+    assert!(
+        safes[1].safe_at_us.abs_diff(safes[0].safe_at_us) <= 10,
+        "in the same pass of the main loop: {safes:?}"
+    );
+    // Channel 0 answers from its latched safe state.
+    match tick_on(&mut link, 0, k) {
+        Message::CtrlOutput(o) => assert_eq!(o.status, status::SAFE | status::LATCHED),
+        m => panic!("expected a safe output, got {m:?}"),
+    }
+    // A channel past the board's.
+    link.send(&Message::CtrlChannel(7)).unwrap();
+    match link.recv().unwrap().msg {
+        Message::CtrlReady(r) => assert_eq!((r.result, r.detail), (ready::START, 3)),
+        m => panic!("expected Ready 5/3, got {m:?}"),
+    }
+}

@@ -197,6 +197,7 @@ pub(crate) fn payload_len(t: u8) -> Option<usize> {
         msg_type::CTRL_READY => Some(2),
         msg_type::TEXT => Some(1 + TEXT_LEN),
         msg_type::SAFE => Some(18),
+        msg_type::CTRL_CHANNEL => Some(1),
         _ => None,
     }
 }
@@ -237,6 +238,7 @@ pub(crate) fn write_payload(m: &Message, w: &mut Writer<'_>) {
             o.signals().iter().for_each(|&v| f(w, v));
         }
         Message::CtrlReady(r) => w.put(&[r.result, r.detail]),
+        Message::CtrlChannel(c) => w.put(&[*c]),
         Message::Text(t) => {
             w.put(&[t.len]);
             w.put(&t.bytes);
@@ -331,6 +333,7 @@ pub(crate) fn parse_fields(t: u8, r: &mut Reader<'_>) -> Option<Message> {
             mode: ValveMode::from_code(r.u8()?)?,
             stack_peak_bytes: r.u16()?,
         }),
+        msg_type::CTRL_CHANNEL => Message::CtrlChannel(r.u8()?),
         _ => return None,
     })
 }

@@ -77,6 +77,9 @@ pub mod msg_type {
     pub const TEXT: u8 = 0x16;
     /// Embedded controller -> host: the valve is in its safe state, why, and when (board clock).
     pub const SAFE: u8 = 0x17;
+    /// Host -> embedded controller: the channel (actuator) the controller frames that follow address, on a
+    /// board running one controller per actuator (docs/protocol.md §5, "Several controllers").
+    pub const CTRL_CHANNEL: u8 = 0x18;
 }
 
 /// Sample status bits.
@@ -250,6 +253,8 @@ pub enum Message {
     Text(TextPayload),
     /// The embedded controller is in its safe state.
     Safe(SafePayload),
+    /// The channel the controller frames that follow address (0 until the first).
+    CtrlChannel(u8),
 }
 
 /// Payload length of each message type; CtrlOutput's without its signals (8 bytes each), the N-channel
@@ -367,6 +372,7 @@ impl Message {
             Message::CtrlReady(_) => msg_type::CTRL_READY,
             Message::Text(_) => msg_type::TEXT,
             Message::Safe(_) => msg_type::SAFE,
+            Message::CtrlChannel(_) => msg_type::CTRL_CHANNEL,
         }
     }
 
@@ -718,6 +724,7 @@ mod tests {
                 })
             }),
             any::<u32>().prop_map(Message::Heartbeat),
+            any::<u8>().prop_map(Message::CtrlChannel),
             (any::<u8>(), any::<u16>()).prop_map(|(code, detail)| Message::Fault { code, detail }),
             any::<u16>().prop_map(Message::Reset),
             (any::<u32>(), any::<u16>(), arb_mode()).prop_map(|(p, w, m)| {
@@ -869,6 +876,9 @@ mod tests {
                 0x40, 0x00, 0x1D, 0x79
             ]
         );
+        // §5, several controllers: CtrlChannel 1, SEQ 0.
+        let n = encode(0, &Message::CtrlChannel(1), &mut buf);
+        assert_eq!(&buf[..n], &[0xA5, 0x5A, 0x01, 0x00, 0x18, 0x01, 0x8F, 0x68]);
     }
 
     /// A frame with any header and payload and a correct CRC: what a buggy or newer board could send.

@@ -29,7 +29,13 @@ fn main() {
     {
         rig.rt.spin_us = s;
     }
-    rig.emulator.as_mut().unwrap().environment.as_mut().unwrap().change_at_s = Some(secs / 2.0);
+    rig.emulator
+        .as_mut()
+        .unwrap()
+        .environment
+        .as_mut()
+        .unwrap()
+        .change_at_s = Some(secs / 2.0);
     // Measure timing over the whole run: a late tick on a loaded machine would otherwise end it on the 5 ms
     // rig watchdog (the number of such would-be trips is what `ticks without a new sample` hints at).
     let wd_ms: f64 = std::env::var("PNEUFLEX_BENCH_TIMEOUT_MS")

@@ -104,8 +104,9 @@ pub enum Integrator {
 
 /// Why a command that runs one actuator refuses a scene with `[[actuators]]`.
 pub const SEVERAL_ACTUATORS: &str = "a scene with several actuators ([[actuators]]) runs with `pneuflex run`, \
-     `sweep`, `tune`, `tf --loop`, `rig run --lockstep-truth` and `compare` (Python: `pneuflex.run`, which returns \
-     its Results) so far; this command takes a one-actuator scene, with a [plant] table (docs/scenes.md)";
+     `sweep`, `tune`, `tf --loop`, `rig run --lockstep-truth`, `rig pil` and `compare` (Python: `pneuflex.run`, \
+     which returns its Results, and the Gymnasium environments); this call takes a one-actuator scene, with a [plant] \
+     table (docs/scenes.md)";
 
 impl Scene {
     /// Reads, parses and validates a scene file.
