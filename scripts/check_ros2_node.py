@@ -47,7 +47,13 @@ def check(ok: bool, what: str) -> None:
 def read_trace(path: Path) -> dict[str, list[float]]:
     with open(path, newline="") as f:
         rows = list(csv.reader(line for line in f if not line.startswith("#")))
-    header, data = rows[0], [[float(v) for v in r] for r in rows[1:]]
+    def number(v: str) -> float:
+        # A rig's trace has empty cells and a text column (`fault`).
+        try:
+            return float(v)
+        except ValueError:
+            return math.nan
+    header, data = rows[0], [[number(v) for v in r] for r in rows[1:]]
     return {name: [r[i] for r in data] for i, name in enumerate(header)}
 
 
@@ -205,6 +211,81 @@ def check_gripper(a) -> None:
     check(command not in trace["left.f_ref"], f"{scene}: a command to `right` changed left's reference")
 
 
+def check_rig(a) -> None:
+    """`rig run --ros2` on the emulated rig (a pseudo-terminal, real time): the rows it traces are published,
+    and a command replaces the force reference. A loaded machine may end the run on a fault (the supervisor's
+    watchdog): then the rows up to its end are checked, and the command only if it came before."""
+    import re
+    import subprocess
+    scene, joints, command = "rig", ["cylinder"], 16.0
+    out = a.out / "rig"
+    emulator_log = a.out / "emulator.txt"
+    emulator = subprocess.Popen([a.pneuflex, "rig", "emulate", "--duration", "15"],
+                                stdout=open(emulator_log, "w"), stderr=subprocess.STDOUT)
+    try:
+        pty = None
+        for _ in range(100):
+            m = re.search(r"/dev/pts/[0-9]+", emulator_log.read_text(errors="replace"))
+            if m:
+                pty = m.group(0)
+                break
+            time.sleep(0.1)
+        check(pty is not None, f"{scene}: the emulator printed no pseudo-terminal")
+        if pty is None:
+            return
+        session = Session(a.domain, joints)
+        log = open(f"{out}.log", "w")
+        node = subprocess.Popen(
+            [a.pneuflex, "rig", "run", "--port", pty, "--scene", "scenes/paper-fig3.toml", "--run", "impedance",
+             "--duration", "4", "--out", str(out), "--ros2", "--domain-id", str(a.domain), "--localhost"],
+            stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + 40
+        last_command = 0.0
+        while node.poll() is None and time.monotonic() < deadline:
+            session.poll()
+            js = session.received["joint_states"]
+            t = stamp_ns(js[-1].header.stamp) * 1e-9 if js else 0.0
+            if 1.0 <= t < 3.0 and time.monotonic() - last_command >= 0.01:
+                session.command(joints, [command])
+                last_command = time.monotonic()
+            time.sleep(0.005)
+        if node.poll() is None:
+            node.kill()
+            check(False, f"{scene}: rig run did not end within 40 s")
+        code = node.wait()
+        session.poll()
+    finally:
+        emulator.kill()
+        emulator.wait()
+    text = Path(f"{out}.log").read_text()
+    fault = "fault:" in text and "no fault" not in text
+    check(code == 0 or fault, f"{scene}: rig run exited {code} without a fault: {text[-2000:]}")
+    trace_path = out / "trace.csv"
+    check(trace_path.exists(), f"{scene}: no {trace_path}")
+    if not trace_path.exists():
+        return
+    trace = read_trace(trace_path)
+    t, n = trace["t"], len(trace["t"])
+    js = session.received["joint_states"]
+    print(f"{scene}: {n} rows traced{' (ended on a fault)' if fault else ''}, {len(js)} joint states received")
+    check(len(js) >= n // 2, f"{scene}: {len(js)} joint states received of {n} traced rows (under half)")
+    row = {round(v * 1e6): k for k, v in enumerate(t)}
+    for m in js:
+        k = row.get(round(stamp_ns(m.header.stamp) * 1e-3))
+        check(k is not None, f"{scene}: a stamp {stamp_ns(m.header.stamp)} ns on no traced row")
+        if k is None:
+            continue
+        check(list(m.name) == joints and m.position[0] == trace["x"][k] and m.effort[0] == trace["f_e"][k],
+              f"{scene} t={t[k]}: joint state {list(m.name)} {m.position} {m.effort} != the trace's x, f_e")
+        check(len(m.velocity) == 0, f"{scene}: a velocity the rig's row does not have")
+    commanded = [k for k in range(n) if trace["f_ref"][k] == command]
+    if fault and not commanded:
+        print(f"{scene}: the run ended on a fault before the command took (a loaded machine): not checked")
+        return
+    check(len(commanded) >= 500, f"{scene}: f_ref = {command} N at {len(commanded)} ticks (under 0.5 s)")
+    check(not commanded or t[commanded[0]] >= 1.0, f"{scene}: f_ref = {command} N before the first command")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--pneuflex", default="target/debug/pneuflex")
@@ -213,13 +294,14 @@ def main() -> int:
     a = ap.parse_args()
     a.domain = ros2_dds.domain_of_pid() if a.domain is None else a.domain
     a.out.mkdir(parents=True, exist_ok=True)
-    for sub in ("fig3", "gripper"):
+    for sub in ("fig3", "gripper", "rig"):
         if (a.out / sub).exists():
             sys.exit(f"{a.out / sub} exists: give an empty --out")
     ros2_dds.use_loopback()
     print(f"Cyclone DDS on 127.0.0.1, domain {a.domain}")
     check_fig3(a)
     check_gripper(a)
+    check_rig(a)
     if failed:
         print("FAILED:\n  " + "\n  ".join(failed))
         return 1

@@ -146,39 +146,68 @@ fn bad_input_is_refused_before_the_node_starts() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("node");
     let out = out.to_str().unwrap();
-    // Arguments after `ros2`, the environment, what the error says.
+    // Arguments (before --out), the environment, what the error says.
     type Case<'a> = (&'a [&'a str], &'a [(&'a str, &'a str)], &'a str);
-    let cases: [Case<'_>; 6] = [
-        (&["scenes/no-such.toml"], &[], "no-such.toml"),
+    let cases: [Case<'_>; 9] = [
+        (&["ros2", "scenes/no-such.toml"], &[], "no-such.toml"),
         (
-            &["scenes/paper-fig3.toml", "--run", "pid"],
+            &["ros2", "scenes/paper-fig3.toml", "--run", "pid"],
             &[],
             "no run named \"pid\"",
         ),
         (
-            &["scenes/paper-fig3.toml", "--domain-id", "233"],
+            &["ros2", "scenes/paper-fig3.toml", "--domain-id", "233"],
             &[],
             "--domain-id: a DDS domain id is 0 to 232",
         ),
         (
-            &["scenes/paper-fig3.toml"],
+            &["ros2", "scenes/paper-fig3.toml"],
             &[("ROS_DOMAIN_ID", "seven")],
             "ROS_DOMAIN_ID: not a whole number: \"seven\"",
         ),
         (
-            &["scenes/paper-fig3.toml", "--duration", "0"],
+            &["ros2", "scenes/paper-fig3.toml", "--duration", "0"],
             &[],
             "--duration: expected a duration in seconds",
         ),
         (
-            &["scenes/paper-fig3.toml", "--command-timeout", "0"],
+            &["ros2", "scenes/paper-fig3.toml", "--command-timeout", "0"],
             &[],
             "--command-timeout: expected a time in seconds",
         ),
+        (
+            &[
+                "rig",
+                "run",
+                "--scene",
+                "scenes/paper-fig3.toml",
+                "--lockstep-truth",
+                "pneumatics/paper-actuator.toml",
+                "--ros2",
+            ],
+            &[],
+            "--ros2: bridges a real-time run",
+        ),
+        (
+            &[
+                "rig",
+                "run",
+                "--scene",
+                "scenes/paper-fig3.toml",
+                "--domain-id",
+                "3",
+            ],
+            &[],
+            "--domain-id, --localhost and --command-timeout apply to --ros2",
+        ),
+        (
+            &["rig", "run", "--scene", "scenes/gripper.toml", "--ros2"],
+            &[],
+            "--ros2: a scene with several actuators on a board is not bridged",
+        ),
     ];
     for (args, env, want) in cases {
-        let mut all = vec!["ros2"];
-        all.extend_from_slice(args);
+        let mut all = args.to_vec();
         all.extend_from_slice(&["--out", out]);
         let o = pneuflex(&all, env);
         let stderr = String::from_utf8_lossy(&o.stderr);

@@ -167,6 +167,13 @@ pub struct Run {
     /// board's clock; docs/ros2.md).
     #[arg(long)]
     pub mcap: bool,
+    /// Bridge the run to ROS 2 as `pneuflex ros2` does (docs/ros2.md): every tick's joint state, pressures,
+    /// force reference, valve command and /clock published; the efforts on /pneuflex/joint_commands replace
+    /// the force reference while they arrive, the supervisor in charge as ever. A scene of one actuator.
+    #[arg(long)]
+    pub ros2: bool,
+    #[command(flatten)]
+    pub node: crate::cli::ros2::NodeFlags,
 }
 
 impl Emulate {
@@ -221,6 +228,10 @@ impl Excite {
 
 impl Run {
     pub fn call(self) -> anyhow::Result<()> {
+        if !self.ros2 && self.node.given() {
+            anyhow::bail!("--domain-id, --localhost and --command-timeout apply to --ros2");
+        }
+        let node = self.ros2.then(|| self.node.options());
         cmd::rig::run_scene(
             &self.rig,
             self.port.as_deref(),
@@ -233,6 +244,7 @@ impl Run {
             self.rerun.as_deref(),
             self.format.into(),
             self.mcap,
+            node.as_ref(),
         )
     }
 }

@@ -22,16 +22,8 @@ pub struct Ros2 {
     /// Run length in seconds (default: the scene's duration).
     #[arg(long, value_name = "S")]
     pub duration: Option<f64>,
-    /// DDS domain, 0 to 232 (default: ROS_DOMAIN_ID, else 0).
-    #[arg(long, value_name = "N")]
-    pub domain_id: Option<u32>,
-    /// Discovery and traffic on the loopback interface alone, as ROS_LOCALHOST_ONLY=1 (which also sets it).
-    #[arg(long)]
-    pub localhost: bool,
-    /// How long a joint's commanded effort stays in force after it arrived, s; then the scene's own
-    /// reference applies again.
-    #[arg(long, value_name = "S", default_value_t = 0.5)]
-    pub command_timeout: f64,
+    #[command(flatten)]
+    pub node: NodeFlags,
     #[command(flatten)]
     pub limits: crate::cli::simulate::RunLimits,
     /// Output directory (default: out/ros2/<scene name>/, or the first free <name>-2, -3, ...).
@@ -40,6 +32,37 @@ pub struct Ros2 {
     /// Print only the final report.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// Where the node joins and how long a command holds (`ros2`, `rig run --ros2`).
+#[derive(Args)]
+pub struct NodeFlags {
+    /// DDS domain, 0 to 232 (default: ROS_DOMAIN_ID, else 0).
+    #[arg(long, value_name = "N")]
+    pub domain_id: Option<u32>,
+    /// Discovery and traffic on the loopback interface alone, as ROS_LOCALHOST_ONLY=1 (which also sets it).
+    #[arg(long)]
+    pub localhost: bool,
+    /// How long a joint's commanded effort stays in force after it arrived, s (default 0.5); then the
+    /// scene's own reference applies again.
+    #[arg(long, value_name = "S")]
+    pub command_timeout: Option<f64>,
+}
+
+impl NodeFlags {
+    /// Whether any was given.
+    pub fn given(&self) -> bool {
+        self.domain_id.is_some() || self.localhost || self.command_timeout.is_some()
+    }
+
+    /// The options, the defaults where a flag is absent.
+    pub fn options(&self) -> crate::cmd::ros2::NodeOptions {
+        crate::cmd::ros2::NodeOptions {
+            domain_id: self.domain_id,
+            localhost: self.localhost,
+            command_timeout_s: self.command_timeout.unwrap_or(0.5),
+        }
+    }
 }
 
 impl Ros2 {
@@ -58,9 +81,7 @@ impl Ros2 {
             scene: self.scene,
             run: self.run,
             duration_s: self.duration,
-            domain_id: self.domain_id,
-            localhost: self.localhost,
-            command_timeout_s: self.command_timeout,
+            node: self.node.options(),
             limits: self.limits.limits(),
             out: self.out,
             quiet: self.quiet,

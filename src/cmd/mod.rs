@@ -93,7 +93,6 @@ pub mod progress;
 mod recording;
 pub mod rig;
 pub mod rig_mechanism;
-#[cfg(feature = "ros2")]
 pub mod ros2;
 pub mod run;
 pub mod seal;

@@ -11,6 +11,8 @@ use pneuflex_rig::clock::WallClock;
 use pneuflex_rig::record;
 use pneuflex_rig::rtloop::{LoopReport, check_duration};
 use pneuflex_rig::{RigFile, serial, session};
+#[cfg(feature = "ros2")]
+use pneuflex_ros2::trace_bag::SINGLE_JOINT;
 
 /// `pneuflex rig emulate <rig.toml> [--port <tty>] [--duration <s>]`: runs the rig file's emulated plant in
 /// real time behind a new pseudo-terminal (its path is printed) or on a given serial port, until Ctrl-C or
@@ -154,11 +156,15 @@ pub fn run_scene(
     rerun: Option<&[String]>,
     figures: pneuflex_viz::Format,
     mcap: bool,
+    ros2: Option<&super::ros2::NodeOptions>,
 ) -> anyhow::Result<()> {
     // A scene of several actuators: the board's channels through the one loop (`rig_mechanism`).
     if pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)
         .is_ok_and(|t| pneuflex_scene::mechanism::MechanismScene::is_mechanism(&t))
     {
+        if ros2.is_some() {
+            bail!("--ros2: a scene with several actuators on a board is not bridged to ROS 2 yet");
+        }
         if let Some(words) = rerun {
             bail!(
                 "--rerun {}: a scene with several actuators on a board shows no live view yet",
@@ -186,7 +192,17 @@ pub fn run_scene(
     };
     let mut controller = scene.controller(index)?;
     let setpoints = scene.setpoints()?;
-    let mut reference = |t: f64| setpoints.at(t);
+    #[cfg(not(feature = "ros2"))]
+    if ros2.is_some() {
+        bail!("--ros2: this pneuflex was built without the `ros2` feature (a default one)");
+    }
+    #[cfg(feature = "ros2")]
+    if let Some(o) = ros2 {
+        super::ros2::Bridge::check(o)?;
+        if lockstep.is_some() {
+            bail!("--ros2: bridges a real-time run; a --lockstep-truth run is not one");
+        }
+    }
     let out_dir = match out {
         Some(dir) => dir.to_path_buf(),
         // A recording is never replaced: a second one goes beside the first (`<run>-2`, ...).
@@ -268,6 +284,7 @@ pub fn run_scene(
         if rerun.is_some() {
             bail!("--rerun: shows a real-time run; a --lockstep-truth run is not one");
         }
+        let mut reference = |t: f64| setpoints.at(t);
         return super::recording::record_lockstep(
             record::COMMAND,
             rig_file,
@@ -281,6 +298,38 @@ pub fn run_scene(
             &mut analyse,
         );
     }
+    // `--ros2`: the node beside the loop, joined before the rig is connected; the commanded force replaces
+    // the scene's reference while commands arrive, and every traced row is published.
+    #[cfg(feature = "ros2")]
+    let bridge = match ros2 {
+        Some(o) => {
+            let b = super::ros2::Bridge::start(o, vec![SINGLE_JOINT.to_string()], true)?;
+            outln!("{}: bridging the rig run", b.banner());
+            Some(b)
+        }
+        None => None,
+    };
+    #[cfg(feature = "ros2")]
+    let mut reference = |t: f64| match &bridge {
+        Some(b) => b.reference(0, t, setpoints.at(t)),
+        None => setpoints.at(t),
+    };
+    #[cfg(not(feature = "ros2"))]
+    let mut reference = |t: f64| setpoints.at(t);
+    #[cfg(feature = "ros2")]
+    let mut publisher = bridge.as_ref().map(super::ros2::Bridge::publisher);
+    #[cfg(feature = "ros2")]
+    let mut both;
+    #[cfg(feature = "ros2")]
+    let observer: &mut dyn pneuflex_control::Sink<()> = match publisher.as_mut() {
+        Some(p) => {
+            both = Both(live.observer(), p);
+            &mut both
+        }
+        None => live.observer(),
+    };
+    #[cfg(not(feature = "ros2"))]
+    let observer = live.observer();
     let result = run(
         record::COMMAND,
         rig_file,
@@ -290,10 +339,15 @@ pub fn run_scene(
         &mut reference,
         duration,
         &out_dir,
-        live.observer(),
+        observer,
         &mut analyse,
     )
     .map(|_| ());
+    #[cfg(feature = "ros2")]
+    if let Some(b) = &bridge {
+        let what = publisher.as_ref().map(|p| p.report()).unwrap_or_default();
+        errln!("ros2: {}{what}", b.commands_report());
+    }
     // The recording is safe on disk whatever the view did: a logging error is a warning.
     match live.finish() {
         Ok(Some(rows)) => errln!("rerun: {rows} ticks logged"),
@@ -301,4 +355,31 @@ pub fn run_scene(
         Err(e) => errln!("warning: the Rerun view is incomplete: {e:#}"),
     }
     result
+}
+
+/// Two sinks of the rig's rows, each called in turn (the live view and the ROS 2 node).
+#[cfg(feature = "ros2")]
+struct Both<'a, 'b>(
+    &'a mut dyn pneuflex_control::Sink<()>,
+    &'b mut dyn pneuflex_control::Sink<()>,
+);
+
+#[cfg(feature = "ros2")]
+impl pneuflex_control::Sink<()> for Both<'_, '_> {
+    fn begin(&mut self, run: &str, columns: &[pneuflex_control::Signal], world: &()) {
+        self.0.begin(run, columns, world);
+        self.1.begin(run, columns, world);
+    }
+    fn row(&mut self, values: &[f64], world: &()) {
+        self.0.row(values, world);
+        self.1.row(values, world);
+    }
+    fn event(&mut self, t_s: f64, text: &str) {
+        self.0.event(t_s, text);
+        self.1.event(t_s, text);
+    }
+    fn end(&mut self, why: Option<&str>) {
+        self.0.end(why);
+        self.1.end(why);
+    }
 }
