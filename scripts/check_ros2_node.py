@@ -212,15 +212,24 @@ def check_gripper(a) -> None:
 
 
 def check_rig(a) -> None:
-    """`rig run --ros2` on the emulated rig (a pseudo-terminal, real time): the rows it traces are published,
-    and a command replaces the force reference. A loaded machine may end the run on a fault (the supervisor's
-    watchdog): then the rows up to its end are checked, and the command only if it came before."""
+    """`rig run --ros2` on the emulated rig (a pseudo-terminal, real time, its watchdog loosened): the rows it
+    traces are published, and a command replaces the force reference. A machine loaded past that may still end
+    the run on a fault (the supervisor's watchdog): then the rows up to its end are checked, and the command
+    only if it came before."""
     import re
     import subprocess
     scene, joints, command = "rig", ["cylinder"], 16.0
     out = a.out / "rig"
     emulator_log = a.out / "emulator.txt"
-    emulator = subprocess.Popen([a.pneuflex, "rig", "emulate", "--duration", "15"],
+    # rigs/emulated.toml with a watchdog ten times looser (its sheets named from here): a machine loaded by
+    # other builds deschedules the loop or the emulator for tens of ms, which this check is not about.
+    repo = Path(__file__).resolve().parent.parent
+    text = (repo / "rigs" / "emulated.toml").read_text().replace('"../', f'"{repo}/')
+    for key, value in [("timeout_ms", "200.0"), ("stale_ms", "500.0"), ("board_watchdog_ms", "500")]:
+        text = re.sub(rf"^{key} = [0-9.]+", f"{key} = {value}", text, flags=re.M)
+    rig_file = a.out / "emulated-loose.toml"
+    rig_file.write_text(text)
+    emulator = subprocess.Popen([a.pneuflex, "rig", "emulate", "--rig", str(rig_file), "--duration", "15"],
                                 stdout=open(emulator_log, "w"), stderr=subprocess.STDOUT)
     try:
         pty = None
@@ -236,7 +245,8 @@ def check_rig(a) -> None:
         session = Session(a.domain, joints)
         log = open(f"{out}.log", "w")
         node = subprocess.Popen(
-            [a.pneuflex, "rig", "run", "--port", pty, "--scene", "scenes/paper-fig3.toml", "--run", "impedance",
+            [a.pneuflex, "rig", "run", "--rig", str(rig_file), "--port", pty, "--scene", "scenes/paper-fig3.toml",
+             "--run", "impedance",
              "--duration", "4", "--out", str(out), "--ros2", "--domain-id", str(a.domain), "--localhost"],
             stdout=log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + 40
@@ -284,6 +294,12 @@ def check_rig(a) -> None:
         return
     check(len(commanded) >= 500, f"{scene}: f_ref = {command} N at {len(commanded)} ticks (under 0.5 s)")
     check(not commanded or t[commanded[0]] >= 1.0, f"{scene}: f_ref = {command} N before the first command")
+    if len(commanded) >= 500:
+        f_e, c0, c1 = trace["f_e"], commanded[0], commanded[-1]
+        before = sum(f_e[max(0, c0 - 300):c0]) / max(1, c0 - max(0, c0 - 300))
+        end = sum(f_e[c1 - 300:c1]) / 300
+        print(f"{scene}: f_e {before:.2f} N before the command, {end:.2f} N at its end (commanded {command} N)")
+        check(abs(end - command) < abs(before - command) - 2.0, f"{scene}: f_e did not move toward {command} N")
 
 
 def main() -> int:
