@@ -36,6 +36,10 @@ pub struct Emulate {
     /// Serve this serial port instead of a new pseudo-terminal.
     #[arg(long)]
     pub port: Option<String>,
+    /// A scene with several actuators whose mechanism (URDF, contacts, events) is the board's plant, one
+    /// channel per actuator (the rig file's [[channel]]s); --truth hides a sheet as every actuator's.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Stop after this many seconds (default: until Ctrl-C).
     #[arg(long)]
     pub duration: Option<f64>,
@@ -180,6 +184,7 @@ impl Emulate {
     pub fn call(self) -> anyhow::Result<()> {
         cmd::rig::emulate(
             &self.rig,
+            self.scene.as_deref(),
             self.port.as_deref(),
             self.duration,
             &cmd::rig::Hidden {

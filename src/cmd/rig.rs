@@ -19,12 +19,17 @@ use pneuflex_ros2::trace_bag::SINGLE_JOINT;
 /// `duration_s`. Faults listed in the rig file's `[emulator].faults` are injected.
 pub fn emulate(
     rig_file: &Path,
+    scene: Option<&Path>,
     port: Option<&str>,
     duration_s: Option<f64>,
     hidden: &Hidden,
 ) -> anyhow::Result<()> {
     if let Some(d) = duration_s {
         check_duration(d).map_err(|e| anyhow!("--duration: {}", e.message))?;
+    }
+    // A scene of several actuators: its mechanism is the board's plant (`rig_mechanism`).
+    if let Some(scene) = scene {
+        return super::rig_mechanism::emulate(rig_file, scene, port, duration_s, hidden);
     }
     let mut rig = RigFile::load(rig_file)?;
     if let Some(truth) = &hidden.truth {
@@ -36,17 +41,26 @@ pub fn emulate(
         Some(p) => session::spawn_port_emulator(&rig, rig_file, p)?,
         None => session::spawn_pty_emulator(&rig, rig_file)?,
     };
+    serve(handle, &rig.name, port, duration_s)
+}
+
+/// Serves an emulated board until Ctrl-C, `duration_s` or the board's end, saying each run a host starts, then
+/// what the board did.
+pub(super) fn serve(
+    handle: pneuflex_rig::emulator::EmulatorHandle,
+    name: &str,
+    port: Option<&str>,
+    duration_s: Option<f64>,
+) -> anyhow::Result<()> {
     let stop = session::install_ctrl_c()?;
     match &handle.path {
         Some(p) => outln!(
-            "emulating rig `{}` on {}  (connect with: pneuflex rig run --port {} ...; Ctrl-C stops)",
-            rig.name,
+            "emulating rig `{name}` on {}  (connect with: pneuflex rig run --port {} ...; Ctrl-C stops)",
             p.display(),
             p.display()
         ),
         None => outln!(
-            "emulating rig `{}` on {}  (Ctrl-C stops)",
-            rig.name,
+            "emulating rig `{name}` on {}  (Ctrl-C stops)",
             port.unwrap_or("")
         ),
     }

@@ -1,13 +1,14 @@
-//! `pneuflex rig run --scene <scene with [[actuators]]> --lockstep-truth SHEET`: one run of a several-actuator
+//! `pneuflex rig run --scene <scene with [[actuators]]> (--lockstep-truth SHEET | --port TTY)`: one run of a several-actuator
 //! scene on a board of several channels (docs/rig.md, "Several actuators"), through the one loop and the one
 //! pipeline every scene runs on: the scene's controllers, one per actuator, drive a [`BoardPlant`] whose
 //! sensors are the board's samples and whose valves are the board's channels, behind the supervisor that
 //! takes every valve safe in the tick any channel faults; the trace, `summary.json`, the claims and the
 //! figures are the mechanism's own, as `pneuflex run` writes them.
 //!
-//! The board is emulated in lockstep with a simulated clock: its plant is the scene's own mechanism (its
-//! URDF, contacts and events) with SHEET hidden as every actuator's truth, its ADC noise seeded by `--seed`.
-//! A real board of several channels runs the same host side once the firmware drives N valves (issue 43).
+//! With `--lockstep-truth` the board is emulated in lockstep with a simulated clock: its plant is the scene's
+//! own mechanism (its URDF, contacts and events) with SHEET hidden as every actuator's truth, its ADC noise
+//! seeded by `--seed`. With `--port` the loop runs on the wall clock against a board of several channels on a
+//! serial port: `rig emulate --scene` serves the same emulated board there ([`emulate`]).
 
 use std::path::{Path, PathBuf};
 
@@ -16,11 +17,12 @@ use pneuflex_control::{Sensors, Signal, Telemetry, ValveCommand};
 use pneuflex_files::OutputDir;
 use pneuflex_files::output::{Manifest, Writer};
 use pneuflex_rig::channel_board::{ChannelBoard, CoupledBoard, SerialChannels};
-use pneuflex_rig::clock::{Clock, SimClock};
-use pneuflex_rig::emulator::{Emulator, LockstepLink, MemLink};
+use pneuflex_rig::clock::{Clock, SimClock, WallClock};
+use pneuflex_rig::emulator::{Emulator, EmulatorHandle, LockstepLink, MemLink};
 use pneuflex_rig::plant::{CoupledPlant, Detached, PlantSample, ValveDrive};
 use pneuflex_rig::protocol::ConfigPayload;
 use pneuflex_rig::rigfile::{Channel, EmulatorConfig};
+use pneuflex_rig::serial::Link;
 use pneuflex_rig::supervisor::ChannelSupervisor;
 use pneuflex_rig::{RigFile, session};
 use pneuflex_scene::mechanism::{MechanismPlant, MechanismScene, plant::loop_events};
@@ -119,14 +121,19 @@ impl CoupledPlant for SceneMechanism {
     }
 }
 
-type Driver = SerialChannels<LockstepLink<CoupledBoard<MemLink>>>;
-
 /// The board as the one loop's plant: each actuator sensed from its channel's newest sample, every channel's
 /// command sent in one frame when the loop advances, the supervisor in charge. The scene's events are the
 /// board's own (its plant's), so the host applies none.
-struct BoardPlant {
-    supervisor: ChannelSupervisor<Driver>,
-    clock: SimClock,
+struct BoardPlant<L: Link, K: Clock> {
+    supervisor: ChannelSupervisor<SerialChannels<L>>,
+    clock: K,
+    /// The clock's time at tick 0, s: tick k's deadline is `t0 + k dt`.
+    t0: f64,
+    dt: f64,
+    /// Consecutive ticks without a new sample, and how many make a fault (the rig file's
+    /// `watchdog.timeout_ms`).
+    stale: u64,
+    stale_limit: u64,
     names: Vec<String>,
     signals: &'static [Signal],
     latest: Vec<Sensors>,
@@ -137,13 +144,14 @@ struct BoardPlant {
     missed: u64,
 }
 
-impl BoardPlant {
+impl<L: Link, K: Clock> BoardPlant<L, K> {
     /// Reads the newest samples at the clock's time; whether any came (a fault the supervisor latched is
     /// its own: [`Plant::check_invariants`] ends the run on it).
     fn read(&mut self) -> bool {
         let now = self.clock.now();
         match self.supervisor.sense(self.tick, now) {
             Some(s) => {
+                self.stale = 0;
                 for (l, s) in self.latest.iter_mut().zip(&s) {
                     *l = s.sensors;
                 }
@@ -151,14 +159,24 @@ impl BoardPlant {
                 true
             }
             None => {
-                self.missed += u64::from(self.supervisor.fault().is_none());
+                if self.supervisor.fault().is_none() {
+                    self.missed += 1;
+                    self.stale += 1;
+                    if self.stale > self.stale_limit {
+                        let e = pneuflex_rig::RigError::new(
+                            pneuflex_rig::ErrorKind::Timeout,
+                            format!("no sample from the board for {} ticks", self.stale),
+                        );
+                        self.supervisor.trip(self.tick, now, None, e);
+                    }
+                }
                 false
             }
         }
     }
 }
 
-impl Plant for BoardPlant {
+impl<L: Link, K: Clock> Plant for BoardPlant<L, K> {
     fn sense(&self) -> Sensors {
         self.latest[0]
     }
@@ -179,11 +197,13 @@ impl Plant for BoardPlant {
         self.commands[i] = command;
     }
 
-    fn advance(&mut self, dt: f64) {
+    fn advance(&mut self, _dt: f64) {
         let now = self.clock.now();
         self.supervisor.actuate(self.tick, now, &self.commands);
         self.tick += 1;
-        self.clock.wait_until(now + dt);
+        // The next tick's deadline on the clock (the wall clock paces a real board; the simulated one steps a
+        // lockstep board to it).
+        self.clock.wait_until(self.t0 + self.tick as f64 * self.dt);
         self.read();
     }
 
@@ -246,16 +266,17 @@ fn channels_for(
     Ok(channels)
 }
 
-/// The coupled board of `scene` (`truths[i]` hidden as actuator i's) behind a lockstep link, and the clock it
-/// steps with.
-fn emulated_board(
+/// The emulated board of `scene`: its mechanism with `truths[i]` hidden as actuator i's, one channel per
+/// actuator with the rig file's calibration, answering on `link`.
+fn coupled_board<L: Link>(
     rig: &RigFile,
     rig_file: &Path,
     scene: &MechanismScene,
     truths: &[PathBuf],
     seed: u64,
     channels: &[Channel],
-) -> anyhow::Result<(LockstepLink<CoupledBoard<MemLink>>, SimClock)> {
+    link: L,
+) -> anyhow::Result<CoupledBoard<L>> {
     let mut hidden = scene.clone();
     for (a, t) in hidden.actuators.iter_mut().zip(truths) {
         a.sheet = std::path::absolute(t)?;
@@ -284,17 +305,14 @@ fn emulated_board(
             to_board,
         ));
     }
-    let (host, board_end) = MemLink::pair();
-    let board = ChannelBoard::coupled(board_end, Box::new(plant), subs).ok_or_else(|| {
+    ChannelBoard::coupled(link, Box::new(plant), subs).ok_or_else(|| {
         anyhow!(
             "{}: {} channels: a board carries 1..={}",
             rig_file.display(),
             channels.len(),
             pneuflex_rig::protocol::MAX_CHANNELS
         )
-    })?;
-    let clock = SimClock::new();
-    Ok((LockstepLink::new(board, host, clock.clone()), clock))
+    })
 }
 
 /// `rig run` on a several-actuator scene (module docs).
@@ -311,19 +329,14 @@ pub fn run(
     figures: pneuflex_viz::Format,
     mcap: bool,
 ) -> anyhow::Result<()> {
-    let Some((truth, seed)) = lockstep else {
-        bail!(
-            "{}: a scene with several actuators runs on a board of several channels in lockstep \
-             (--lockstep-truth SHEET) so far; a real board needs the firmware's N controllers (issue 43){}",
-            scene_path.display(),
-            port.map(|p| format!("; --port {p} is not taken yet"))
-                .unwrap_or_default()
-        );
-    };
     let rig = RigFile::load(rig_file)?;
     let mut scene = MechanismScene::load(scene_path)?;
-    // Each actuator's hidden truth: --lockstep-truth's, or its own --truth NAME=SHEET.
-    let mut hidden: Vec<PathBuf> = vec![truth.to_path_buf(); scene.actuators.len()];
+    // In lockstep, each actuator's hidden truth: --lockstep-truth's, or its own --truth NAME=SHEET (a real
+    // board hides its own).
+    let mut hidden: Vec<PathBuf> = match lockstep {
+        Some((truth, _)) => vec![truth.to_path_buf(); scene.actuators.len()],
+        None => Vec::new(),
+    };
     for t in truths {
         let Some((name, sheet)) = t.split_once('=') else {
             bail!(
@@ -343,7 +356,9 @@ pub fn run(
                     .join(", ")
             );
         };
-        hidden[i] = PathBuf::from(sheet);
+        if let Some(h) = hidden.get_mut(i) {
+            *h = PathBuf::from(sheet);
+        }
     }
     session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file)?;
     let channels = channels_for(&rig, rig_file, &scene)?;
@@ -391,18 +406,114 @@ pub fn run(
         .collect();
     let stage = OutputDir::create(&dest, &protect, Writer::recording("rig run"))?;
 
-    let (link, mut clock) = emulated_board(&rig, rig_file, &scene, &hidden, seed, &channels)?;
-    let mut driver = SerialChannels::new(link, &channels, rig.rt.velocity_cutoff_hz);
+    let (result, missed) = match lockstep {
+        Some((_, seed)) => {
+            let (host, board_end) = MemLink::pair();
+            let board = coupled_board(&rig, rig_file, &scene, &hidden, seed, &channels, board_end)?;
+            let clock = SimClock::new();
+            let link = LockstepLink::new(board, host, clock.clone());
+            record(
+                &rig,
+                rig_file,
+                &channels,
+                &scene,
+                &mut controllers,
+                &schedules,
+                link,
+                clock,
+            )?
+        }
+        None => {
+            let (link, _) = pneuflex_rig::serial::open(&rig, rig_file, port)?;
+            let clock = WallClock::new(std::time::Duration::from_micros(rig.rt.spin_us));
+            record(
+                &rig,
+                rig_file,
+                &channels,
+                &scene,
+                &mut controllers,
+                &schedules,
+                link,
+                clock,
+            )?
+        }
+    };
+    let runs = vec![result];
+    let summary = pneuflex_scene::mechanism::summarise(&scene, &runs);
+    pneuflex_scene::mechanism::write(stage.path(), &summary, &runs)?;
+    super::mechanism::write_figures(stage.path(), &scene, &runs, figures)?;
+    if mcap {
+        // Into the staged directory: committed with the trace.
+        let names: Vec<String> = channels.iter().map(|c| c.name.clone()).collect();
+        super::bag::write_runs(stage.path(), &runs, &names)?;
+    }
+    let digests: Vec<pneuflex_files::InputDigest> = [("rig", rig_file.to_path_buf())]
+        .into_iter()
+        .chain(hidden.iter().map(|p| ("truth", p.clone())))
+        .chain(inputs.iter().cloned())
+        .filter_map(|(role, p)| pneuflex_files::InputDigest::of_file(&p, role).ok())
+        .collect();
+    let manifest = Manifest::new("rig run", env!("CARGO_PKG_VERSION"), digests);
+    let dest: PathBuf = stage.commit(manifest)?;
+    let r = &runs[0];
+    if missed > 0 {
+        errln!("note: {missed} ticks had no new sample and used the previous one");
+    }
+    let board = if hidden.is_empty() {
+        format!("the board on {}", port.unwrap_or(&rig.link.port))
+    } else {
+        format!(
+            "the emulated board (lockstep, hidden truths {})",
+            channels
+                .iter()
+                .zip(&hidden)
+                .map(|(c, t)| format!("{}={}", c.name, t.display()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    outln!(
+        "{}: run {} on {board}, {} channels; outputs in {}",
+        scene.name,
+        r.name,
+        channels.len(),
+        dest.display()
+    );
+    super::fail_on_divergence(
+        std::iter::once((r.name.as_str(), r.diverged.as_deref())),
+        &dest,
+    )
+}
+
+/// Connects to the board behind `link` (its configuration, its first samples within the handshake timeout on
+/// `clock`), runs the scene's one run through the one loop on it, and parks every valve: the run, and the ticks
+/// that had no new sample.
+#[allow(clippy::too_many_arguments)]
+fn record<L: Link, K: Clock>(
+    rig: &RigFile,
+    rig_file: &Path,
+    channels: &[Channel],
+    scene: &MechanismScene,
+    controllers: &mut [Box<dyn pneuflex_control::Controller + Send + Sync>],
+    schedules: &[pneuflex_control::SetpointSchedule],
+    link: L,
+    clock: K,
+) -> anyhow::Result<(pneuflex_scene::RunResult, u64)> {
+    let mut driver = SerialChannels::new(link, channels, rig.rt.velocity_cutoff_hz);
     driver.configure(ConfigPayload {
         sample_period_us: (1e6 / rig.rt.rate_hz).round() as u32,
         watchdog_ms: rig.watchdog.board_watchdog_ms,
         safe_mode: channels[0].safe_state.mode(),
     })?;
     let names: Vec<String> = channels.iter().map(|c| c.name.clone()).collect();
-    let channel_names = names.clone();
+    let dt = scene.dt_s;
     let mut plant = BoardPlant {
-        supervisor: ChannelSupervisor::new(driver, channels.clone()),
-        clock: clock.clone(),
+        supervisor: ChannelSupervisor::new(driver, channels.to_vec()),
+        t0: 0.0,
+        dt,
+        stale: 0,
+        stale_limit: ((rig.watchdog.timeout_ms * 1e-3 / dt).ceil() as u64).max(1),
+        clock,
         signals: &BOARD_SIGNALS,
         latest: vec![Sensors::default(); names.len()],
         board_t: f64::NAN,
@@ -411,13 +522,14 @@ pub fn run(
         tick: 0,
         missed: 0,
     };
-    // The first samples before the first tick (the handshake's timeout on the board's clock).
+    // The first samples before the first tick, within the handshake's timeout.
     let timeout_s = (rig.link.handshake_timeout_ms as f64 * 1e-3).max(0.1);
-    let period = 1.0 / rig.rt.rate_hz;
+    let start = plant.clock.now();
     let mut first = false;
-    while !first && clock.now() < timeout_s && plant.supervisor.fault().is_none() {
-        let t = clock.now() + period;
-        clock.wait_until(t);
+    while !first && plant.clock.now() - start < timeout_s && plant.supervisor.fault().is_none() {
+        let t = plant.clock.now() + dt;
+        plant.clock.wait_until(t);
+        plant.stale = 0;
         first = plant.read();
     }
     plant.missed = 0;
@@ -430,11 +542,12 @@ pub fn run(
     }
     if !first {
         bail!(
-            "{}: no samples from the emulated board within {timeout_s} s",
+            "{}: no samples from the board within {timeout_s} s (link.handshake_timeout_ms)",
             rig_file.display()
         );
     }
-    let events = loop_events(&scene);
+    plant.t0 = plant.clock.now();
+    let events = loop_events(scene);
     let invalid = |key: &str, message: String| scene.invalid(key, message);
     let plan = RunPlan {
         name: &scene.runs[0].name,
@@ -446,7 +559,7 @@ pub fn run(
         invalid: &invalid,
     };
     let stop = super::stop_flag()?;
-    let bar = super::progress::Progress::new(false, format!("rig run {} (lockstep)", scene.name));
+    let bar = super::progress::Progress::new(false, format!("rig run {}", scene.name));
     let mut each: Vec<&mut dyn pneuflex_control::Controller> = controllers
         .iter_mut()
         .map(|c| &mut **c as &mut dyn pneuflex_control::Controller)
@@ -463,43 +576,63 @@ pub fn run(
     bar.finish();
     // The normal end: every valve safe.
     let _ = plant.supervisor.park(plant.tick);
-    let missed = plant.missed;
-    drop(plant);
-    let runs = vec![result];
-    let summary = pneuflex_scene::mechanism::summarise(&scene, &runs);
-    pneuflex_scene::mechanism::write(stage.path(), &summary, &runs)?;
-    super::mechanism::write_figures(stage.path(), &scene, &runs, figures)?;
-    if mcap {
-        // Into the staged directory: committed with the trace.
-        super::bag::write_runs(stage.path(), &runs, &channel_names)?;
+    Ok((result, plant.missed))
+}
+
+/// `rig emulate --scene <scene with [[actuators]]>`: the scene's mechanism as the board's plant, one channel per
+/// actuator, in real time behind a new pseudo-terminal (or `port`), until Ctrl-C or `duration_s`; `hidden.truth`
+/// replaces every actuator's sheet, `hidden.seed` the ADC noise's seed. Each host connection starts a run from
+/// the scene's initial state.
+pub fn emulate(
+    rig_file: &Path,
+    scene_path: &Path,
+    port: Option<&str>,
+    duration_s: Option<f64>,
+    hidden: &super::rig::Hidden,
+) -> anyhow::Result<()> {
+    let rig = RigFile::load(rig_file)?;
+    let text = pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)?;
+    if !MechanismScene::is_mechanism(&text) {
+        bail!(
+            "--scene {}: a scene of one actuator; its emulator is the rig file's [emulator] table (no --scene)",
+            scene_path.display()
+        );
     }
-    let digests: Vec<pneuflex_files::InputDigest> = [("rig", rig_file.to_path_buf())]
-        .into_iter()
-        .chain(hidden.iter().map(|p| ("truth", p.clone())))
-        .chain(inputs.iter().cloned())
-        .filter_map(|(role, p)| pneuflex_files::InputDigest::of_file(&p, role).ok())
+    if hidden.delay_s.is_some() {
+        bail!(
+            "--delay: the board of a scene of several actuators applies its commands in the period they come"
+        );
+    }
+    let scene = MechanismScene::load(scene_path)?;
+    session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file)?;
+    let channels = channels_for(&rig, rig_file, &scene)?;
+    let truths: Vec<PathBuf> = hidden
+        .truth
+        .iter()
+        .flat_map(|t| std::iter::repeat_n(t.clone(), scene.actuators.len()))
         .collect();
-    let manifest = Manifest::new("rig run", env!("CARGO_PKG_VERSION"), digests);
-    let dest: PathBuf = stage.commit(manifest)?;
-    let r = &runs[0];
-    if missed > 0 {
-        errln!("note: {missed} ticks had no new sample and used the previous one");
-    }
-    outln!(
-        "{}: run {} on the emulated board of {} channels (lockstep, hidden truths {}); outputs in {}",
-        scene.name,
-        r.name,
-        channels.len(),
-        channels
-            .iter()
-            .zip(&hidden)
-            .map(|(c, t)| format!("{}={}", c.name, t.display()))
-            .collect::<Vec<_>>()
-            .join(", "),
-        dest.display()
-    );
-    super::fail_on_divergence(
-        std::iter::once((r.name.as_str(), r.diverged.as_deref())),
-        &dest,
-    )
+    let seed = hidden
+        .seed
+        .or(rig.emulator.as_ref().map(|e| e.seed))
+        .unwrap_or(1);
+    let handle = match port {
+        Some(p) => {
+            let (link, _) = pneuflex_rig::serial::open(&rig, rig_file, Some(p))?;
+            let board = coupled_board(&rig, rig_file, &scene, &truths, seed, &channels, link)?;
+            let log = board
+                .log_handle(0)
+                .ok_or_else(|| anyhow!("{}: no channels", rig_file.display()))?;
+            EmulatorHandle::spawn(board, None, log)
+        }
+        None => {
+            let link = pneuflex_rig::emulator::PtyLink::open()?;
+            let path = link.path.clone();
+            let board = coupled_board(&rig, rig_file, &scene, &truths, seed, &channels, link)?;
+            let log = board
+                .log_handle(0)
+                .ok_or_else(|| anyhow!("{}: no channels", rig_file.display()))?;
+            EmulatorHandle::spawn(board, Some(path), log)
+        }
+    };
+    super::rig::serve(handle, &rig.name, port, duration_s)
 }

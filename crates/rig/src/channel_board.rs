@@ -253,6 +253,11 @@ impl<L: Link> CoupledBoard<L> {
         self.board.log(i)
     }
 
+    /// Channel `i`'s log itself, shared (for a handle that watches the board run).
+    pub fn log_handle(&self, i: usize) -> Option<Arc<Mutex<EmulatorLog>>> {
+        self.board.subs.get(i).map(|s| s.log.clone())
+    }
+
     /// One sample period at board time `now` (see [`ChannelBoard::step`]).
     pub fn step(&mut self, now: f64) -> Result<bool, RigError> {
         let (plant, drives) = (&mut self.plant, &mut self.drives);

@@ -133,6 +133,29 @@ pub struct EmulatorLog {
     pub run_starts: Vec<usize>,
 }
 
+/// Runs `board` in the calling thread, one step per sample period of the wall clock, until `stop` is set or
+/// the board stops. The board's clock is its own sample tick, k periods, as a board's timer is: when this
+/// thread is descheduled it catches up, and its late samples read like a slow link, each stamped with the
+/// time its physics reached (what an exact replay needs: docs/protocol.md, 0x07).
+pub fn run_real_time<B: Stepped + ?Sized>(board: &mut B, stop: &AtomicBool) {
+    let period_s = board.period_s();
+    let period = Duration::from_secs_f64(period_s);
+    let start = Instant::now();
+    let mut k: u64 = 0;
+    while !stop.load(Ordering::Relaxed) {
+        let deadline = start + period.mul_f64(k as f64);
+        let now = Instant::now();
+        if deadline > now {
+            std::thread::sleep(deadline - now);
+        }
+        let board_time = k as f64 * period_s;
+        k += 1;
+        if !board.step_period(board_time) {
+            break;
+        }
+    }
+}
+
 /// A running emulator.
 pub struct EmulatorHandle {
     /// The pty path for the host (`None` when serving a given port).
@@ -143,6 +166,27 @@ pub struct EmulatorHandle {
 }
 
 impl EmulatorHandle {
+    /// Runs `board` on its own thread in real time ([`run_real_time`]) until stopped; `log` is the board's
+    /// (the first channel's, for a board of several), `path` the pty the host opens.
+    pub fn spawn<B: Stepped + 'static>(
+        mut board: B,
+        path: Option<PathBuf>,
+        log: Arc<Mutex<EmulatorLog>>,
+    ) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let thread = std::thread::Builder::new()
+            .name("pneuflex-emulator".into())
+            .spawn(move || run_real_time(&mut board, &s))
+            .ok();
+        Self {
+            path,
+            stop,
+            log,
+            thread,
+        }
+    }
+
     /// A snapshot of the log.
     pub fn log(&self) -> EmulatorLog {
         self.log.lock().map(|l| l.clone()).unwrap_or_default()
@@ -236,42 +280,13 @@ impl<P: EmulatedPlant + 'static, L: Link + 'static> Emulator<P, L> {
 
     /// Runs the emulator on its own thread, in real time, until stopped.
     pub fn spawn(self, path: Option<PathBuf>) -> EmulatorHandle {
-        let stop = Arc::new(AtomicBool::new(false));
         let log = Arc::new(Mutex::new(EmulatorLog::default()));
-        let (s, l) = (stop.clone(), log.clone());
-        let thread = std::thread::Builder::new()
-            .name("pneuflex-emulator".into())
-            .spawn(move || self.run(&s, l))
-            .ok();
-        EmulatorHandle {
-            path,
-            stop,
-            log,
-            thread,
-        }
+        EmulatorHandle::spawn(self.board(log.clone()), path, log)
     }
 
-    /// Runs in the calling thread, one [`Board::step`] per sample period of the wall clock, until `stop`
-    /// is set or the link closes. The board's clock is its own sample tick, k periods, as a board's timer
-    /// is: when this thread is descheduled it catches up, and its late samples read like a slow link, each
-    /// stamped with the time its physics reached (what an exact replay needs: docs/protocol.md, 0x07).
+    /// Runs in the calling thread in real time ([`run_real_time`]) until `stop` is set or the link closes.
     pub fn run(self, stop: &AtomicBool, log: Arc<Mutex<EmulatorLog>>) {
-        let mut board = self.board(log);
-        let period = Duration::from_secs_f64(board.period_s);
-        let start = Instant::now();
-        let mut k: u64 = 0;
-        while !stop.load(Ordering::Relaxed) {
-            let deadline = start + period.mul_f64(k as f64);
-            let now = Instant::now();
-            if deadline > now {
-                std::thread::sleep(deadline - now);
-            }
-            let board_time = k as f64 * board.period_s;
-            k += 1;
-            if !board.step(board_time) {
-                break;
-            }
-        }
+        run_real_time(&mut self.board(log), stop);
     }
 
     /// The board, to be stepped by the caller.
@@ -864,7 +879,7 @@ pub trait Stepped: Send {
     fn step_period(&mut self, now: f64) -> bool;
 }
 
-impl<P: EmulatedPlant> Stepped for Board<P, MemLink> {
+impl<P: EmulatedPlant, L: Link> Stepped for Board<P, L> {
     fn period_s(&self) -> f64 {
         self.period_s
     }

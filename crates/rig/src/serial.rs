@@ -409,6 +409,22 @@ pub fn connect(
     file: &Path,
     port: Option<&str>,
 ) -> Result<SerialRig<Box<dyn serialport::SerialPort>>, ConnectError> {
+    let (p, name) = open(rig, file, port)?;
+    connect_link(p, rig, &mut WallClock::new(Duration::ZERO)).map_err(|e| ConnectError::Handshake {
+        file: file.to_path_buf(),
+        port: name,
+        timeout_ms: rig.link.handshake_timeout_ms,
+        message: e.to_string(),
+    })
+}
+
+/// Opens the rig's serial port (`port` overrides `link.port`) at the rig file's baud rate, non-blocking; the
+/// port and its name. A board of several channels speaks its own frames over it (`channel_board`).
+pub fn open(
+    rig: &RigFile,
+    file: &Path,
+    port: Option<&str>,
+) -> Result<(Box<dyn serialport::SerialPort>, String), ConnectError> {
     let (name, field) = match port {
         Some(p) => (p.to_string(), "--port".to_string()),
         None => (rig.link.port.clone(), "link.port".to_string()),
@@ -423,12 +439,7 @@ pub fn connect(
             baud: rig.link.baud,
             message: e.to_string(),
         })?;
-    connect_link(p, rig, &mut WallClock::new(Duration::ZERO)).map_err(|e| ConnectError::Handshake {
-        file: file.to_path_buf(),
-        port: name,
-        timeout_ms: rig.link.handshake_timeout_ms,
-        message: e.to_string(),
-    })
+    Ok((p, name))
 }
 
 /// Configures the board behind an open link (rate, board watchdog, safe state) and checks that it answers.
