@@ -512,7 +512,10 @@ fn one_silent_channel_puts_every_channel_safe_at_once() {
         safes.iter().all(|s| s.reason == fault_code::HOST_SILENT),
         "{safes:?}"
     );
-    assert_eq!(safes[0].last_tick, 19, "channel 1 ran ticks 0..20 and tripped first");
+    assert_eq!(
+        safes[0].last_tick, 19,
+        "channel 1 ran ticks 0..20 and tripped first"
+    );
     assert!(safes[1].last_tick >= 20, "channel 0 ran on: {safes:?}");
     assert!(
         safes[1].safe_at_us.abs_diff(safes[0].safe_at_us) <= 10,
