@@ -410,3 +410,55 @@ fn the_gripper_runs_in_real_time_on_an_emulated_board_of_two_channels() {
         assert!(peak > 5.0, "{finger}: the squeeze reached {peak} N");
     }
 }
+
+/// `rig excite --scene`: every actuator its own excitation at once on the board, a recording `identify
+/// --channel` reads and `compare` refuses as what it is.
+#[test]
+fn the_gripper_excited_on_its_board_gives_each_finger_its_own_signal() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ex");
+    let o = pneuflex(&[
+        "rig",
+        "excite",
+        "--rig",
+        "rigs/gripper.toml",
+        "--scene",
+        "scenes/gripper.toml",
+        "--lockstep-truth",
+        "pneumatics/gripper-finger.toml",
+        "--signal",
+        "steps",
+        "--duration",
+        "2",
+        "--centre",
+        "0.02",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let trace = out.join("excite").join("trace.csv");
+    let (h, rows) = read_trace(&trace);
+    assert_eq!(rows.len(), 2001);
+    let (l, r) = (col(&h, "left.u"), col(&h, "right.u"));
+    let differ = rows
+        .iter()
+        .filter(|row| (row[l] - row[r]).abs() > 1e-6)
+        .count();
+    assert!(
+        differ > 500,
+        "each finger its own signal: {differ} of 2001 ticks differ"
+    );
+    let manifest = std::fs::read_to_string(out.join(".pneuflex-output.json")).unwrap();
+    assert!(manifest.contains("\"rig excite\""), "{manifest}");
+    let o = pneuflex(&[
+        "compare",
+        "scenes/gripper.toml",
+        "--rig-log",
+        trace.to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("an excitation log"),
+        "{}",
+        text(&o)
+    );
+}

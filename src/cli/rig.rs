@@ -120,6 +120,10 @@ pub struct Excite {
     /// hiding this actuator sheet; --seed also seeds its sensor noise. For CI and worked examples.
     #[arg(long, conflicts_with = "port")]
     pub lockstep_truth: Option<PathBuf>,
+    /// A scene with several actuators ([[actuators]]): every actuator excited at once, each its own signal
+    /// (--seed + its index), on the rig file's board of one [[channel]] per actuator (docs/rig.md).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Also write the recording as a rosbag2 folder `bag/` beside trace.csv (MCAP storage, CDR, on the
     /// trace's clock; docs/ros2.md): `identify --log DIR/bag` reads it.
     #[arg(long)]
@@ -225,6 +229,7 @@ impl Excite {
                 seed: self.seed,
                 lockstep_truth: self.lockstep_truth,
                 mcap: self.mcap,
+                scene: self.scene,
             },
             self.out.as_deref(),
         )

@@ -406,38 +406,17 @@ pub fn run(
         .collect();
     let stage = OutputDir::create(&dest, &protect, Writer::recording("rig run"))?;
 
-    let (result, missed) = match lockstep {
-        Some((_, seed)) => {
-            let (host, board_end) = MemLink::pair();
-            let board = coupled_board(&rig, rig_file, &scene, &hidden, seed, &channels, board_end)?;
-            let clock = SimClock::new();
-            let link = LockstepLink::new(board, host, clock.clone());
-            record(
-                &rig,
-                rig_file,
-                &channels,
-                &scene,
-                &mut controllers,
-                &schedules,
-                link,
-                clock,
-            )?
-        }
-        None => {
-            let (link, _) = pneuflex_rig::serial::open(&rig, rig_file, port)?;
-            let clock = WallClock::new(std::time::Duration::from_micros(rig.rt.spin_us));
-            record(
-                &rig,
-                rig_file,
-                &channels,
-                &scene,
-                &mut controllers,
-                &schedules,
-                link,
-                clock,
-            )?
-        }
-    };
+    let (result, missed) = on_board(
+        &rig,
+        rig_file,
+        port,
+        lockstep.map(|(_, seed)| seed),
+        &hidden,
+        &scene,
+        &channels,
+        &mut controllers,
+        &schedules,
+    )?;
     let runs = vec![result];
     let summary = pneuflex_scene::mechanism::summarise(&scene, &runs);
     pneuflex_scene::mechanism::write(stage.path(), &summary, &runs)?;
@@ -635,4 +614,166 @@ pub fn emulate(
         }
     };
     super::rig::serve(handle, &rig.name, port, duration_s)
+}
+
+/// [`record`] on the board: the emulated one in lockstep (`lockstep_seed`, `hidden` its truths), else the
+/// one on the serial port (`port`, or the rig file's `link.port`) on the wall clock.
+#[allow(clippy::too_many_arguments)]
+fn on_board(
+    rig: &RigFile,
+    rig_file: &Path,
+    port: Option<&str>,
+    lockstep_seed: Option<u64>,
+    hidden: &[PathBuf],
+    scene: &MechanismScene,
+    channels: &[Channel],
+    controllers: &mut [Box<dyn pneuflex_control::Controller + Send + Sync>],
+    schedules: &[pneuflex_control::SetpointSchedule],
+) -> anyhow::Result<(pneuflex_scene::RunResult, u64)> {
+    match lockstep_seed {
+        Some(seed) => {
+            let (host, board_end) = MemLink::pair();
+            let board = coupled_board(rig, rig_file, scene, hidden, seed, channels, board_end)?;
+            let clock = SimClock::new();
+            let link = LockstepLink::new(board, host, clock.clone());
+            record(
+                rig,
+                rig_file,
+                channels,
+                scene,
+                controllers,
+                schedules,
+                link,
+                clock,
+            )
+        }
+        None => {
+            let (link, _) = pneuflex_rig::serial::open(rig, rig_file, port)?;
+            let clock = WallClock::new(std::time::Duration::from_micros(rig.rt.spin_us));
+            record(
+                rig,
+                rig_file,
+                channels,
+                scene,
+                controllers,
+                schedules,
+                link,
+                clock,
+            )
+        }
+    }
+}
+
+/// `rig excite --scene <scene with [[actuators]]>`: every actuator's own excitation (`a`, its signal seeded
+/// with `a.seed` + its index, centred within its channel's position limits) at once on the board of as many
+/// channels, through the one loop; the recording is `<out>/excite/trace.csv` with each actuator's columns, for
+/// `identify --channel NAME`. In lockstep with `a.lockstep_truth` hidden as every actuator's truth, else on
+/// the port.
+pub fn excite(
+    rig_file: &Path,
+    port: Option<&str>,
+    scene_path: &Path,
+    a: &super::excite::ExciteArgs,
+    out: Option<&Path>,
+) -> anyhow::Result<()> {
+    pneuflex_rig::rtloop::check_duration(a.duration_s)
+        .map_err(|e| anyhow!("--duration: {}", e.message))?;
+    let rig = RigFile::load(rig_file)?;
+    let text = pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)?;
+    if !MechanismScene::is_mechanism(&text) {
+        bail!(
+            "--scene {}: a scene of one actuator; rig excite takes the rig file's one channel without --scene",
+            scene_path.display()
+        );
+    }
+    let mut scene = MechanismScene::load(scene_path)?;
+    session::check_scene_rate(scene.dt_s, scene_path, &rig, rig_file)?;
+    let channels = channels_for(&rig, rig_file, &scene)?;
+    let mut controllers: Vec<Box<dyn pneuflex_control::Controller + Send + Sync>> = Vec::new();
+    for (i, ch) in channels.iter().enumerate() {
+        let e = super::excite::excitation(
+            a,
+            a.seed.wrapping_add(i as u64),
+            ch.limits.position_m,
+            rig_file,
+            &format!("channel[{i}] ({}) position limits", ch.name),
+        )?;
+        controllers.push(Box::new(pneuflex_identify::excite::Exciter::new(e)));
+    }
+    // No reference: the excitation is the command.
+    let schedules = vec![pneuflex_control::SetpointSchedule::default(); channels.len()];
+    scene.duration_s = a.duration_s;
+    let mut run = scene.runs[0].clone();
+    run.name = "excite".into();
+    scene.runs = vec![run];
+    let hidden: Vec<PathBuf> = a
+        .lockstep_truth
+        .iter()
+        .flat_map(|t| std::iter::repeat_n(t.clone(), channels.len()))
+        .collect();
+    let dest = match out {
+        Some(d) => d.to_path_buf(),
+        None => pneuflex_files::output::fresh_destination(
+            &Path::new("out").join("rig").join("excite").join(&a.signal),
+        ),
+    };
+    let inputs = scene.input_files();
+    let protect: Vec<&Path> = [scene_path, rig_file]
+        .into_iter()
+        .chain(hidden.iter().map(PathBuf::as_path))
+        .chain(inputs.iter().map(|(_, p)| p.as_path()))
+        .collect();
+    let stage = OutputDir::create(
+        &dest,
+        &protect,
+        Writer::recording(pneuflex_rig::record::EXCITE),
+    )?;
+    let (result, missed) = on_board(
+        &rig,
+        rig_file,
+        port,
+        a.lockstep_truth.as_ref().map(|_| a.seed),
+        &hidden,
+        &scene,
+        &channels,
+        &mut controllers,
+        &schedules,
+    )?;
+    pneuflex_scene::write_trace(stage.path(), &result)?;
+    if a.mcap {
+        let names: Vec<String> = channels.iter().map(|c| c.name.clone()).collect();
+        super::bag::write_runs(stage.path(), std::slice::from_ref(&result), &names)?;
+    }
+    let digests: Vec<pneuflex_files::InputDigest> = [("rig", rig_file.to_path_buf())]
+        .into_iter()
+        .chain(hidden.iter().map(|p| ("truth", p.clone())))
+        .chain(inputs.iter().cloned())
+        .filter_map(|(role, p)| pneuflex_files::InputDigest::of_file(&p, role).ok())
+        .collect();
+    let dest = stage.commit(Manifest::new(
+        pneuflex_rig::record::EXCITE,
+        env!("CARGO_PKG_VERSION"),
+        digests,
+    ))?;
+    if missed > 0 {
+        errln!("note: {missed} ticks had no new sample and used the previous one");
+    }
+    outln!(
+        "{}: {} excitation of {} channels ({}); trace: {}",
+        scene.name,
+        a.signal,
+        channels.len(),
+        channels
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        dest.join("excite")
+            .join(pneuflex_scene::run::output::trace_file_name(&result))
+            .display()
+    );
+    super::fail_on_divergence(
+        std::iter::once(("excite", result.diverged.as_deref())),
+        &dest,
+    )
 }
