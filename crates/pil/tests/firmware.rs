@@ -533,3 +533,41 @@ fn one_silent_channel_puts_every_channel_safe_at_once() {
         m => panic!("expected Ready 5/3, got {m:?}"),
     }
 }
+
+/// A storm of corrupted frames while two controllers run: the board's one safe state takes both, for bad
+/// frames (not the watchdog), latched.
+#[test]
+fn a_storm_of_corrupted_frames_puts_both_channels_safe() {
+    let Some(elf) = release_elf() else { return };
+    let (_board, mut link) = started_two(&elf);
+    for k in 0..20 {
+        for ch in 0..2 {
+            assert!(matches!(tick_on(&mut link, ch, k), Message::CtrlOutput(o) if o.status == 0));
+        }
+    }
+    let mut buf = [0u8; MAX_FRAME];
+    let mut storm = Vec::new();
+    for k in 20..40u32 {
+        let n = encode(k as u8, &sensors(k), &mut buf);
+        buf[10] ^= 0x10;
+        storm.extend_from_slice(&buf[..n]);
+    }
+    link.send_raw(&storm).unwrap();
+    let safes: Vec<_> = (0..2)
+        .map(|_| await_safe(&mut link).expect("safe state").0)
+        .collect();
+    eprintln!("{safes:?}");
+    assert!(
+        safes.iter().all(|s| s.reason == fault_code::CRC),
+        "{safes:?}"
+    );
+    assert!(safes.iter().all(|s| s.last_tick == 19), "{safes:?}");
+    for ch in 0..2 {
+        match tick_on(&mut link, ch, 40) {
+            Message::CtrlOutput(o) => {
+                assert_eq!(o.status, status::SAFE | status::LATCHED, "channel {ch}")
+            }
+            m => panic!("channel {ch}: expected a safe output, got {m:?}"),
+        }
+    }
+}
