@@ -5,24 +5,10 @@
 //! (`[[springs]]` on `object_slide`) damps it; these tests hold it to that: perturbed, the gripper holds
 //! the object where the symmetric run holds it and tracks as the symmetric run tracks.
 
+mod common;
+
+use common::{pneuflex, text};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn pneuflex(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pneuflex"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 fn repo(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)

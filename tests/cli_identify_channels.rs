@@ -6,27 +6,14 @@
 //! The quick form here (CI): 3 s of the scene's first run (impedance: the approach, contact and the 10 N
 //! squeeze). The full form, the whole 8 s of each run, is in docs/identification.md "Several actuators".
 
+mod common;
+
+use common::{pneuflex, text};
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
 const SHEET: &str = "pneumatics/gripper-finger.toml";
 const KEYS: [&str; 2] = ["valve.sonic_conductance_m3_per_s_pa", "mechanics.coulomb_n"];
-
-fn pneuflex(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pneuflex"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 fn json(p: &Path) -> serde_json::Value {
     let t = std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));

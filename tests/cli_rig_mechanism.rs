@@ -1,46 +1,11 @@
 //! `pneuflex rig run` on a scene with several actuators (the gripper): the scene's run through the one loop
 //! on an emulated board of two channels whose plant is the scene's own mechanism, in lockstep.
 
+mod common;
+
+use common::{col, pneuflex, read_trace, text};
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn pneuflex(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pneuflex"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-/// A trace as (header, rows).
-fn read_trace(p: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let t = std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-    let mut lines = t.lines();
-    let header: Vec<String> = lines
-        .next()
-        .unwrap()
-        .split(',')
-        .map(str::to_string)
-        .collect();
-    let rows = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
-}
-
-fn col(h: &[String], name: &str) -> usize {
-    h.iter()
-        .position(|c| c == name)
-        .unwrap_or_else(|| panic!("no column {name} in {h:?}"))
-}
 
 fn rig_run(out: &Path, rig: &str, extra: &[&str]) -> Output {
     let mut args = vec![

@@ -115,3 +115,44 @@ pub fn finish(mut child: Child, what: &str) -> Ran {
 pub fn run(args: &[&str], cwd: &Path) -> Ran {
     finish(spawn(args, cwd), &format!("pneuflex {}", args.join(" ")))
 }
+
+/// `pneuflex ARGS` in the repository, waited for (the tests of commands that end by themselves).
+pub fn pneuflex(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pneuflex"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("runs")
+}
+
+/// What a command printed, stdout then stderr.
+pub fn text(o: &std::process::Output) -> String {
+    format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// A trace file as its header and its rows of numbers.
+pub fn read_trace(p: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let t = std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    let mut lines = t.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (header, rows)
+}
+
+/// The index of column `name` in a trace's header.
+pub fn col(h: &[String], name: &str) -> usize {
+    h.iter()
+        .position(|c| c == name)
+        .unwrap_or_else(|| panic!("no column {name} in {h:?}"))
+}
