@@ -295,6 +295,39 @@ fn a_board_whose_channels_are_not_the_scenes_actuators_is_refused() {
     );
     assert!(!out.exists(), "nothing written");
 
+    // A muscle's one pressure is not a board channel's two: refused, naming the actuator.
+    let muscles = dir.path().join("muscles.toml");
+    std::fs::write(
+        &muscles,
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("rigs/gripper.toml"))
+            .unwrap()
+            .replace("name = \"left\"", "name = \"flexor\"")
+            .replace("name = \"right\"", "name = \"extensor\"")
+            .replace(
+                "\"../pneumatics/",
+                &format!("\"{}/pneumatics/", env!("CARGO_MANIFEST_DIR")),
+            ),
+    )
+    .unwrap();
+    let o = pneuflex(&[
+        "rig",
+        "run",
+        "--rig",
+        muscles.to_str().unwrap(),
+        "--scene",
+        "scenes/antagonist.toml",
+        "--lockstep-truth",
+        "pneumatics/festo-dmsp-10-muscle.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let all = text(&o);
+    assert!(
+        !o.status.success() && all.contains("(flexor) is a muscle"),
+        "{all}"
+    );
+    assert!(!out.exists(), "nothing written");
+
     // `compare` takes only a recording of the scene: a CSV from elsewhere is refused with what it needs.
     let log = dir.path().join("trace.csv");
     std::fs::write(&log, "t,left.f_e\n0,0\n").unwrap();

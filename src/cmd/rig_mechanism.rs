@@ -283,6 +283,17 @@ fn coupled_board<L: Link>(
     }
     hidden.check_sheets()?;
     let plant = SceneMechanism::new(&hidden, channels[0].cal.atmosphere_pa)?;
+    // A board channel samples two chamber pressures (docs/protocol.md §6); a muscle has one.
+    if let Some(i) =
+        (0..scene.actuators.len()).find(|&i| plant.plant.sense_actuator(i).p_a.is_nan())
+    {
+        bail!(
+            "{}: actuators[{i}] ({}) is a muscle: a board channel samples a cylinder's two chambers, a muscle's \
+             one pressure is not in the protocol's Samples yet",
+            scene.source.display(),
+            scene.actuators[i].name
+        );
+    }
     let e = rig.emulator.as_ref();
     let mut subs = Vec::with_capacity(channels.len());
     for (i, ch) in channels.iter().enumerate() {
