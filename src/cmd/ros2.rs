@@ -13,6 +13,8 @@ pub use node::{Bridge, Ros2Args, run};
 /// `--domain-id`, `--localhost`, `--command-timeout`: where a node joins and how long a command holds
 /// (`pneuflex ros2`, `rig run --ros2`).
 #[derive(Clone, Debug)]
+// Without the feature only `rig run --ros2`'s refusal holds it.
+#[cfg_attr(not(feature = "ros2"), allow(dead_code))]
 pub struct NodeOptions {
     /// `--domain-id` (None: `ROS_DOMAIN_ID`, else 0).
     pub domain_id: Option<u32>,

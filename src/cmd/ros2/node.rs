@@ -326,6 +326,8 @@ pub struct Publisher<'a> {
     valve_command: Vec<f64>,
     /// Rows not published, and the last reason.
     errors: (u64, Option<String>),
+    /// How long publishing a row took, s.
+    cost: TimingStats,
 }
 
 impl<'a> Publisher<'a> {
@@ -340,6 +342,7 @@ impl<'a> Publisher<'a> {
             force_reference: vec![0.0; joints],
             valve_command: vec![0.0; joints],
             errors: (0, None),
+            cost: TimingStats::default(),
         }
     }
 
@@ -387,6 +390,7 @@ impl<'a> Publisher<'a> {
         if let Some(v) = velocity {
             self.velocity.extend((0..self.columns.len()).map(v));
         }
+        let started = std::time::Instant::now();
         let published = self.node.publish(&TickValues {
             t_s: values[0],
             position: &self.position,
@@ -396,15 +400,21 @@ impl<'a> Publisher<'a> {
             force_reference: &self.force_reference,
             valve_command: &self.valve_command,
         });
+        self.cost.push(started.elapsed().as_secs_f64());
         if let Err(e) = published {
             self.errors.0 += 1;
             self.errors.1 = Some(e.to_string());
         }
     }
 
-    /// What did not go out, in words (empty: everything did).
+    /// What publishing cost and what did not go out, in words, each part after `; `.
     pub fn report(&self) -> String {
-        let mut s = String::new();
+        let c = self.cost.percentiles();
+        let mut s = format!(
+            "; publishing a tick took median {:.0} µs, p99 {:.0} µs",
+            1e6 * c.p50,
+            1e6 * c.p99
+        );
         let dropped = self.node.dropped();
         if dropped > 0 {
             s.push_str(&format!(
