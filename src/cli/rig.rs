@@ -191,7 +191,7 @@ impl Emulate {
             self.scene.as_deref(),
             self.port.as_deref(),
             self.duration,
-            &cmd::rig::Hidden {
+            &cmd::emulated::Hidden {
                 truth: self.truth,
                 seed: self.seed,
                 delay_s: self.delay,
@@ -218,7 +218,7 @@ impl Excite {
         cmd::excite::excite(
             &self.rig,
             self.port.as_deref(),
-            &cmd::excite::ExciteArgs {
+            &cmd::excitation::ExciteArgs {
                 signal: self.signal,
                 amplitude: self.amplitude,
                 duration_s: self.duration,

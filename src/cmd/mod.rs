@@ -81,6 +81,8 @@ pub fn interrupted(signal: usize, what: String) -> anyhow::Error {
 
 mod bag;
 pub mod compare;
+pub mod emulated;
+pub mod excitation;
 pub mod excite;
 pub mod identify;
 pub mod live;

@@ -578,7 +578,7 @@ pub fn emulate(
     scene_path: &Path,
     port: Option<&str>,
     duration_s: Option<f64>,
-    hidden: &super::rig::Hidden,
+    hidden: &super::emulated::Hidden,
 ) -> anyhow::Result<()> {
     let rig = RigFile::load(rig_file)?;
     let text = pneuflex_files::read_text(scene_path, pneuflex_files::InputKind::Scene)?;
@@ -624,7 +624,7 @@ pub fn emulate(
             EmulatorHandle::spawn(board, Some(path), log)
         }
     };
-    super::rig::serve(handle, &rig.name, port, duration_s)
+    super::emulated::serve(handle, &rig.name, port, duration_s)
 }
 
 /// [`record`] on the board: the emulated one in lockstep (`lockstep_seed`, `hidden` its truths), else the
@@ -684,7 +684,7 @@ pub fn excite(
     rig_file: &Path,
     port: Option<&str>,
     scene_path: &Path,
-    a: &super::excite::ExciteArgs,
+    a: &super::excitation::ExciteArgs,
     out: Option<&Path>,
 ) -> anyhow::Result<()> {
     pneuflex_rig::rtloop::check_duration(a.duration_s)
@@ -702,7 +702,7 @@ pub fn excite(
     let channels = channels_for(&rig, rig_file, &scene)?;
     let mut controllers: Vec<Box<dyn pneuflex_control::Controller + Send + Sync>> = Vec::new();
     for (i, ch) in channels.iter().enumerate() {
-        let e = super::excite::excitation(
+        let e = super::excitation::excitation(
             a,
             a.seed.wrapping_add(i as u64),
             ch.limits.position_m,
