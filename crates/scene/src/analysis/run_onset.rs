@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use super::loop_margins::{linearise_secant, settle};
 use super::outer_law::{HeldGains, OuterLaw, Outputs};
-use super::pwm_onset::{critical, monodromy, pwm_onset, stability_edge};
+use super::pwm_onset::{critical, held_ticks, monodromy, pwm_onset, stability_edge};
 use crate::SceneError;
 use crate::plants::Linearisable;
 use crate::schema::plant::linearisable_at;
@@ -126,7 +126,12 @@ fn describing_onset<P: Linearisable + ?Sized>(
                     kp_per_m: k,
                     ..run.inner
                 };
-                critical(&monodromy(&phi, &gamma, &pid, dt, &[(true, false)], o))
+                critical(&monodromy(
+                    &held_ticks(&phi, &gamma, &[(true, false)]),
+                    &pid,
+                    dt,
+                    o,
+                ))
             };
             let Some((k, angle)) = stability_edge(&at, run.inner.kp_per_m.max(1e-6)) else {
                 break;
