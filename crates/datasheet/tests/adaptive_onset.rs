@@ -224,52 +224,62 @@ fn envelope(scene: &Scene, kp: f64) -> Vec<f64> {
 }
 
 #[test]
-#[ignore = "part of the full form (see the module's comment): six runs of 10 s"]
+#[ignore = "part of the full form (see the module's comment): eleven runs of 10 s"]
 fn the_25_mm_rigs_adaptive_run_holds_a_large_cycle_where_its_settled_contact_is_stable() {
     // Below the predicted onset (the settled contact's), the run from its start sits in a large cycle (the
     // flange leaving the spring, > 30 mm peak to peak) and either keeps it past half-way or falls out of it
-    // into the settled ripple (< 12 mm), which then holds for at least the last second: its simulated onset
-    // is where the large cycle lasts past half-way, which no model of the settled contact predicts.
+    // into the settled ripple (< 15 mm with the reference's moves), which then holds for at least the last
+    // second: its simulated onset is where the large cycle lasts past half-way, which no model of the
+    // settled contact predicts.
     let tmp = tempfile::tempdir().unwrap();
     let (label, scene) = rig(tmp.path(), 25.0, 100.0, 6.0);
-    let (run, k) = (scene.run_index("adaptive").unwrap(), 2000.0);
-    let predicted = run_onset(&scene, run, k)
-        .unwrap()
-        .unwrap()
-        .kp_per_m
-        .expect("predicted");
-    let held = at_stiffness(&scene, run, k);
-    let (mut fell, mut held_on) = (Vec::new(), Vec::new());
-    for kp in [56.0, 57.0, 60.0, 65.0, 75.0, 85.0] {
-        let e = envelope(&held, kp);
-        let large = |v: &f64| *v > 30.0;
-        let last_large = e.iter().rposition(large);
-        eprintln!(
-            "{label}, adaptive at {k} N/m, kp {kp}: peak to peak per 0.25 s (mm) {:?}",
-            e.iter().map(|v| format!("{v:.1}")).collect::<Vec<_>>()
-        );
-        match last_large {
-            // The large cycle ends, and the ripple after it holds for at least the last second.
-            Some(i) if i + 5 < e.len() && e[i + 2..].iter().all(|v| *v < 12.0) => fell.push(kp),
-            Some(i) if i >= e.len() / 2 => held_on.push(kp),
-            _ => {}
+    let run = scene.run_index("adaptive").unwrap();
+    for (k, kps) in [
+        (1000.0, [56.0, 65.0, 73.0, 76.0, 85.0].as_slice()),
+        (2000.0, [56.0, 57.0, 60.0, 65.0, 75.0, 85.0].as_slice()),
+    ] {
+        let predicted = run_onset(&scene, run, k)
+            .unwrap()
+            .unwrap()
+            .kp_per_m
+            .expect("predicted");
+        let held = at_stiffness(&scene, run, k);
+        let (mut fell, mut held_on) = (Vec::new(), Vec::new());
+        for &kp in kps {
+            let e = envelope(&held, kp);
+            let last_large = e.iter().rposition(|v| *v > 30.0);
+            eprintln!(
+                "{label}, adaptive at {k} N/m, kp {kp}: peak to peak per 0.25 s (mm) {:?}",
+                e.iter().map(|v| format!("{v:.1}")).collect::<Vec<_>>()
+            );
+            match last_large {
+                // The large cycle ends, and the ripple after it holds for at least the last second.
+                Some(i) if i + 5 < e.len() && e[i + 2..].iter().all(|v| *v < 15.0) => {
+                    fell.push((kp, 0.25 * (i + 1) as f64))
+                }
+                Some(i) if i >= e.len() / 2 => held_on.push(kp),
+                _ => {}
+            }
         }
+        eprintln!(
+            "at {k} N/m: the run's kp {}, predicted onset {predicted:.1} /m; fell into the settled ripple at \
+             (kp, s) {fell:?}, large cycle past half-way at {held_on:?}",
+            scene.runs[run].inner.kp_per_m
+        );
+        // Both below the prediction: where the ripple holds after the large cycle the contact is stable at
+        // that kp, and where the cycle holds past half-way the run counts as oscillating.
+        assert!(
+            !fell.is_empty() && !held_on.is_empty(),
+            "{k} N/m: fell {fell:?}, held {held_on:?}"
+        );
+        assert!(
+            fell.iter()
+                .map(|f| &f.0)
+                .chain(&held_on)
+                .all(|f| *f < predicted),
+            "{k} N/m: {fell:?} {held_on:?} against {predicted}"
+        );
     }
-    eprintln!(
-        "the run's kp {}, predicted onset {predicted:.1} /m; fell into the settled ripple at {fell:?}, large cycle \
-         past half-way at {held_on:?}",
-        scene.runs[run].inner.kp_per_m
-    );
-    // Both below the prediction: where the ripple holds after the large cycle the contact is stable at that
-    // kp, and where the cycle holds past half-way the run counts as oscillating.
-    assert!(
-        !fell.is_empty() && !held_on.is_empty(),
-        "fell {fell:?}, held {held_on:?}"
-    );
-    assert!(
-        fell.iter().chain(&held_on).all(|f| *f < predicted),
-        "{fell:?} {held_on:?} against {predicted}"
-    );
 }
 
 #[test]
