@@ -18,8 +18,8 @@ pub use actuator::{
 pub use error::MultibodyError;
 pub use mechanism::{
     ActuatorConfig, CarriageRig, ContactConfig, ContactParams, ContactReading, MaterialConfig,
-    Measurements, Mechanism, MechanismConfig, Mount, MountState, RigConfig, RigidContactConfig,
-    SpringConfig,
+    Measurements, Mechanism, MechanismConfig, Mount, MountState, PadIntegration, RigConfig,
+    RigidContactConfig, SpringConfig,
 };
 pub use mesh::{ConvexHull, TriangleMesh};
 /// The Rapier crate this world is built on.

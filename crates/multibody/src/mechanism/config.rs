@@ -91,6 +91,8 @@ pub struct MechanismConfig {
     pub springs: Vec<SpringConfig>,
     /// Links held where the URDF puts them (a carriage, a fixture), with everything fixed to them.
     pub held_links: Vec<String>,
+    /// How the pads' forces enter a step.
+    pub pad_integration: super::PadIntegration,
 }
 
 impl MechanismConfig {
@@ -105,6 +107,7 @@ impl MechanismConfig {
             initial_positions: Vec::new(),
             springs: Vec::new(),
             held_links: Vec::new(),
+            pad_integration: super::PadIntegration::Explicit,
         }
     }
 }

@@ -1,6 +1,12 @@
 //! Compliant contacts: a Kelvin–Voigt pad between the colliders of two links, evaluated by the mechanism
 //! itself (Rapier's own rigid contact is off for every collider), so each pair has its own k and c and the
 //! contact-force sensor reads exactly the force applied.
+//!
+//! Two ways into the step ([`PadIntegration`]): explicit, the force at the step's start applied over it
+//! (stable only while ω h < 2 on the lightest body it touches), or implicit in the pad's own k and c: a
+//! pair in contact at the step's start is a joint whose force-based motor along the contact normal is the
+//! pad, which Rapier's solver takes implicitly, F⁺ = k δ + (c + k h) δ̇⁺ over each of its substeps h, so a
+//! stiff pad on a light body keeps the control step.
 
 use rapier3d_f64::parry::query;
 use rapier3d_f64::prelude::*;
@@ -14,6 +20,16 @@ pub struct ContactParams {
     pub damping_n_s_per_m: f64,
 }
 
+/// How a pad's force enters a physics step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PadIntegration {
+    /// The force at the step's start, applied over the step.
+    #[default]
+    Explicit,
+    /// Implicit in the pad's own stiffness and damping (Rapier's force-based joint motor).
+    Implicit,
+}
+
 /// A contact as built: the collider pairs it checks, and its pad.
 #[derive(Debug, Clone)]
 pub(super) struct BuiltContact {
@@ -22,6 +38,10 @@ pub(super) struct BuiltContact {
     /// Every collider of link a against every collider of link b.
     pub(super) pairs: Vec<(ColliderHandle, ColliderHandle)>,
     pub(super) params: ContactParams,
+    /// Implicit pads: one joint per collider pair, enabled for a step while its pair touches.
+    pub(super) joints: Vec<ImpulseJointHandle>,
+    /// Implicit pads: the deepest penetration at the last step's start, m.
+    pub(super) armed_depth_m: f64,
 }
 
 /// What a contact did over the last step.
@@ -64,6 +84,85 @@ impl BuiltContact {
             }
         }
         reading
+    }
+
+    /// Implicit pads: one joint per collider pair between the two bodies, built disabled.
+    pub(super) fn add_joints(&mut self, joints: &mut ImpulseJointSet) {
+        self.joints = (0..self.pairs.len())
+            .map(|_| {
+                let mut j = GenericJoint::default();
+                j.set_motor_model(JointAxis::LinX, MotorModel::ForceBased);
+                j.set_enabled(false);
+                joints.insert(self.body_a, self.body_b, j, false)
+            })
+            .collect();
+    }
+
+    /// Implicit pads, before the step: each touching pair's joint is placed at its contact point with its
+    /// x axis along the normal (a to b) and its motor set to push b by k (δ₀ − s) − c ṡ, s the anchors'
+    /// separation along the normal since the step's start; a pair apart, or pulling already (k δ + c δ̇ ≤
+    /// 0), is switched off. A pad pushes, never pulls: it is armed only while it pushes at the step's start.
+    pub(super) fn arm(
+        &mut self,
+        bodies: &RigidBodySet,
+        colliders: &ColliderSet,
+        joints: &mut ImpulseJointSet,
+    ) {
+        let mut deepest = 0.0_f64;
+        for (i, &(ha, hb)) in self.pairs.iter().enumerate() {
+            let mut reading = ContactReading::default();
+            let push = self.push(bodies, colliders, ha, hb, &mut reading);
+            let Some(joint) = joints.get_mut(self.joints[i], false) else {
+                continue;
+            };
+            let data = &mut joint.data;
+            match push {
+                Some(push) if push.force_n > 0.0 => {
+                    deepest = deepest.max(reading.penetration_m);
+                    let at = Pose::from_parts(
+                        push.point,
+                        Rotation::from_rotation_arc(Vector::X, push.normal),
+                    );
+                    data.set_local_frame1(bodies[self.body_a].position().inverse() * at);
+                    data.set_local_frame2(bodies[self.body_b].position().inverse() * at);
+                    let p = self.params;
+                    data.set_motor(
+                        JointAxis::LinX,
+                        reading.penetration_m,
+                        0.0,
+                        p.stiffness_n_per_m,
+                        p.damping_n_s_per_m,
+                    );
+                    data.set_enabled(true);
+                }
+                _ => {
+                    if data.is_enabled() {
+                        data.set_enabled(false);
+                        if let Some(m) = data.motors.get_mut(0) {
+                            m.impulse = 0.0;
+                        }
+                    }
+                }
+            }
+        }
+        self.armed_depth_m = deepest;
+    }
+
+    /// Implicit pads, after the step of `h` s (Rapier's substep): the force each armed pair's motor
+    /// applied over the last substep, ≥ 0 (a pull is read as 0).
+    pub(super) fn read_implicit(&self, joints: &ImpulseJointSet, substep_s: f64) -> ContactReading {
+        let mut force = 0.0;
+        for &h in &self.joints {
+            let Some(j) = joints.get(h) else { continue };
+            if j.data.is_enabled() {
+                // The motor's impulse on b along the normal is −λ (Rapier's sign).
+                force += (-j.data.motors[0].impulse / substep_s).max(0.0);
+            }
+        }
+        ContactReading {
+            force_n: force,
+            penetration_m: self.armed_depth_m,
+        }
     }
 
     fn push(

@@ -298,6 +298,7 @@ impl CarriageRig {
             gravity_m_s2: [0.0, 0.0, -config.gravity_m_s2],
             dt_s: config.dt_s,
             solver_iterations: config.solver_iterations,
+            pad_integration: super::PadIntegration::Explicit,
             initial_positions: vec![(config.flange_joint.clone(), lower + config.initial_x_m)],
             springs: config
                 .materials

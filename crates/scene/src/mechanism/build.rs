@@ -286,6 +286,10 @@ fn mechanism_config(
         gravity_m_s2: scene.gravity_m_s2,
         dt_s: scene.dt_s / f64::from(scene.physics_steps_per_tick),
         solver_iterations: scene.solver_iterations,
+        pad_integration: match scene.pads {
+            super::schema::PadSpec::Explicit => pneuflex_multibody::PadIntegration::Explicit,
+            super::schema::PadSpec::Implicit => pneuflex_multibody::PadIntegration::Implicit,
+        },
         initial_positions: scene
             .actuators
             .iter()

@@ -9,6 +9,17 @@ use serde::Deserialize;
 use crate::error::SceneError;
 use crate::schema::{ForcePiece, RunSpec};
 
+/// How the pads' forces enter a physics step (`pads = "explicit" | "implicit"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PadSpec {
+    /// Their force at the step's start, over the step.
+    #[default]
+    Explicit,
+    /// Implicit in their own stiffness and damping.
+    Implicit,
+}
+
 /// A scene of any URDF with several pneumatic actuators.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -33,6 +44,11 @@ pub struct MechanismScene {
     /// Chamber and valve substeps per physics step.
     #[serde(default = "default_substeps")]
     pub chamber_substeps: u32,
+    /// How the pads enter a physics step: `explicit` (their force at the step's start; a stiff pad on a
+    /// light body needs a short step, ω h < 2) or `implicit` (in their own stiffness and damping, stable at
+    /// any step).
+    #[serde(default)]
+    pub pads: PadSpec,
     /// Gravity in the URDF's root frame, m/s².
     #[serde(default = "default_gravity")]
     pub gravity_m_s2: [f64; 3],
