@@ -165,6 +165,17 @@ pub fn round2(v: f64) -> f64 {
     format!("{v:.1e}").parse().unwrap_or(v)
 }
 
+/// `v` > 0 to two significant digits, rounded down: a gain written under a limit stays under it (17.65 -> 17,
+/// not 18, which is 5.8 dB under a 6 dB target).
+pub fn floor2(v: f64) -> f64 {
+    if v <= 0.0 || !v.is_finite() {
+        return v;
+    }
+    let unit = 10f64.powi(v.log10().floor() as i32 - 1);
+    // The 1e-9 keeps a value already on two digits (18 / 1 = 17.999999999) where it is.
+    round2(((v / unit) * (1.0 + 1e-9)).floor() * unit)
+}
+
 /// A rod's diameter against the bore's, the least and most `new rig` takes.
 pub const ROD_OF_BORE: (f64, f64) = (0.1, 0.7);
 /// The stroke in bores, the least and most `new rig` designs for.

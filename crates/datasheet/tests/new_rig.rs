@@ -44,6 +44,24 @@ fn check_scene(dir: &std::path::Path) {
             step.rms_force_error_n
         );
     }
+    // Every run's kp at least 6 dB under that run's predicted limit-cycle onset at every stiffness (`new
+    // rig` lowers kp to it, rounded down).
+    for (i, r) in scene.runs.iter().enumerate() {
+        for k in pneuflex_scene::analysis::loop_margins::stiffnesses(&scene) {
+            let onset =
+                pneuflex_scene::analysis::run_onset::run_onset(&scene, i, k).expect("analyses");
+            if let Some(kp) = onset.and_then(|o| o.kp_per_m) {
+                let margin_db = 20.0 * (kp / r.inner.kp_per_m).log10();
+                assert!(
+                    margin_db >= 6.0 - 1e-9,
+                    "{} {} at {k} N/m: kp {} is {margin_db:.2} dB under the onset {kp}",
+                    dir.display(),
+                    r.name,
+                    r.inner.kp_per_m
+                );
+            }
+        }
+    }
     // The rig file is one `rig emulate` reads.
     pneuflex_rig::rigfile::RigFile::load(&dir.join("rig.toml")).expect("the rig file loads");
 }
