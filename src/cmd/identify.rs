@@ -188,7 +188,9 @@ fn print_result(id: &Identified, sheet: &Path, dest: &Path) -> anyhow::Result<()
                     c.fit_over_floor_sq,
                     c.validation_over_floor_sq,
                     c.adequate,
-                    if c.significant {
+                    if c.screened {
+                        "  (screened only)"
+                    } else if c.significant {
                         ""
                     } else {
                         "  (effect not significant)"

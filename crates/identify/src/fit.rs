@@ -456,6 +456,51 @@ pub fn fit_stoppable(
     })
 }
 
+/// A screening fit (`crate::select`): Levenberg-Marquardt from the free parameters' starts on `data` with
+/// the residuals weighted by `sigma` (a previous fit's, so no reweighting pass), no coarse pass, no
+/// intervals, and at most `patience` x (parameters + 1) residual evaluations; LM also stops once a step
+/// changes the cost or the scaled parameters by less than `tolerance` relative (the fit's own passes use
+/// the crate's 30 machine epsilons). The values reached and the residual evaluations made (each LM
+/// iteration adds the Jacobian's parameters + 1 replays).
+#[allow(clippy::too_many_arguments)]
+pub fn screen(
+    base: &OneDofModel,
+    free: &[Free],
+    data: &[Prepared],
+    opts: &ReplayOptions,
+    sigma: [f64; 3],
+    patience: usize,
+    tolerance: f64,
+    stop: Option<&AtomicUsize>,
+) -> Result<(Vec<f64>, usize), IdentifyError> {
+    let mut pb = Problem::new(*base, Offsets::default(), free.to_vec(), data, *opts, sigma);
+    pb.stop = stop;
+    let start: Vec<f64> = free.iter().map(|f| f.start).collect();
+    if pb.residuals_at(&start).iter().any(|v| *v >= 1e12) {
+        return Err(IdentifyError::Fit(
+            "the replay with the start values does not stay finite: check the sheet and the logs"
+                .into(),
+        ));
+    }
+    let (pb, report) = LevenbergMarquardt::new()
+        .with_patience(patience)
+        .with_ftol(tolerance)
+        .with_xtol(tolerance)
+        .minimize(pb);
+    if pb.stopped() {
+        return Err(IdentifyError::Interrupted {
+            signal: stop.map_or(0, |s| s.load(Ordering::Relaxed)),
+            reached: free
+                .iter()
+                .zip(pb.values())
+                .map(|(f, v)| (f.key.name().to_string(), v))
+                .collect(),
+            pass: "the screening fit".into(),
+        });
+    }
+    Ok((pb.values(), report.number_of_evaluations))
+}
+
 /// The coarse pass (`FitOptions::coarse_segment_s`): LM over the logs cut into segments of `seg` s, from the
 /// start values; the optimum it reaches (in LM's variables, z) and LM's report.
 fn coarse_pass(

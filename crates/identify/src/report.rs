@@ -363,6 +363,8 @@ fn structure_table(s: &mut String, sel: &Selection) {
     for c in &sel.candidates {
         let mark = if c.structure == sel.chosen {
             " **(chosen)**"
+        } else if c.screened {
+            " (screened only)"
         } else if !c.significant {
             " (effect not significant)"
         } else {
@@ -530,6 +532,11 @@ pub struct Candidate {
     /// heat, the seal term, spool travel); always for another friction law, which has no absent value. An
     /// effect whose size the logs cannot tell from none is not chosen, whatever its BIC.
     pub significant: bool,
+    /// Whether only the screening fit was made (`identify --select`'s first stage: a short
+    /// Levenberg-Marquardt from the sheet as given's fit, no intervals): the figures are the screen's, its
+    /// BIC above the chosen structure's by more than the full fit could change it, and `adequate` and
+    /// `significant` are not judged (false).
+    pub screened: bool,
     /// The fit's wall time, s.
     pub fit_seconds: f64,
 }

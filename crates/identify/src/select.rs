@@ -243,7 +243,10 @@ fn structure_sheet(
         message: e.to_string(),
     })?;
     let mut values: Vec<(Key, f64)> = warm.to_vec();
+    // A key `warm` holds (a screening fit's value) starts there, not at the edit's start.
+    let warmed_key = |k: &Key| warm.iter().any(|(w, _)| w == k);
     values.extend(s.edits.iter().filter_map(|e| match e {
+        Edit::Value(k, _) if warmed_key(k) => None,
         // `scale` shrinks the effect's start (not F_s, which must stay above F_c; for the exponent, its
         // departure from the sheet's).
         Edit::Value(Key::Static, start) => Some((Key::Static, start(&warmed))),
@@ -277,9 +280,40 @@ fn structure_sheet(
     crate::sheet::write_sheets_with(&sheet, &values, &words, dir, &header).map(Ok)
 }
 
+/// A screening fit's figures (see [`select`]).
+struct Screened {
+    /// Every free key's value reached (the user's and the structure's).
+    values: Vec<(Key, f64)>,
+    /// Mean (residual / floor)^2 on the fit rows and on the held-out rows, over all of them.
+    fit: f64,
+    validation: f64,
+    bic: f64,
+    seconds: f64,
+}
+
+/// LM's residual evaluations of a screening fit: at most this many times (free keys + 1) (each LM
+/// iteration adds a Jacobian of keys + 1 replays).
+const SCREEN_PATIENCE: usize = 1;
+/// A screening fit also stops once a step changes the cost or the scaled keys by less than this, relative.
+const SCREEN_TOLERANCE: f64 = 1e-5;
+/// A structure is fitted in full while its screening BIC is below the best accepted full fit's plus n ln of
+/// this (2 % on the mean (residual / floor)^2): the full fit reweights the channels by its own residuals,
+/// which moved the screened figures by 0.2-0.4 % on the measured logs (docs/identification.md), either way.
+const SCREEN_MARGIN: f64 = 1.02;
+
 /// Fits every structure of `structures` to the logs of `req` (their sheets written into `work`, one folder
 /// each) and returns the chosen one's fit, its report carrying the selection. `stop` as for
 /// [`identify_stoppable`]: a signal stops at the fit in progress.
+///
+/// In two stages (issue 44: a full fit of all eight took 13 min of CPU on two 12 s logs). The sheet as
+/// given is fitted in full (its values are every other structure's start, its floors the unit of the
+/// BIC). Every other structure is screened: a short Levenberg-Marquardt from those values with the effect
+/// at its start ([`crate::fit::screen`]: the sheet as given's weights, no coarse pass, no intervals), its
+/// BIC computed on all fit rows. Then, lowest screening BIC first, structures are fitted in full (from
+/// their screened values, no coarse pass: the same fit, started near its end) while a screened BIC is below
+/// the lowest BIC of a fully fitted structure that the rules accept, plus a margin ([`SCREEN_MARGIN`]): the
+/// full fit goes on from the screened values, so a structure screened above that cannot be chosen. The
+/// structures not fitted in full carry their screening figures (`screened`).
 pub fn select(
     req: &Request,
     structures: &[Structure],
@@ -288,13 +322,15 @@ pub fn select(
     progress: &dyn Fn(&str),
 ) -> Result<Identified, IdentifyError> {
     let sheet_model = ActuatorSheet::load(&req.actuator)?.model();
+    let n0 = sheet_model.actuator.gas.polytropic_exponent;
     let mut candidates = Vec::new();
     let mut fits: Vec<Option<Identified>> = Vec::new();
+    let mut screens: Vec<Option<Screened>> = Vec::new();
     // Each effect starts where the sheet as given ended: a nested model starts at least as well as the
     // simpler one (from the sheet's own values a leak's fit once ended worse than no leak at all).
     let mut warm: Vec<(Key, f64)> = Vec::new();
+    let mut base: Option<Identified> = None;
     for s in structures {
-        progress(s.name);
         let mut keys: Vec<String> = req.free.clone();
         keys.extend(s.keys.iter().map(|k| k.name().to_string()));
         let mut c = Candidate {
@@ -307,73 +343,145 @@ pub fn select(
             validation_over_floor_sq: f64::NAN,
             adequate: false,
             significant: s.edits.is_empty(),
+            screened: false,
             fit_seconds: 0.0,
         };
-        let actuator = if s.edits.is_empty() {
-            Ok(req.actuator.clone())
-        } else {
-            structure_sheet(req, s, &warm, 1.0, &work.join(s.name))?
+        if s.edits.is_empty() {
+            progress(s.name);
+            let id = identify_stoppable(req, stop)?;
+            warm = id
+                .keys
+                .iter()
+                .zip(&id.report.fit.estimates)
+                .filter(|(k, _)| k.file().is_some())
+                .map(|(k, e)| (*k, e.value))
+                .collect();
+            score(&mut c, s, &id, n0);
+            candidates.push(c);
+            fits.push(None);
+            screens.push(None);
+            base = Some(id);
+            continue;
+        }
+        let Some(b) = &base else {
+            return Err(IdentifyError::Fit(
+                "the selection needs the sheet as given (`as_given`) first".into(),
+            ));
         };
-        let actuator = match actuator {
-            Ok(a) => a,
-            Err(why) => {
-                c.skipped = Some(why);
-                candidates.push(c);
-                fits.push(None);
-                continue;
-            }
-        };
-        let bounds = structure_bounds(req, s, &warm, &sheet_model);
-        let r = Request {
-            actuator,
-            free: keys.clone(),
-            bounds: bounds.clone(),
-            ..req.clone()
-        };
-        let mut fitted = identify_stoppable(&r, stop);
+        progress(&format!("{} (screen)", s.name));
+        let mut screened = screen_structure(req, s, &warm, 1.0, work, b, &sheet_model, stop);
         // One start can end in a local minimum worse than the sheet as given, which the structure contains
-        // (its effect at zero): then once more from a tenth of the effect's start, and the better fit is kept.
-        let base_fit = candidates
-            .first()
-            .filter(|b: &&Candidate| b.structure == "as_given")
-            .map(|b| b.fit_over_floor_sq);
-        if let (Ok(id), Some(base)) = (&fitted, base_fit)
-            && normalised(id).0 > base
-            && let Some(better) = from_a_tenth(req, s, &warm, work, &r, normalised(id).0, stop)?
+        // (its effect at zero): then once more from a tenth of the effect's start, and the better kept.
+        // (Not for stick-slip: F_s is not scaled, the second start would be the first.)
+        let base_fit = candidates[0].fit_over_floor_sq;
+        let scaled = (s.edits.iter()).any(|e| matches!(e, Edit::Value(k, _) if *k != Key::Static));
+        if scaled
+            && screened
+                .as_ref()
+                .is_ok_and(|r| r.as_ref().is_ok_and(|sc| sc.fit > base_fit))
         {
-            fitted = Ok(better);
-        }
-        if let Ok(id) = &fitted
-            && !s.edits.is_empty()
-            && let Some(e) = invalid_fitted_sheet(work, s, id)?
-        {
-            fitted = Err(IdentifyError::Fit(format!(
-                "its fitted values do not make a valid sheet: {e}"
-            )));
-        }
-        match fitted {
-            Ok(id) => {
-                if s.edits.is_empty() {
-                    warm = id
-                        .keys
-                        .iter()
-                        .zip(&id.report.fit.estimates)
-                        .filter(|(k, _)| k.file().is_some())
-                        .map(|(k, e)| (*k, e.value))
-                        .collect();
+            match screen_structure(req, s, &warm, 0.1, work, b, &sheet_model, stop) {
+                Ok(Ok(again))
+                    if screened
+                        .as_ref()
+                        .is_ok_and(|r| r.as_ref().is_ok_and(|sc| again.fit < sc.fit)) =>
+                {
+                    screened = Ok(Ok(again));
                 }
-                score(&mut c, s, &id, sheet_model.actuator.gas.polytropic_exponent);
-                candidates.push(c);
-                fits.push(Some(id));
+                Err(e @ IdentifyError::Interrupted { .. }) => return Err(e),
+                _ => {}
+            }
+        }
+        match screened {
+            Ok(Ok(sc)) => {
+                c.bic = sc.bic;
+                c.fit_over_floor_sq = sc.fit;
+                c.validation_over_floor_sq = sc.validation;
+                c.fit_seconds = sc.seconds;
+                c.screened = true;
+                screens.push(Some(sc));
+            }
+            Ok(Err(why)) => {
+                c.skipped = Some(why);
+                screens.push(None);
             }
             Err(e @ IdentifyError::Interrupted { .. }) => return Err(e),
-            Err(e) if s.edits.is_empty() => return Err(e),
             Err(e) => {
                 c.skipped = Some(format!("the fit failed: {e}"));
-                candidates.push(c);
-                fits.push(None);
+                screens.push(None);
             }
         }
+        candidates.push(c);
+        fits.push(None);
+    }
+    let Some(b) = base else {
+        return Err(IdentifyError::Fit(
+            "the selection needs the sheet as given (`as_given`) first".into(),
+        ));
+    };
+    let base_index = candidates
+        .iter()
+        .position(|c| c.structure == "as_given")
+        .expect("the sheet as given was fitted");
+    fits[base_index] = Some(b);
+    // The full fits, lowest screening BIC first, while one can still beat the best accepted.
+    let mut order: Vec<usize> = (0..candidates.len())
+        .filter(|&i| screens[i].is_some())
+        .collect();
+    order.sort_by(|&a, &b| candidates[a].bic.total_cmp(&candidates[b].bic));
+    let n = fits[base_index].as_ref().map_or(0.0, |b| {
+        let mc = &b.report.model_check;
+        (mc.rows * mc.channels.len()) as f64
+    });
+    for i in order {
+        let best = accepted(&candidates).map_or(f64::INFINITY, |j| candidates[j].bic);
+        if candidates[i].bic >= best + n * SCREEN_MARGIN.ln() {
+            break;
+        }
+        let s = structures
+            .iter()
+            .find(|s| s.name == candidates[i].structure)
+            .expect("a candidate is a structure");
+        progress(s.name);
+        let sc = screens[i].take().expect("screened");
+        let mut c = candidates[i].clone();
+        c.screened = false;
+        let fitted = match structure_sheet(req, s, &sc.values, 1.0, &work.join(s.name))? {
+            Ok(actuator) => {
+                let r = Request {
+                    actuator,
+                    free: c.keys.clone(),
+                    bounds: structure_bounds(req, s, &warm, &sheet_model),
+                    options: crate::fit::FitOptions {
+                        coarse_segment_s: None,
+                        ..req.options
+                    },
+                    ..req.clone()
+                };
+                identify_stoppable(&r, stop)
+            }
+            Err(why) => Err(IdentifyError::Fit(why)),
+        };
+        let fitted = match fitted {
+            Ok(id) => match invalid_fitted_sheet(work, s, &id)? {
+                Some(e) => Err(IdentifyError::Fit(format!(
+                    "its fitted values do not make a valid sheet: {e}"
+                ))),
+                None => Ok(id),
+            },
+            e => e,
+        };
+        match fitted {
+            Ok(id) => {
+                score(&mut c, s, &id, n0);
+                fits[i] = Some(id);
+            }
+            Err(e @ IdentifyError::Interrupted { .. }) => return Err(e),
+            Err(e) => {
+                c.skipped = Some(format!("the fit failed: {e}"));
+            }
+        }
+        candidates[i] = c;
     }
     let (chosen, verdict) = choose(&candidates)?;
     let c = &candidates[chosen];
@@ -386,6 +494,83 @@ pub fn select(
     let mut id = fits[chosen].take().expect("a chosen structure was fitted");
     id.report.structure_selection = Some(selection);
     Ok(id)
+}
+
+/// The screening fit of structure `s` (its sheet from `warm` with the effect at `scale` of its start,
+/// written into `work`): Ok(Err(reason)) when the structure is not fitted (the sheet has the effect
+/// already, ...); its figures in the units of the sheet as given's fit `base` (its weights, rows and
+/// floors).
+#[allow(clippy::too_many_arguments)]
+fn screen_structure(
+    req: &Request,
+    s: &Structure,
+    warm: &[(Key, f64)],
+    scale: f64,
+    work: &Path,
+    base: &Identified,
+    sheet_model: &pneuflex_pneumatics::OneDofModel,
+    stop: Option<&std::sync::atomic::AtomicUsize>,
+) -> Result<Result<Screened, String>, IdentifyError> {
+    let t0 = std::time::Instant::now();
+    let dir = if scale == 1.0 {
+        work.join(s.name)
+    } else {
+        work.join(format!("{}-small", s.name))
+    };
+    let actuator = match structure_sheet(req, s, warm, scale, &dir)? {
+        Ok(a) => a,
+        Err(why) => return Ok(Err(why)),
+    };
+    let model = ActuatorSheet::load(&actuator)?.model();
+    let mut free = req.free.clone();
+    free.extend(s.keys.iter().map(|k| k.name().to_string()));
+    let keys = crate::request::parse_free(&free, &model)?;
+    let bounds = structure_bounds(req, s, warm, sheet_model);
+    let free = crate::request::parse_bounds(&keys, &bounds, &model)?;
+    let (values, _) = crate::fit::screen(
+        &model,
+        &free,
+        &base.data,
+        &base.options.replay,
+        base.report.fit.sigma,
+        SCREEN_PATIENCE,
+        SCREEN_TOLERANCE,
+        stop,
+    )?;
+    // The figures on every fit row and held-out row, in the sheet as given's floors.
+    let pb = crate::fit::Problem::new(
+        model,
+        Default::default(),
+        free.clone(),
+        &base.data,
+        base.options.replay,
+        base.report.fit.sigma,
+    );
+    let mc = &base.report.model_check;
+    let over = |rms: [f64; 3]| {
+        mc.channels
+            .iter()
+            .zip(rms)
+            .map(|(c, r)| (r / c.floor).powi(2))
+            .sum::<f64>()
+            / mc.channels.len().max(1) as f64
+    };
+    let fit = over(pb.rms_at(&values, false));
+    let validation = over(pb.rms_at(&values, true));
+    let n = (mc.rows * mc.channels.len()) as f64;
+    let bic = n * fit.ln() + keys.len() as f64 * n.ln();
+    if !bic.is_finite() {
+        return Err(IdentifyError::Fit(
+            "its screening fit does not stay finite".into(),
+        ));
+    }
+    Ok(Ok(Screened {
+        values: keys.iter().copied().zip(values).collect(),
+        fit,
+        validation,
+        bic,
+        seconds: t0.elapsed().as_secs_f64(),
+    }))
 }
 
 /// The bounds of structure `s`'s fit: the request's, and F_s's for a friction structure; `warm`: the values
@@ -421,35 +606,6 @@ fn score(c: &mut Candidate, s: &Structure, id: &Identified, n0: f64) {
     c.fit_seconds = id.report.fit_seconds;
 }
 
-/// The fit of structure `s` once more from a tenth of its effect's start (`r`: the request of its first
-/// fit, which reached `current`, fit RMS over floor squared); the new fit if it is better.
-fn from_a_tenth(
-    req: &Request,
-    s: &Structure,
-    warm: &[(Key, f64)],
-    work: &Path,
-    r: &Request,
-    current: f64,
-    stop: Option<&std::sync::atomic::AtomicUsize>,
-) -> Result<Option<Identified>, IdentifyError> {
-    let Ok(small) = structure_sheet(req, s, warm, 0.1, &work.join(format!("{}-small", s.name)))?
-    else {
-        return Ok(None);
-    };
-    let again = identify_stoppable(
-        &Request {
-            actuator: small,
-            ..r.clone()
-        },
-        stop,
-    );
-    match again {
-        Ok(b) if normalised(&b).0 < current => Ok(Some(b)),
-        Err(e @ IdentifyError::Interrupted { .. }) => Err(e),
-        _ => Ok(None),
-    }
-}
-
 /// Why the fitted values of structure `s` do not make a sheet the tool can load again (the output's fitted
 /// sheet), written into a scratch folder of `work` and removed; None when they do.
 fn invalid_fitted_sheet(
@@ -470,22 +626,29 @@ fn invalid_fitted_sheet(
     Ok(written.err().map(|e| e.to_string()))
 }
 
-/// The chosen structure: among those fitted, significant, with a finite BIC and held-out residuals within
-/// `HELD_OUT_SLACK` of the sheet as given's, the lowest BIC; with the verdict in words.
-fn choose(candidates: &[Candidate]) -> Result<(usize, String), IdentifyError> {
+/// Among the structures fitted in full, significant, with a finite BIC and held-out residuals within
+/// `HELD_OUT_SLACK` of the sheet as given's, the one of lowest BIC.
+fn accepted(candidates: &[Candidate]) -> Option<usize> {
     let base_val = candidates
         .iter()
         .find(|c| c.structure == "as_given" && c.skipped.is_none())
         .map_or(f64::INFINITY, |c| c.validation_over_floor_sq);
-    let chosen = (0..candidates.len())
+    (0..candidates.len())
         .filter(|&i| {
             let c = &candidates[i];
             c.skipped.is_none()
+                && !c.screened
                 && c.significant
                 && c.bic.is_finite()
                 && c.validation_over_floor_sq <= HELD_OUT_SLACK * base_val
         })
         .min_by(|&a, &b| candidates[a].bic.total_cmp(&candidates[b].bic))
+}
+
+/// The chosen structure: among those fitted, significant, with a finite BIC and held-out residuals within
+/// `HELD_OUT_SLACK` of the sheet as given's, the lowest BIC; with the verdict in words.
+fn choose(candidates: &[Candidate]) -> Result<(usize, String), IdentifyError> {
+    let chosen = accepted(candidates)
         .ok_or_else(|| IdentifyError::Fit("no structure could be fitted to the logs".into()))?;
     let c = &candidates[chosen];
     let verdict = if c.adequate {

@@ -352,14 +352,34 @@ fn select_on(log: std::path::PathBuf, work: &std::path::Path, structures: &[&str
     let sel = id.report.structure_selection.as_ref().unwrap();
     for c in &sel.candidates {
         eprintln!(
-            "  {}: bic {:.1} fit {:.3} held-out {:.3} adequate {} ({:.1} s) {:?}",
+            "  {}: bic {:.1} fit {:.3} held-out {:.3} adequate {}{} ({:.1} s) {:?}",
             c.structure,
             c.bic,
             c.fit_over_floor_sq,
             c.validation_over_floor_sq,
             c.adequate,
+            if c.screened { " screened only" } else { "" },
             c.fit_seconds,
             c.skipped
+        );
+    }
+    // A structure left at its screening fit could not have been chosen: its screening BIC is above the
+    // chosen structure's by more than the margin (n ln 1.02, 2 % on the mean (residual / floor)^2) by which
+    // the full fit's reweighting moves the figures.
+    let chosen = sel
+        .candidates
+        .iter()
+        .find(|c| c.structure == sel.chosen)
+        .unwrap();
+    assert!(!chosen.screened, "{}", sel.chosen);
+    let n = (3 * id.report.model_check.rows) as f64;
+    for c in sel.candidates.iter().filter(|c| c.screened) {
+        assert!(
+            c.bic >= chosen.bic + n * 1.02f64.ln(),
+            "{}: {} against {}",
+            c.structure,
+            c.bic,
+            chosen.bic
         );
     }
     id
