@@ -2,12 +2,18 @@
 //! kinematic, one contact; the other faces are out of the simulation while the carriage rests), and
 //! of Rapier's floor: the scene of the issue's MuJoCo anchor (2 bodies on slide joints, one contact) built
 //! directly in Rapier, with nothing of this crate in the loop.
+//! The bare gripper (`gripper_bare_*`): urdf/gripper.urdf's three slides as the engine builds them, no pads,
+//! constant cylinder forces, nothing else: the engine's floor on the scene issue 42 times against MuJoCo's
+//! bare `mj_step` (`crossval.bench_mechanism`).
 //! `cargo bench -p pneuflex-multibody --bench step -- --warm-up-time 1 --measurement-time 4`
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use pneuflex_multibody::{AxialActuator, CarriageRig, RigConfig, SpringActuator};
+use pneuflex_multibody::{
+    ActuatorConfig, AxialActuator, CarriageRig, Mechanism, MechanismConfig, Mount, RigConfig,
+    SpringActuator,
+};
 use rapier3d_f64::prelude::*;
 
 fn rig(dt: f64, iterations: usize) -> CarriageRig {
@@ -110,5 +116,29 @@ fn bench_anchor(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_step, bench_anchor);
+fn bench_gripper_bare(c: &mut Criterion) {
+    let urdf = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../urdf/gripper.urdf");
+    let finger = |name: &str, joint: &str| ActuatorConfig {
+        name: name.into(),
+        mount: Mount::Joint {
+            joint: joint.into(),
+        },
+    };
+    for it in [1, 2] {
+        let mut config = MechanismConfig::new(
+            vec![finger("left", "left_slide"), finger("right", "right_slide")],
+            Vec::new(),
+        );
+        config.solver_iterations = it;
+        let mut m = Mechanism::from_urdf(&urdf, &config).expect("the gripper builds");
+        for _ in 0..1000 {
+            m.step_with_forces(&[1.0, 1.0]);
+        }
+        c.bench_function(&format!("gripper_bare_dt1ms_it{it}"), |b| {
+            b.iter(|| m.step_with_forces(black_box(&[1.0, 1.0])))
+        });
+    }
+}
+
+criterion_group!(benches, bench_step, bench_anchor, bench_gripper_bare);
 criterion_main!(benches);
