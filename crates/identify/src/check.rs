@@ -962,18 +962,7 @@ fn amounts(
     }
     let mut cols: Vec<&[f64]> = jac.iter().map(Vec::as_slice).collect();
     cols.push(e);
-    // Each column over its norm: the keys' sensitivities and the pattern differ by orders of magnitude.
-    let norms: Vec<f64> = cols
-        .iter()
-        .map(|c| {
-            c.iter()
-                .map(|v| v * v)
-                .sum::<f64>()
-                .sqrt()
-                .max(f64::MIN_POSITIVE)
-        })
-        .collect();
-    let x = DMatrix::from_fn(n, p + 1, |i, j| cols[j][i] / norms[j]);
+    let (x, norms) = unit_columns(&cols, n);
     let y = DVector::from_iterator(n, base.iter().map(|v| -v));
     let xtx = x.transpose() * &x;
     let gi = pinv_of(&xtx);
@@ -1125,24 +1114,14 @@ fn signatures(
 /// keys' sensitivities `jac`: the square root of the share of the residuals' sum of squares, less what the
 /// keys explain, that the patterns explain too (0 without patterns).
 fn explained(jac: &[Vec<f64>], pats: &[&[f64]], base: &[f64]) -> f64 {
-    use nalgebra::{DMatrix, DVector};
+    use nalgebra::DVector;
     if pats.is_empty() || base.iter().any(|v| !v.is_finite()) {
         return 0.0;
     }
     let n = base.len();
     let y = DVector::from_column_slice(base);
     let ssr = |cols: &[&[f64]]| -> f64 {
-        let norms: Vec<f64> = cols
-            .iter()
-            .map(|c| {
-                c.iter()
-                    .map(|v| v * v)
-                    .sum::<f64>()
-                    .sqrt()
-                    .max(f64::MIN_POSITIVE)
-            })
-            .collect();
-        let x = DMatrix::from_fn(n, cols.len(), |i, j| cols[j][i] / norms[j]);
+        let (x, _) = unit_columns(cols, n);
         let coef = pinv_of(&(x.transpose() * &x)) * (x.transpose() * &y);
         (&y - &x * coef).norm_squared()
     };
@@ -1317,6 +1296,23 @@ fn evidence(s: &Signature, t: f64) -> String {
         s.amount_se,
         t
     )
+}
+
+/// The design matrix of `cols` (each `n` long), each column over its norm (the keys' sensitivities and the
+/// patterns differ by orders of magnitude), and the norms.
+fn unit_columns(cols: &[&[f64]], n: usize) -> (nalgebra::DMatrix<f64>, Vec<f64>) {
+    let norms: Vec<f64> = cols
+        .iter()
+        .map(|c| {
+            c.iter()
+                .map(|v| v * v)
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE)
+        })
+        .collect();
+    let x = nalgebra::DMatrix::from_fn(n, cols.len(), |i, j| cols[j][i] / norms[j]);
+    (x, norms)
 }
 
 #[cfg(test)]
