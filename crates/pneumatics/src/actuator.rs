@@ -18,6 +18,7 @@
 //! port flows. Eq. (10) is the special case T_i = T_s for every flow and no dead volume.
 
 use crate::flow::{ISO_T0_K, OrificeStep};
+use crate::lanes::{Real, pick};
 use crate::valve::{Openings, ValveModel};
 
 /// Standard gravity, m/s^2.
@@ -361,100 +362,160 @@ impl ChamberStep {
     /// Net pneumatic force on the rod along +x, N (same as [`Actuator::piston_force`]).
     #[inline(always)]
     pub(crate) fn piston_force(&self, s: &ChamberState) -> f64 {
-        s.p_a * self.area_a - s.p_b * self.area_b - self.atm_rod_force
+        self.force_of(s.p_a, s.p_b)
+    }
+
+    /// [`Self::piston_force`] at chamber pressures `p_a`, `p_b` (a plant's, or a pack of plants').
+    #[inline(always)]
+    pub(crate) fn force_of<R: Real>(&self, p_a: R, p_b: R) -> R {
+        p_a * R::splat(self.area_a) - p_b * R::splat(self.area_b) - R::splat(self.atm_rod_force)
     }
 
     /// Signed flow supply -> chamber (kg/s) through a path of gain `k` and its enthalpy carrier
-    /// q T_upstream (kg K/s), eq. (11); the chamber is at `p`, `t` (floored).
+    /// q T_upstream (kg K/s), eq. (11); the chamber is at `p`, `t` (floored). The direction picks the
+    /// upstream node, and one flow is formed ([`crate::lanes`]).
     #[inline(always)]
-    pub(crate) fn supply_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
-        if k <= 0.0 {
-            (0.0, 0.0)
-        } else if self.ps >= p {
-            let q = or.flow(k, self.t0_over_ts, self.ps, p);
-            (q, q * self.ts)
-        } else {
-            let q = or.flow(k, ISO_T0_K / t, p, self.ps);
-            (-q, -q * t)
-        }
+    pub(crate) fn supply_path<R: Real>(&self, or: &OrificeStep, k: R, p: R, t: R) -> (R, R) {
+        let ps = R::splat(self.ps);
+        let [q, h] = pick!(R; R::splat(0.0).lt(k) =>
+            {
+                let filling = p.le(ps);
+                if R::ONE {
+                    pick!(R; filling => {
+                        let q = or.flow(k, R::splat(self.t0_over_ts), ps, p);
+                        [q, q * R::splat(self.ts)]
+                    }, {
+                        let q = or.flow(k, R::splat(ISO_T0_K) / t, p, ps);
+                        [-q, -q * t]
+                    })
+                } else {
+                // T0 / T_u, p_u, p_d.
+                let [t0_tu, p_u, p_d] = pick!(R; filling =>
+                    [R::splat(self.t0_over_ts), ps, p],
+                    [R::splat(ISO_T0_K) / t, p, ps]
+                );
+                let q = or.flow(k, t0_tu, p_u, p_d);
+                pick!(R; filling => [q, q * R::splat(self.ts)], [-q, -q * t])
+                }
+            },
+            [R::splat(0.0); 2]
+        );
+        (q, h)
     }
 
     /// Signed flow chamber -> exhaust (kg/s) and its enthalpy carrier (kg K/s), eq. (11).
     #[inline(always)]
-    pub(crate) fn exhaust_path(&self, or: &OrificeStep, k: f64, p: f64, t: f64) -> (f64, f64) {
-        if k <= 0.0 {
-            (0.0, 0.0)
-        } else if p >= self.pr {
-            let q = or.flow(k, ISO_T0_K / t, p, self.pr);
-            (q, q * t)
-        } else {
-            let q = or.flow(k, self.t0_over_tr, self.pr, p);
-            (-q, -q * self.tr)
-        }
+    pub(crate) fn exhaust_path<R: Real>(&self, or: &OrificeStep, k: R, p: R, t: R) -> (R, R) {
+        let pr = R::splat(self.pr);
+        let [q, h] = pick!(R; R::splat(0.0).lt(k) =>
+            {
+                let venting = pr.le(p);
+                if R::ONE {
+                    pick!(R; venting => {
+                        let q = or.flow(k, R::splat(ISO_T0_K) / t, p, pr);
+                        [q, q * t]
+                    }, {
+                        let q = or.flow(k, R::splat(self.t0_over_tr), pr, p);
+                        [-q, -q * R::splat(self.tr)]
+                    })
+                } else {
+                let [t0_tu, p_u, p_d] = pick!(R; venting =>
+                    [R::splat(ISO_T0_K) / t, p, pr],
+                    [R::splat(self.t0_over_tr), pr, p]
+                );
+                let q = or.flow(k, t0_tu, p_u, p_d);
+                pick!(R; venting => [q, q * t], [-q, -q * R::splat(self.tr)])
+                }
+            },
+            [R::splat(0.0); 2]
+        );
+        (q, h)
     }
 
     /// Flows and enthalpy carriers (q T_upstream) into A and B.
     #[inline(always)]
     pub(crate) fn flows_enthalpy(&self, s: &ChamberState) -> (PortFlows, (f64, f64)) {
-        let pa = s.p_a.max(P_FLOOR);
-        let pb = s.p_b.max(P_FLOOR);
-        let ta = s.t_a.max(T_FLOOR);
-        let tb = s.t_b.max(T_FLOOR);
-        let (q_pa, h_pa) = self.supply_path(&self.or_pa, self.k_pa, pa, ta);
-        let (q_ar, h_ar) = self.exhaust_path(&self.or_ar, self.k_ar, pa, ta);
-        let (q_pb, h_pb) = self.supply_path(&self.or_pb, self.k_pb, pb, tb);
-        let (q_br, h_br) = self.exhaust_path(&self.or_br, self.k_br, pb, tb);
+        let [pa, pb, ta, tb] = floored([s.p_a, s.p_b, s.t_a, s.t_b]);
+        let gains = [self.k_pa, self.k_ar, self.k_pb, self.k_br];
+        let (pf, h) = self.flows_of(gains, [pa, pb, ta, tb]);
         (
             PortFlows {
-                p_a: q_pa,
-                a_r: q_ar,
-                p_b: q_pb,
-                b_r: q_br,
+                p_a: pf[0],
+                a_r: pf[1],
+                p_b: pf[2],
+                b_r: pf[3],
             },
-            (h_pa - h_ar, h_pb - h_br),
+            h,
         )
+    }
+
+    /// The four paths' flows (P->A, A->R, P->B, B->R) and the enthalpy carriers into A and B, with the
+    /// paths' `gains` at the floored chamber state `[p_a, p_b, t_a, t_b]`.
+    #[inline(always)]
+    fn flows_of<R: Real>(&self, gains: [R; 4], [pa, pb, ta, tb]: [R; 4]) -> ([R; 4], (R, R)) {
+        let (q_pa, h_pa) = self.supply_path(&self.or_pa, gains[0], pa, ta);
+        let (q_ar, h_ar) = self.exhaust_path(&self.or_ar, gains[1], pa, ta);
+        let (q_pb, h_pb) = self.supply_path(&self.or_pb, gains[2], pb, tb);
+        let (q_br, h_br) = self.exhaust_path(&self.or_br, gains[3], pb, tb);
+        ([q_pa, q_ar, q_pb, q_br], (h_pa - h_ar, h_pb - h_br))
     }
 
     /// Chamber volumes and their rates (V_a, V_b, V_a', V_b') at extension `x` and velocity `x_dot`, m^3 and
     /// m^3/s: `V_a = V_a0 + S_a x`, `V_b = V_b0 + S_b (L - x)`, x clamped to the stroke.
     #[inline(always)]
-    pub(crate) fn volumes(&self, x: f64, x_dot: f64) -> (f64, f64, f64, f64) {
+    pub(crate) fn volumes<R: Real>(&self, x: R, x_dot: R) -> (R, R, R, R) {
+        let (zero, stroke) = (R::splat(0.0), R::splat(self.stroke));
+        let (area_a, area_b) = (R::splat(self.area_a), R::splat(self.area_b));
         let xc = x.clamp(0.0, self.stroke);
-        let va = self.dead_a + self.area_a * xc;
-        let vb = self.dead_b + self.area_b * (self.stroke - xc);
+        let va = R::splat(self.dead_a) + area_a * xc;
+        let vb = R::splat(self.dead_b) + area_b * (stroke - xc);
         // Outside the stroke the piston rests on a stop: the volumes do not change.
-        let inside = (x > 0.0 && x < self.stroke)
-            || (x <= 0.0 && x_dot > 0.0)
-            || (x >= self.stroke && x_dot < 0.0);
-        let v = if inside { x_dot } else { 0.0 };
-        (va, vb, self.area_a * v, -self.area_b * v)
+        let inside = R::or(
+            R::or(
+                R::and(zero.lt(x), x.lt(stroke)),
+                R::and(x.le(zero), zero.lt(x_dot)),
+            ),
+            R::and(stroke.le(x), x_dot.lt(zero)),
+        );
+        let v = R::select(inside, x_dot, zero);
+        (va, vb, area_a * v, -area_b * v)
     }
 
     /// Time derivatives of the chamber state (Pa/s, K/s) at extension `x` and velocity `x_dot`.
     #[inline(always)]
     pub(crate) fn rates(&self, s: &ChamberState, x: f64, x_dot: f64) -> ChamberState {
+        let gains = [self.k_pa, self.k_ar, self.k_pb, self.k_br];
+        let [p_a, p_b, t_a, t_b] = self.rates_of(gains, [s.p_a, s.p_b, s.t_a, s.t_b], x, x_dot);
+        ChamberState { p_a, p_b, t_a, t_b }
+    }
+
+    /// [`Self::rates`] with the paths' `gains` (P->A, A->R, P->B, B->R) at the chamber state
+    /// `[p_a, p_b, t_a, t_b]`: one plant's, or a pack of plants' that share every other constant.
+    #[inline(always)]
+    pub(crate) fn rates_of<R: Real>(&self, gains: [R; 4], s: [R; 4], x: R, x_dot: R) -> [R; 4] {
         let (va, vb, dva, dvb) = self.volumes(x, x_dot);
-        let (pf, (ha, hb)) = self.flows_enthalpy(s);
-        let (n, r) = (self.n, self.r);
-        let pa = s.p_a.max(P_FLOOR);
-        let pb = s.p_b.max(P_FLOOR);
-        let ta = s.t_a.max(T_FLOOR);
-        let tb = s.t_b.max(T_FLOOR);
-        let (inv_va, inv_vb) = (1.0 / va, 1.0 / vb);
+        let [pa, pb, ta, tb] = floored(s);
+        let (q, (ha, hb)) = self.flows_of(gains, [pa, pb, ta, tb]);
+        let (into_a, into_b) = (q[0] - q[1], q[2] - q[3]);
+        let (n, r) = (R::splat(self.n), R::splat(self.r));
+        let one = R::splat(1.0);
+        let (inv_va, inv_vb) = (one / va, one / vb);
         // eq. (9)/(10): dp/dt = n R H / V - n p V'/V (H = enthalpy inflow / c_p, upstream temperatures).
         let dpa = n * inv_va * (r * ha - pa * dva);
         let dpb = n * inv_vb * (r * hb - pb * dvb);
         // eqs. (2)-(3): M = pV/(RT), dM/dt = net inflow  =>  dT/dt = T (p'/p + V'/V - R T M'/(p V)),
         // written with one division by p: dT/dt = (T/p) (p' + (p V' - R T M') / V).
-        let dta = ta / pa * (dpa + inv_va * (pa * dva - r * ta * pf.into_a()));
-        let dtb = tb / pb * (dpb + inv_vb * (pb * dvb - r * tb * pf.into_b()));
-        ChamberState {
-            p_a: dpa,
-            p_b: dpb,
-            t_a: dta,
-            t_b: dtb,
-        }
+        let dta = ta / pa * (dpa + inv_va * (pa * dva - r * ta * into_a));
+        let dtb = tb / pb * (dpb + inv_vb * (pb * dvb - r * tb * into_b));
+        [dpa, dpb, dta, dtb]
     }
+}
+
+/// The chamber state `[p_a, p_b, t_a, t_b]` floored for the equations.
+#[inline(always)]
+fn floored<R: Real>([pa, pb, ta, tb]: [R; 4]) -> [R; 4] {
+    let (p, t) = (R::splat(P_FLOOR), R::splat(T_FLOOR));
+    [pa.max(p), pb.max(p), ta.max(t), tb.max(t)]
 }
 
 #[cfg(test)]

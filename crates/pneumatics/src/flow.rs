@@ -13,6 +13,8 @@
 //! The laminar tail (r_l = 0.999) removes the infinite slope of the elliptic law at equal pressures,
 //! which would make the chamber equations infinitely stiff at rest.
 
+use crate::lanes::{Real, pick};
+
 /// ISO 8778 reference temperature for sonic conductance, K.
 pub const ISO_T0_K: f64 = 293.15;
 /// ISO 8778 reference density of air, kg/m^3.
@@ -80,6 +82,9 @@ pub(crate) struct OrificeStep {
     b: f64,
     /// 1 / (1 - b).
     inv_one_minus_b: f64,
+    /// The laminar tail's `(p_u phi)^2 / (p_u - p_d)^2 = phi(r_l)^2 / (1 - r_l)^2`, formed once so that no
+    /// stage divides for it.
+    laminar_gain: f64,
 }
 
 impl OrificeStep {
@@ -91,6 +96,10 @@ impl OrificeStep {
             c_rho0: o.sonic_conductance_m3_per_s_pa * ISO_RHO0_KG_M3,
             b,
             inv_one_minus_b: 1.0 / (1.0 - b),
+            laminar_gain: {
+                let z = (LAMINAR_RATIO - b) / (1.0 - b);
+                (1.0 - z * z).max(0.0) / ((1.0 - LAMINAR_RATIO) * (1.0 - LAMINAR_RATIO))
+            },
         }
     }
 
@@ -106,29 +115,34 @@ impl OrificeStep {
 
     /// `(p_u phi(p_d / p_u))^2`, Pa^2, for `p_u >= p_d > 0`, without dividing by `p_u`: the subsonic
     /// branch of eq. (11) multiplied out, `p_u^2 (1 - z^2) = (p_u - w)(p_u + w)` with
-    /// `w = (p_d - b p_u) / (1 - b) = p_u z`.
+    /// `w = (p_d - b p_u) / (1 - b) = p_u z`. One plant computes the regime it is in; a pack of plants
+    /// forms the three and blends them ([`crate::lanes`]).
     #[inline(always)]
-    pub(crate) fn p_phi_sq(&self, p_u: f64, p_d: f64) -> f64 {
-        if p_d <= self.b * p_u {
+    pub(crate) fn p_phi_sq<R: Real>(&self, p_u: R, p_d: R) -> R {
+        let b_p_u = R::splat(self.b) * p_u;
+        let [q] = pick!(R; p_d.le(b_p_u) =>
             // Choked: phi = 1.
-            p_u * p_u
-        } else if p_d <= LAMINAR_RATIO * p_u {
-            let w = (p_d - self.b * p_u) * self.inv_one_minus_b;
-            ((p_u - w) * (p_u + w)).max(0.0)
-        } else {
-            // Laminar tail: p_u phi = phi(r_l) (p_u - p_d) / (1 - r_l). Only near equal pressures, so
-            // phi(r_l)^2 is formed here rather than every step.
-            let z = (LAMINAR_RATIO - self.b) * self.inv_one_minus_b;
-            let dp = (p_u - p_d).max(0.0) / (1.0 - LAMINAR_RATIO);
-            (1.0 - z * z).max(0.0) * dp * dp
-        }
+            [p_u * p_u],
+            pick!(R; p_d.le(R::splat(LAMINAR_RATIO) * p_u) =>
+                {
+                    let w = (p_d - b_p_u) * R::splat(self.inv_one_minus_b);
+                    [((p_u - w) * (p_u + w)).max(R::splat(0.0))]
+                },
+                {
+                    // Laminar tail: p_u phi = phi(r_l) (p_u - p_d) / (1 - r_l).
+                    let dp = (p_u - p_d).max(R::splat(0.0));
+                    [R::splat(self.laminar_gain) * dp * dp]
+                }
+            )
+        );
+        q
     }
 
     /// Mass flow `q` (kg/s) from an upstream node at `p_u` to a downstream node at `p_d <= p_u` through a
     /// path of gain `k` (from [`Self::gain`]), with `t0_over_tu = T0 / T_u` (eq. 11):
     /// `q = k sqrt(T0 / T_u) p_u phi(p_d / p_u)`, folded into one square root.
     #[inline(always)]
-    pub(crate) fn flow(&self, k: f64, t0_over_tu: f64, p_u: f64, p_d: f64) -> f64 {
+    pub(crate) fn flow<R: Real>(&self, k: R, t0_over_tu: R, p_u: R, p_d: R) -> R {
         k * (t0_over_tu * self.p_phi_sq(p_u, p_d)).sqrt()
     }
 }

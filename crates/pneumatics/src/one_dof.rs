@@ -3,6 +3,7 @@
 //! [`crate::extended`]'s step. The model's parameters and state are in [`crate::mechanics`].
 
 use crate::actuator::{ChamberState, ChamberStep, Chambers};
+use crate::lanes::{Pack, Real};
 use crate::mechanics::{OneDofModel, OneDofState};
 use crate::regulator::{PressureRegulator, RegulatedStep};
 
@@ -50,18 +51,24 @@ impl OneDofModel {
     ) -> (f64, f64, ChamberState) {
         let h = 0.5 * dt;
         let k1 = self.rates(k, x0, v0, &c0);
-        let k2 = self.rates(k, x0 + h * k1.x, v0 + h * k1.v, &axpy(&c0, h, &k1.c));
-        let k3 = self.rates(k, x0 + h * k2.x, v0 + h * k2.v, &axpy(&c0, h, &k2.c));
-        let k4 = self.rates(k, x0 + dt * k3.x, v0 + dt * k3.v, &axpy(&c0, dt, &k3.c));
-        let w = dt / 6.0;
-        let x = x0 + w * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
-        let v = v0 + w * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
-        let mut c = c0;
-        c.p_a += w * (k1.c.p_a + 2.0 * k2.c.p_a + 2.0 * k3.c.p_a + k4.c.p_a);
-        c.p_b += w * (k1.c.p_b + 2.0 * k2.c.p_b + 2.0 * k3.c.p_b + k4.c.p_b);
-        c.t_a += w * (k1.c.t_a + 2.0 * k2.c.t_a + 2.0 * k3.c.t_a + k4.c.t_a);
-        c.t_b += w * (k1.c.t_b + 2.0 * k2.c.t_b + 2.0 * k3.c.t_b + k4.c.t_b);
-        (x, v, c)
+        let k2 = self.stage(k, x0, v0, &c0, h, &k1);
+        let k3 = self.stage(k, x0, v0, &c0, h, &k2);
+        let k4 = self.stage(k, x0, v0, &c0, dt, &k3);
+        rk4_sum(x0, v0, c0, dt, [&k1, &k2, &k3, &k4])
+    }
+
+    /// An RK4 stage: the rates at `(x0, v0, c0) + h * prev`.
+    #[inline(always)]
+    fn stage<C: Chambers>(
+        &self,
+        k: &StepConsts<C>,
+        x0: f64,
+        v0: f64,
+        c0: &ChamberState,
+        h: f64,
+        prev: &Deriv,
+    ) -> Deriv {
+        self.rates(k, x0 + h * prev.x, v0 + h * prev.v, &axpy(c0, h, &prev.c))
     }
 
     /// Advances the model by one fixed step `dt` under valve command `u` in [-1, 1] and external force
@@ -194,37 +201,70 @@ impl OneDofModel {
     ) {
         // f_load = G_alpha + f_ext is held over the step.
         let f_load = gravity_n + f_ext;
-        let (mut x, mut v, mut c) = (state.x, state.x_dot, state.chambers);
+        let start = (state.x, state.x_dot, state.chambers);
+        self.finish_step(
+            state,
+            u,
+            f_load,
+            inv_mass,
+            dt,
+            held,
+            Some((state.t, dt)),
+            start,
+        );
+    }
+
+    /// The first piece of a step from `tau` with `rest` of it left: the spool held over it (its chamber
+    /// constants put in `held`), the piece's length, and the spool edge that ends it before the step does.
+    #[inline(always)]
+    fn piece(
+        &self,
+        state: &mut OneDofState,
+        u: f64,
+        tau: f64,
+        rest: f64,
+        held: &mut Held,
+    ) -> (f64, Option<f64>) {
+        let valve = &self.actuator.valve;
+        let (spool, edge) = if held.spool.covers(tau, rest) {
+            (state.valve.spool, None)
+        } else {
+            let piece = valve.segment(&mut state.valve, u, tau, rest);
+            held.spool = valve.hold(&state.valve, tau);
+            piece
+        };
+        // The spool is held over the piece: openings, areas and flow constants are evaluated once.
+        match &held.consts {
+            Some((s, _)) if s.to_bits() == spool.to_bits() => {}
+            _ => held.consts = Some((spool, self.actuator.step_consts(spool))),
+        }
+        (edge.map_or(rest, |e| e - tau), edge)
+    }
+
+    /// The rest of a step of length `dt` from `end` (x, x', chambers), its next piece starting at `next`
+    /// (time, and how much of the step is left): RK4 over the pieces from there, then the end stops and the
+    /// sticking; the state written. The whole step from its start, or what is left after a first piece
+    /// ([`advance_together`]'s).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn finish_step(
+        &self,
+        state: &mut OneDofState,
+        u: f64,
+        f_load: f64,
+        inv_mass: f64,
+        dt: f64,
+        held: &mut Held,
+        mut next: Option<(f64, f64)>,
+        end: (f64, f64, ChamberState),
+    ) {
+        let (mut x, mut v, mut c) = end;
         let t_end = state.t + dt;
-        let (mut tau, mut rest) = (state.t, dt);
-        loop {
-            let valve = &self.actuator.valve;
-            let (spool, edge) = if held.spool.covers(tau, rest) {
-                (state.valve.spool, None)
-            } else {
-                let piece = valve.segment(&mut state.valve, u, tau, rest);
-                held.spool = valve.hold(&state.valve, tau);
-                piece
-            };
-            // The spool is held over the piece: openings, areas and flow constants are evaluated once.
-            let consts = match &mut held.consts {
-                Some((s, k)) if s.to_bits() == spool.to_bits() => k,
-                consts => &mut consts.insert((spool, self.actuator.step_consts(spool))).1,
-            };
-            let k = StepConsts {
-                chambers: consts,
-                f_load,
-                inv_mass,
-            };
-            let h = edge.map_or(rest, |e| e - tau);
+        while let Some((tau, rest)) = next {
+            let (h, edge) = self.piece(state, u, tau, rest, held);
+            let k = held.step_consts(f_load, inv_mass);
             (x, v, c) = self.rk4(&k, x, v, c, h);
-            match edge {
-                Some(e) if e < t_end => {
-                    tau = e;
-                    rest = t_end - e;
-                }
-                _ => break,
-            }
+            next = after(edge, t_end);
         }
         // End stops: inelastic, the stop absorbs any velocity into it.
         let stroke = self.actuator.cylinder.stroke_m;
@@ -256,6 +296,271 @@ impl OneDofModel {
     }
 }
 
+/// N plants of the paper's model advanced together ([`advance_together`]): what stays the same across them.
+pub struct Together<'a, const N: usize> {
+    /// Each plant's model.
+    pub models: [&'a OneDofModel; N],
+    /// Each plant's state.
+    pub states: [&'a mut OneDofState; N],
+    /// Each plant's valve command in [-1, 1].
+    pub u: [f64; N],
+    /// Each plant's G_alpha = m g sin(alpha), N.
+    pub gravity_n: [f64; N],
+}
+
+/// [`OneDofModel::advance`] of N plants over one control period `dt` in `substeps` steps, `f_ext(i, x)` the
+/// external force on plant i (N) at the start of each substep: bit for bit the N calls of `advance` (the
+/// same expressions, [`crate::lanes`]), with each RK4 stage computed for all N plants at once in packed
+/// arithmetic (AVX-512 or AVX2 where the processor has them). The batched Gymnasium environment steps its plants so
+/// (docs/gymnasium.md). Plants whose models have effects beyond the paper's, or different actuators (the
+/// valve's timing aside), are advanced one by one.
+pub fn advance_together<const N: usize>(
+    plants: Together<'_, N>,
+    dt: f64,
+    substeps: u32,
+    mut f_ext: impl FnMut(usize, f64) -> f64,
+) {
+    let m0 = plants.models[0];
+    // One set of chamber constants for all of them but the paths' gains: the same actuator (its valve's
+    // timing only moves the spool's edges).
+    let same_circuit = |m: &OneDofModel| {
+        let mut a = m.actuator;
+        a.valve.kind = m0.actuator.valve.kind;
+        a == m0.actuator
+    };
+    if plants
+        .models
+        .iter()
+        .any(|m| !m.is_paper_model() || !same_circuit(m))
+    {
+        let Together {
+            models,
+            mut states,
+            u,
+            gravity_n,
+        } = plants;
+        for (i, (m, s)) in models.iter().zip(states.iter_mut()).enumerate() {
+            m.advance(s, u[i], gravity_n[i], dt, substeps, |x| f_ext(i, x));
+        }
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY (both): the processor has the instructions (checked on the same line).
+        if std::is_x86_feature_detected!("avx512f") {
+            unsafe { packed_avx512(plants, dt, substeps, &mut f_ext) };
+            return;
+        }
+        if std::is_x86_feature_detected!("avx2") {
+            unsafe { packed_avx2(plants, dt, substeps, &mut f_ext) };
+            return;
+        }
+    }
+    packed(plants, dt, substeps, &mut f_ext);
+}
+
+/// [`packed`] compiled for AVX-512 (eight plants per instruction).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn packed_avx512<const N: usize>(
+    plants: Together<'_, N>,
+    dt: f64,
+    substeps: u32,
+    f_ext: &mut dyn FnMut(usize, f64) -> f64,
+) {
+    packed(plants, dt, substeps, f_ext);
+}
+
+/// [`packed`] compiled for AVX2 (four plants per instruction).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn packed_avx2<const N: usize>(
+    plants: Together<'_, N>,
+    dt: f64,
+    substeps: u32,
+    f_ext: &mut dyn FnMut(usize, f64) -> f64,
+) {
+    packed(plants, dt, substeps, f_ext);
+}
+
+/// The substeps of [`advance_together`]: per plant its spool's pieces ([`OneDofModel::piece`]); the first
+/// piece's RK4 for all plants at once; the pieces after an edge, the end stops and the sticking per plant
+/// ([`OneDofModel::finish_step`]).
+#[inline(always)]
+fn packed<const N: usize>(
+    plants: Together<'_, N>,
+    dt: f64,
+    substeps: u32,
+    f_ext: &mut dyn FnMut(usize, f64) -> f64,
+) {
+    let Together {
+        models,
+        mut states,
+        u,
+        gravity_n,
+    } = plants;
+    let h = dt / f64::from(substeps.max(1));
+    let inv_mass = models.map(|m| 1.0 / m.mechanics.moving_mass_kg);
+    let viscous = Pack(models.map(|m| m.mechanics.viscous_n_s_per_m));
+    let mut held: [Held; N] = core::array::from_fn(|_| Held::NONE);
+    for _ in 0..substeps.max(1) {
+        let mut f_load = [0.0; N];
+        let mut pieces = [(0.0, None); N];
+        for i in 0..N {
+            f_load[i] = gravity_n[i] + f_ext(i, states[i].x);
+            let t = states[i].t;
+            pieces[i] = models[i].piece(states[i], u[i], t, h, &mut held[i]);
+        }
+        let chambers = held.each_ref().map(|k| k.step_consts(0.0, 0.0).chambers);
+        let shared = chambers[0];
+        let gains = [
+            Pack(chambers.map(|c| c.k_pa)),
+            Pack(chambers.map(|c| c.k_ar)),
+            Pack(chambers.map(|c| c.k_pb)),
+            Pack(chambers.map(|c| c.k_br)),
+        ];
+        let (load, inv_m) = (Pack(f_load), Pack(inv_mass));
+        let start = Point {
+            x: Pack(states.each_ref().map(|s| s.x)),
+            v: Pack(states.each_ref().map(|s| s.x_dot)),
+            c: [
+                Pack(states.each_ref().map(|s| s.chambers.p_a)),
+                Pack(states.each_ref().map(|s| s.chambers.p_b)),
+                Pack(states.each_ref().map(|s| s.chambers.t_a)),
+                Pack(states.each_ref().map(|s| s.chambers.t_b)),
+            ],
+        };
+        let mut dt = [0.0; N];
+        for i in 0..N {
+            dt[i] = pieces[i].0;
+        }
+        let rates = PackRates {
+            models: &models,
+            shared,
+            gains,
+            load,
+            viscous,
+            inv_mass: inv_m,
+        };
+        let end = rk4_point(&start, Pack(dt), &rates);
+        for (i, state) in states.iter_mut().enumerate() {
+            let t_end = state.t + h;
+            let c = ChamberState {
+                p_a: end.c[0].0[i],
+                p_b: end.c[1].0[i],
+                t_a: end.c[2].0[i],
+                t_b: end.c[3].0[i],
+            };
+            let piece_end = (end.x.0[i], end.v.0[i], c);
+            models[i].finish_step(
+                state,
+                u[i],
+                f_load[i],
+                inv_mass[i],
+                h,
+                &mut held[i],
+                after(pieces[i].1, t_end),
+                piece_end,
+            );
+        }
+    }
+}
+
+/// The rates of N plants at a point ([`OneDofModel::rates`] lane by lane): eq. (1) with each plant's
+/// friction, and the chambers with the shared constants and each plant's gains.
+struct PackRates<'a, const N: usize> {
+    models: &'a [&'a OneDofModel; N],
+    shared: &'a ChamberStep,
+    gains: [Pack<N>; 4],
+    load: Pack<N>,
+    viscous: Pack<N>,
+    inv_mass: Pack<N>,
+}
+
+/// The rates of a point (what RK4 steps).
+trait Rates<R> {
+    fn at(&self, p: &Point<R>) -> Point<R>;
+}
+
+impl<const N: usize> Rates<Pack<N>> for PackRates<'_, N> {
+    #[inline(always)]
+    fn at(&self, p: &Point<Pack<N>>) -> Point<Pack<N>> {
+        let drive = self.shared.force_of(p.c[0], p.c[1]) + self.load;
+        let mut friction = [0.0; N];
+        for (i, f) in friction.iter_mut().enumerate() {
+            *f = self.models[i]
+                .mechanics
+                .friction
+                .force(p.v.0[i], drive.0[i]);
+        }
+        Point {
+            x: p.v,
+            // eq. (1), as `OneDofModel::rates`.
+            v: (drive - Pack(friction) - self.viscous * p.v) * self.inv_mass,
+            c: self.shared.rates_of(self.gains, p.c, p.x, p.v),
+        }
+    }
+}
+
+/// A point of eq. (1) and the chambers: x, x' and [p_a, p_b, t_a, t_b] (of a plant, or a pack of them).
+#[derive(Clone, Copy)]
+struct Point<R> {
+    x: R,
+    v: R,
+    c: [R; 4],
+}
+
+impl<R: Real> Point<R> {
+    /// `self + h d`, the argument of an RK4 stage.
+    #[inline(always)]
+    fn ahead(&self, h: R, d: &Self) -> Self {
+        Point {
+            x: self.x + h * d.x,
+            v: self.v + h * d.v,
+            c: [
+                self.c[0] + h * d.c[0],
+                self.c[1] + h * d.c[1],
+                self.c[2] + h * d.c[2],
+                self.c[3] + h * d.c[3],
+            ],
+        }
+    }
+}
+
+/// RK4's weighted stage sum `a + 2 b + 2 c + d`.
+#[inline(always)]
+fn stage_sum<R: Real>(a: R, b: R, c: R, d: R) -> R {
+    let two = R::splat(2.0);
+    a + two * b + two * c + d
+}
+
+/// One classic RK4 step of length `dt` from `p0` with the rates `f` (the expressions of
+/// [`OneDofModel::rk4`], lane by lane).
+#[inline(always)]
+fn rk4_point<R: Real>(p0: &Point<R>, dt: R, f: &impl Rates<R>) -> Point<R> {
+    let h = R::splat(0.5) * dt;
+    let k1 = f.at(p0);
+    let k2 = f.at(&p0.ahead(h, &k1));
+    let k3 = f.at(&p0.ahead(h, &k2));
+    let k4 = f.at(&p0.ahead(dt, &k3));
+    let w = dt / R::splat(6.0);
+    let c = |j: usize| p0.c[j] + w * stage_sum(k1.c[j], k2.c[j], k3.c[j], k4.c[j]);
+    Point {
+        x: p0.x + w * stage_sum(k1.x, k2.x, k3.x, k4.x),
+        v: p0.v + w * stage_sum(k1.v, k2.v, k3.v, k4.v),
+        c: [c(0), c(1), c(2), c(3)],
+    }
+}
+
+/// The piece after one that ended at `edge` (its time, and the step left after it), if the step goes on.
+#[inline(always)]
+fn after(edge: Option<f64>, t_end: f64) -> Option<(f64, f64)> {
+    match edge {
+        Some(e) if e < t_end => Some((e, t_end - e)),
+        _ => None,
+    }
+}
+
 /// What [`OneDofModel::paper_step`] carries from one step to the next within a control period.
 struct Held {
     /// The chamber constants of the last spool position.
@@ -269,6 +574,41 @@ impl Held {
         consts: None,
         spool: crate::SpoolHold::NONE,
     };
+
+    /// The step's constants with the held spool's chambers ([`OneDofModel::piece`] put them there).
+    #[inline(always)]
+    fn step_consts(&self, f_load: f64, inv_mass: f64) -> StepConsts<'_, ChamberStep> {
+        let chambers = match &self.consts {
+            Some((_, k)) => k,
+            None => unreachable!("a piece holds its spool's constants"),
+        };
+        StepConsts {
+            chambers,
+            f_load,
+            inv_mass,
+        }
+    }
+}
+
+/// RK4's weighted sum of the stages `k` over a step `dt` from `(x0, v0, c0)`.
+#[inline(always)]
+fn rk4_sum(
+    x0: f64,
+    v0: f64,
+    c0: ChamberState,
+    dt: f64,
+    k: [&Deriv; 4],
+) -> (f64, f64, ChamberState) {
+    let [k1, k2, k3, k4] = k;
+    let w = dt / 6.0;
+    let x = x0 + w * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
+    let v = v0 + w * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
+    let mut c = c0;
+    c.p_a += w * (k1.c.p_a + 2.0 * k2.c.p_a + 2.0 * k3.c.p_a + k4.c.p_a);
+    c.p_b += w * (k1.c.p_b + 2.0 * k2.c.p_b + 2.0 * k3.c.p_b + k4.c.p_b);
+    c.t_a += w * (k1.c.t_a + 2.0 * k2.c.t_a + 2.0 * k3.c.t_a + k4.c.t_a);
+    c.t_b += w * (k1.c.t_b + 2.0 * k2.c.t_b + 2.0 * k3.c.t_b + k4.c.t_b);
+    (x, v, c)
 }
 
 #[inline]
@@ -278,5 +618,56 @@ fn axpy(c: &ChamberState, h: f64, d: &ChamberState) -> ChamberState {
         p_b: c.p_b + h * d.p_b,
         t_a: c.t_a + h * d.t_a,
         t_b: c.t_b + h * d.t_b,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The packed step compiled for the baseline instruction set (what a processor without AVX2 runs;
+    /// `tests/advance_together.rs` checks the one this processor dispatches to) is each plant's own step.
+    #[test]
+    fn the_baseline_packed_step_is_each_plants_own() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../pneumatics/paper-actuator.toml");
+        let base = crate::ActuatorSheet::load(path)
+            .expect("shipped sheet")
+            .model();
+        let models: [OneDofModel; 8] = core::array::from_fn(|i| {
+            let mut m = base;
+            m.mechanics.moving_mass_kg *= 0.7 + 0.1 * i as f64;
+            m
+        });
+        let start = OneDofState::at_rest(0.025, ChamberState::new(3.0e5, 2.8e5), 0.0);
+        let (mut alone, mut packed_states) = ([start; 8], [start; 8]);
+        let spring = |x: f64| -900.0 * (x - 0.03).max(0.0);
+        let gravity = models.map(|m| m.mechanics.gravity_force());
+        for k in 0..400u64 {
+            let u: [f64; 8] = core::array::from_fn(|i| {
+                if (k / 30 + i as u64).is_multiple_of(3) {
+                    0.4
+                } else {
+                    -0.2
+                }
+            });
+            for (i, (m, s)) in models.iter().zip(alone.iter_mut()).enumerate() {
+                m.advance(s, u[i], gravity[i], 1e-3, 10, spring);
+            }
+            let plants = Together {
+                models: core::array::from_fn(|i| &models[i]),
+                states: packed_states.each_mut(),
+                u,
+                gravity_n: gravity,
+            };
+            packed(plants, 1e-3, 10, &mut |_, x| spring(x));
+            for i in 0..8 {
+                assert_eq!(
+                    format!("{:?}", alone[i]),
+                    format!("{:?}", packed_states[i]),
+                    "plant {i}, period {k}"
+                );
+            }
+        }
     }
 }
