@@ -523,11 +523,34 @@ impl Task {
     }
 }
 
+/// An episode's plant: the 1-DOF pneumatic plant as itself (a batch advances several of them together,
+/// [`OneDofPneumatic::advance_together`]), any other behind the plant trait.
+enum EpisodePlant {
+    OneDof(Box<OneDofPneumatic>),
+    Other(Box<dyn Plant + Send>),
+}
+
+impl EpisodePlant {
+    fn get(&self) -> &dyn Plant {
+        match self {
+            Self::OneDof(p) => &**p,
+            Self::Other(p) => &**p,
+        }
+    }
+
+    fn get_mut(&mut self) -> &mut dyn Plant {
+        match self {
+            Self::OneDof(p) => &mut **p,
+            Self::Other(p) => &mut **p,
+        }
+    }
+}
+
 /// One running episode.
 struct Episode {
     /// Behind a lock only to be shared with Python (a mechanism's drives are `Send`, not `Sync`); the
     /// batch reaches it through `&mut`, which takes no lock.
-    plant: Mutex<Box<dyn Plant + Send>>,
+    plant: Mutex<EpisodePlant>,
     /// The impedance action's controller of each actuator, at the scene's parameters at each restart
     /// (empty under the valve action).
     controllers: Vec<ImpedanceController>,
@@ -562,7 +585,7 @@ struct Episode {
 impl Episode {
     fn new(task: &Task, stream: u64) -> Result<Self, SceneError> {
         let mut e = Self {
-            plant: Mutex::new(task.build()?),
+            plant: Mutex::new(EpisodePlant::Other(task.build()?)),
             controllers: Vec::new(),
             commands: vec![0.0; task.actuators()],
             events: Vec::new(),
@@ -585,7 +608,11 @@ impl Episode {
 
     /// The plant, through `&mut` (no lock taken).
     fn plant(&mut self) -> &mut dyn Plant {
-        &mut **self.plant.get_mut().unwrap_or_else(|e| e.into_inner())
+        self.held_plant().get_mut()
+    }
+
+    fn held_plant(&mut self) -> &mut EpisodePlant {
+        self.plant.get_mut().unwrap_or_else(|e| e.into_inner())
     }
 
     /// Starts the next episode of the stream (an autoreset) with a new draw.
@@ -620,8 +647,12 @@ impl Episode {
                     x_e_m: task.x_e[0],
                 };
                 // The chambers start at the static balance of this episode's mass (OneDofPneumatic::new).
-                *self.plant.get_mut().unwrap_or_else(|e| e.into_inner()) =
-                    Box::new(OneDofPneumatic::new(model, p.state().x, env, p.substeps()));
+                *self.held_plant() = EpisodePlant::OneDof(Box::new(OneDofPneumatic::new(
+                    model,
+                    p.state().x,
+                    env,
+                    p.substeps(),
+                )));
             }
             Rig::Single { one_dof: None, .. } => {
                 let plant = self.plant();
@@ -672,7 +703,11 @@ impl Episode {
 
     /// Applies the events due at the current time, as the scene loop does before it senses.
     fn apply_due(&mut self) {
-        let plant = &mut **self.plant.get_mut().unwrap_or_else(|e| e.into_inner());
+        let plant = self
+            .plant
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner())
+            .get_mut();
         while let Some(ev) = self.events.get(self.next) {
             if ev.t_s() > self.t + 1e-9 {
                 break;
@@ -687,7 +722,11 @@ impl Episode {
     fn observe(&mut self, task: &Task, out: &mut [f32]) {
         let t = self.t;
         let fresh = self.seen_fresh && self.seen.len() == task.actuators();
-        let plant = &**self.plant.get_mut().unwrap_or_else(|e| e.into_inner());
+        let plant = self
+            .plant
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner())
+            .get();
         for (i, block) in out.chunks_mut(OBS).enumerate() {
             // What the tick's reward read (the same plant state and time), else read now.
             let (s, f_ref) = if fresh {
@@ -705,10 +744,20 @@ impl Episode {
     /// One action: a control tick under a valve command per actuator, or a retune of each actuator's
     /// impedance controller and its ticks; the rewards summed over the ticks.
     fn step(&mut self, task: &Task, action: &[f64]) -> Outcome {
+        self.begin_step(action);
+        let out = self.act(task, action);
+        self.end_step(task, out)
+    }
+
+    /// The step's action kept (the episode's replayable state) and counted.
+    fn begin_step(&mut self, action: &[f64]) {
         self.actions.extend_from_slice(action);
         self.steps += 1;
-        let out = self.act(task, action);
-        // Gymnasium's max_episode_steps: truncated at that many steps (unless the episode ended anyway).
+    }
+
+    /// The step's outcome, truncated at Gymnasium's max_episode_steps.
+    fn end_step(&self, task: &Task, out: Outcome) -> Outcome {
+        // Truncated at that many steps (unless the episode ended anyway).
         match task.max_steps {
             Some(m) if self.steps >= m && !out.terminated => Outcome {
                 truncated: true,
@@ -722,11 +771,7 @@ impl Episode {
         let (scene_controllers, ticks) = match &task.action {
             Action::Impedance { controllers, ticks } => (controllers, ticks),
             Action::Valve => {
-                // A valve command per actuator (finite, clipped to [-1, 1]).
-                let plant = self.plant();
-                for (i, &u) in action.iter().enumerate() {
-                    plant.actuate_actuator(i, ValveCommand { u: clamp(u) }, &Telemetry::default());
-                }
+                self.actuate_valves(action);
                 return self.tick(task);
             }
             Action::Pressure { .. } => {
@@ -757,7 +802,11 @@ impl Episode {
         let mut out = Outcome::default();
         for _ in 0..*ticks {
             let t = self.t;
-            let plant = &**self.plant.get_mut().unwrap_or_else(|e| e.into_inner());
+            let plant = self
+                .plant
+                .get_mut()
+                .unwrap_or_else(|e| e.into_inner())
+                .get();
             for (i, (c, u)) in self.controllers.iter_mut().zip(&mut commands).enumerate() {
                 let s = Sensors {
                     t,
@@ -780,14 +829,31 @@ impl Episode {
         out
     }
 
+    /// A valve command per actuator (finite, clipped to [-1, 1]).
+    fn actuate_valves(&mut self, action: &[f64]) {
+        let plant = self.plant();
+        for (i, &u) in action.iter().enumerate() {
+            plant.actuate_actuator(i, ValveCommand { u: clamp(u) }, &Telemetry::default());
+        }
+    }
+
     /// One control tick under the commands the plant was given. The reward is the mean of the actuators'
     /// [`tick_reward`]s (one actuator: its own).
     fn tick(&mut self, task: &Task) -> Outcome {
         self.plant().advance(task.dt);
+        self.ticked(task)
+    }
+
+    /// The tick after the plant advanced: the clock, the events due, the reward and the ends.
+    fn ticked(&mut self, task: &Task) -> Outcome {
         self.t += task.dt;
         self.apply_due();
         let t = self.t;
-        let plant = &**self.plant.get_mut().unwrap_or_else(|e| e.into_inner());
+        let plant = self
+            .plant
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner())
+            .get();
         let mut reward = 0.0;
         let mut terminated = false;
         let one_dof = matches!(
@@ -887,15 +953,26 @@ struct Args {
     regulator_time_constant_s: f64,
 }
 
-/// The batch's thread pool, one per process: a pool made before a `fork` has no threads in the child (a
-/// parallel step there would wait for them forever), so a process whose id is not the pool's makes its own.
+/// The batch's helper threads, one pool per process: a pool made before a `fork` has no threads in the
+/// child (a parallel step there would wait for them forever), so a process whose id is not the pool's makes
+/// its own. The calling thread works beside them ([`for_each_chunk`]), so the pool has one thread fewer
+/// than the step uses.
 mod pool {
     use std::sync::{Arc, Mutex};
 
-    static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+    static POOL: Mutex<Option<(u32, Option<Arc<rayon::ThreadPool>>)>> = Mutex::new(None);
 
-    /// This process's pool (made on first use; `RAYON_NUM_THREADS` or one thread per core).
-    pub fn this_process() -> Arc<rayon::ThreadPool> {
+    /// The threads a step uses, the caller's included: `RAYON_NUM_THREADS`, else one per core.
+    pub fn threads() -> usize {
+        std::env::var("RAYON_NUM_THREADS")
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+            .filter(|&n| n > 0)
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+    }
+
+    /// This process's helpers (made on first use), or None when the step runs on the caller alone.
+    pub fn this_process() -> Option<Arc<rayon::ThreadPool>> {
         let pid = std::process::id();
         let mut held = POOL.lock().unwrap_or_else(|e| e.into_inner());
         if let Some((owner, pool)) = held.as_ref()
@@ -907,28 +984,49 @@ mod pool {
         if let Some(old) = held.take() {
             std::mem::forget(old);
         }
-        let pool = Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .thread_name(|i| format!("pneuflex-gym-{i}"))
-                .build()
-                .expect("a thread pool for the batch"),
-        );
+        let helpers = threads() - 1;
+        let pool = (helpers > 0).then(|| {
+            Arc::new(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(helpers)
+                    .thread_name(|i| format!("pneuflex-gym-{i}"))
+                    .build()
+                    .expect("a thread pool for the batch"),
+            )
+        });
         *held = Some((pid, pool.clone()));
         pool
     }
 }
 
-/// Runs `work(0..chunks)`, each index once: on the calling thread for one chunk (a batch of one never
-/// leaves it), else on the pool's threads while the caller waits. (Measured on 2 cores: the caller working
-/// through the chunks beside the pool's threads gave fewer env-steps per second, 0.44 M against 0.7-0.8 M
-/// at 256 episodes: the helper woken while the caller runs shares its core.)
+/// Runs `work(0..chunks)`, each index once, taken in turn by the calling thread and the pool's helpers
+/// (one fewer than the threads a step uses, so each has its core; a batch of one never leaves the caller).
+/// The caller working beside the helpers saves a wake-up per step: a step of 256 episodes is ~0.2 ms.
 fn for_each_chunk(chunks: usize, work: &(dyn Fn(usize) + Sync)) {
-    if chunks <= 1 {
-        (0..chunks).for_each(work);
-        return;
-    }
-    use rayon::prelude::*;
-    pool::this_process().install(|| (0..chunks).into_par_iter().with_max_len(1).for_each(work));
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let pool = match pool::this_process() {
+        Some(pool) if chunks > 1 => pool,
+        _ => {
+            (0..chunks).for_each(work);
+            return;
+        }
+    };
+    let next = AtomicUsize::new(0);
+    let take = || {
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            if i >= chunks {
+                break;
+            }
+            work(i);
+        }
+    };
+    pool.in_place_scope(|s| {
+        for _ in 0..pool.current_num_threads().min(chunks - 1) {
+            s.spawn(|_| take());
+        }
+        take();
+    });
 }
 
 /// One chunk of a step: its episodes, their actions and what they write.
@@ -939,6 +1037,57 @@ struct Chunk<'a> {
     reward: &'a mut [f64],
     terminated: &'a mut [bool],
     truncated: &'a mut [bool],
+}
+
+/// Episodes whose plants [`step_together`] advances together, each RK4 stage for all of them at once.
+const LANES: usize = 8;
+
+/// A chunk's step under valve commands on 1-DOF plants: what [`Episode::step`] does for each episode, with
+/// the plants of each LANES episodes that step advanced together ([`OneDofPneumatic::advance_together`],
+/// bit for bit their own `advance`). Measured in `scripts/bench.py --gym-only` (docs/gymnasium.md).
+fn step_together(c: Chunk<'_>, task: &Task, randomize: bool, autoreset: bool) {
+    let (width, obs_len) = (task.width(), task.obs_len());
+    for (g, group) in c.episodes.chunks_mut(LANES).enumerate() {
+        let first = g * LANES;
+        let mut outcome = [Outcome::default(); LANES];
+        let mut stepping = [false; LANES];
+        for (j, e) in group.iter_mut().enumerate() {
+            if e.ended && autoreset {
+                e.next_episode(task, randomize);
+            } else {
+                let action = &c.u[(first + j) * width..(first + j + 1) * width];
+                e.begin_step(action);
+                e.actuate_valves(action);
+                stepping[j] = true;
+            }
+        }
+        let mut plants: [Option<&mut OneDofPneumatic>; LANES] = Default::default();
+        for ((e, p), &on) in group.iter_mut().zip(&mut plants).zip(&stepping) {
+            if let (true, EpisodePlant::OneDof(one)) = (on, e.held_plant()) {
+                *p = Some(&mut **one);
+            }
+        }
+        if plants.iter().all(Option::is_some) {
+            OneDofPneumatic::advance_together(plants.map(|p| p.expect("all some")), task.dt);
+        } else {
+            for (e, &on) in group.iter_mut().zip(&stepping) {
+                if on {
+                    e.plant().advance(task.dt);
+                }
+            }
+        }
+        for (j, e) in group.iter_mut().enumerate() {
+            if stepping[j] {
+                let r = e.ticked(task);
+                outcome[j] = e.end_step(task, r);
+                e.ended = outcome[j].terminated || outcome[j].truncated;
+            }
+            let k = first + j;
+            e.observe(task, &mut c.obs[k * obs_len..(k + 1) * obs_len]);
+            let r = outcome[j];
+            (c.reward[k], c.terminated[k], c.truncated[k]) = (r.reward, r.terminated, r.truncated);
+        }
+    }
 }
 
 /// One episode's state in a pickle: (stream, k, randomized, the actions since its start as float64 bytes).
@@ -1331,6 +1480,7 @@ impl PyForceControlBatch {
             .plant
             .lock()
             .unwrap_or_else(|e| e.into_inner())
+            .get()
             .sense_actuator(actuator);
         Ok((e.t, s.x, s.x_dot, s.f_e, s.p_a, s.p_b))
     }
@@ -1501,6 +1651,8 @@ impl PyForceControlBatch {
                 ..
             }
         );
+        // Valve commands to 1-DOF plants: their ticks are advanced LANES at a time (`step_together`).
+        let together = one_dof && matches!(task.action, Action::Valve);
         let least = if one_dof {
             (16 / task.action.ticks()).max(1) as usize
         } else {
@@ -1509,7 +1661,7 @@ impl PyForceControlBatch {
         let size = if n <= least {
             n
         } else {
-            (n / (4 * pool::this_process().current_num_threads())).max(least)
+            (n / (4 * pool::threads())).max(least)
         };
         let chunks: Vec<Mutex<Option<Chunk<'_>>>> = self
             .episodes
@@ -1537,6 +1689,10 @@ impl PyForceControlBatch {
                 let Some(c) = chunks[i].lock().unwrap_or_else(|e| e.into_inner()).take() else {
                     return;
                 };
+                if together {
+                    step_together(c, task, randomize, autoreset);
+                    return;
+                }
                 for (j, e) in c.episodes.iter_mut().enumerate() {
                     let r = if e.ended && autoreset {
                         e.next_episode(task, randomize);

@@ -283,6 +283,24 @@ def the_vector_environment_is_many_single_ones():
         o, _ = single.reset(seed=1, options={"randomize": False})
         want = [o] + [single.step(u[i] * math.sin(0.05 * k))[0] for k in range(200)]
         assert np.array_equal(got[:, i], np.array(want)), i
+    # Randomised episodes (each its own mass, friction and valve delay), their plants stepped eight at a
+    # time in packed arithmetic (a batch of 11: one pack and three alone): each still the single
+    # environment fed the same actions, to the bit.
+    wide = gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=11, vectorization_mode="vector_entry_point")
+    seeds = [40 + i for i in range(11)]
+    u11 = np.linspace(-0.15, 0.15, 11)[:, None]
+    obs0, _ = wide.reset(seed=seeds, options={"randomize": True})
+    got = [obs0]
+    for k in range(250):
+        obs, _, term, trunc, _ = wide.step(u11 * math.sin(0.05 * k + 1.0))
+        got.append(obs)
+        assert not (term.any() or trunc.any())
+    got = np.array(got)
+    for i in range(11):
+        o, _ = single.reset(seed=seeds[i], options={"randomize": True})
+        want = [o] + [single.step(u11[i] * math.sin(0.05 * k + 1.0))[0] for k in range(250)]
+        assert np.array_equal(got[:, i], np.array(want)), i
+    assert len({tuple(got[-1, i]) for i in range(11)}) == 11
     # Seeds: the same seed the same draws, another seed others, all within their ranges.
     _, a = vec.reset(seed=7)
     _, b = vec.reset(seed=7)

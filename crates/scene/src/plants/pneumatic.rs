@@ -116,6 +116,46 @@ impl OneDofPneumatic {
     pub fn substeps(&self) -> u32 {
         self.substeps
     }
+
+    /// [`Plant::advance`] of N plants by `dt`, bit for bit the N calls, with each RK4 stage taken for
+    /// every plant before the next ([`pneuflex_pneumatics::advance_together`]: N independent chains of
+    /// square roots and divisions side by side). A batch of environments steps its plants so. Plants behind
+    /// pressure regulators, or with different substeps, are advanced one by one.
+    pub fn advance_together<const N: usize>(plants: [&mut Self; N], dt: f64) {
+        let substeps = plants[0].substeps;
+        if plants
+            .iter()
+            .any(|p| p.regulator.is_some() || p.substeps != substeps)
+        {
+            for p in plants {
+                p.advance(dt);
+            }
+            return;
+        }
+        let parts = plants.map(|p| {
+            let Self {
+                model,
+                state,
+                u,
+                gravity_n,
+                env,
+                ..
+            } = p;
+            (&*model, state, *u, *gravity_n, *env)
+        });
+        let models = parts.each_ref().map(|p| p.0);
+        let u = parts.each_ref().map(|p| p.2);
+        let gravity_n = parts.each_ref().map(|p| p.3);
+        let envs = parts.each_ref().map(|p| p.4);
+        let plants = pneuflex_pneumatics::Together {
+            models,
+            states: parts.map(|p| p.1),
+            u,
+            gravity_n,
+        };
+        // The contact force held over each substep, as `advance` holds it.
+        pneuflex_pneumatics::advance_together(plants, dt, substeps, |i, x| -envs[i].force(x));
+    }
 }
 
 impl crate::plants::Linearisable for OneDofPneumatic {
