@@ -320,13 +320,33 @@ pub fn advance_together<const N: usize>(
     substeps: u32,
     mut f_ext: impl FnMut(usize, f64) -> f64,
 ) {
-    let m0 = plants.models[0];
+    let Some(&m0) = plants.models.first() else {
+        return;
+    };
     // One set of chamber constants for all of them but the paths' gains: the same actuator (its valve's
     // timing only moves the spool's edges).
+    // Field by field, every field of the actuator but `valve.kind` (a copy of each actuator to compare
+    // whole was a measurable part of a batched environment's step).
     let same_circuit = |m: &OneDofModel| {
-        let mut a = m.actuator;
-        a.valve.kind = m0.actuator.valve.kind;
-        a == m0.actuator
+        let (a, b) = (&m.actuator, &m0.actuator);
+        let crate::Actuator {
+            cylinder,
+            gas,
+            valve,
+            supply,
+        } = a;
+        let crate::ValveModel {
+            orifice,
+            paths,
+            underlap,
+            kind: _,
+        } = valve;
+        *cylinder == b.cylinder
+            && *gas == b.gas
+            && *supply == b.supply
+            && *orifice == b.valve.orifice
+            && *paths == b.valve.paths
+            && *underlap == b.valve.underlap
     };
     if plants
         .models

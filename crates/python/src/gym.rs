@@ -962,13 +962,17 @@ mod pool {
 
     static POOL: Mutex<Option<(u32, Option<Arc<rayon::ThreadPool>>)>> = Mutex::new(None);
 
-    /// The threads a step uses, the caller's included: `RAYON_NUM_THREADS`, else one per core.
+    /// The threads a step uses, the caller's included: `RAYON_NUM_THREADS`, else one per core (read
+    /// once: the core count comes from the cgroup's files).
     pub fn threads() -> usize {
-        std::env::var("RAYON_NUM_THREADS")
-            .ok()
-            .and_then(|v| v.parse::<usize>().ok())
-            .filter(|&n| n > 0)
-            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        static THREADS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+        *THREADS.get_or_init(|| {
+            std::env::var("RAYON_NUM_THREADS")
+                .ok()
+                .and_then(|v| v.parse::<usize>().ok())
+                .filter(|&n| n > 0)
+                .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        })
     }
 
     /// This process's helpers (made on first use), or None when the step runs on the caller alone.
@@ -1004,9 +1008,10 @@ mod pool {
 /// The caller working beside the helpers saves a wake-up per step: a step of 256 episodes is ~0.2 ms.
 fn for_each_chunk(chunks: usize, work: &(dyn Fn(usize) + Sync)) {
     use std::sync::atomic::{AtomicUsize, Ordering};
-    let pool = match pool::this_process() {
-        Some(pool) if chunks > 1 => pool,
-        _ => {
+    // One chunk never leaves the caller (nor asks for the pool: a getpid and a lock).
+    let pool = match (chunks > 1).then(pool::this_process).flatten() {
+        Some(pool) => pool,
+        None => {
             (0..chunks).for_each(work);
             return;
         }
@@ -1039,6 +1044,28 @@ struct Chunk<'a> {
     truncated: &'a mut [bool],
 }
 
+/// One episode's step into its observation: an episode that ended is started again (autoreset) or else
+/// stepped under `action`, then observed.
+fn step_episode(
+    e: &mut Episode,
+    task: &Task,
+    action: &[f64],
+    obs: &mut [f32],
+    randomize: bool,
+    autoreset: bool,
+) -> Outcome {
+    let r = if e.ended && autoreset {
+        e.next_episode(task, randomize);
+        Outcome::default()
+    } else {
+        let r = e.step(task, action);
+        e.ended = r.terminated || r.truncated;
+        r
+    };
+    e.observe(task, obs);
+    r
+}
+
 /// Episodes whose plants [`step_together`] advances together, each RK4 stage for all of them at once.
 const LANES: usize = 8;
 
@@ -1049,6 +1076,18 @@ fn step_together(c: Chunk<'_>, task: &Task, randomize: bool, autoreset: bool) {
     let (width, obs_len) = (task.width(), task.obs_len());
     for (g, group) in c.episodes.chunks_mut(LANES).enumerate() {
         let first = g * LANES;
+        if group.len() < LANES {
+            // Fewer than a pack: each episode as the plain loop steps it.
+            for (j, e) in group.iter_mut().enumerate() {
+                let k = first + j;
+                let action = &c.u[k * width..(k + 1) * width];
+                let obs = &mut c.obs[k * obs_len..(k + 1) * obs_len];
+                let r = step_episode(e, task, action, obs, randomize, autoreset);
+                (c.reward[k], c.terminated[k], c.truncated[k]) =
+                    (r.reward, r.terminated, r.truncated);
+            }
+            continue;
+        }
         let mut outcome = [Outcome::default(); LANES];
         let mut stepping = [false; LANES];
         for (j, e) in group.iter_mut().enumerate() {
@@ -1694,15 +1733,9 @@ impl PyForceControlBatch {
                     return;
                 }
                 for (j, e) in c.episodes.iter_mut().enumerate() {
-                    let r = if e.ended && autoreset {
-                        e.next_episode(task, randomize);
-                        Outcome::default()
-                    } else {
-                        let r = e.step(task, &c.u[j * width..(j + 1) * width]);
-                        e.ended = r.terminated || r.truncated;
-                        r
-                    };
-                    e.observe(task, &mut c.obs[j * obs_len..(j + 1) * obs_len]);
+                    let action = &c.u[j * width..(j + 1) * width];
+                    let obs = &mut c.obs[j * obs_len..(j + 1) * obs_len];
+                    let r = step_episode(e, task, action, obs, randomize, autoreset);
                     (c.reward[j], c.terminated[j], c.truncated[j]) =
                         (r.reward, r.terminated, r.truncated);
                 }

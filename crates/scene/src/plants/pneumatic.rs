@@ -122,7 +122,9 @@ impl OneDofPneumatic {
     /// square roots and divisions side by side). A batch of environments steps its plants so. Plants behind
     /// pressure regulators, or with different substeps, are advanced one by one.
     pub fn advance_together<const N: usize>(plants: [&mut Self; N], dt: f64) {
-        let substeps = plants[0].substeps;
+        let Some(substeps) = plants.first().map(|p| p.substeps) else {
+            return;
+        };
         if plants
             .iter()
             .any(|p| p.regulator.is_some() || p.substeps != substeps)
