@@ -323,10 +323,9 @@ pub fn advance_together<const N: usize>(
     let Some(&m0) = plants.models.first() else {
         return;
     };
-    // One set of chamber constants for all of them but the paths' gains: the same actuator (its valve's
-    // timing only moves the spool's edges).
-    // Field by field, every field of the actuator but `valve.kind` (a copy of each actuator to compare
-    // whole was a measurable part of a batched environment's step).
+    // One set of chamber constants for all of them but the paths' gains: the same actuator, every field but
+    // the valve's timing (`valve.kind`, which only moves the spool's edges). Compared field by field: a
+    // copy of each actuator to compare whole showed in a batched environment's profile.
     let same_circuit = |m: &OneDofModel| {
         let (a, b) = (&m.actuator, &m0.actuator);
         let crate::Actuator {
