@@ -8,10 +8,10 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use pneuflex_pneumatics::{
-    ActuatorSheet, ChamberState, OneDofModel, OneDofState, Together, advance_together,
+    ActuatorSheet, ChamberState, OneDofModel, OneDofState, PACK, Together, advance_together,
 };
 
-const N: usize = 8;
+const N: usize = PACK;
 /// Control periods per timed slice.
 const PERIODS: u64 = 2000;
 
@@ -74,7 +74,7 @@ fn main() {
                 u: std::array::from_fn(|i| command(k_together, i)),
                 gravity_n: gravity,
             };
-            advance_together(plants, 1e-3, 10, |_, x| spring(x));
+            advance_together(plants, 1e-3, 10, &mut |_, x| spring(x));
             restart(&mut together);
         }
         let b = t0.elapsed().as_secs_f64() / (PERIODS * N as u64) as f64;

@@ -37,7 +37,7 @@ pub use flow::Orifice;
 pub use force_element::PneumaticForceElement;
 pub use mechanics::ExtendedState;
 pub use mechanics::{Friction, Mechanics, OneDofModel, OneDofState};
-pub use one_dof::{Together, advance_together};
+pub use one_dof::{PACK, Together, advance_together};
 pub use regulator::PressureRegulator;
 pub use tf::{Linearisation, OperatingPoint, OperatingPointError, TfParams, TransferFunction};
 pub use valve::{Openings, PATHS, SpoolHold, ValveKind, ValveModel, ValveState};

@@ -296,33 +296,35 @@ impl OneDofModel {
     }
 }
 
-/// N plants of the paper's model advanced together ([`advance_together`]): what stays the same across them.
-pub struct Together<'a, const N: usize> {
+/// Plants per pack of [`advance_together`]: eight f64, one AVX-512 register (two AVX2 ones).
+pub const PACK: usize = 8;
+
+/// [`PACK`] plants of the paper's model advanced together ([`advance_together`]).
+pub struct Together<'a> {
     /// Each plant's model.
-    pub models: [&'a OneDofModel; N],
+    pub models: [&'a OneDofModel; PACK],
     /// Each plant's state.
-    pub states: [&'a mut OneDofState; N],
+    pub states: [&'a mut OneDofState; PACK],
     /// Each plant's valve command in [-1, 1].
-    pub u: [f64; N],
+    pub u: [f64; PACK],
     /// Each plant's G_alpha = m g sin(alpha), N.
-    pub gravity_n: [f64; N],
+    pub gravity_n: [f64; PACK],
 }
 
-/// [`OneDofModel::advance`] of N plants over one control period `dt` in `substeps` steps, `f_ext(i, x)` the
+/// [`OneDofModel::advance`] of [`PACK`] plants over one control period `dt` in `substeps` steps, `f_ext(i, x)` the
 /// external force on plant i (N) at the start of each substep: bit for bit the N calls of `advance` (the
 /// same expressions, [`crate::lanes`]), with each RK4 stage computed for all N plants at once in packed
 /// arithmetic (AVX-512 or AVX2 where the processor has them). The batched Gymnasium environment steps its plants so
 /// (docs/gymnasium.md). Plants whose models have effects beyond the paper's, or different actuators (the
-/// valve's timing aside), are advanced one by one.
-pub fn advance_together<const N: usize>(
-    plants: Together<'_, N>,
+/// valve's timing aside), are advanced one by one. Not generic, so that it is compiled here, optimised as
+/// this crate is, whatever the caller's profile (a generic is compiled in its caller's).
+pub fn advance_together(
+    plants: Together<'_>,
     dt: f64,
     substeps: u32,
-    mut f_ext: impl FnMut(usize, f64) -> f64,
+    f_ext: &mut dyn FnMut(usize, f64) -> f64,
 ) {
-    let Some(&m0) = plants.models.first() else {
-        return;
-    };
+    let m0 = plants.models[0];
     // One set of chamber constants for all of them but the paths' gains: the same actuator, every field but
     // the valve's timing (`valve.kind`, which only moves the spool's edges). Compared field by field: a
     // copy of each actuator to compare whole showed in a batched environment's profile.
@@ -367,22 +369,22 @@ pub fn advance_together<const N: usize>(
     {
         // SAFETY (both): the processor has the instructions (checked on the same line).
         if std::is_x86_feature_detected!("avx512f") {
-            unsafe { packed_avx512(plants, dt, substeps, &mut f_ext) };
+            unsafe { packed_avx512(plants, dt, substeps, f_ext) };
             return;
         }
         if std::is_x86_feature_detected!("avx2") {
-            unsafe { packed_avx2(plants, dt, substeps, &mut f_ext) };
+            unsafe { packed_avx2(plants, dt, substeps, f_ext) };
             return;
         }
     }
-    packed(plants, dt, substeps, &mut f_ext);
+    packed(plants, dt, substeps, f_ext);
 }
 
 /// [`packed`] compiled for AVX-512 (eight plants per instruction).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn packed_avx512<const N: usize>(
-    plants: Together<'_, N>,
+unsafe fn packed_avx512(
+    plants: Together<'_>,
     dt: f64,
     substeps: u32,
     f_ext: &mut dyn FnMut(usize, f64) -> f64,
@@ -393,8 +395,8 @@ unsafe fn packed_avx512<const N: usize>(
 /// [`packed`] compiled for AVX2 (four plants per instruction).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn packed_avx2<const N: usize>(
-    plants: Together<'_, N>,
+unsafe fn packed_avx2(
+    plants: Together<'_>,
     dt: f64,
     substeps: u32,
     f_ext: &mut dyn FnMut(usize, f64) -> f64,
@@ -406,12 +408,7 @@ unsafe fn packed_avx2<const N: usize>(
 /// piece's RK4 for all plants at once; the pieces after an edge, the end stops and the sticking per plant
 /// ([`OneDofModel::finish_step`]).
 #[inline(always)]
-fn packed<const N: usize>(
-    plants: Together<'_, N>,
-    dt: f64,
-    substeps: u32,
-    f_ext: &mut dyn FnMut(usize, f64) -> f64,
-) {
+fn packed(plants: Together<'_>, dt: f64, substeps: u32, f_ext: &mut dyn FnMut(usize, f64) -> f64) {
     let Together {
         models,
         mut states,
@@ -421,11 +418,11 @@ fn packed<const N: usize>(
     let h = dt / f64::from(substeps.max(1));
     let inv_mass = models.map(|m| 1.0 / m.mechanics.moving_mass_kg);
     let viscous = Pack(models.map(|m| m.mechanics.viscous_n_s_per_m));
-    let mut held: [Held; N] = core::array::from_fn(|_| Held::NONE);
+    let mut held: [Held; PACK] = core::array::from_fn(|_| Held::NONE);
     for _ in 0..substeps.max(1) {
-        let mut f_load = [0.0; N];
-        let mut pieces = [(0.0, None); N];
-        for i in 0..N {
+        let mut f_load = [0.0; PACK];
+        let mut pieces = [(0.0, None); PACK];
+        for i in 0..PACK {
             f_load[i] = gravity_n[i] + f_ext(i, states[i].x);
             let t = states[i].t;
             pieces[i] = models[i].piece(states[i], u[i], t, h, &mut held[i]);
@@ -449,8 +446,8 @@ fn packed<const N: usize>(
                 Pack(states.each_ref().map(|s| s.chambers.t_b)),
             ],
         };
-        let mut dt = [0.0; N];
-        for i in 0..N {
+        let mut dt = [0.0; PACK];
+        for i in 0..PACK {
             dt[i] = pieces[i].0;
         }
         let rates = PackRates {

@@ -6,11 +6,11 @@
 use std::path::Path;
 
 use pneuflex_pneumatics::{
-    ActuatorSheet, ChamberState, Friction, OneDofModel, OneDofState, Together, ValveKind,
+    ActuatorSheet, ChamberState, Friction, OneDofModel, OneDofState, PACK, Together, ValveKind,
     advance_together,
 };
 
-const N: usize = 8;
+const N: usize = PACK;
 
 fn sheet(name: &str) -> OneDofModel {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -74,7 +74,7 @@ fn agree(models: &[OneDofModel; N], periods: u64, command: impl Fn(u64, usize) -
             u,
             gravity_n: gravity,
         };
-        advance_together(plants, 1e-3, 10, spring);
+        advance_together(plants, 1e-3, 10, &mut |i, x| spring(i, x));
         for i in 0..N {
             assert_eq!(
                 bits(&alone[i]),

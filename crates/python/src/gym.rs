@@ -1067,7 +1067,7 @@ fn step_episode(
 }
 
 /// Episodes whose plants [`step_together`] advances together, each RK4 stage for all of them at once.
-const LANES: usize = 8;
+const LANES: usize = pneuflex_pneumatics::PACK;
 
 /// A chunk's step under valve commands on 1-DOF plants: what [`Episode::step`] does for each episode, with
 /// the plants of each LANES episodes that step advanced together ([`OneDofPneumatic::advance_together`],

@@ -117,14 +117,12 @@ impl OneDofPneumatic {
         self.substeps
     }
 
-    /// [`Plant::advance`] of N plants by `dt`, bit for bit the N calls, with each RK4 stage taken for
-    /// every plant before the next ([`pneuflex_pneumatics::advance_together`]: N independent chains of
-    /// square roots and divisions side by side). A batch of environments steps its plants so. Plants behind
-    /// pressure regulators, or with different substeps, are advanced one by one.
-    pub fn advance_together<const N: usize>(plants: [&mut Self; N], dt: f64) {
-        let Some(substeps) = plants.first().map(|p| p.substeps) else {
-            return;
-        };
+    /// [`Plant::advance`] of [`pneuflex_pneumatics::PACK`] plants by `dt`, bit for bit the calls one by one,
+    /// with each RK4 stage taken for every plant at once ([`pneuflex_pneumatics::advance_together`]: packed
+    /// arithmetic). A batch of environments steps its plants so. Plants behind pressure regulators, or with
+    /// different substeps, are advanced one by one.
+    pub fn advance_together(plants: [&mut Self; pneuflex_pneumatics::PACK], dt: f64) {
+        let substeps = plants[0].substeps;
         if plants
             .iter()
             .any(|p| p.regulator.is_some() || p.substeps != substeps)
@@ -156,7 +154,7 @@ impl OneDofPneumatic {
             gravity_n,
         };
         // The contact force held over each substep, as `advance` holds it.
-        pneuflex_pneumatics::advance_together(plants, dt, substeps, |i, x| -envs[i].force(x));
+        pneuflex_pneumatics::advance_together(plants, dt, substeps, &mut |i, x| -envs[i].force(x));
     }
 }
 
