@@ -10,6 +10,7 @@
 
 use crate::actuator::{Actuator, ChamberState};
 use crate::effects::Effects;
+use crate::lanes::{Real, pick, tanh};
 use crate::valve::ValveState;
 
 /// Coulomb friction law of the piston and guide.
@@ -172,17 +173,7 @@ impl Friction {
             Friction::Smooth {
                 coulomb_n,
                 smooth_velocity_m_per_s,
-            } => {
-                let y = v / smooth_velocity_m_per_s;
-                // tanh rounds to exactly +-1 for |y| >= 20 (1 - tanh < 1e-17), and without Coulomb friction
-                // (the loop analysis removes it) only the sign of the zero matters: skip the libm call.
-                let t = if y.abs() >= 20.0 || coulomb_n == 0.0 {
-                    y.signum()
-                } else {
-                    y.tanh()
-                };
-                coulomb_n * t
-            }
+            } => smooth_coulomb(coulomb_n, smooth_velocity_m_per_s, v),
             Friction::StickSlip {
                 coulomb_n,
                 static_n,
@@ -305,6 +296,21 @@ impl OneDofModel {
         (p_b * c.area_b() + p_atm * c.area_rod() - self.mechanics.gravity_force() - f_ext)
             / c.area_a()
     }
+}
+
+/// [`Friction::Smooth`]'s `F_c tanh(v / v_s)` for one plant or a pack of them ([`crate::advance_together`]).
+#[inline(always)]
+pub(crate) fn smooth_coulomb<R: Real>(coulomb_n: R, smooth_velocity: R, v: R) -> R {
+    let y = v / smooth_velocity;
+    let zero = R::splat(0.0);
+    // tanh rounds to exactly +-1 for |y| >= 20 (1 - tanh < 1e-17), and without Coulomb friction (the loop
+    // analysis removes it) only the sign of the zero matters: one plant skips the tanh.
+    let beyond = R::or(
+        R::splat(20.0).le(y.abs()),
+        R::and(coulomb_n.le(zero), zero.le(coulomb_n)),
+    );
+    let [t] = pick!(R; beyond => [y.signum()], [tanh(y)]);
+    coulomb_n * t
 }
 
 /// `exp(-q)` for `q >= 0`, 0 past q = 700: there `exp` underflows into libm's slow path (12 % of an

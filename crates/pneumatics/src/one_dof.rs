@@ -4,7 +4,7 @@
 
 use crate::actuator::{ChamberState, ChamberStep, Chambers};
 use crate::lanes::{Pack, Real};
-use crate::mechanics::{OneDofModel, OneDofState};
+use crate::mechanics::{Friction, OneDofModel, OneDofState, smooth_coulomb};
 use crate::regulator::{PressureRegulator, RegulatedStep};
 
 /// What stays constant over one step of [`OneDofModel::step`].
@@ -418,6 +418,19 @@ fn packed(plants: Together<'_>, dt: f64, substeps: u32, f_ext: &mut dyn FnMut(us
     let h = dt / f64::from(substeps.max(1));
     let inv_mass = models.map(|m| 1.0 / m.mechanics.moving_mass_kg);
     let viscous = Pack(models.map(|m| m.mechanics.viscous_n_s_per_m));
+    let mut smooth = Some((Pack([0.0; PACK]), Pack([0.0; PACK])));
+    for (i, m) in models.iter().enumerate() {
+        match (m.mechanics.friction, &mut smooth) {
+            (
+                Friction::Smooth {
+                    coulomb_n,
+                    smooth_velocity_m_per_s,
+                },
+                Some((c, v_s)),
+            ) => (c.0[i], v_s.0[i]) = (coulomb_n, smooth_velocity_m_per_s),
+            _ => smooth = None,
+        }
+    }
     let mut held: [Held; PACK] = core::array::from_fn(|_| Held::NONE);
     for _ in 0..substeps.max(1) {
         let mut f_load = [0.0; PACK];
@@ -457,6 +470,7 @@ fn packed(plants: Together<'_>, dt: f64, substeps: u32, f_ext: &mut dyn FnMut(us
             load,
             viscous,
             inv_mass: inv_m,
+            smooth,
         };
         let end = rk4_point(&start, Pack(dt), &rates);
         for (i, state) in states.iter_mut().enumerate() {
@@ -491,6 +505,8 @@ struct PackRates<'a, const N: usize> {
     load: Pack<N>,
     viscous: Pack<N>,
     inv_mass: Pack<N>,
+    /// F_c and v_s when every plant's friction is [`Friction::Smooth`] (then computed packed, else per plant).
+    smooth: Option<(Pack<N>, Pack<N>)>,
 }
 
 /// The rates of a point (what RK4 steps).
@@ -502,17 +518,23 @@ impl<const N: usize> Rates<Pack<N>> for PackRates<'_, N> {
     #[inline(always)]
     fn at(&self, p: &Point<Pack<N>>) -> Point<Pack<N>> {
         let drive = self.shared.force_of(p.c[0], p.c[1]) + self.load;
-        let mut friction = [0.0; N];
-        for (i, f) in friction.iter_mut().enumerate() {
-            *f = self.models[i]
-                .mechanics
-                .friction
-                .force(p.v.0[i], drive.0[i]);
-        }
+        let friction = match self.smooth {
+            Some((coulomb, smooth_velocity)) => smooth_coulomb(coulomb, smooth_velocity, p.v),
+            None => {
+                let mut f = [0.0; N];
+                for i in 0..N {
+                    f[i] = self.models[i]
+                        .mechanics
+                        .friction
+                        .force(p.v.0[i], drive.0[i]);
+                }
+                Pack(f)
+            }
+        };
         Point {
             x: p.v,
             // eq. (1), as `OneDofModel::rates`.
-            v: (drive - Pack(friction) - self.viscous * p.v) * self.inv_mass,
+            v: (drive - friction - self.viscous * p.v) * self.inv_mass,
             c: self.shared.rates_of(self.gains, p.c, p.x, p.v),
         }
     }

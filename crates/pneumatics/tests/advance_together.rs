@@ -24,19 +24,26 @@ fn sheet(name: &str) -> OneDofModel {
 /// Eight plants of `base`, each with its own mass, friction and switching delay (plant 5 with stick-slip
 /// friction).
 fn plants(base: OneDofModel) -> [OneDofModel; N] {
+    let mut models = smooth_plants(base);
+    models[5].mechanics.friction = Friction::StickSlip {
+        coulomb_n: 0.6,
+        static_n: 1.0,
+        stribeck_velocity_m_per_s: 0.005,
+        stick_velocity_m_per_s: 1e-4,
+    };
+    models
+}
+
+/// Eight plants of `base` as [`plants`], all with the sheet's smooth friction, scaled per plant (plant 0
+/// without Coulomb friction): their friction is computed packed too.
+fn smooth_plants(base: OneDofModel) -> [OneDofModel; N] {
     std::array::from_fn(|i| {
         let mut m = base;
         m.mechanics.moving_mass_kg *= 0.6 + 0.2 * i as f64;
-        m.mechanics.friction = if i == 5 {
-            Friction::StickSlip {
-                coulomb_n: 0.6,
-                static_n: 1.0,
-                stribeck_velocity_m_per_s: 0.005,
-                stick_velocity_m_per_s: 1e-4,
-            }
-        } else {
-            m.mechanics.friction.scaled(0.5 + 0.25 * i as f64)
-        };
+        m.mechanics.friction = m
+            .mechanics
+            .friction
+            .scaled(0.25 * i as f64 + 0.25 * f64::from(i > 0));
         if let ValveKind::OnOffPwm {
             switching_delay_s, ..
         } = &mut m.actuator.valve.kind
@@ -108,8 +115,17 @@ fn plants_stepped_together_are_each_plant_stepped_alone() {
 }
 
 #[test]
+fn plants_with_smooth_friction_are_packed_to_the_bit_too() {
+    // All smooth: the friction's tanh is computed for the eight at once.
+    let models = smooth_plants(sheet("paper-actuator.toml"));
+    agree(&models, 2000, |k, i| {
+        0.3 * ((k as f64) * 0.004 + i as f64).sin() + 0.05 * (k % 7) as f64 - 0.15
+    });
+}
+
+#[test]
 fn the_proportional_valve_too() {
-    let models = plants(sheet("paper-actuator-proportional.toml"));
+    let models = smooth_plants(sheet("paper-actuator-proportional.toml"));
     agree(&models, 1500, |k, i| {
         0.4 * ((k as f64) * 0.01 + i as f64).sin()
     });
