@@ -310,8 +310,9 @@ pub(crate) fn tanh<R: Real>(y: R) -> R {
 /// exact, one rounding in the sum.
 #[inline(always)]
 fn expm1_nonpositive<R: Real>(z: R) -> R {
-    const LN2_HI: f64 = 6.931_471_803_691_238_164_90e-1; // 32 trailing zero bits
-    const LN2_LO: f64 = 1.908_214_929_270_587_700_02e-10;
+    // ln 2 = LN2_HI + LN2_LO, LN2_HI with 32 trailing zero bits (6.9314718036912382e-1, 1.9082149292705877e-10).
+    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
     let shifted = z * R::splat(core::f64::consts::LOG2_E) + R::splat(SHIFTER);
     let k = shifted - R::splat(SHIFTER);
     let r = (z - k * R::splat(LN2_HI)) - k * R::splat(LN2_LO);

@@ -521,14 +521,14 @@ impl<const N: usize> Rates<Pack<N>> for PackRates<'_, N> {
         let friction = match self.smooth {
             Some((coulomb, smooth_velocity)) => smooth_coulomb(coulomb, smooth_velocity, p.v),
             None => {
-                let mut f = [0.0; N];
-                for i in 0..N {
-                    f[i] = self.models[i]
+                let mut each = [0.0; N];
+                for (i, f) in each.iter_mut().enumerate() {
+                    *f = self.models[i]
                         .mechanics
                         .friction
                         .force(p.v.0[i], drive.0[i]);
                 }
-                Pack(f)
+                Pack(each)
             }
         };
         Point {
