@@ -953,17 +953,20 @@ struct Args {
     regulator_time_constant_s: f64,
 }
 
-/// The batch's helper threads, one pool per process: a pool made before a `fork` has no threads in the
-/// child (a parallel step there would wait for them forever), so a process whose id is not the pool's makes
-/// its own. The calling thread works beside them ([`for_each_chunk`]), so the pool has one thread fewer
-/// than the step uses.
+/// The batch's helper threads, one set per process: helpers made before a `fork` are not in the child (a
+/// parallel step there would wait for them forever), so a process whose id is not the helpers' makes its
+/// own. The calling thread works beside them ([`for_each_chunk`]), so there is one helper fewer than the
+/// threads a step uses.
 mod pool {
     use std::sync::{Arc, Mutex};
 
-    static POOL: Mutex<Option<(u32, Option<Arc<rayon::ThreadPool>>)>> = Mutex::new(None);
+    use pneuflex_threads::Helpers;
 
-    /// The threads a step uses, the caller's included: `RAYON_NUM_THREADS`, else one per core (read
-    /// once: the core count comes from the cgroup's files).
+    static POOL: Mutex<Option<(u32, Option<Arc<Helpers>>)>> = Mutex::new(None);
+
+    /// The threads a step uses, the caller's included: `RAYON_NUM_THREADS` (the name the bindings read
+    /// when their pool was rayon's), else one per core (read once: the core count comes from the cgroup's
+    /// files).
     pub fn threads() -> usize {
         static THREADS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
         *THREADS.get_or_init(|| {
@@ -976,7 +979,7 @@ mod pool {
     }
 
     /// This process's helpers (made on first use), or None when the step runs on the caller alone.
-    pub fn this_process() -> Option<Arc<rayon::ThreadPool>> {
+    pub fn this_process() -> Option<Arc<Helpers>> {
         let pid = std::process::id();
         let mut held = POOL.lock().unwrap_or_else(|e| e.into_inner());
         if let Some((owner, pool)) = held.as_ref()
@@ -984,54 +987,27 @@ mod pool {
         {
             return pool.clone();
         }
-        // The parent's pool: its threads are not in this process, and dropping it would signal them.
+        // The parent's helpers: their threads are not in this process, and dropping them would signal them.
         if let Some(old) = held.take() {
             std::mem::forget(old);
         }
         let helpers = threads() - 1;
         let pool = (helpers > 0).then(|| {
-            Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(helpers)
-                    .thread_name(|i| format!("pneuflex-gym-{i}"))
-                    .build()
-                    .expect("a thread pool for the batch"),
-            )
+            Arc::new(Helpers::new(helpers, "pneuflex-gym").expect("the batch's helper threads"))
         });
         *held = Some((pid, pool.clone()));
         pool
     }
 }
 
-/// Runs `work(0..chunks)`, each index once, taken in turn by the calling thread and the pool's helpers
-/// (one fewer than the threads a step uses, so each has its core; a batch of one never leaves the caller).
-/// The caller working beside the helpers saves a wake-up per step: a step of 256 episodes is ~0.2 ms.
+/// Runs `work(0..chunks)`, each index once, taken in turn by the calling thread and the helpers (one
+/// fewer than the threads a step uses, so each has its core; a batch of one never leaves the caller).
 fn for_each_chunk(chunks: usize, work: &(dyn Fn(usize) + Sync)) {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    // One chunk never leaves the caller (nor asks for the pool: a getpid and a lock).
-    let pool = match (chunks > 1).then(pool::this_process).flatten() {
-        Some(pool) => pool,
-        None => {
-            (0..chunks).for_each(work);
-            return;
-        }
-    };
-    let next = AtomicUsize::new(0);
-    let take = || {
-        loop {
-            let i = next.fetch_add(1, Ordering::Relaxed);
-            if i >= chunks {
-                break;
-            }
-            work(i);
-        }
-    };
-    pool.in_place_scope(|s| {
-        for _ in 0..pool.current_num_threads().min(chunks - 1) {
-            s.spawn(|_| take());
-        }
-        take();
-    });
+    // One chunk never leaves the caller (nor asks for the helpers: a getpid and a lock).
+    match (chunks > 1).then(pool::this_process).flatten() {
+        Some(pool) => pool.for_each(chunks, work),
+        None => (0..chunks).for_each(work),
+    }
 }
 
 /// One chunk of a step: its episodes, their actions and what they write.
