@@ -28,7 +28,7 @@ pub const SPIN: Duration = Duration::from_micros(200);
 /// The most indices of one job the helpers share (a job with more runs on the caller alone).
 pub const MAX_INDICES: usize = (1 << INDEX_BITS) - 1;
 
-/// The job's state word: its number (the high 32 bits), its index count and the next index to take.
+/// The job's state word: its number (the high 32 bits), the end of the indices left and their start.
 const INDEX_BITS: u32 = 16;
 const INDEX_MASK: u64 = (1 << INDEX_BITS) - 1;
 
@@ -36,7 +36,7 @@ const INDEX_MASK: u64 = (1 << INDEX_BITS) - 1;
 type Work = *const (dyn Fn(usize) + Sync);
 
 struct Shared {
-    /// `job << 32 | count << 16 | next`: which job, how many indices, the next one to take.
+    /// `job << 32 | back << 16 | front`: which job, and its indices not yet taken, `front..back`.
     state: AtomicU64,
     /// Indices of the current job finished (run, or panicked).
     done: AtomicUsize,
@@ -125,7 +125,7 @@ impl Helpers {
             let _bed = s.bed.lock().unwrap_or_else(|e| e.into_inner());
             s.wake.notify_all();
         }
-        take(s, job);
+        take(s, job, false);
         // The indices in flight on the helpers.
         let mut spins = 0u32;
         while s.done.load(Ordering::Acquire) < n {
@@ -156,27 +156,34 @@ impl Drop for Helpers {
     }
 }
 
-/// Takes and runs indices of job `job` until none are left (or another job is current).
-fn take(s: &Shared, job: u64) {
+/// Takes and runs indices of job `job` until none are left (or another job is current): the caller from
+/// the front, the helpers from the back, so that each thread runs much the same indices step after step
+/// and finds their data in its own core's cache.
+fn take(s: &Shared, job: u64, from_back: bool) {
     let mut state = s.state.load(Ordering::Acquire);
     loop {
-        let (current, count, next) = (
+        let (current, back, front) = (
             state >> 32,
             (state >> INDEX_BITS) & INDEX_MASK,
             state & INDEX_MASK,
         );
-        if current != job || next >= count {
+        if current != job || front >= back {
             return;
         }
+        let (index, next) = if from_back {
+            (back - 1, state - (1 << INDEX_BITS))
+        } else {
+            (front, state + 1)
+        };
         match s
             .state
-            .compare_exchange_weak(state, state + 1, Ordering::Acquire, Ordering::Acquire)
+            .compare_exchange_weak(state, next, Ordering::Acquire, Ordering::Acquire)
         {
             Ok(_) => {
-                // SAFETY: we hold index `next` of `job`, so its caller waits for us and `work` is its.
+                // SAFETY: we hold `index` of `job`, so its caller waits for us and `work` is its.
                 let work = unsafe { (*s.work.get()).expect("a job's work") };
                 // SAFETY: as above, the work outlives the index.
-                let r = catch_unwind(AssertUnwindSafe(|| unsafe { (*work)(next as usize) }));
+                let r = catch_unwind(AssertUnwindSafe(|| unsafe { (*work)(index as usize) }));
                 if let Err(p) = r {
                     s.panic
                         .lock()
@@ -227,7 +234,7 @@ fn helper(s: &Shared) {
             drop(bed);
         };
         seen = job;
-        take(s, job);
+        take(s, job, true);
     }
 }
 
