@@ -258,6 +258,35 @@ def the_impedance_action_at_zero_is_the_scene_impedance_run():
 
 
 @test
+def a_batch_shared_by_the_threads_is_each_episode_alone():
+    """A batch large enough to be split over the calling thread and the helpers (67 randomised episodes:
+    chunks of 16, the last with three episodes outside a pack) steps each episode as the single
+    environment does alone, to the bit, step after step (to its first end): which thread runs an episode
+    changes nothing."""
+    import gymnasium
+
+    import pneuflex.envs as envs
+
+    n, steps = 67, 150
+    vec = gymnasium.make_vec("pneuflex/ForceControl-v0", num_envs=n, vectorization_mode="vector_entry_point")
+    seeds = [100 + i for i in range(n)]
+    u = np.linspace(-0.15, 0.15, n)[:, None]
+    obs0, _ = vec.reset(seed=seeds, options={"randomize": True})
+    got, ended = [obs0], np.full(n, steps)
+    for k in range(steps):
+        obs, _, term, trunc, _ = vec.step(u * math.sin(0.07 * k + 0.3))
+        got.append(obs)
+        ended = np.where((term | trunc) & (ended == steps), k + 1, ended)
+    got = np.array(got)
+    assert (ended == steps).sum() > n // 2, ended
+    single = envs.ForceControl()
+    for i in range(n):
+        o, _ = single.reset(seed=seeds[i], options={"randomize": True})
+        want = [o] + [single.step(u[i] * math.sin(0.07 * k + 0.3))[0] for k in range(ended[i])]
+        assert np.array_equal(got[: ended[i] + 1, i], np.array(want)), i
+
+
+@test
 def the_vector_environment_is_many_single_ones():
     """gymnasium.make_vec(..., vectorization_mode="vector_entry_point") gives the Rust batch: each of its
     episodes, fed its own actions, is the single environment fed the same ones, to the bit; a seed repeats
