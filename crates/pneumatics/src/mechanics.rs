@@ -173,7 +173,7 @@ impl Friction {
             Friction::Smooth {
                 coulomb_n,
                 smooth_velocity_m_per_s,
-            } => smooth_coulomb(coulomb_n, smooth_velocity_m_per_s, v),
+            } => smooth_coulomb(coulomb_n, 1.0 / smooth_velocity_m_per_s, v),
             Friction::StickSlip {
                 coulomb_n,
                 static_n,
@@ -298,10 +298,12 @@ impl OneDofModel {
     }
 }
 
-/// [`Friction::Smooth`]'s `F_c tanh(v / v_s)` for one plant or a pack of them ([`crate::advance_together`]).
+/// [`Friction::Smooth`]'s `F_c tanh(v / v_s)` for one plant or a pack of them ([`crate::advance_together`]),
+/// given `1 / v_s`: a product, not a division, on the chain from each RK4 stage's velocity to its
+/// acceleration.
 #[inline(always)]
-pub(crate) fn smooth_coulomb<R: Real>(coulomb_n: R, smooth_velocity: R, v: R) -> R {
-    let y = v / smooth_velocity;
+pub(crate) fn smooth_coulomb<R: Real>(coulomb_n: R, inv_smooth_velocity: R, v: R) -> R {
+    let y = v * inv_smooth_velocity;
     let zero = R::splat(0.0);
     // tanh rounds to exactly +-1 for |y| >= 20 (1 - tanh < 1e-17), and without Coulomb friction (the loop
     // analysis removes it) only the sign of the zero matters: one plant skips the tanh.

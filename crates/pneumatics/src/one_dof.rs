@@ -426,8 +426,8 @@ fn packed(plants: Together<'_>, dt: f64, substeps: u32, f_ext: &mut dyn FnMut(us
                     coulomb_n,
                     smooth_velocity_m_per_s,
                 },
-                Some((c, v_s)),
-            ) => (c.0[i], v_s.0[i]) = (coulomb_n, smooth_velocity_m_per_s),
+                Some((c, inv_v_s)),
+            ) => (c.0[i], inv_v_s.0[i]) = (coulomb_n, 1.0 / smooth_velocity_m_per_s),
             _ => smooth = None,
         }
     }
@@ -505,7 +505,8 @@ struct PackRates<'a, const N: usize> {
     load: Pack<N>,
     viscous: Pack<N>,
     inv_mass: Pack<N>,
-    /// F_c and v_s when every plant's friction is [`Friction::Smooth`] (then computed packed, else per plant).
+    /// F_c and 1 / v_s when every plant's friction is [`Friction::Smooth`] (then computed packed, else per
+    /// plant).
     smooth: Option<(Pack<N>, Pack<N>)>,
 }
 
@@ -519,7 +520,9 @@ impl<const N: usize> Rates<Pack<N>> for PackRates<'_, N> {
     fn at(&self, p: &Point<Pack<N>>) -> Point<Pack<N>> {
         let drive = self.shared.force_of(p.c[0], p.c[1]) + self.load;
         let friction = match self.smooth {
-            Some((coulomb, smooth_velocity)) => smooth_coulomb(coulomb, smooth_velocity, p.v),
+            Some((coulomb, inv_smooth_velocity)) => {
+                smooth_coulomb(coulomb, inv_smooth_velocity, p.v)
+            }
             None => {
                 let mut each = [0.0; N];
                 for (i, f) in each.iter_mut().enumerate() {
