@@ -185,10 +185,14 @@ fn take(s: &Shared, job: u64, from_back: bool) {
                 // SAFETY: as above, the work outlives the index.
                 let r = catch_unwind(AssertUnwindSafe(|| unsafe { (*work)(index as usize) }));
                 if let Err(p) = r {
-                    s.panic
-                        .lock()
-                        .unwrap_or_else(|e| e.into_inner())
-                        .get_or_insert(p);
+                    let mut first = s.panic.lock().unwrap_or_else(|e| e.into_inner());
+                    if first.is_none() {
+                        *first = Some(p);
+                    } else {
+                        // Not dropped: a payload whose drop panics would end this thread before the
+                        // index is counted, and its caller would wait for ever.
+                        std::mem::forget(p);
+                    }
                 }
                 s.done.fetch_add(1, Ordering::Release);
                 state = s.state.load(Ordering::Acquire);
@@ -304,18 +308,60 @@ mod tests {
         );
     }
 
-    /// A job after the helpers went to sleep (longer than SPIN idle) is still shared and completes.
+    /// A job while the helpers sleep (idle longer than SPIN) wakes them: they take some of its indices
+    /// (bounded by 20 s, for a loaded machine), and every job completes.
     #[test]
-    fn a_job_after_the_helpers_slept_completes() {
+    fn a_job_after_the_helpers_slept_wakes_them() {
         let h = Helpers::new(2, "test").expect("threads");
-        for _ in 0..5 {
-            std::thread::sleep(SPIN * 5);
+        let caller = std::thread::current().id();
+        let since = Instant::now();
+        let mut woken = false;
+        while !woken && since.elapsed() < Duration::from_secs(20) {
+            // Both helpers asleep (on a loaded machine they may get their core late).
+            while h.shared.sleeping.load(Ordering::SeqCst) < 2
+                && since.elapsed() < Duration::from_secs(20)
+            {
+                std::thread::sleep(SPIN);
+            }
             let sum = AtomicUsize::new(0);
-            h.for_each(100, &|i| {
+            let helped = AtomicUsize::new(0);
+            h.for_each(64, &|i| {
+                // About 50 us an index: time for a sleeping helper to wake and take some.
+                let t = Instant::now();
+                while t.elapsed() < Duration::from_micros(50) {
+                    std::hint::spin_loop();
+                }
                 sum.fetch_add(i, Ordering::Relaxed);
+                helped.fetch_add(
+                    usize::from(std::thread::current().id() != caller),
+                    Ordering::Relaxed,
+                );
             });
-            assert_eq!(sum.load(Ordering::Relaxed), 4950);
+            assert_eq!(sum.load(Ordering::Relaxed), 2016);
+            woken = helped.load(Ordering::Relaxed) > 0;
         }
+        assert!(
+            woken,
+            "no helper took an index after sleeping, in 20 s of jobs"
+        );
+    }
+
+    /// Dropping the helpers ends their threads (each held the shared state).
+    #[test]
+    fn dropped_helpers_end_their_threads() {
+        let h = Helpers::new(3, "test").expect("threads");
+        h.for_each(10, &|_| {});
+        let shared = Arc::downgrade(&h.shared);
+        drop(h);
+        let since = Instant::now();
+        while shared.strong_count() > 0 && since.elapsed() < Duration::from_secs(20) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert_eq!(
+            shared.strong_count(),
+            0,
+            "helper threads still hold the shared state"
+        );
     }
 
     /// A panic in the work is raised in the caller after every other index finished, and the helpers
